@@ -1,0 +1,115 @@
+#include "calib/coefficients.h"
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+
+#include "calib/errors.h"
+
+namespace fpss {
+namespace {
+
+AxisCoeffs parse_axis(const nlohmann::json& j, const char* key, const std::string& origin) {
+  if (!j.contains(key)) {
+    throw InputError(fmt::format("{}: missing key \"{}\" (expected an array of 8 finite numbers C1..C8)",
+                                 origin, key));
+  }
+  const auto& a = j.at(key);
+  if (!a.is_array() || a.size() != 8) {
+    throw InputError(fmt::format("{}: key \"{}\" must be an array of 8 numbers C1..C8, got {}",
+                                 origin, key, a.dump()));
+  }
+  AxisCoeffs c{};
+  for (size_t i = 0; i < 8; ++i) {
+    if (!a[i].is_number() || !std::isfinite(a[i].get<double>())) {
+      throw InputError(fmt::format("{}: \"{}\"[{}] (C{}) must be a finite number, got {}", origin,
+                                   key, i, i + 1, a[i].dump()));
+    }
+    c[i] = a[i].get<double>();
+  }
+  return c;
+}
+
+}  // namespace
+
+CoefficientSet parse_coefficients(const nlohmann::json& j, const std::string& origin) {
+  if (!j.is_object()) throw InputError(fmt::format("{}: expected a JSON object", origin));
+  CoefficientSet s;
+  if (j.contains("unit")) {
+    if (!j["unit"].is_string()) throw InputError(fmt::format("{}: \"unit\" must be a string", origin));
+    s.unit = j["unit"].get<std::string>();
+  }
+  s.alpha = parse_axis(j, "alpha", origin);
+  s.beta = parse_axis(j, "beta", origin);
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    if (it.key() != "unit" && it.key() != "alpha" && it.key() != "beta") s.extra[it.key()] = it.value();
+  }
+  return s;
+}
+
+CoefficientSet load_coefficients(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(fmt::format("{}: cannot open coefficient file", path.string()));
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
+  }
+  return parse_coefficients(j, path.string());
+}
+
+nlohmann::json to_json(const CoefficientSet& s) {
+  nlohmann::json j = nlohmann::json::object();
+  j["unit"] = s.unit;
+  j["alpha"] = s.alpha;
+  j["beta"] = s.beta;
+  for (auto it = s.extra.begin(); it != s.extra.end(); ++it) j[it.key()] = it.value();
+  return j;
+}
+
+void save_coefficients(const std::filesystem::path& path, const CoefficientSet& s) {
+  const auto tmp = path.string() + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    if (!out) throw std::runtime_error(fmt::format("{}: cannot write", tmp));
+    out << to_json(s).dump(1) << '\n';
+    out.flush();
+    if (!out) throw std::runtime_error(fmt::format("{}: write failed", tmp));
+  }
+  if (FILE* f = std::fopen(tmp.c_str(), "r")) {
+    ::fsync(fileno(f));
+    std::fclose(f);
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+std::filesystem::path published_dir() {
+  if (const char* d = std::getenv("FPSS_DATA_DIR")) return std::filesystem::path(d) / "published";
+  return std::filesystem::path(FPSS_SOURCE_DIR) / "calib" / "data" / "published";
+}
+
+std::vector<std::string> published_names() {
+  std::vector<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(published_dir())) {
+    if (e.path().extension() == ".json") names.push_back(e.path().stem().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+CoefficientSet load_published(const std::string& name) {
+  const auto p = published_dir() / (name + ".json");
+  if (!std::filesystem::exists(p)) {
+    throw InputError(fmt::format("no published coefficient set \"{}\" (looked for {})", name, p.string()));
+  }
+  return load_coefficients(p);
+}
+
+bool is_suspect(const CoefficientSet& s) { return s.extra.contains("suspect"); }
+
+}  // namespace fpss

@@ -1,0 +1,319 @@
+#include "calib/samples.h"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "calib/errors.h"
+
+namespace fpss {
+
+std::string_view to_string(Phase p) {
+  switch (p) {
+    case Phase::null: return "null";
+    case Phase::offset: return "offset";
+    case Phase::slew: return "slew";
+    case Phase::move: return "move";
+  }
+  return "?";
+}
+
+std::optional<Phase> parse_phase(std::string_view s) {
+  if (s == "null") return Phase::null;
+  if (s == "offset") return Phase::offset;
+  if (s == "slew") return Phase::slew;
+  if (s == "move") return Phase::move;
+  return std::nullopt;
+}
+
+void SampleTable::reserve(size_t n) {
+  time_s.reserve(n); phase.reserve(n); step.reserve(n);
+  ref_pitch_arcsec.reserve(n); ref_yaw_arcsec.reserve(n);
+  counts_alpha.reserve(n); counts_beta.reserve(n);
+  for (auto& c : extra_) c.reserve(n);
+}
+
+void SampleTable::push_back(const Sample& s) {
+  time_s.push_back(s.time_s); phase.push_back(s.phase); step.push_back(s.step);
+  ref_pitch_arcsec.push_back(s.ref_pitch_arcsec); ref_yaw_arcsec.push_back(s.ref_yaw_arcsec);
+  counts_alpha.push_back(s.counts_alpha); counts_beta.push_back(s.counts_beta);
+  for (auto& c : extra_) c.emplace_back();
+}
+
+void SampleTable::push_back(const Sample& s, const std::vector<std::string>& extras) {
+  push_back(s);
+  for (size_t i = 0; i < extra_.size() && i < extras.size(); ++i) extra_[i].back() = extras[i];
+}
+
+Sample SampleTable::row(size_t i) const {
+  return Sample{time_s[i], phase[i], step[i], ref_pitch_arcsec[i], ref_yaw_arcsec[i],
+                counts_alpha[i], counts_beta[i]};
+}
+
+void SampleTable::add_extra_column(const std::string& name) {
+  if (has_column(name)) throw InputError(fmt::format("{}: duplicate column \"{}\"", origin, name));
+  extra_names_.push_back(name);
+  extra_.emplace_back(size());
+}
+
+bool SampleTable::has_column(std::string_view name) const {
+  for (const char* r : kRequired) if (name == r) return true;
+  for (const auto& n : extra_names_) if (n == name) return true;
+  return false;
+}
+
+const std::vector<std::string>& SampleTable::extra_column(std::string_view name) const {
+  for (size_t i = 0; i < extra_names_.size(); ++i) if (extra_names_[i] == name) return extra_[i];
+  throw InputError(fmt::format("{}: no column \"{}\"", origin, name));
+}
+
+namespace {
+
+bool parse_double(std::string_view s, double& out) {
+  while (!s.empty() && s.front() == ' ') s.remove_prefix(1);
+  while (!s.empty() && s.back() == ' ') s.remove_suffix(1);
+  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+  if (s.empty()) return false;
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
+  return ec == std::errc() && p == s.data() + s.size() && std::isfinite(out);
+}
+
+// Splits one CSV record (RFC 4180 quoting) into fields; returns false on an unterminated quote.
+bool split_csv(std::string_view line, std::vector<std::string>& fields) {
+  fields.clear();
+  std::string cur;
+  bool quoted = false;
+  for (size_t i = 0; i < line.size(); ++i) {
+    const char ch = line[i];
+    if (quoted) {
+      if (ch == '"') {
+        if (i + 1 < line.size() && line[i + 1] == '"') { cur += '"'; ++i; }
+        else quoted = false;
+      } else {
+        cur += ch;
+      }
+    } else if (ch == '"') {
+      quoted = true;
+    } else if (ch == ',') {
+      fields.push_back(std::move(cur));
+      cur.clear();
+    } else {
+      cur += ch;
+    }
+  }
+  fields.push_back(std::move(cur));
+  return !quoted;
+}
+
+std::string csv_escape(const std::string& s) {
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string o = "\"";
+  for (char c : s) { if (c == '"') o += '"'; o += c; }
+  return o + '"';
+}
+
+}  // namespace
+
+std::vector<double> SampleTable::numeric_column(std::string_view name) const {
+  const auto& col = extra_column(name);
+  std::vector<double> v(col.size());
+  for (size_t i = 0; i < col.size(); ++i) {
+    if (col[i].empty()) { v[i] = std::numeric_limits<double>::quiet_NaN(); continue; }
+    if (!parse_double(col[i], v[i])) {
+      throw InputError(fmt::format("{}: data row {}, column \"{}\": expected a number, got \"{}\"",
+                                   origin, i + 1, name, col[i]));
+    }
+  }
+  return v;
+}
+
+SampleTable parse_samples_csv(std::string_view text, const std::string& origin) {
+  SampleTable t;
+  t.origin = origin;
+  size_t pos = 0, line_no = 0;
+  auto next_line = [&](std::string_view& line) {
+    if (pos >= text.size()) return false;
+    size_t e = text.find('\n', pos);
+    if (e == std::string_view::npos) e = text.size();
+    line = text.substr(pos, e - pos);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    pos = e + 1;
+    ++line_no;
+    return true;
+  };
+  std::string_view line;
+  // Header: the first line that is neither blank nor a '#' comment.
+  do {
+    if (!next_line(line)) throw InputError(fmt::format("{}: empty file, expected a header row", origin));
+  } while (line.empty() || line.front() == '#');
+  std::vector<std::string> header;
+  split_csv(line, header);
+  constexpr size_t kReq = std::size(SampleTable::kRequired);
+  std::array<int, kReq> col{};
+  col.fill(-1);
+  std::vector<int> extra_of(header.size(), -1);
+  for (size_t i = 0; i < header.size(); ++i) {
+    bool req = false;
+    for (size_t r = 0; r < kReq; ++r) {
+      if (header[i] == SampleTable::kRequired[r]) {
+        if (col[r] >= 0) {
+          throw InputError(fmt::format("{}:{}: column \"{}\" appears twice", origin, line_no, header[i]));
+        }
+        col[r] = static_cast<int>(i);
+        req = true;
+      }
+    }
+    if (!req) {
+      extra_of[i] = static_cast<int>(t.extra_names().size());
+      t.add_extra_column(header[i]);
+    }
+  }
+  for (size_t r = 0; r < kReq; ++r) {
+    if (col[r] < 0) {
+      throw InputError(fmt::format("{}:{}: missing required column \"{}\" (header must name {})", origin,
+                                   line_no, SampleTable::kRequired[r],
+                                   "time_s, phase, step, ref_pitch_arcsec, ref_yaw_arcsec, counts_alpha, counts_beta"));
+    }
+  }
+  t.reserve(text.size() / 48);
+  std::vector<std::string> f;
+  std::vector<std::string> extras(t.extra_names().size());
+  while (next_line(line)) {
+    if (line.empty() || line.front() == '#') continue;
+    auto bad = [&](size_t r, const std::string& what) {
+      return InputError(fmt::format("{}:{}: column \"{}\": {}", origin, line_no, SampleTable::kRequired[r], what));
+    };
+    if (!split_csv(line, f)) throw InputError(fmt::format("{}:{}: unterminated quote", origin, line_no));
+    if (f.size() != header.size()) {
+      throw InputError(fmt::format("{}:{}: expected {} fields as in the header, got {}", origin, line_no,
+                                   header.size(), f.size()));
+    }
+    Sample s;
+    double* num[] = {&s.time_s, nullptr, nullptr, &s.ref_pitch_arcsec, &s.ref_yaw_arcsec,
+                     &s.counts_alpha, &s.counts_beta};
+    for (size_t r = 0; r < kReq; ++r) {
+      const std::string& v = f[col[r]];
+      if (r == 1) {
+        auto p = parse_phase(v);
+        if (!p) throw bad(r, fmt::format("expected null, offset, slew or move, got \"{}\"", v));
+        s.phase = *p;
+      } else if (r == 2) {
+        int64_t step = 0;
+        auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), step);
+        if (ec != std::errc() || p != v.data() + v.size()) throw bad(r, fmt::format("expected an integer, got \"{}\"", v));
+        s.step = step;
+      } else if (!parse_double(v, *num[r])) {
+        throw bad(r, fmt::format("expected a finite number, got \"{}\"", v));
+      }
+    }
+    if (!t.empty()) {
+      if (s.time_s < t.time_s.back()) {
+        throw bad(0, fmt::format("time goes backwards ({} after {})", s.time_s, t.time_s.back()));
+      }
+      if (s.step < t.step.back()) {
+        throw bad(2, fmt::format("step decreases ({} after {}); steps must increase", s.step, t.step.back()));
+      }
+    }
+    for (size_t i = 0; i < header.size(); ++i) if (extra_of[i] >= 0) extras[extra_of[i]] = std::move(f[i]);
+    t.push_back(s, extras);
+  }
+  return t;
+}
+
+SampleTable read_samples_csv(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open samples file", path.string()));
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return parse_samples_csv(ss.str(), path.string());
+}
+
+std::string format_number(double v) {
+  char buf[64];
+  auto [p, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, p);
+}
+
+namespace {
+std::string header_line(const std::vector<std::string>& extra_names) {
+  std::string h;
+  for (const char* r : SampleTable::kRequired) { if (!h.empty()) h += ','; h += r; }
+  for (const auto& n : extra_names) h += ',' + csv_escape(n);
+  return h + '\n';
+}
+
+std::string row_line(const Sample& s, const std::vector<std::string>& extras, size_t n_extra) {
+  std::string l = format_number(s.time_s);
+  l += ','; l += to_string(s.phase);
+  l += ','; l += std::to_string(s.step);
+  for (double v : {s.ref_pitch_arcsec, s.ref_yaw_arcsec, s.counts_alpha, s.counts_beta}) {
+    l += ','; l += format_number(v);
+  }
+  for (size_t i = 0; i < n_extra; ++i) { l += ','; if (i < extras.size()) l += csv_escape(extras[i]); }
+  return l + '\n';
+}
+}  // namespace
+
+void write_samples_csv(const std::filesystem::path& path, const SampleTable& t) {
+  std::ofstream out(path, std::ios::trunc | std::ios::binary);
+  if (!out) throw std::runtime_error(fmt::format("{}: cannot write", path.string()));
+  out << header_line(t.extra_names());
+  std::vector<std::string> extras(t.extra_names().size());
+  for (size_t i = 0; i < t.size(); ++i) {
+    for (size_t k = 0; k < extras.size(); ++k) extras[k] = t.extra_column(t.extra_names()[k])[i];
+    out << row_line(t.row(i), extras, extras.size());
+  }
+  if (!out) throw std::runtime_error(fmt::format("{}: write failed", path.string()));
+}
+
+SamplesCsvWriter::SamplesCsvWriter(const std::filesystem::path& path, std::vector<std::string> extra_names)
+    : path_(path), extra_names_(std::move(extra_names)) {
+  const std::string header = header_line(extra_names_);
+  const bool exists = std::filesystem::exists(path) && std::filesystem::file_size(path) > 0;
+  if (exists) {
+    std::ifstream in(path);
+    std::string first;
+    std::getline(in, first);
+    if (first + '\n' != header) {
+      throw InputError(fmt::format("{}: cannot append, header differs from the recorder's ({})", path.string(), first));
+    }
+    std::string l;
+    while (std::getline(in, l)) if (!l.empty()) ++rows_;
+  }
+  f_ = std::fopen(path.c_str(), "ab");
+  if (!f_) throw std::runtime_error(fmt::format("{}: cannot open for append", path.string()));
+  if (!exists) {
+    std::fputs(header.c_str(), f_);
+    sync();
+  }
+}
+
+SamplesCsvWriter::~SamplesCsvWriter() {
+  if (f_) {
+    sync();
+    std::fclose(f_);
+  }
+}
+
+void SamplesCsvWriter::append(const Sample& s, const std::vector<std::string>& extras) {
+  const std::string l = row_line(s, extras, extra_names_.size());
+  if (std::fwrite(l.data(), 1, l.size(), f_) != l.size()) {
+    throw std::runtime_error(fmt::format("{}: write failed", path_.string()));
+  }
+  ++rows_;
+}
+
+void SamplesCsvWriter::sync() {
+  if (std::fflush(f_) != 0 || ::fsync(fileno(f_)) != 0) {
+    throw std::runtime_error(fmt::format("{}: sync failed", path_.string()));
+  }
+}
+
+}  // namespace fpss

@@ -1,0 +1,96 @@
+// The stand's recording format (samples CSV): a column-major table, its reader and an appending writer.
+#pragma once
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fpss {
+
+enum class Phase : uint8_t { null, offset, slew, move };
+std::string_view to_string(Phase p);
+std::optional<Phase> parse_phase(std::string_view s);
+
+// One row of the contract's required columns.
+struct Sample {
+  double time_s = 0;  // stand time, physical seconds, non-decreasing
+  Phase phase = Phase::null;
+  int64_t step = 0;  // one per dwell or slew segment, increasing
+  double ref_pitch_arcsec = 0;  // reference angles of the Sun in the sensor frame
+  double ref_yaw_arcsec = 0;
+  double counts_alpha = 0;  // sensor outputs (fractional when averaged)
+  double counts_beta = 0;
+};
+
+// Column-major so that two million rows stay compact; extra columns are kept as text.
+class SampleTable {
+ public:
+  static constexpr const char* kRequired[] = {"time_s", "phase", "step", "ref_pitch_arcsec",
+                                              "ref_yaw_arcsec", "counts_alpha", "counts_beta"};
+
+  size_t size() const { return time_s.size(); }
+  bool empty() const { return time_s.empty(); }
+  void reserve(size_t n);
+  void push_back(const Sample& s);
+  // Extras in the order of extra_names(); adds missing cells as "".
+  void push_back(const Sample& s, const std::vector<std::string>& extras);
+  Sample row(size_t i) const;
+
+  const std::vector<std::string>& extra_names() const { return extra_names_; }
+  void add_extra_column(const std::string& name);  // filled with "" for existing rows
+  bool has_column(std::string_view name) const;
+  const std::vector<std::string>& extra_column(std::string_view name) const;
+  // An extra column as numbers; empty cells are NaN. Throws InputError naming the row.
+  std::vector<double> numeric_column(std::string_view name) const;
+
+  std::vector<double> time_s;
+  std::vector<Phase> phase;
+  std::vector<int64_t> step;
+  std::vector<double> ref_pitch_arcsec, ref_yaw_arcsec;
+  std::vector<double> counts_alpha, counts_beta;
+
+  std::string origin;  // file it was read from, for messages
+
+ private:
+  std::vector<std::string> extra_names_;
+  std::vector<std::vector<std::string>> extra_;
+};
+
+// Reads a samples CSV. Throws InputError naming file, line and column for every format break:
+// missing required column, non-numeric or non-finite value, unknown phase, time going backwards,
+// step decreasing.
+SampleTable read_samples_csv(const std::filesystem::path& path);
+SampleTable parse_samples_csv(std::string_view text, const std::string& origin);
+
+// Writes a whole table (required columns first, then extras).
+void write_samples_csv(const std::filesystem::path& path, const SampleTable& t);
+
+// Appends rows to a samples CSV; sync() makes what was appended durable (fsync), so a crash
+// loses at most the rows after the last sync. Opening an existing file appends after checking
+// its header matches.
+class SamplesCsvWriter {
+ public:
+  SamplesCsvWriter(const std::filesystem::path& path, std::vector<std::string> extra_names);
+  ~SamplesCsvWriter();
+  SamplesCsvWriter(const SamplesCsvWriter&) = delete;
+  SamplesCsvWriter& operator=(const SamplesCsvWriter&) = delete;
+
+  void append(const Sample& s, const std::vector<std::string>& extras = {});
+  void sync();
+  size_t rows_written() const { return rows_; }
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+  std::vector<std::string> extra_names_;
+  FILE* f_ = nullptr;
+  size_t rows_ = 0;
+};
+
+// Formats a double the way the recorder writes it: shortest text that reads back exactly.
+std::string format_number(double v);
+
+}  // namespace fpss

@@ -1,0 +1,69 @@
+// The two-axis sun-simulator gimbal as the stand sees it: an interface; ModbusGimbal is the real driver.
+#pragma once
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+namespace fpss {
+
+// Status register bits (ICD, input register 8).
+enum GimbalStatusBit : uint16_t {
+  kHomed = 1u << 0, kMoving = 1u << 1, kInPosition = 1u << 2, kFault = 1u << 3,
+  kPitchLimit = 1u << 4, kYawLimit = 1u << 5, kRateMode = 1u << 6,
+};
+
+// Fault codes (ICD, input register 9).
+enum class GimbalFault : uint16_t {
+  none = 0, following_error = 1, limit = 2, estop = 3, watchdog = 4, bad_command = 5,
+};
+const char* to_string(GimbalFault f);
+
+struct GimbalState {
+  double pitch_arcsec = 0, yaw_arcsec = 0;  // encoder positions
+  double pitch_rate_arcsec_s = 0, yaw_rate_arcsec_s = 0;
+  uint16_t status = 0;  // GimbalStatusBit
+  GimbalFault fault = GimbalFault::none;
+  uint64_t sample_time_us = 0;  // the gimbal's clock (bench clock when emulated)
+  uint16_t moves_completed = 0;
+  double host_time_s = 0;  // host steady clock at receipt
+
+  bool has(GimbalStatusBit b) const { return (status & b) != 0; }
+};
+
+// Soft limits of the stand, enforced by the driver before anything is sent.
+struct SoftLimits {
+  double pitch_min_arcsec = -2700, pitch_max_arcsec = 2700;
+  double yaw_min_arcsec = -2700, yaw_max_arcsec = 2700;
+  double max_rate_arcsec_s = 3600;
+};
+
+// A device failure after retries (timeout, exception, disconnect): what, where and errno.
+struct DeviceError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+// A request the driver refuses before touching the wire (soft limit, bad argument).
+struct LimitError : DeviceError {
+  using DeviceError::DeviceError;
+};
+
+class Gimbal {
+ public:
+  virtual ~Gimbal() = default;
+  virtual void connect() = 0;
+  virtual void disconnect() = 0;
+  virtual bool connected() const = 0;
+
+  virtual GimbalState read_state() = 0;
+  virtual void set_max_rate(double arcsec_s) = 0;
+  // Absolute move; throws LimitError outside the soft limits, nothing sent.
+  virtual void move_to(double pitch_arcsec, double yaw_arcsec) = 0;
+  // Polls until in position and not moving; throws DeviceError on fault or timeout (wall seconds).
+  virtual GimbalState wait_in_position(double timeout_s) = 0;
+  virtual void start_rate(double pitch_arcsec_s, double yaw_arcsec_s) = 0;
+  virtual void stop() = 0;
+  virtual void home() = 0;
+  virtual void clear_fault() = 0;
+  virtual void set_watchdog(double seconds) = 0;  // 0 turns it off
+};
+
+}  // namespace fpss

@@ -1,0 +1,19 @@
+// fpss-stand calibrate: placeholder until issue 2 lands; it refuses to pretend.
+#include <cstdio>
+
+#include "stand/commands.h"
+
+namespace fpss::cli {
+
+void add_calibrate(CLI::App& app, Runner& run) {
+  auto* sub = app.add_subcommand("calibrate", "(not implemented yet: issue 2)");
+  sub->allow_extras();
+  sub->callback([&run] {
+    run = [] {
+      std::fprintf(stderr, "fpss-stand calibrate: not implemented yet (issue 2)\n");
+      return 1;
+    };
+  });
+}
+
+}  // namespace fpss::cli

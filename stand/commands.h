@@ -1,0 +1,22 @@
+// Sub-commands of the fpss-stand binary: each file cmd_<name>.cpp registers one (or a few).
+#pragma once
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+namespace fpss::cli {
+
+// What a sub-command does once its options are parsed; returns the process exit code:
+// 0 success, 1 the job failed, 2 bad usage or bad input, 3 acceptance failed.
+using Runner = std::function<int()>;
+
+// Each registers its sub-command(s) on `app`; when selected, sets `run`.
+void add_angles(CLI::App& app, Runner& run);
+void add_calibrate(CLI::App& app, Runner& run);
+void add_simulate(CLI::App& app, Runner& run);
+void add_emulate(CLI::App& app, Runner& run);
+void add_run(CLI::App& app, Runner& run);       // run, runs, history
+void add_diagnose(CLI::App& app, Runner& run);  // diagnose, blindtest
+void add_accept(CLI::App& app, Runner& run);    // accept, compare, import
+
+}  // namespace fpss::cli
