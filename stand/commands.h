@@ -15,7 +15,8 @@ void add_angles(CLI::App& app, Runner& run);
 void add_calibrate(CLI::App& app, Runner& run);
 void add_simulate(CLI::App& app, Runner& run);
 void add_emulate(CLI::App& app, Runner& run);
-void add_run(CLI::App& app, Runner& run);       // run, runs, history
+void add_run(CLI::App& app, Runner& run);        // run
+void add_catalogue(CLI::App& app, Runner& run);  // runs, history
 void add_diagnose(CLI::App& app, Runner& run);  // diagnose, blindtest
 void add_accept(CLI::App& app, Runner& run);    // accept, compare, import
 

@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   fpss::cli::add_simulate(app, run);
   fpss::cli::add_emulate(app, run);
   fpss::cli::add_run(app, run);
+  fpss::cli::add_catalogue(app, run);
   fpss::cli::add_diagnose(app, run);
   fpss::cli::add_accept(app, run);
   try {
