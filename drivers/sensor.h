@@ -29,6 +29,8 @@ struct SensorStats {
   uint64_t garbage_bytes = 0; // bytes skipped while resynchronising
   uint64_t seq_gaps = 0;      // discontinuities in seq
   uint64_t frames_lost = 0;   // frames missing by seq
+  uint64_t samples_dropped = 0;  // queued samples dropped because nobody read them in time
+  uint64_t reconnects = 0;       // successful reopenings of the link after it dropped
 };
 
 class Sensor {
