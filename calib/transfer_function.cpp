@@ -28,6 +28,10 @@ void AxisModel::check_monotonic(double lo, double hi) const {
 
 double AxisModel::counts_for_angle(double target, double lo, double hi) const {
   check_monotonic(lo, hi);
+  return counts_for_angle_unchecked(target, lo, hi);
+}
+
+double AxisModel::counts_for_angle_unchecked(double target, double lo, double hi) const {
   double a = lo, b = hi;
   double fa = angle_rad(a) - target, fb = angle_rad(b) - target;
   if (fa == 0.0) return a;

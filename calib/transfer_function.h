@@ -42,6 +42,9 @@ class AxisModel {
   // function is not monotonic over [lo, hi], std::out_of_range when the angle is not reached.
   double counts_for_angle(double angle_rad, double lo_counts = kCountsMin,
                           double hi_counts = kCountsMax) const;
+  // The same without the monotonic scan, for callers that checked once (the bench, per frame).
+  double counts_for_angle_unchecked(double angle_rad, double lo_counts = kCountsMin,
+                                    double hi_counts = kCountsMax) const;
 
  private:
   AxisCoeffs c_;
