@@ -43,10 +43,10 @@ constexpr double kMasPerArcsec = 1000.0;
 
 const char* op_name(int op) {
   switch (op) {
-    case 0: return "read input registers (function 04)";
-    case 1: return "read holding registers (function 03)";
-    case 2: return "write holding register (function 06)";
-    default: return "write holding registers (function 16)";
+    case 0: return "read (function 04)";
+    case 1: return "read (function 03)";
+    case 2: return "write (function 06)";
+    default: return "write (function 16)";
   }
 }
 
@@ -185,7 +185,6 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
   double backoff = options_.backoff_s;
   std::string last;
   for (int attempt = 0;; ++attempt) {
-    int rc = -1, e = 0;
     if (!link_up_) {
       try {
         open_link();
@@ -193,11 +192,11 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
         spdlog::info("gimbal {}: reconnected", options_.endpoint);
       } catch (const DeviceError& err) {
         last = err.what();
-        e = -1;
       }
     }
     if (link_up_) {
       modbus_t* ctx = ctx_.get();
+      int rc = -1;
       switch (op) {
         case Op::read_input: rc = modbus_read_input_registers(ctx, addr, count, regs); break;
         case Op::read_holding: rc = modbus_read_registers(ctx, addr, count, regs); break;
@@ -208,7 +207,7 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
         ++counters_.requests;
         return rc;
       }
-      e = errno;
+      const int e = errno;
       bool busy = e == EMBXSBUSY;
       if (is_exception(e) && !busy)
         throw DeviceError(fmt::format("gimbal {}: {} of {}: {}", options_.endpoint, op_name(o),
