@@ -65,13 +65,17 @@ CREATE TABLE IF NOT EXISTS calibrations (
   pitch_mean_abs_arcsec  REAL,
   pitch_sd_arcsec        REAL,
   pitch_max_abs_arcsec   REAL,
+  pitch_rms_arcsec       REAL,
   pitch_points           INTEGER,
-  pitch_range_deg        REAL,
+  pitch_range_lo_deg     REAL,
+  pitch_range_hi_deg     REAL,
   yaw_mean_abs_arcsec    REAL,
   yaw_sd_arcsec          REAL,
   yaw_max_abs_arcsec     REAL,
+  yaw_rms_arcsec         REAL,
   yaw_points             INTEGER,
-  yaw_range_deg          REAL,
+  yaw_range_lo_deg       REAL,
+  yaw_range_hi_deg       REAL,
   CHECK ((source = 'run') = (run_id IS NOT NULL))
 );
 CREATE INDEX IF NOT EXISTS calibrations_by_unit ON calibrations(unit, date_utc, id);
@@ -119,24 +123,27 @@ auto write_txn(SQLite::Database& db, F&& body) {
   }
 }
 
-void bind_text_or_null(SQLite::Statement& st, const char* name, const std::optional<std::string>& v) {
+// The residual columns of one axis, in one place for the insert and the select.
+constexpr const char* kStatColumns[] = {"mean_abs_arcsec", "sd_arcsec",    "max_abs_arcsec", "rms_arcsec",
+                                        "points",          "range_lo_deg", "range_hi_deg"};
+
+template <typename T>
+void bind_opt(SQLite::Statement& st, const std::string& name, const std::optional<T>& v) {
   if (v) st.bind(name, *v);
   else st.bind(name);
 }
 
 void bind_stats(SQLite::Statement& st, const std::string& axis, const std::optional<AxisResidualStats>& s) {
   const auto p = ":" + axis + "_";
-  if (s) {
-    st.bind(p + "mean_abs_arcsec", s->mean_abs_arcsec);
-    st.bind(p + "sd_arcsec", s->sd_arcsec);
-    st.bind(p + "max_abs_arcsec", s->max_abs_arcsec);
-    st.bind(p + "points", s->points);
-    st.bind(p + "range_deg", s->range_deg);
-  } else {
-    for (const char* k : {"mean_abs_arcsec", "sd_arcsec", "max_abs_arcsec", "points", "range_deg"}) {
-      st.bind(p + k);
-    }
-  }
+  const AxisResidualStats none;
+  const AxisResidualStats& v = s ? *s : none;
+  bind_opt(st, p + "mean_abs_arcsec", v.mean_abs_arcsec);
+  bind_opt(st, p + "sd_arcsec", v.sd_arcsec);
+  bind_opt(st, p + "max_abs_arcsec", v.max_abs_arcsec);
+  bind_opt(st, p + "rms_arcsec", v.rms_arcsec);
+  bind_opt(st, p + "points", v.points);
+  bind_opt(st, p + "range_lo_deg", v.range_lo_deg);
+  bind_opt(st, p + "range_hi_deg", v.range_hi_deg);
 }
 
 std::optional<std::string> opt_text(const SQLite::Column& c) {
@@ -144,16 +151,34 @@ std::optional<std::string> opt_text(const SQLite::Column& c) {
   return c.getString();
 }
 
+std::optional<double> opt_double(const SQLite::Column& c) {
+  if (c.isNull()) return std::nullopt;
+  return c.getDouble();
+}
+
 std::optional<AxisResidualStats> read_stats(SQLite::Statement& st, const std::string& axis) {
-  const auto p = axis + "_";
-  if (st.getColumn((p + "mean_abs_arcsec").c_str()).isNull()) return std::nullopt;
+  auto col = [&](const char* k) { return st.getColumn((axis + "_" + k).c_str()); };
   AxisResidualStats s;
-  s.mean_abs_arcsec = st.getColumn((p + "mean_abs_arcsec").c_str()).getDouble();
-  s.sd_arcsec = st.getColumn((p + "sd_arcsec").c_str()).getDouble();
-  s.max_abs_arcsec = st.getColumn((p + "max_abs_arcsec").c_str()).getDouble();
-  s.points = st.getColumn((p + "points").c_str()).getInt64();
-  s.range_deg = st.getColumn((p + "range_deg").c_str()).getDouble();
+  s.mean_abs_arcsec = opt_double(col("mean_abs_arcsec"));
+  s.sd_arcsec = opt_double(col("sd_arcsec"));
+  s.max_abs_arcsec = opt_double(col("max_abs_arcsec"));
+  s.rms_arcsec = opt_double(col("rms_arcsec"));
+  if (!col("points").isNull()) s.points = col("points").getInt64();
+  s.range_lo_deg = opt_double(col("range_lo_deg"));
+  s.range_hi_deg = opt_double(col("range_hi_deg"));
+  if (s.empty()) return std::nullopt;
   return s;
+}
+
+std::string stat_columns(const char* prefix_fmt) {
+  std::string out;
+  for (const char* axis : {"pitch", "yaw"}) {
+    for (const char* k : kStatColumns) {
+      if (!out.empty()) out += ", ";
+      out += fmt::format(fmt::runtime(prefix_fmt), axis, k);
+    }
+  }
+  return out;
 }
 
 const char* const kRunColumns =
@@ -179,10 +204,9 @@ RunRecord read_run(SQLite::Statement& st) {
   return r;
 }
 
-const char* const kCalibrationColumns =
-    "id, unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, coefficients_json, "
-    "pitch_mean_abs_arcsec, pitch_sd_arcsec, pitch_max_abs_arcsec, pitch_points, pitch_range_deg, "
-    "yaw_mean_abs_arcsec, yaw_sd_arcsec, yaw_max_abs_arcsec, yaw_points, yaw_range_deg";
+const std::string kCalibrationColumns =
+    "id, unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, coefficients_json, " +
+    stat_columns("{}_{}");
 
 CalibrationRecord read_calibration(SQLite::Statement& st) {
   CalibrationRecord c;
@@ -244,33 +268,54 @@ std::string utc_now_iso() {
   return buf;
 }
 
+bool AxisResidualStats::empty() const {
+  return !mean_abs_arcsec && !sd_arcsec && !max_abs_arcsec && !rms_arcsec && !points && !range_lo_deg &&
+         !range_hi_deg;
+}
+
 AxisResidualStats AxisResidualStats::from_json(const nlohmann::json& j, const std::string& where) {
   if (!j.is_object()) throw InputError(fmt::format("{}: expected an object of residual statistics", where));
   AxisResidualStats s;
-  auto num = [&](const char* key) {
-    if (!j.contains(key) || !j[key].is_number() || !std::isfinite(j[key].get<double>())) {
-      throw InputError(fmt::format("{}: \"{}\" must be a finite number", where, key));
+  auto num = [&](const char* key) -> std::optional<double> {
+    if (!j.contains(key) || j[key].is_null()) return std::nullopt;
+    if (!j[key].is_number() || !std::isfinite(j[key].get<double>())) {
+      throw InputError(fmt::format("{}: \"{}\" must be a finite number, got {}", where, key, j[key].dump()));
     }
     return j[key].get<double>();
   };
   s.mean_abs_arcsec = num("mean_abs_arcsec");
   s.sd_arcsec = num("sd_arcsec");
   s.max_abs_arcsec = num("max_abs_arcsec");
-  const double pts = num("points");
-  if (pts < 0 || pts != std::floor(pts)) {
-    throw InputError(fmt::format("{}: \"points\" must be a whole number >= 0", where));
+  s.rms_arcsec = num("rms_arcsec");
+  if (const auto pts = num("points")) {
+    if (*pts < 0 || *pts != std::floor(*pts)) {
+      throw InputError(fmt::format("{}: \"points\" must be a whole number >= 0, got {}", where, *pts));
+    }
+    s.points = static_cast<int64_t>(*pts);
   }
-  s.points = static_cast<int64_t>(pts);
-  s.range_deg = num("range_deg");
+  if (j.contains("range_deg") && !j["range_deg"].is_null()) {
+    const auto& r = j["range_deg"];
+    if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
+        !std::isfinite(r[0].get<double>()) || !std::isfinite(r[1].get<double>()) ||
+        r[0].get<double>() > r[1].get<double>()) {
+      throw InputError(fmt::format("{}: \"range_deg\" must be [lo, hi] in degrees, lo <= hi, got {}", where,
+                                   r.dump()));
+    }
+    s.range_lo_deg = r[0].get<double>();
+    s.range_hi_deg = r[1].get<double>();
+  }
   return s;
 }
 
 nlohmann::json AxisResidualStats::to_json() const {
-  return {{"mean_abs_arcsec", mean_abs_arcsec},
-          {"sd_arcsec", sd_arcsec},
-          {"max_abs_arcsec", max_abs_arcsec},
-          {"points", points},
-          {"range_deg", range_deg}};
+  nlohmann::json j = nlohmann::json::object();
+  if (mean_abs_arcsec) j["mean_abs_arcsec"] = *mean_abs_arcsec;
+  if (sd_arcsec) j["sd_arcsec"] = *sd_arcsec;
+  if (max_abs_arcsec) j["max_abs_arcsec"] = *max_abs_arcsec;
+  if (rms_arcsec) j["rms_arcsec"] = *rms_arcsec;
+  if (points) j["points"] = *points;
+  if (range_lo_deg && range_hi_deg) j["range_deg"] = {*range_lo_deg, *range_hi_deg};
+  return j;
 }
 
 bool RunRecord::stale() const {
@@ -289,8 +334,11 @@ CalibrationRecord CalibrationRecord::from_calibration_json(const nlohmann::json&
   if (cal.contains("residuals")) {
     const auto& r = cal["residuals"];
     if (!r.is_object()) throw InputError(fmt::format("{}: \"residuals\" must be an object", origin));
-    if (r.contains("pitch")) c.pitch = AxisResidualStats::from_json(r["pitch"], origin + ": residuals.pitch");
-    if (r.contains("yaw")) c.yaw = AxisResidualStats::from_json(r["yaw"], origin + ": residuals.yaw");
+    for (const char* axis : {"pitch", "yaw"}) {
+      if (!r.contains(axis) || r[axis].is_null()) continue;
+      auto stats = AxisResidualStats::from_json(r[axis], fmt::format("{}: residuals.{}", origin, axis));
+      if (!stats.empty()) (axis[0] == 'p' ? c.pitch : c.yaw) = stats;
+    }
   }
   return c;
 }
@@ -441,17 +489,15 @@ int64_t Catalogue::record_calibration(const CalibrationRecord& cal) {
       }
       insert_unit(*db_, cal.unit);
       const std::string now = utc_now_iso();
-      SQLite::Statement st(*db_, R"sql(
-        INSERT INTO calibrations(unit, source, run_id, source_ref, label, date_utc, recorded_utc, method,
-          coefficients_json,
-          pitch_mean_abs_arcsec, pitch_sd_arcsec, pitch_max_abs_arcsec, pitch_points, pitch_range_deg,
-          yaw_mean_abs_arcsec, yaw_sd_arcsec, yaw_max_abs_arcsec, yaw_points, yaw_range_deg)
-        VALUES(:unit, :source, :run_id, :source_ref, :label, :date, :recorded, :method, :coefficients,
-          :pitch_mean_abs_arcsec, :pitch_sd_arcsec, :pitch_max_abs_arcsec, :pitch_points, :pitch_range_deg,
-          :yaw_mean_abs_arcsec, :yaw_sd_arcsec, :yaw_max_abs_arcsec, :yaw_points, :yaw_range_deg))sql");
+      static const std::string sql = fmt::format(
+          "INSERT INTO calibrations(unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, "
+          "coefficients_json, {}) VALUES(:unit, :source, :run_id, :source_ref, :label, :date, :recorded, "
+          ":method, :coefficients, {})",
+          stat_columns("{}_{}"), stat_columns(":{}_{}"));
+      SQLite::Statement st(*db_, sql);
       st.bind(":unit", cal.unit);
       st.bind(":source", cal.source);
-      bind_text_or_null(st, ":run_id", cal.run_id);
+      bind_opt(st, ":run_id", cal.run_id);
       st.bind(":source_ref", cal.source_ref.empty() && cal.run_id ? *cal.run_id : cal.source_ref);
       st.bind(":label", cal.label);
       st.bind(":date", cal.date_utc.empty() ? now : cal.date_utc);

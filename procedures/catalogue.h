@@ -15,18 +15,23 @@ class Database;
 
 namespace fpss {
 
-// Table 1 of the paper for one axis: what the calibrator reports as `residuals.<axis>`.
+// Table 1 of the paper for one axis, as the calibrator writes `residuals.<axis>` in
+// calibration.json. Each figure is optional: the paper's Table 1 leaves some unprinted, and
+// imported calibrations may carry none.
 struct AxisResidualStats {
-  double mean_abs_arcsec = 0;
-  double sd_arcsec = 0;
-  double max_abs_arcsec = 0;
-  int64_t points = 0;
-  double range_deg = 0;
+  std::optional<double> mean_abs_arcsec;  // mean |residual|
+  std::optional<double> sd_arcsec;        // standard deviation of |residual|
+  std::optional<double> max_abs_arcsec;
+  std::optional<double> rms_arcsec;
+  std::optional<int64_t> points;
+  std::optional<double> range_lo_deg, range_hi_deg;  // reference angles the points span
 
-  // From {"mean_abs_arcsec", "sd_arcsec", "max_abs_arcsec", "points", "range_deg"};
-  // throws InputError naming `where` and the key.
+  bool empty() const;
+  // From {"mean_abs_arcsec", "sd_arcsec", "max_abs_arcsec", "rms_arcsec", "points",
+  // "range_deg": [lo, hi]}, any of them absent or null; throws InputError naming `where` and
+  // the key for a wrong type.
   static AxisResidualStats from_json(const nlohmann::json& j, const std::string& where);
-  nlohmann::json to_json() const;
+  nlohmann::json to_json() const;  // the same shape, absent figures left out
 };
 
 // What the engine knows when a run starts. The run id is the run folder's name.

@@ -59,9 +59,9 @@ nlohmann::json calibration_json(const std::string& unit, double pitch_mean) {
   j["method"] = "differences";
   j["residuals"] = {
       {"pitch", {{"mean_abs_arcsec", pitch_mean}, {"sd_arcsec", 0.2}, {"max_abs_arcsec", 0.9},
-                 {"points", 40}, {"range_deg", 0.84}}},
+                 {"points", 40}, {"range_deg", {-0.42, 0.42}}}},
       {"yaw", {{"mean_abs_arcsec", 0.31}, {"sd_arcsec", 0.25}, {"max_abs_arcsec", 1.1},
-               {"points", 38}, {"range_deg", 0.82}}}};
+               {"points", 38}, {"range_deg", {-0.41, 0.41}}}}};
   return j;
 }
 
@@ -204,6 +204,10 @@ TEST(Catalogue, KeepsEachUnitsCalibrationsInDateOrder) {
     imp.date_utc = set.extra.value("date", "");
     imp.method = "imported";
     imp.coefficients = to_json(set);
+    if (label == std::string("I")) {
+      imp.pitch = AxisResidualStats::from_json(
+          {{"mean_abs_arcsec", nullptr}, {"max_abs_arcsec", 0.9}, {"points", 25}}, "table 1");
+    }
     c.record_calibration(imp);
   }
 
@@ -213,13 +217,22 @@ TEST(Catalogue, KeepsEachUnitsCalibrationsInDateOrder) {
   EXPECT_EQ(hist[1].label, "VI");
   EXPECT_EQ(hist[1].date_utc, "1980-09-04");
   EXPECT_FALSE(hist[1].pitch);  // imports without a residuals block have no statistics
+  // An import with Table 1's partial figures (calibration II prints only max and points).
+  ASSERT_TRUE(hist[0].pitch);
+  EXPECT_FALSE(hist[0].pitch->mean_abs_arcsec);
+  EXPECT_DOUBLE_EQ(hist[0].pitch->max_abs_arcsec.value(), 0.9);
+  EXPECT_EQ(hist[0].pitch->points.value(), 25);
+  EXPECT_FALSE(hist[0].yaw);
   EXPECT_EQ(hist[2].id, id_run);
   EXPECT_EQ(hist[2].source, "run");
   EXPECT_EQ(hist[2].source_ref, "r1");
   ASSERT_TRUE(hist[2].pitch && hist[2].yaw);
-  EXPECT_DOUBLE_EQ(hist[2].pitch->mean_abs_arcsec, 0.42);
-  EXPECT_EQ(hist[2].yaw->points, 38);
-  EXPECT_DOUBLE_EQ(hist[2].yaw->range_deg, 0.82);
+  EXPECT_DOUBLE_EQ(hist[2].pitch->mean_abs_arcsec.value(), 0.42);
+  EXPECT_EQ(hist[2].yaw->points.value(), 38);
+  EXPECT_DOUBLE_EQ(hist[2].yaw->range_lo_deg.value(), -0.41);
+  EXPECT_DOUBLE_EQ(hist[2].yaw->range_hi_deg.value(), 0.41);
+  EXPECT_FALSE(hist[2].yaw->rms_arcsec);
+  EXPECT_EQ(hist[2].yaw->to_json(), calibration_json("FPSS1", 0.42)["residuals"]["yaw"]);
   // The stored coefficients read back as the same coefficient set.
   const auto back = parse_coefficients(hist[2].coefficients, "catalogue");
   EXPECT_EQ(back.alpha, load_published("a-6-fpss1").alpha);
@@ -246,6 +259,9 @@ TEST(Catalogue, CalibrationJsonWithBadResidualsIsAnInputError) {
     EXPECT_NE(std::string(e.what()).find("run/calibration.json: residuals.yaw"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("points"), std::string::npos) << e.what();
   }
+  j = calibration_json("FPSS1", 0.4);
+  j["residuals"]["pitch"]["range_deg"] = 0.84;  // the calibrator writes [lo, hi]
+  EXPECT_THROW(CalibrationRecord::from_calibration_json(j, "x.json"), InputError);
   j = calibration_json("FPSS1", 0.4);
   j["alpha"].erase(0);
   EXPECT_THROW(CalibrationRecord::from_calibration_json(j, "x.json"), InputError);
@@ -366,7 +382,7 @@ TEST(Catalogue, ConcurrentWritersLoseNothing) {
     for (const auto& c : cat.unit_history(u)) {
       int w = -1, i = -1;
       ASSERT_EQ(std::sscanf(c.run_id.value().c_str(), "w%d-run%d", &w, &i), 2);
-      EXPECT_NEAR(c.pitch->mean_abs_arcsec, 0.1 * w + 0.001 * i, 1e-12);
+      EXPECT_NEAR(c.pitch->mean_abs_arcsec.value(), 0.1 * w + 0.001 * i, 1e-12);
       EXPECT_EQ(c.unit, cat.find_run(*c.run_id)->unit);
       ++cals;
     }
@@ -461,7 +477,7 @@ TEST(Catalogue, WriterKilledWhileWritingKeepsEveryReportedCommit) {
     const auto& c = hist[static_cast<size_t>(i)];
     EXPECT_EQ(c.run_id.value_or(""), fmt::format("run-{:06}", i));
     ASSERT_TRUE(c.yaw);
-    EXPECT_NEAR(c.pitch->mean_abs_arcsec, 0.001 * i, 1e-12);
+    EXPECT_NEAR(c.pitch->mean_abs_arcsec.value(), 0.001 * i, 1e-12);
   }
   // At most one run can lack its calibration: the one whose second transaction was cut.
   EXPECT_LE(count_rows(db, "runs") - static_cast<int64_t>(hist.size()), 1);
