@@ -1,0 +1,186 @@
+// Byte streams over a real pty pair and a real loopback TCP socket; libserialport listing and errors.
+#include "drivers/byte_stream.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "drivers/endpoints.h"
+#include "test_util.h"
+
+using testing::HasSubstr;
+namespace fpss {
+namespace {
+
+template <class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(no exception)";
+}
+
+std::vector<uint8_t> read_exactly(ByteStream& s, std::size_t n) {
+  std::vector<uint8_t> out;
+  uint8_t buf[1024];
+  test::eventually([&] {
+    out.insert(out.end(), buf, buf + s.read(buf, std::min(sizeof buf, n - out.size()), 0.05));
+    return out.size() >= n;
+  });
+  return out;
+}
+
+std::vector<uint8_t> read_fd_exactly(int fd, std::size_t n) {
+  std::vector<uint8_t> out(n);
+  std::size_t got = 0;
+  test::eventually([&] {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 50) > 0) {
+      ssize_t r = ::read(fd, out.data() + got, n - got);
+      if (r > 0) got += static_cast<std::size_t>(r);
+    }
+    return got >= n;
+  });
+  out.resize(got);
+  return out;
+}
+
+std::vector<uint8_t> random_bytes(std::size_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::vector<uint8_t> b(n);
+  for (auto& x : b) x = static_cast<uint8_t>(rng());
+  return b;
+}
+
+TEST(PtyStream, RawBytesBothWaysOverARealPty) {
+  test::PtyPair pty;
+  auto s = make_byte_stream("pty:" + pty.slave_path());
+  EXPECT_FALSE(s->is_open());
+  s->open();
+  EXPECT_TRUE(s->is_open());
+  // Every byte value, including \r \n ^C ^S ^Q and 0xFF, must pass untouched (raw mode).
+  auto data = random_bytes(20000, 3);
+  for (int v = 0; v < 256; ++v) data.push_back(static_cast<uint8_t>(v));
+  std::thread writer([&] { test::write_all(pty.master(), data.data(), data.size()); });
+  EXPECT_EQ(read_exactly(*s, data.size()), data);
+  writer.join();
+
+  auto back = random_bytes(3000, 4);
+  s->write(back.data(), back.size());
+  EXPECT_EQ(read_fd_exactly(pty.master(), back.size()), back);
+}
+
+TEST(PtyStream, ReadTimesOutWithZeroAndHangupIsAnError) {
+  test::PtyPair pty;
+  auto s = make_byte_stream("pty:" + pty.slave_path());
+  s->open();
+  uint8_t buf[16];
+  EXPECT_EQ(s->read(buf, sizeof buf, 0.01), 0u);
+  pty.close_master();
+  std::string msg;
+  EXPECT_TRUE(test::eventually([&] {
+    try {
+      s->read(buf, sizeof buf, 0.05);
+    } catch (const DeviceError& e) {
+      msg = e.what();
+      return true;
+    }
+    return false;
+  }));
+  EXPECT_THAT(msg, HasSubstr(pty.slave_path()));
+  EXPECT_FALSE(s->is_open());
+}
+
+TEST(PtyStream, MissingDeviceNamesThePathAndErrno) {
+  auto s = make_byte_stream("pty:/dev/pts/does-not-exist");
+  std::string msg = error_of([&] { s->open(); });
+  EXPECT_THAT(msg, HasSubstr("/dev/pts/does-not-exist"));
+  EXPECT_THAT(msg, HasSubstr("errno 2"));
+}
+
+TEST(PtyStream, ARegularFileIsNotATerminal) {
+  auto s = make_byte_stream("pty:/dev/null");
+  EXPECT_THAT(error_of([&] { s->open(); }), HasSubstr("not a terminal"));
+}
+
+TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
+  test::TcpListener listener;
+  auto s = make_byte_stream("tcp:127.0.0.1:" + std::to_string(listener.port()));
+  s->open();
+  int peer = listener.accept();
+  ASSERT_GE(peer, 0);
+  auto data = random_bytes(100000, 5);
+  std::thread writer([&] { test::write_all(peer, data.data(), data.size()); });
+  EXPECT_EQ(read_exactly(*s, data.size()), data);
+  writer.join();
+  auto back = random_bytes(5000, 6);
+  s->write(back.data(), back.size());
+  EXPECT_EQ(read_fd_exactly(peer, back.size()), back);
+
+  ::close(peer);
+  uint8_t buf[8];
+  std::string msg;
+  EXPECT_TRUE(test::eventually([&] {
+    try {
+      s->read(buf, sizeof buf, 0.05);
+    } catch (const DeviceError& e) {
+      msg = e.what();
+      return true;
+    }
+    return false;
+  }));
+  EXPECT_THAT(msg, HasSubstr("hung up"));
+  EXPECT_FALSE(s->is_open());
+  // Writing into a dead socket is an error, not a SIGPIPE.
+  EXPECT_THROW(s->write(back.data(), back.size()), DeviceError);
+}
+
+TEST(TcpStream, ConnectionRefusedNamesErrno) {
+  int port;
+  {
+    test::TcpListener l;
+    port = l.port();
+  }
+  auto s = make_byte_stream("tcp:127.0.0.1:" + std::to_string(port));
+  std::string msg = error_of([&] { s->open(); });
+  EXPECT_THAT(msg, HasSubstr("cannot connect"));
+  EXPECT_THAT(msg, HasSubstr("errno 111"));
+}
+
+TEST(TcpStream, UnknownHostIsAClearError) {
+  auto s = make_byte_stream("tcp:no-such-host.invalid:4000");
+  EXPECT_THAT(error_of([&] { s->open(); }), HasSubstr("no-such-host.invalid"));
+}
+
+TEST(SerialStream, ListingWorksAndNeverShowsPtys) {
+  test::PtyPair pty;
+  std::vector<SerialPortInfo> ports;
+  ASSERT_NO_THROW(ports = list_serial_ports());
+  for (const auto& p : ports) {
+    EXPECT_FALSE(p.name.empty());
+    EXPECT_NE(p.name, pty.slave_path());
+  }
+}
+
+TEST(SerialStream, MissingPortAndPtyGiveClearErrors) {
+  auto s = make_byte_stream("serial:/dev/ttyFPSS-missing:9600");
+  std::string msg = error_of([&] { s->open(); });
+  EXPECT_THAT(msg, HasSubstr("/dev/ttyFPSS-missing"));
+  EXPECT_FALSE(s->is_open());
+  test::PtyPair pty;
+  auto p = make_byte_stream("serial:" + pty.slave_path());
+  EXPECT_THAT(error_of([&] { p->open(); }), HasSubstr("pty:"));
+}
+
+TEST(ByteStreamFactory, RefusesNonStreamAndBadEndpoints) {
+  EXPECT_THROW(make_byte_stream("modbus-tcp:127.0.0.1:1502"), EndpointError);
+  EXPECT_THROW(make_byte_stream("usb:/dev/ttyUSB0"), EndpointError);
+  EXPECT_THROW(make_byte_stream("tcp:127.0.0.1"), EndpointError);
+  EXPECT_THROW(make_byte_stream("serial:"), EndpointError);
+}
+
+}  // namespace
+}  // namespace fpss
