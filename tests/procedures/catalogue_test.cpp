@@ -483,5 +483,131 @@ TEST(Catalogue, WriterKilledWhileWritingKeepsEveryReportedCommit) {
   EXPECT_LE(count_rows(db, "runs") - static_cast<int64_t>(hist.size()), 1);
 }
 
+// ---- the command line: fpss-stand runs / history over a real catalogue ----
+
+struct Cli {
+  int code = -1;
+  std::string out, err;
+};
+
+Cli run_cli(const std::string& args, const fs::path& scratch) {
+  const std::string bin = std::string(FPSS_BINARY_DIR) + "/stand/fpss-stand";
+  if (!fs::exists(bin)) throw std::runtime_error(bin + " is not built (build the fpss-stand target)");
+  const auto err_file = scratch / "stderr.txt";
+  const std::string cmd = fmt::format("'{}' {} 2>'{}'", bin, args, err_file.string());
+  Cli r;
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (!p) throw std::runtime_error("popen failed");
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int status = ::pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream e(err_file);
+  r.err.assign(std::istreambuf_iterator<char>(e), {});
+  return r;
+}
+
+class CatalogueCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    runs_dir_ = dir_.path() / "runs";
+    Catalogue c(Catalogue::default_path(runs_dir_));
+    c.record_run_start(make_run("20240501T120000Z-FPSS1-discrete_grid", "FPSS1", "2024-05-01T12:00:00Z"));
+    auto cal = CalibrationRecord::from_calibration_json(calibration_json("FPSS1", 0.26), "calibration.json");
+    cal.run_id = "20240501T120000Z-FPSS1-discrete_grid";
+    cal.date_utc = "2024-05-01T12:20:00Z";
+    c.record_calibration(cal);
+    c.record_run_end("20240501T120000Z-FPSS1-discrete_grid", outcome::completed, "2024-05-01T12:21:00Z");
+    c.record_run_start(make_run("20240502T090000Z-SN-7-full_grid", "SN-7", "2024-05-02T09:00:00Z"));
+    c.record_run_end("20240502T090000Z-SN-7-full_grid", outcome::failed, "2024-05-02T09:03:00Z");
+    CalibrationRecord imp;
+    imp.unit = "FPSS1";
+    imp.source = "import";
+    imp.source_ref = "a-7-fpss1.json";
+    imp.label = "VI";
+    imp.date_utc = "1980-09-04";
+    imp.method = "imported";
+    imp.coefficients = to_json(load_published("a-7-fpss1"));
+    c.record_calibration(imp);
+  }
+  TempDir dir_;
+  fs::path runs_dir_;
+};
+
+TEST_F(CatalogueCli, RunsListsEveryRunMostRecentFirst) {
+  const auto r = run_cli(fmt::format("runs --runs-dir '{}'", runs_dir_.string()), dir_.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto first = r.out.find("20240502T090000Z-SN-7-full_grid");
+  const auto second = r.out.find("20240501T120000Z-FPSS1-discrete_grid");
+  ASSERT_NE(first, std::string::npos) << r.out;
+  ASSERT_NE(second, std::string::npos) << r.out;
+  EXPECT_LT(first, second);
+  EXPECT_NE(r.out.find("failed"), std::string::npos);
+  EXPECT_NE(r.out.find("completed"), std::string::npos);
+  EXPECT_NE(r.out.find("OUTCOME"), std::string::npos);
+
+  const auto j = run_cli(fmt::format("runs --db '{}' --json --unit FPSS1",
+                                     Catalogue::default_path(runs_dir_).string()), dir_.path());
+  ASSERT_EQ(j.code, 0) << j.err;
+  const auto arr = nlohmann::json::parse(j.out);
+  ASSERT_EQ(arr.size(), 1u);
+  EXPECT_EQ(arr[0]["run_id"], "20240501T120000Z-FPSS1-discrete_grid");
+  EXPECT_EQ(arr[0]["ended_utc"], "2024-05-01T12:21:00Z");
+  EXPECT_EQ(arr[0]["emulated"], true);
+}
+
+TEST_F(CatalogueCli, HistoryListsTheUnitsCalibrationsOldestFirst) {
+  const auto r = run_cli(fmt::format("history FPSS1 --runs-dir '{}'", runs_dir_.string()), dir_.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto imported = r.out.find("import a-7-fpss1.json");
+  const auto from_run = r.out.find("run 20240501T120000Z-FPSS1-discrete_grid");
+  ASSERT_NE(imported, std::string::npos) << r.out;
+  ASSERT_NE(from_run, std::string::npos) << r.out;
+  EXPECT_LT(imported, from_run);
+  EXPECT_NE(r.out.find("0.26 +- 0.20"), std::string::npos) << r.out;  // pitch mean +- sd
+  EXPECT_NE(r.out.find("-0.41..+0.41"), std::string::npos) << r.out;  // yaw range
+
+  const auto j = run_cli(fmt::format("history FPSS1 --db '{}' --json",
+                                     Catalogue::default_path(runs_dir_).string()), dir_.path());
+  ASSERT_EQ(j.code, 0) << j.err;
+  const auto h = nlohmann::json::parse(j.out);
+  EXPECT_EQ(h["unit"], "FPSS1");
+  ASSERT_EQ(h["calibrations"].size(), 2u);
+  EXPECT_EQ(h["calibrations"][0]["label"], "VI");
+  EXPECT_TRUE(h["calibrations"][0]["residuals"]["pitch"].is_null());
+  EXPECT_DOUBLE_EQ(h["calibrations"][1]["residuals"]["pitch"]["mean_abs_arcsec"].get<double>(), 0.26);
+  EXPECT_EQ(h["calibrations"][1]["residuals"]["yaw"]["points"], 38);
+  // The coefficients come back whole: they read as the set that was stored.
+  EXPECT_EQ(parse_coefficients(h["calibrations"][0]["coefficients"], "json").beta,
+            load_published("a-7-fpss1").beta);
+}
+
+TEST_F(CatalogueCli, UnknownUnitOrMissingCatalogueIsExit2NamingWhat) {
+  const auto db = Catalogue::default_path(runs_dir_).string();
+  auto r = run_cli(fmt::format("history FPSS9 --db '{}'", db), dir_.path());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("FPSS9"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(db), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("FPSS1, SN-7"), std::string::npos) << r.err;  // what is there instead
+  EXPECT_TRUE(r.out.empty());
+
+  r = run_cli(fmt::format("history SN-7 --db '{}'", db), dir_.path());  // a unit with runs, no calibration
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("SN-7"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("no calibration"), std::string::npos) << r.err;
+
+  const auto none = (dir_.path() / "elsewhere").string();
+  for (const auto& args : {fmt::format("runs --runs-dir '{}'", none), fmt::format("history FPSS1 --runs-dir '{}'", none)}) {
+    r = run_cli(args, dir_.path());
+    EXPECT_EQ(r.code, 2) << args;
+    EXPECT_NE(r.err.find(none), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(none));  // listing never creates a catalogue
+
+  r = run_cli(fmt::format("runs --runs-dir a --db '{}'", db), dir_.path());
+  EXPECT_EQ(r.code, 2);
+}
+
 }  // namespace
 }  // namespace fpss
