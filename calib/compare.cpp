@@ -162,8 +162,8 @@ std::string comparison_plot_script(const CalibrationComparison& c, const std::st
   s += fmt::format("set xlabel {}\n", quote(fmt::format("angle under A (deg), +-{} deg", c.range_deg)));
   s += "set ylabel \"B - A (arcsec)\"\n";
   s += "set grid\nset key outside right top\n";
-  s += fmt::format("plot {} index 0 using 1:2 with lines lw 2 title 'alpha (pitch)', \\\n", quote(data_path));
-  s += fmt::format("     {} index 1 using 1:2 with lines lw 2 title 'beta (yaw)'\n", quote(data_path));
+  s += fmt::format("plot {} index 0 using 1:2 with lines lw 2 title 'alpha', \\\n", quote(data_path));
+  s += fmt::format("     {} index 1 using 1:2 with lines lw 2 title 'beta'\n", quote(data_path));
   return s;
 }
 
