@@ -1,0 +1,111 @@
+// The procedure engine: runs a plan on a gimbal and a sensor, owns timeouts, re-measurement, pause, abort and the safe stop.
+#pragma once
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <spdlog/logger.h>
+
+#include "drivers/gimbal.h"
+#include "drivers/sensor.h"
+#include "procedures/bench.h"
+#include "procedures/plan.h"
+#include "procedures/recorder.h"
+
+namespace fpss {
+
+// Set from signal handlers or another thread; the engine looks at them between and inside waits.
+struct RunControl {
+  std::atomic<bool> abort{false};   // SIGINT/SIGTERM: stop, return to null, mark interrupted
+  std::atomic<bool> pause{false};   // hold between points (gimbal at the last point) until cleared
+  std::atomic<int> signal{0};       // the signal that asked for the abort, for the log
+};
+
+enum class RunOutcome { completed, failed, interrupted };
+const char* to_string(RunOutcome o);
+
+struct EngineResult {
+  RunOutcome outcome = RunOutcome::completed;
+  std::string reason;         // why it failed or stopped
+  int64_t points_done = 0;    // completed points in the recording (all sessions)
+  bool safe_state = true;     // the gimbal was stopped and returned to null (or was never moved)
+};
+
+// Where the controller's own time goes, to compare with the time spent waiting on devices.
+struct EngineStats {
+  double wall_s = 0;         // total in run()
+  double device_s = 0;       // inside device calls (I/O and the devices' own waiting)
+  double sleep_s = 0;        // settle times and poll intervals
+  int64_t points = 0;        // points measured in this session
+  int64_t remeasured = 0;    // extra attempts
+  int64_t recoveries = 0;    // fault clears, stream restarts
+  double own_s() const { return wall_s - device_s - sleep_s; }
+};
+
+// Calibrate and check steps run outside the engine (they are computation on the recording).
+struct EngineHooks {
+  // A calibrate action: fit what was recorded before it. Throwing fails the run.
+  std::function<void(const Action&)> calibrate;
+  // A check action: returns an empty string when the limits hold, else what broke them.
+  std::function<std::string(const Action&)> check;
+  // After each point is durable: the rows just written.
+  std::function<void(const Action&, const std::vector<RecordedRow>&)> point_done;
+};
+
+class Engine {
+ public:
+  Engine(Gimbal& gimbal, Sensor& sensor, const BenchSettings& bench, const Plan& plan, RunRecorder& recorder,
+         spdlog::logger& log, RunControl& control, EngineHooks hooks = {});
+
+  // Runs the plan from the first point the recorder has not completed (0 for a new run).
+  // `session` is 1 + the number of resumes, written in each row.
+  EngineResult run(int session = 1);
+  const EngineStats& stats() const { return stats_; }
+
+ private:
+  struct PointFailure : std::runtime_error {
+    using std::runtime_error::runtime_error;
+  };
+  struct Aborted {};
+
+  void prepare();
+  void do_home(const Action& a);
+  void do_move(const Action& a);
+  void measure_dwell(const Action& a, int session);
+  void measure_slew(const Action& a, int session);
+  template <typename F>
+  void with_remeasure(const Action& a, F&& attempt);
+  GimbalState move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing = false);
+  void sleep_physical(double physical_s);
+  void wait_while_paused();
+  void check_abort();
+  void recover(const std::string& reason, bool sensor_side);
+  bool safe_stop();
+  double stand_time(double sensor_time_s);
+  double sensor_clock_s(const SensorSample& f) const;
+  double host_now_s() const;
+  double session_host_s(double host_s) const { return host_s - host_t0_; }
+  GimbalState read_gimbal();
+
+  Gimbal& g_;
+  Sensor& s_;
+  const BenchSettings& b_;
+  const Plan& plan_;
+  RunRecorder& rec_;
+  spdlog::logger& log_;
+  RunControl& ctl_;
+  EngineHooks hooks_;
+  EngineStats stats_;
+  bool moved_ = false;
+  bool stopping_ = false;  // during the safe stop an abort request no longer interrupts
+  double host_t0_ = 0;
+  // Stand time: base + (sensor time - sensor t0), kept non-decreasing across sensor restarts.
+  std::optional<double> sensor_t0_;
+  double time_base_ = 0, last_time_ = 0;
+  double last_gimbal_time_s_ = 0;
+};
+
+}  // namespace fpss

@@ -1,0 +1,61 @@
+// A procedure expanded for one stand: a flat list of actions with numbered points, checked against the soft limits.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "procedures/bench.h"
+#include "procedures/procedure.h"
+
+namespace fpss {
+
+// One thing the engine does. Points (dwells and slew segments) carry the identity that makes a
+// resumed run measure exactly the points an uninterrupted one would: their index in this plan,
+// which depends only on the procedure text and the stand's sample rate.
+struct Action {
+  enum class Kind { home, move, settle, dwell, slew, calibrate, check };
+  Kind kind = Kind::move;
+  size_t step_index = 0;     // the procedure step it came from (1-based)
+  TextMark mark;             // where that step is written
+  // Point identity: index 0.. among points; the samples file's `step` column is point + 1.
+  int64_t point = -1;
+  Phase phase = Phase::move;
+  // Targets in the stand frame (dwell: where to measure; slew: where the segment ends).
+  double pitch_arcsec = 0, yaw_arcsec = 0;
+  double rate_arcsec_s = 0;  // move/slew profile speed; 0: stand default
+  double settle_s = 0;       // settle: its duration; dwell/slew: wait after arriving, before sampling
+  int frames = 0;            // dwell: frames to keep
+  int max_invalid = 0;
+  double timeout_s = 0;      // home: physical seconds (0: stand default)
+  // slew: start point and sampling
+  double start_pitch_arcsec = 0, start_yaw_arcsec = 0;
+  double sample_period_s = 0;
+  StandAxis axis = StandAxis::pitch;
+  const CalibrateStep* calibrate = nullptr;  // into the Procedure, which must outlive the plan
+  const CheckStep* check = nullptr;
+
+  bool is_point() const { return kind == Kind::dwell || kind == Kind::slew; }
+  std::string describe() const;  // one line for --dry-run and the log
+};
+
+struct Plan {
+  std::vector<Action> actions;
+  size_t points = 0;
+  size_t frames = 0;             // frames kept at dwells (slews: estimated samples)
+  double estimated_s = 0;        // physical seconds, from the gimbal's rates and the settle times
+  // Index in `actions` of each point.
+  std::vector<size_t> point_action;
+};
+
+// Expands the procedure for the stand; errors (a target outside the soft limits, a rate above
+// the limit, a sample period shorter than the sensor's) go to `d` with the step's file:line:col.
+Plan expand(const Procedure& proc, const BenchSettings& bench, Diagnostics& d);
+
+// Physical seconds for a point-to-point move with a trapezoidal profile on both axes at once.
+double move_duration_s(double from_pitch, double from_yaw, double to_pitch, double to_yaw, double rate_arcsec_s,
+                       double accel_arcsec_s2);
+
+// The --dry-run text: every action, the number of points, the estimated duration.
+std::string format_plan(const Procedure& proc, const Plan& plan, const BenchSettings& bench);
+
+}  // namespace fpss

@@ -1,0 +1,373 @@
+#include "procedures/procedure.h"
+
+#include <fmt/format.h>
+#include <openssl/evp.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "calib/errors.h"
+
+namespace fpss {
+
+const char* to_string(StandAxis a) { return a == StandAxis::pitch ? "pitch" : "yaw"; }
+
+int FrameSpec::count(double sample_rate_hz) const {
+  if (frames > 0) return frames;
+  return std::max(1, static_cast<int>(std::lround(duration_s * sample_rate_hz)));
+}
+
+std::vector<double> GridStep::offsets_arcsec() const {
+  std::vector<double> pos;
+  // A small tolerance so that 0.42 / 0.06 gives 7 offsets despite rounding.
+  const int n = static_cast<int>(std::floor(extent_arcsec / step_arcsec + 1e-9));
+  for (int k = 1; k <= n; ++k) pos.push_back(k * step_arcsec);
+  std::vector<double> out;
+  switch (order) {
+    case Order::outward:
+      for (double p : pos) { out.push_back(p); out.push_back(-p); }
+      break;
+    case Order::ascending:
+      for (auto it = pos.rbegin(); it != pos.rend(); ++it) out.push_back(-*it);
+      for (double p : pos) out.push_back(p);
+      break;
+    case Order::descending:
+      for (auto it = pos.rbegin(); it != pos.rend(); ++it) out.push_back(*it);
+      for (double p : pos) out.push_back(-p);
+      break;
+  }
+  return out;
+}
+
+const std::vector<std::string_view>& step_types() {
+  static const std::vector<std::string_view> t{"home", "move", "settle", "sample", "null_offset_grid",
+                                               "continuous_slew", "calibrate", "check"};
+  return t;
+}
+
+namespace {
+
+std::optional<FrameSpec> read_frames(MapReader& r, bool required) {
+  FrameSpec f;
+  const bool has_frames = r.has("frames"), has_duration = r.has("duration_s");
+  auto n = r.integer("frames", false, 1, 1000000);
+  auto dur = r.positive("duration_s");
+  auto inv = r.integer("max_invalid_frames", false, 0, 1000000);
+  if (has_frames && has_duration) {
+    r.diagnostics().error(r.node("duration_s"),
+                          fmt::format("{}: give frames or duration_s, not both", r.where()));
+    return std::nullopt;
+  }
+  if (!has_frames && !has_duration) {
+    if (required) r.diagnostics().error(r.mark(), fmt::format("{}: missing field frames or duration_s", r.where()));
+    return std::nullopt;
+  }
+  if (n) f.frames = static_cast<int>(*n);
+  if (dur) f.duration_s = *dur;
+  if (inv) f.max_invalid = static_cast<int>(*inv);
+  if (!n && !dur) return std::nullopt;
+  return f;
+}
+
+std::optional<StandAxis> parse_axis(const YAML::Node& n, const std::string& what, Diagnostics& d) {
+  if (n.IsScalar()) {
+    if (n.Scalar() == "pitch") return StandAxis::pitch;
+    if (n.Scalar() == "yaw") return StandAxis::yaw;
+  }
+  d.error(n, fmt::format("{}: expected pitch or yaw, got {}", what, describe_node(n)));
+  return std::nullopt;
+}
+
+StepBody parse_home(MapReader& r) {
+  HomeStep s;
+  s.timeout_s = r.positive("timeout_s");
+  return s;
+}
+
+StepBody parse_move(MapReader& r) {
+  MoveStep s;
+  s.pitch_arcsec = r.angle_arcsec("pitch");
+  s.yaw_arcsec = r.angle_arcsec("yaw");
+  s.rate_arcsec_s = r.rate_arcsec_s("rate");
+  const bool any = r.has("pitch_deg") || r.has("pitch_arcsec") || r.has("yaw_deg") || r.has("yaw_arcsec");
+  if (!any && r.ok()) {
+    r.diagnostics().error(r.mark(), fmt::format("{}: missing field pitch_deg/pitch_arcsec or yaw_deg/yaw_arcsec "
+                                                "(a move needs at least one target)",
+                                                r.where()));
+  }
+  return s;
+}
+
+StepBody parse_settle(MapReader& r) {
+  SettleStep s;
+  if (auto v = r.positive("duration_s", true)) s.duration_s = *v;
+  return s;
+}
+
+StepBody parse_sample(MapReader& r) {
+  SampleStep s;
+  if (auto f = read_frames(r, true)) s.frames = *f;
+  if (auto p = r.choice("phase", {"null", "offset"})) s.phase = parse_phase(*p);
+  if (auto v = r.non_negative("settle_s")) s.settle_s = *v;
+  return s;
+}
+
+StepBody parse_grid(MapReader& r) {
+  GridStep s;
+  Diagnostics& d = r.diagnostics();
+  YAML::Node axes = r.node("axes");
+  if (axes.IsDefined()) {
+    const std::string what = fmt::format("{}: field axes", r.where());
+    if (!axes.IsSequence() || axes.size() == 0) {
+      d.error(axes, fmt::format("{}: expected a list such as [pitch, yaw], got {}", what, describe_node(axes)));
+    } else {
+      s.axes.clear();
+      for (const auto& a : axes) {
+        auto ax = parse_axis(a, what, d);
+        if (!ax) continue;
+        for (auto seen : s.axes) {
+          if (seen == *ax) d.error(a, fmt::format("{}: {} appears twice", what, to_string(*ax)));
+        }
+        s.axes.push_back(*ax);
+      }
+    }
+  }
+  auto extent = r.angle_arcsec("extent", true);
+  auto step = r.angle_arcsec("step", true);
+  if (extent && *extent <= 0) {
+    d.error(r.mark(), fmt::format("{}: extent must be > 0", r.where()));
+    extent.reset();
+  }
+  if (step && *step <= 0) {
+    d.error(r.mark(), fmt::format("{}: step must be > 0", r.where()));
+    step.reset();
+  }
+  if (extent && step && *step > *extent * (1 + 1e-9)) {
+    d.error(r.mark(), fmt::format("{}: step ({} arcsec) is larger than extent ({} arcsec): no offsets", r.where(),
+                                  *step, *extent));
+  }
+  if (extent) s.extent_arcsec = *extent;
+  if (step) s.step_arcsec = *step;
+  if (auto v = r.non_negative("settle_s")) s.settle_s = *v;
+  if (auto f = read_frames(r, true)) s.frames = *f;
+  if (auto o = r.choice("order", {"outward", "ascending", "descending"})) {
+    s.order = *o == "outward" ? GridStep::Order::outward
+              : *o == "ascending" ? GridStep::Order::ascending : GridStep::Order::descending;
+  }
+  if (auto l = r.choice("layout", {"axes", "diagonals", "full"})) {
+    s.layout = *l == "axes" ? GridStep::Layout::axes
+               : *l == "diagonals" ? GridStep::Layout::diagonals : GridStep::Layout::full;
+  }
+  if (s.layout != GridStep::Layout::axes && s.axes.size() != 2 && axes.IsDefined()) {
+    d.error(axes, fmt::format("{}: layout {} needs both axes", r.where(),
+                              s.layout == GridStep::Layout::full ? "full" : "diagonals"));
+  }
+  return s;
+}
+
+StepBody parse_slew(MapReader& r) {
+  SlewStep s;
+  Diagnostics& d = r.diagnostics();
+  YAML::Node axis = r.node("axis");
+  if (!axis.IsDefined()) {
+    if (r.ok()) d.error(r.mark(), fmt::format("{}: missing field axis", r.where()));
+  } else if (auto a = parse_axis(axis, fmt::format("{}: field axis", r.where()), d)) {
+    s.axis = *a;
+  }
+  if (auto a = r.angle_arcsec("amplitude", true)) {
+    if (*a <= 0) d.error(r.mark(), fmt::format("{}: amplitude must be > 0", r.where()));
+    s.amplitude_arcsec = *a;
+  }
+  // One rate (rate_arcsec_s) or several (rates_arcsec_s: [..]); deg/s spellings too.
+  const bool one = r.has("rate_arcsec_s") || r.has("rate_deg_s");
+  const bool many = r.has("rates_arcsec_s") || r.has("rates_deg_s");
+  if (one && many) {
+    d.error(r.mark(), fmt::format("{}: give rate_* or rates_*, not both", r.where()));
+  }
+  if (auto v = r.rate_arcsec_s("rate")) s.rates_arcsec_s.push_back(*v);
+  for (auto [key, factor] : {std::pair{"rates_arcsec_s", 1.0}, std::pair{"rates_deg_s", 3600.0}}) {
+    YAML::Node n = r.node(key);
+    if (!n.IsDefined()) continue;
+    const std::string what = fmt::format("{}: field {}", r.where(), key);
+    if (!n.IsSequence() || n.size() == 0) {
+      d.error(n, fmt::format("{}: expected a list of rates, got {}", what, describe_node(n)));
+      continue;
+    }
+    for (const auto& e : n) {
+      if (auto v = MapReader::as_number(e, what, d)) {
+        if (*v <= 0) d.error(e, fmt::format("{}: a rate must be > 0, got {}", what, *v));
+        else s.rates_arcsec_s.push_back(*v * factor);
+      }
+    }
+  }
+  if (!one && !many && r.ok()) {
+    d.error(r.mark(), fmt::format("{}: missing field rate_arcsec_s or rates_arcsec_s (or _deg_s)", r.where()));
+  }
+  if (auto v = r.choice("directions", {"both", "positive", "negative"})) {
+    s.directions = *v == "both" ? SlewStep::Directions::both
+                   : *v == "positive" ? SlewStep::Directions::positive : SlewStep::Directions::negative;
+  }
+  if (auto v = r.positive("sample_period_s", true)) s.sample_period_s = *v;
+  if (auto v = r.non_negative("settle_s")) s.settle_s = *v;
+  return s;
+}
+
+StepBody parse_calibrate(MapReader& r, const std::string& origin) {
+  CalibrateStep s;
+  if (auto m = r.choice("method", {"differences", "absolute"})) s.method = *m;
+  if (auto p = r.string("init")) {
+    std::filesystem::path f(*p);
+    if (f.is_relative()) f = std::filesystem::path(origin).parent_path() / f;
+    s.init = f;
+  }
+  YAML::Node opts = r.node("options");
+  if (opts.IsDefined()) {
+    if (!opts.IsMap()) {
+      r.diagnostics().error(opts, fmt::format("{}: field options: expected a map, got {}", r.where(),
+                                              describe_node(opts)));
+    } else {
+      for (auto it = opts.begin(); it != opts.end(); ++it) {
+        const auto& v = it->second;
+        const std::string key = it->first.Scalar();
+        if (v.IsScalar() && v.Tag() != "!") {
+          try {
+            s.options[key] = v.as<double>();
+            continue;
+          } catch (const YAML::Exception&) {
+          }
+          try {
+            s.options[key] = v.as<bool>();
+            continue;
+          } catch (const YAML::Exception&) {
+          }
+        }
+        if (v.IsScalar()) s.options[key] = v.Scalar();
+        else r.diagnostics().error(v, fmt::format("{}: options.{}: expected a number, true/false or text",
+                                                  r.where(), key));
+      }
+    }
+  }
+  return s;
+}
+
+void read_limits(MapReader& r, ResidualLimits& l) {
+  if (auto v = r.positive("mean_abs_arcsec")) l.mean_abs_arcsec = v;
+  if (auto v = r.positive("sd_arcsec")) l.sd_arcsec = v;
+  if (auto v = r.positive("max_abs_arcsec")) l.max_abs_arcsec = v;
+  if (auto v = r.integer("min_points", false, 1)) l.min_points = v;
+}
+
+StepBody parse_check(MapReader& r) {
+  CheckStep s;
+  ResidualLimits both;
+  read_limits(r, both);  // top-level limits apply to both axes
+  s.pitch = s.yaw = both;
+  for (auto [key, lim] : {std::pair{"pitch", &s.pitch}, std::pair{"yaw", &s.yaw}}) {
+    YAML::Node n = r.node(key);
+    if (!n.IsDefined()) continue;
+    MapReader a(n, fmt::format("{}.{}", r.where(), key), r.diagnostics());
+    read_limits(a, *lim);
+    a.finish();
+  }
+  if (!s.pitch.any() && !s.yaw.any() && r.ok()) {
+    r.diagnostics().error(r.mark(), fmt::format("{}: no limits given (mean_abs_arcsec, sd_arcsec, max_abs_arcsec, "
+                                                "min_points; at top level or under pitch/yaw)",
+                                                r.where()));
+  }
+  return s;
+}
+
+}  // namespace
+
+Procedure parse_procedure(std::string_view text, const std::string& origin, Diagnostics& d) {
+  Procedure p;
+  p.origin = origin;
+  p.text = std::string(text);
+  p.name = std::filesystem::path(origin).stem().string();
+  YAML::Node root = parse_yaml(text, d);
+  if (!d.empty()) return p;
+  if (!root.IsMap()) {
+    d.error(root, fmt::format("procedure: expected a map with name, description and steps, got {}",
+                              describe_node(root)));
+    return p;
+  }
+  MapReader top(root, "procedure", d);
+  if (auto n = top.string("name")) p.name = *n;
+  if (auto s = top.string("description")) p.description = *s;
+  YAML::Node steps = top.node("steps");
+  top.finish();
+  if (!steps.IsDefined()) {
+    d.error(root, "procedure: missing field steps (a list of steps)");
+    return p;
+  }
+  if (!steps.IsSequence() || steps.size() == 0) {
+    d.error(steps, fmt::format("procedure: steps: expected a non-empty list of steps, got {}", describe_node(steps)));
+    return p;
+  }
+  std::string known;
+  for (auto t : step_types()) known += (known.empty() ? "" : ", ") + std::string(t);
+  bool calibrated = false;
+  size_t index = 0;
+  for (const auto& item : steps) {
+    ++index;
+    std::string type;
+    YAML::Node fields;
+    if (item.IsScalar()) {
+      type = item.Scalar();  // a step with no fields: "- home"
+    } else if (item.IsMap() && item.size() == 1) {
+      type = item.begin()->first.Scalar();
+      fields = item.begin()->second;
+    } else {
+      d.error(item, fmt::format("step {}: expected one step (\"- type: {{fields}}\", one of {}), got {}", index,
+                                known, item.IsMap() ? fmt::format("a map with {} keys", item.size())
+                                                    : describe_node(item)));
+      continue;
+    }
+    const std::string where = fmt::format("step {} ({})", index, type);
+    const TextMark mark = TextMark::of(item.IsMap() ? item.begin()->first : item);
+    MapReader r(fields, where, d);
+    Step st{type, index, mark, HomeStep{}};
+    if (type == "home") st.body = parse_home(r);
+    else if (type == "move") st.body = parse_move(r);
+    else if (type == "settle") st.body = parse_settle(r);
+    else if (type == "sample") st.body = parse_sample(r);
+    else if (type == "null_offset_grid") st.body = parse_grid(r);
+    else if (type == "continuous_slew") st.body = parse_slew(r);
+    else if (type == "calibrate") { st.body = parse_calibrate(r, origin); calibrated = true; }
+    else if (type == "check") {
+      st.body = parse_check(r);
+      if (!calibrated) d.error(mark, fmt::format("{}: a check needs a calibrate step before it", where));
+    } else {
+      d.error(mark, fmt::format("step {}: unknown step \"{}\" (known: {})", index, type, known));
+      continue;
+    }
+    r.finish();
+    p.steps.push_back(std::move(st));
+  }
+  return p;
+}
+
+Procedure load_procedure(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open procedure file", path.string()));
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  Diagnostics d(path.string());
+  Procedure p = parse_procedure(ss.str(), path.string(), d);
+  d.throw_if_any();
+  return p;
+}
+
+std::string sha256_hex(std::string_view text) {
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned int n = 0;
+  if (EVP_Digest(text.data(), text.size(), md, &n, EVP_sha256(), nullptr) != 1) {
+    throw std::runtime_error("sha256: OpenSSL EVP_Digest failed");
+  }
+  std::string hex;
+  for (unsigned int i = 0; i < n; ++i) hex += fmt::format("{:02x}", md[i]);
+  return hex;
+}
+
+}  // namespace fpss

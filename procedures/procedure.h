@@ -1,0 +1,120 @@
+// Calibration procedures: declarative YAML steps (no code), parsed and validated with every error at once.
+#pragma once
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/samples.h"
+#include "procedures/yaml_diag.h"
+
+namespace fpss {
+
+enum class StandAxis { pitch = 0, yaw = 1 };
+const char* to_string(StandAxis a);
+
+// How many frames make one measurement of a point: a count, or a duration at the sample rate.
+struct FrameSpec {
+  int frames = 0;            // > 0 when given as a count
+  double duration_s = 0;     // > 0 when given as a duration
+  int max_invalid = 0;       // invalid frames tolerated per point before it is re-measured
+  int count(double sample_rate_hz) const;  // frames to keep
+};
+
+struct HomeStep {
+  std::optional<double> timeout_s;  // physical seconds; stand default otherwise
+};
+
+struct MoveStep {
+  std::optional<double> pitch_arcsec, yaw_arcsec;  // absolute, stand frame; absent: unchanged
+  std::optional<double> rate_arcsec_s;             // profile speed of this move; stand default otherwise
+};
+
+struct SettleStep {
+  double duration_s = 0;
+};
+
+// One measured point at the current target (after home/move steps).
+struct SampleStep {
+  FrameSpec frames;
+  std::optional<Phase> phase;  // default: null at (0, 0), offset elsewhere
+  double settle_s = 0;         // after re-moving when the point is measured again
+};
+
+// The paper's pattern: null, offset, null, offset, ... every offset between two null dwells.
+struct GridStep {
+  enum class Order { outward, ascending, descending };
+  enum class Layout { axes, diagonals, full };
+  std::vector<StandAxis> axes{StandAxis::pitch, StandAxis::yaw};  // axis order
+  double extent_arcsec = 0;  // largest offset
+  double step_arcsec = 0;    // offsets at +-step, +-2 step, ... up to +-extent
+  double settle_s = 0.5;     // after in-position, before sampling (each dwell)
+  FrameSpec frames;          // samples per dwell
+  Order order = Order::outward;
+  Layout layout = Layout::axes;
+  std::vector<double> offsets_arcsec() const;  // ordered, zero excluded
+};
+
+// Bang-bang slews along one axis between -amplitude and +amplitude, one segment per rate and direction.
+struct SlewStep {
+  enum class Directions { both, positive, negative };
+  StandAxis axis = StandAxis::pitch;
+  double amplitude_arcsec = 0;
+  std::vector<double> rates_arcsec_s;
+  Directions directions = Directions::both;
+  double sample_period_s = 0;  // one recorded sample per period (sensor time)
+  double settle_s = 0.5;       // at the start of each segment
+};
+
+// Fit at this point of the procedure, on every point recorded before it.
+struct CalibrateStep {
+  std::string method = "differences";         // differences | absolute
+  std::optional<std::filesystem::path> init;  // starting coefficient file (relative to the procedure)
+  nlohmann::json options = nlohmann::json::object();  // further calibrator options, passed through
+};
+
+struct ResidualLimits {
+  std::optional<double> mean_abs_arcsec, sd_arcsec, max_abs_arcsec;
+  std::optional<int64_t> min_points;
+  bool any() const { return mean_abs_arcsec || sd_arcsec || max_abs_arcsec || min_points; }
+};
+
+// Limits on the latest calibration's residuals (Table 1 form), per stand-reported axis.
+struct CheckStep {
+  ResidualLimits pitch, yaw;
+};
+
+using StepBody = std::variant<HomeStep, MoveStep, SettleStep, SampleStep, GridStep, SlewStep, CalibrateStep, CheckStep>;
+
+struct Step {
+  std::string type;  // as written: home, move, ...
+  size_t index = 0;  // 1-based position in `steps`
+  TextMark mark;
+  StepBody body;
+};
+
+struct Procedure {
+  std::string name;         // `name:` or the file stem
+  std::string description;
+  std::string origin;       // file it came from, for messages
+  std::string text;         // the file's text, as recorded in run.json
+  std::vector<Step> steps;
+};
+
+// Every step type the format knows, for messages and docs.
+const std::vector<std::string_view>& step_types();
+
+// Parses and validates a procedure. Errors go to `d` (all of them); the result is usable only
+// when d is empty.
+Procedure parse_procedure(std::string_view text, const std::string& origin, Diagnostics& d);
+// Reads a file; throws InputError listing every error.
+Procedure load_procedure(const std::filesystem::path& path);
+
+// The SHA-256 of a text, lowercase hex (the procedure hash in run.json and the catalogue).
+std::string sha256_hex(std::string_view text);
+
+}  // namespace fpss

@@ -1,0 +1,242 @@
+#include "procedures/recorder.h"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <fstream>
+#include <sstream>
+
+#include "calib/errors.h"
+
+namespace fpss {
+
+namespace fs = std::filesystem;
+
+const std::vector<std::string>& recorder_extra_columns() {
+  static const std::vector<std::string> c{
+      "sensor_time_s", "frame_seq",  "sensor_status",        "host_time_s",         "gimbal_time_s",
+      "gimbal_pitch_arcsec", "gimbal_yaw_arcsec", "gimbal_status", "target_pitch_arcsec", "target_yaw_arcsec",
+      "temperature_c", "attempt",    "session"};
+  return c;
+}
+
+std::vector<std::string> RecordedRow::extras() const {
+  return {format_number(sensor_time_s),
+          std::to_string(frame_seq),
+          std::to_string(sensor_status),
+          format_number(host_time_s),
+          format_number(gimbal_time_s),
+          format_number(gimbal_pitch_arcsec),
+          format_number(gimbal_yaw_arcsec),
+          std::to_string(gimbal_status),
+          format_number(target_pitch_arcsec),
+          format_number(target_yaw_arcsec),
+          std::isfinite(temperature_c) ? format_number(temperature_c) : std::string(),
+          std::to_string(attempt),
+          std::to_string(session)};
+}
+
+std::string utc_iso_now() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+std::string utc_compact(const std::string& iso) {
+  std::string s;
+  for (char c : iso) if (c != '-' && c != ':') s += c;
+  return s;
+}
+
+namespace {
+std::string safe_name(const std::string& s) {
+  std::string o;
+  for (char c : s) o += (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_') ? c : '_';
+  return o.empty() ? "unknown" : o;
+}
+
+std::string header_text() {
+  std::string h;
+  for (const char* r : SampleTable::kRequired) h += (h.empty() ? "" : ",") + std::string(r);
+  for (const auto& e : recorder_extra_columns()) h += "," + e;
+  return h + "\n";
+}
+
+void fsync_dir(const fs::path& dir) {
+  int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+  if (fd >= 0) {
+    ::fsync(fd);
+    ::close(fd);
+  }
+}
+}  // namespace
+
+fs::path make_run_dir(const fs::path& runs_dir, const std::string& utc_iso, const std::string& unit,
+                      const std::string& procedure) {
+  fs::create_directories(runs_dir);
+  const std::string base = fmt::format("{}-{}-{}", utc_compact(utc_iso), safe_name(unit), safe_name(procedure));
+  for (int i = 1; i < 10000; ++i) {
+    fs::path p = runs_dir / (i == 1 ? base : fmt::format("{}-{}", base, i));
+    // create_directory is atomic: two runs starting in the same second get different folders.
+    if (fs::create_directory(p)) return p;
+  }
+  throw std::runtime_error(fmt::format("{}: cannot create a run folder {}", runs_dir.string(), base));
+}
+
+void write_json_atomic(const fs::path& path, const nlohmann::json& j) {
+  const fs::path tmp = path.string() + ".tmp";
+  const std::string text = j.dump(2) + "\n";
+  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  if (fd < 0) throw std::runtime_error(fmt::format("{}: cannot write ({})", tmp.string(), std::strerror(errno)));
+  size_t off = 0;
+  while (off < text.size()) {
+    ssize_t n = ::write(fd, text.data() + off, text.size() - off);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      ::close(fd);
+      throw std::runtime_error(fmt::format("{}: write failed ({})", tmp.string(), std::strerror(errno)));
+    }
+    off += static_cast<size_t>(n);
+  }
+  ::fsync(fd);
+  ::close(fd);
+  fs::rename(tmp, path);
+  fsync_dir(path.parent_path().empty() ? fs::path(".") : path.parent_path());
+}
+
+nlohmann::json read_json_file(const fs::path& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(fmt::format("{}: cannot open", path.string()));
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
+  }
+}
+
+std::vector<JournalEntry> RunRecorder::read_journal(const fs::path& path) {
+  std::vector<JournalEntry> out;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return out;
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  size_t pos = 0;
+  int line_no = 0;
+  while (pos < text.size()) {
+    size_t e = text.find('\n', pos);
+    ++line_no;
+    if (e == std::string::npos) break;  // torn last line: the point it described is not durable
+    const std::string line = text.substr(pos, e - pos);
+    pos = e + 1;
+    if (line.empty()) continue;
+    try {
+      auto j = nlohmann::json::parse(line);
+      JournalEntry je;
+      je.point = j.at("point").get<int64_t>();
+      je.step = j.at("step").get<int64_t>();
+      je.rows = j.at("rows").get<size_t>();
+      je.bytes = j.at("bytes").get<uint64_t>();
+      je.last_time_s = j.at("last_time_s").get<double>();
+      je.utc = j.value("utc", "");
+      je.session = j.value("session", 1);
+      je.attempts = j.value("attempts", 1);
+      const int64_t expected = out.empty() ? 0 : out.back().point + 1;
+      if (je.point != expected) {
+        throw InputError(fmt::format("{}:{}: point {} follows point {}: the journal has a gap or a repeat",
+                                     path.string(), line_no, je.point, expected - 1));
+      }
+      out.push_back(je);
+    } catch (const nlohmann::json::exception& ex) {
+      throw InputError(fmt::format("{}:{}: malformed journal line: {}", path.string(), line_no, ex.what()));
+    }
+  }
+  return out;
+}
+
+RunRecorder::RunRecorder(const fs::path& run_dir) : dir_(run_dir) {
+  fs::create_directories(dir_);
+  const fs::path samples = samples_path();
+  journal_ = read_journal(journal_path());
+  // Cut the journal back to its complete lines (a torn line is a point that never completed).
+  {
+    uint64_t good = 0;
+    std::ifstream in(journal_path(), std::ios::binary);
+    if (in) {
+      std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      const size_t last_nl = text.rfind('\n');
+      good = last_nl == std::string::npos ? 0 : last_nl + 1;
+      if (good != text.size()) fs::resize_file(journal_path(), good);
+    }
+  }
+  const std::string header = header_text();
+  const uint64_t keep = journal_.empty() ? header.size() : journal_.back().bytes;
+  if (fs::exists(samples)) {
+    const uint64_t size = fs::file_size(samples);
+    if (size < keep) {
+      throw InputError(fmt::format("{}: {} bytes, but the journal {} says {} were synced: the recording was "
+                                   "damaged outside the stand",
+                                   samples.string(), size, journal_path().string(), keep));
+    }
+    if (size > keep) {
+      cut_bytes_ = size - keep;
+      fs::resize_file(samples, keep);
+    }
+  } else if (!journal_.empty()) {
+    throw InputError(fmt::format("{}: missing, but the journal lists {} points", samples.string(), journal_.size()));
+  }
+  writer_ = std::make_unique<SamplesCsvWriter>(samples, recorder_extra_columns());
+  if (!journal_.empty()) {
+    last_time_s_ = journal_.back().last_time_s;
+    for (const auto& j : journal_) has_rows_ = has_rows_ || j.rows > 0;
+  }
+  journal_fd_ = ::open(journal_path().c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+  if (journal_fd_ < 0) {
+    throw std::runtime_error(fmt::format("{}: cannot open ({})", journal_path().string(), std::strerror(errno)));
+  }
+  fsync_dir(dir_);
+}
+
+RunRecorder::~RunRecorder() {
+  if (journal_fd_ >= 0) ::close(journal_fd_);
+}
+
+void RunRecorder::append_point(int64_t point, const std::vector<RecordedRow>& rows, int attempts, int session) {
+  if (point != next_point()) {
+    throw std::logic_error(fmt::format("recorder: point {} out of order (next is {})", point, next_point()));
+  }
+  for (const auto& r : rows) {
+    writer_->append(r.sample, r.extras());
+    last_time_s_ = std::max(last_time_s_, r.sample.time_s);
+  }
+  writer_->sync();
+  JournalEntry je;
+  je.point = point;
+  je.step = point + 1;
+  je.rows = rows.size();
+  je.bytes = fs::file_size(samples_path());
+  je.last_time_s = last_time_s_;
+  je.utc = utc_iso_now();
+  je.session = session;
+  je.attempts = attempts;
+  const std::string line = nlohmann::json{{"point", je.point},     {"step", je.step},
+                                          {"rows", je.rows},       {"bytes", je.bytes},
+                                          {"last_time_s", je.last_time_s}, {"utc", je.utc},
+                                          {"session", je.session}, {"attempts", je.attempts}}
+                               .dump() +
+                           "\n";
+  if (::write(journal_fd_, line.data(), line.size()) != static_cast<ssize_t>(line.size()) ||
+      ::fsync(journal_fd_) != 0) {
+    throw std::runtime_error(fmt::format("{}: journal write failed ({})", journal_path().string(),
+                                         std::strerror(errno)));
+  }
+  journal_.push_back(je);
+  has_rows_ = has_rows_ || !rows.empty();
+}
+
+}  // namespace fpss

@@ -1,0 +1,97 @@
+// The run folder's durable records: samples.csv appended and synced per point, the point journal, run.json.
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/samples.h"
+
+namespace fpss {
+
+// Columns the recorder writes after the samples contract's, in this order.
+const std::vector<std::string>& recorder_extra_columns();
+
+// One recorded row: the contract's columns and the recorder's extras.
+struct RecordedRow {
+  Sample sample;
+  double sensor_time_s = 0;   // the sensor's clock (unwrapped)
+  uint16_t frame_seq = 0;
+  uint8_t sensor_status = 0;
+  double host_time_s = 0;     // host steady clock at receipt, seconds since the session started
+  double gimbal_time_s = 0;   // the gimbal's clock at the reference (slews: interpolated to the frame)
+  double gimbal_pitch_arcsec = 0, gimbal_yaw_arcsec = 0;  // stand frame, encoders
+  uint16_t gimbal_status = 0;
+  double target_pitch_arcsec = 0, target_yaw_arcsec = 0;  // stand frame
+  double temperature_c = 0;   // NaN when the sensor did not answer
+  int attempt = 1;            // measurement attempt of the point that was kept
+  int session = 1;            // 1 + number of resumes before this row
+  std::vector<std::string> extras() const;
+};
+
+// What the journal says about one completed point.
+struct JournalEntry {
+  int64_t point = 0;     // plan index
+  int64_t step = 0;      // the samples file's step column (point + 1)
+  size_t rows = 0;       // rows of this point
+  uint64_t bytes = 0;    // samples.csv size once this point was synced
+  double last_time_s = 0;
+  std::string utc;
+  int session = 1;
+  int attempts = 1;
+};
+
+// UTC now as ISO 8601 (2024-05-01T12:00:00Z) and compact for folder names (20240501T120000Z).
+std::string utc_iso_now();
+std::string utc_compact(const std::string& iso);
+
+// A fresh folder <runs_dir>/<UTC time>-<unit>-<procedure>/ (a suffix -2, -3, ... if taken).
+std::filesystem::path make_run_dir(const std::filesystem::path& runs_dir, const std::string& utc_iso,
+                                   const std::string& unit, const std::string& procedure);
+
+// Writes JSON atomically (temporary file, fsync, rename): a crash leaves the old or the new file.
+void write_json_atomic(const std::filesystem::path& path, const nlohmann::json& j);
+nlohmann::json read_json_file(const std::filesystem::path& path);  // InputError naming the file
+
+// Appends points to samples.csv and records each in points.jsonl once it is durable, so a crash
+// loses at most the point in progress. Opening an existing folder (a resume) cuts samples.csv
+// back to the end of the last journalled point: no half point survives, none is repeated.
+class RunRecorder {
+ public:
+  explicit RunRecorder(const std::filesystem::path& run_dir);
+  RunRecorder(const RunRecorder&) = delete;
+  RunRecorder& operator=(const RunRecorder&) = delete;
+
+  // Appends the rows of one point, syncs samples.csv, then journals the point (and syncs that).
+  void append_point(int64_t point, const std::vector<RecordedRow>& rows, int attempts, int session);
+
+  const std::vector<JournalEntry>& journal() const { return journal_; }
+  int64_t next_point() const { return journal_.empty() ? 0 : journal_.back().point + 1; }
+  double last_time_s() const { return last_time_s_; }
+  bool has_rows() const { return has_rows_; }
+  size_t rows() const { return writer_->rows_written(); }
+  // Bytes of a torn point cut away when the folder was opened (0 on a clean open).
+  uint64_t cut_bytes() const { return cut_bytes_; }
+  const std::filesystem::path& dir() const { return dir_; }
+  std::filesystem::path samples_path() const { return dir_ / "samples.csv"; }
+  std::filesystem::path journal_path() const { return dir_ / "points.jsonl"; }
+
+  // Reads the journal, ignoring a torn last line; InputError for anything else malformed.
+  static std::vector<JournalEntry> read_journal(const std::filesystem::path& path);
+
+ private:
+  std::filesystem::path dir_;
+  std::unique_ptr<SamplesCsvWriter> writer_;
+  std::vector<JournalEntry> journal_;
+  int journal_fd_ = -1;
+  double last_time_s_ = 0;
+  bool has_rows_ = false;
+  uint64_t cut_bytes_ = 0;
+
+ public:
+  ~RunRecorder();
+};
+
+}  // namespace fpss

@@ -1,0 +1,24 @@
+// Stand files (YAML): endpoints, unit serial, soft limits, timeouts, retries, axis mapping and sample rate of a bench.
+#pragma once
+#include <filesystem>
+#include <string>
+#include <string_view>
+
+#include "procedures/bench.h"
+#include "procedures/yaml_diag.h"
+
+namespace fpss {
+
+// Parses and validates a stand file; every error goes to `d` with file:line:column. The result
+// is usable only when d is empty.
+StandConfig parse_stand(std::string_view text, const std::string& origin, Diagnostics& d);
+// Reads a file; throws InputError listing every error.
+StandConfig load_stand_file(const std::filesystem::path& path);
+
+// The stand `--emulate` uses when no stand file is given: the emulator's gimbal and sensor
+// (endpoints filled in once it is up), its bench clock shared by both devices, speed-up `speed`.
+StandConfig emulated_stand(double speed);
+// Makes a stand (from a file or not) drive an emulator: shared bench clock, the speed-up as time scale.
+void adapt_to_emulator(StandConfig& stand, double speed);
+
+}  // namespace fpss
