@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "calib/compare.h"
 #include "calib/errors.h"
 #include "procedures/catalogue.h"
 #include "stand/commands.h"
@@ -107,6 +108,7 @@ struct HistoryEntry {
   CalibrationRecord cal;
   std::optional<double> change_arcsec;  // vs the previous entry; empty for the first
   bool flagged = false;                 // change beyond the history limit
+  std::optional<double> change_offset_removed_arcsec;  // the same with the null shift taken out
 };
 
 std::string source_text(const CalibrationRecord& c) {
@@ -149,6 +151,7 @@ nlohmann::json history_json(const std::string& serial, const Catalogue& cat, con
     if (e.change_arcsec) {
       j["change_arcsec"] = *e.change_arcsec;
       j["flagged"] = e.flagged;
+      if (e.change_offset_removed_arcsec) j["change_offset_removed_arcsec"] = *e.change_offset_removed_arcsec;
     }
     list.push_back(std::move(j));
   }
@@ -192,7 +195,26 @@ void print_history(const std::string& serial, const Catalogue& cat, const std::v
   print_table(header, rows);
 }
 
-int show_history(const DbOpts& o, const std::string& serial) {
+// Each calibration against the one before it (calib/compare.h): the largest |B - A| of either
+// axis over the counts the earlier one maps into +-0.35 deg; flagged beyond the limit.
+void fill_changes(std::vector<HistoryEntry>& h, double limit_arcsec) {
+  for (size_t i = 1; i < h.size(); ++i) {
+    try {
+      const auto prev = parse_coefficients(h[i - 1].cal.coefficients, fmt::format("calibration {}", h[i - 1].cal.id));
+      const auto cur = parse_coefficients(h[i].cal.coefficients, fmt::format("calibration {}", h[i].cal.id));
+      const DriftCheck d = check_drift(prev, cur, limit_arcsec);
+      h[i].change_arcsec = d.worst_arcsec;
+      h[i].change_offset_removed_arcsec = d.worst_shape_arcsec;
+      h[i].flagged = d.flagged;
+    } catch (const InputError& e) {  // a set that cannot be compared: say so, keep listing
+      std::fprintf(stderr, "note: calibration %lld not compared with the previous one: %s\n",
+                   static_cast<long long>(h[i].cal.id), e.what());
+    }
+  }
+}
+
+int show_history(const DbOpts& o, const std::string& serial, double limit_arcsec) {
+  if (!(limit_arcsec > 0)) throw InputError(fmt::format("--limit-arcsec {}: must be positive", limit_arcsec));
   Catalogue cat(o.path(), Catalogue::Mode::read_only);
   std::vector<HistoryEntry> h;
   for (auto& c : cat.unit_history(serial)) h.push_back({std::move(c), std::nullopt, false});
@@ -208,10 +230,21 @@ int show_history(const DbOpts& o, const std::string& serial) {
                                               }());
     throw InputError(why);
   }
+  fill_changes(h, limit_arcsec);
+  const HistoryEntry& latest = h.back();
   if (o.json) {
-    std::printf("%s\n", history_json(serial, cat, h).dump(1).c_str());
+    nlohmann::json j = history_json(serial, cat, h);
+    j["limit_arcsec"] = limit_arcsec;
+    j["latest_flagged"] = latest.flagged;
+    std::printf("%s\n", j.dump(1).c_str());
   } else {
     print_history(serial, cat, h);
+    if (latest.change_arcsec) {
+      std::printf("latest (%lld, %s) vs previous: %.2f arcsec (%.2f with the null shift removed), limit %g: %s\n",
+                  static_cast<long long>(latest.cal.id), latest.cal.date_utc.c_str(), *latest.change_arcsec,
+                  latest.change_offset_removed_arcsec.value_or(0.0), limit_arcsec,
+                  latest.flagged ? "CHANGED beyond the limit" : "within the limit");
+    }
   }
   return 0;
 }
@@ -236,12 +269,16 @@ void add_catalogue(CLI::App& app, Runner& run) {
     struct Opts {
       DbOpts db;
       std::string serial;
+      double limit_arcsec = kDefaultDriftLimitArcsec;
     };
     auto o = std::make_shared<Opts>();
     auto* sub = app.add_subcommand("history", "List one unit's calibrations over time with their residuals");
     sub->add_option("SERIAL", o->serial, "the unit's serial number")->required();
     add_db_options(sub, o->db);
-    sub->callback([o, &run] { run = [o] { return show_history(o->db, o->serial); }; });
+    sub->add_option("--limit-arcsec", o->limit_arcsec,
+                    "flag a calibration that differs from the previous by more than this (max |B - A|, +-0.35 deg)")
+        ->capture_default_str();
+    sub->callback([o, &run] { run = [o] { return show_history(o->db, o->serial, o->limit_arcsec); }; });
   }
 }
 

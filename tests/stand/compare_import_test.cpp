@@ -249,6 +249,47 @@ TEST_F(PaperHistories, ReimportIsANoOpAndReportsTheChange) {
   EXPECT_EQ(cat.unit_history("SMM-FPSS1").size(), std::size(kPaper));
 }
 
+TEST_F(PaperHistories, HistoryFlagsTheLatestChangeBeyondTheLimit) {
+  // V -> VI moved FPSS1 by 50 arcsec (alpha, incl. the slew's null shift): flagged at the default 1 arcsec.
+  Cli r = cli("history SMM-FPSS1 --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["limit_arcsec"].get<double>(), 1.0);
+  EXPECT_TRUE(j["latest_flagged"].get<bool>());
+  const auto& cals = j["calibrations"];
+  ASSERT_EQ(cals.size(), std::size(kPaper));
+  EXPECT_FALSE(cals[0].contains("change_arcsec"));
+  const auto v = read_json(published("a-6", "fpss1")), vi = read_json(published("a-7", "fpss1"));
+  const double want = std::max(
+      figures(v["alpha"].get<std::vector<double>>(), vi["alpha"].get<std::vector<double>>(), 0.35).max_abs,
+      figures(v["beta"].get<std::vector<double>>(), vi["beta"].get<std::vector<double>>(), 0.35).max_abs);
+  EXPECT_NEAR(cals[6]["change_arcsec"].get<double>(), want, 1e-6);
+  r = cli("history SMM-FPSS1 --limit-arcsec 60 --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(nlohmann::json::parse(r.out)["latest_flagged"].get<bool>());
+  r = cli("history SMM-FPSS1");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("CHANGED beyond the limit"), std::string::npos) << r.out;
+
+  // A later calibration 0.5 arcsec from VI on beta only (a null shift): within 1 arcsec, beyond 0.3.
+  auto later = vi;
+  later["beta"][0] = later["beta"][0].get<double>() + 0.5 / kArcsecPerRad;
+  later.erase("calibration");
+  const fs::path later_file = scratch_.path() / "later.json";
+  std::ofstream(later_file) << later.dump();
+  r = cli("import '" + later_file.string() + "' --unit SMM-FPSS1 --date 1980-10-01T12:00:00Z --label VII");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = cli("history SMM-FPSS1 --json");
+  j = nlohmann::json::parse(r.out);
+  EXPECT_FALSE(j["latest_flagged"].get<bool>());
+  EXPECT_EQ(j["calibrations"].back()["label"], "VII");
+  EXPECT_NEAR(j["calibrations"].back()["change_arcsec"].get<double>(), 0.5, 1e-6);
+  EXPECT_NEAR(j["calibrations"].back()["change_offset_removed_arcsec"].get<double>(), 0.0, 1e-6);
+  r = cli("history SMM-FPSS1 --json --limit-arcsec 0.3");
+  EXPECT_TRUE(nlohmann::json::parse(r.out)["latest_flagged"].get<bool>());
+  EXPECT_EQ(cli("history SMM-FPSS1 --limit-arcsec 0").code, 2);
+}
+
 TEST_F(PaperHistories, BadInputIsExitTwoAndRecordsNothing) {
   const fs::path bad = scratch_.path() / "bad.json";
   {
