@@ -89,13 +89,12 @@ class FdStream : public ByteStream {
  protected:
   virtual ssize_t recv_some(uint8_t* buf, std::size_t n) { return ::read(fd_, buf, n); }
   virtual ssize_t send_some(const uint8_t* data, std::size_t n) { return ::write(fd_, data, n); }
+  // The descriptor stays open: another thread may be blocked on it; the owner closes.
   [[noreturn]] void lost(const char* what, int e) {
-    close();
-    throw DeviceError(fmt::format("{}: {} failed: {}; link closed", endpoint_, what, errno_text(e)));
+    throw DeviceError(fmt::format("{}: {} failed: {}; link lost", endpoint_, what, errno_text(e)));
   }
   [[noreturn]] void lost_hangup() {
-    close();
-    throw DeviceError(fmt::format("{}: the other end hung up (EOF); link closed", endpoint_));
+    throw DeviceError(fmt::format("{}: the other end hung up (EOF); link lost", endpoint_));
   }
 
   std::string endpoint_;
@@ -256,22 +255,15 @@ class SerialPortStream final : public ByteStream {
     if (!port_) throw DeviceError(fmt::format("{}: read on a closed link", endpoint_));
     unsigned ms = static_cast<unsigned>(to_ms(timeout_s));
     sp_return rc = ms ? sp_blocking_read_next(port_.get(), buf, n, ms) : sp_nonblocking_read(port_.get(), buf, n);
-    if (rc < 0) {
-      std::string why = sp_text(rc);
-      close();  // a USB adapter that was unplugged: reopen later
-      throw DeviceError(fmt::format("{}: read failed: {}; link closed", endpoint_, why));
-    }
+    if (rc < 0)  // e.g. a USB adapter that was unplugged; the owner closes and reopens
+      throw DeviceError(fmt::format("{}: read failed: {}; link lost", endpoint_, sp_text(rc)));
     return static_cast<std::size_t>(rc);
   }
 
   void write(const uint8_t* data, std::size_t n, double timeout_s) override {
     if (!port_) throw DeviceError(fmt::format("{}: write on a closed link", endpoint_));
     sp_return rc = sp_blocking_write(port_.get(), data, n, static_cast<unsigned>(std::max(1, to_ms(timeout_s))));
-    if (rc < 0) {
-      std::string why = sp_text(rc);
-      close();
-      throw DeviceError(fmt::format("{}: write failed: {}; link closed", endpoint_, why));
-    }
+    if (rc < 0) throw DeviceError(fmt::format("{}: write failed: {}; link lost", endpoint_, sp_text(rc)));
     if (static_cast<std::size_t>(rc) != n)
       throw DeviceError(
           fmt::format("{}: write timed out after {} s with {} of {} bytes sent", endpoint_, timeout_s, rc, n));

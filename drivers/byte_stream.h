@@ -18,7 +18,9 @@ class ByteStream {
   virtual void close() = 0;
   virtual bool is_open() const = 0;
   // Up to n bytes, waiting at most timeout_s for the first; 0 on timeout.
-  // Throws DeviceError when the link is gone (hang-up, EOF, I/O error); the stream is then closed.
+  // Throws DeviceError when the link is gone (hang-up, EOF, I/O error). A stream never closes
+  // itself (another thread may be using it): the owner calls close(), then open() to reconnect.
+  // One reader and one writer may work concurrently; open() and close() need both stopped.
   virtual std::size_t read(uint8_t* buf, std::size_t n, double timeout_s) = 0;
   // All n bytes or DeviceError (timeout_s bounds the whole write).
   virtual void write(const uint8_t* data, std::size_t n, double timeout_s = 1.0) = 0;

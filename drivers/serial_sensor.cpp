@@ -41,7 +41,10 @@ SerialSensor::~SerialSensor() { disconnect(); }
 
 void SerialSensor::connect() {
   disconnect();
-  stream_->open();  // DeviceError naming the endpoint and errno
+  {
+    std::lock_guard io(io_mu_);
+    stream_->open();  // DeviceError naming the endpoint and errno
+  }
   {
     std::lock_guard lk(mu_);
     running_ = true;
@@ -63,7 +66,10 @@ void SerialSensor::disconnect() {
   }
   cv_.notify_all();
   if (reader_.joinable()) reader_.join();
-  stream_->close();
+  {
+    std::lock_guard io(io_mu_);
+    stream_->close();
+  }
   std::lock_guard lk(mu_);
   link_up_ = false;
 }
@@ -85,6 +91,10 @@ void SerialSensor::reader_loop() {
       n = stream_->read(buf, sizeof buf, kReadSlice_s);
     } catch (const DeviceError& e) {
       spdlog::warn("sensor {}: {}", options_.endpoint, e.what());
+      {
+        std::lock_guard io(io_mu_);
+        stream_->close();
+      }
       {
         std::lock_guard lk(mu_);
         link_up_ = false;
@@ -109,7 +119,10 @@ bool SerialSensor::reopen() {
       if (cv_.wait_for(lk, secs(backoff), [&] { return !running_; })) return false;
     }
     try {
-      stream_->open();
+      {
+        std::lock_guard io(io_mu_);
+        stream_->open();
+      }
       std::lock_guard lk(mu_);
       link_up_ = true;
       ++stats_.reconnects;
@@ -202,6 +215,9 @@ std::string SerialSensor::exchange(const std::string& line, bool (*accept)(const
       replies_.clear();  // late answers to earlier commands are not ours
     }
     try {
+      std::lock_guard io(io_mu_);
+      if (!stream_->is_open())
+        throw DeviceError(fmt::format("{}: link down, reconnecting", options_.endpoint));
       stream_->write(reinterpret_cast<const uint8_t*>(wire.data()), wire.size(), options_.command_timeout_s);
     } catch (const DeviceError& e) {
       // The reader thread sees the same dead link and reconnects; the retry below waits for it.

@@ -67,6 +67,9 @@ class SerialSensor : public Sensor {
   SensorStats stats_;
 
   std::mutex cmd_mu_;  // one command exchange at a time
+  // Guards stream_ open/close/write. The reader thread reads without it (one reader, one writer
+  // may share a stream) and is the only one to close or reopen it while running.
+  std::mutex io_mu_;
 };
 
 }  // namespace fpss
