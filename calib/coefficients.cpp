@@ -57,7 +57,8 @@ CoefficientSet load_coefficients(const std::filesystem::path& path) {
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {
+    // parse_error, and out_of_range for numbers beyond a double (1e999): both are bad files.
     throw InputError(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
   }
   return parse_coefficients(j, path.string());

@@ -1,0 +1,263 @@
+#include "calib/calibrator.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <thread>
+
+#include "calib/errors.h"
+#include "calib/refine.h"
+#include "calib/units.h"
+
+namespace fpss {
+
+std::string_view to_string(Method m) { return m == Method::differences ? "differences" : "absolute"; }
+
+std::optional<Method> parse_method(std::string_view s) {
+  if (s == "differences") return Method::differences;
+  if (s == "absolute") return Method::absolute;
+  return std::nullopt;
+}
+
+TransferDifference compare_transfer(const AxisCoeffs& a, const AxisCoeffs& b, double lo, double hi, int steps) {
+  TransferDifference out;
+  double sum_sq = 0;
+  for (int i = 0; i <= steps; ++i) {
+    const double n = lo + (hi - lo) * i / steps;
+    const double d = rad_to_arcsec(transfer_angle(a.data(), n) - transfer_angle(b.data(), n));
+    sum_sq += d * d;
+    if (std::abs(d) > out.max_abs_arcsec) {
+      out.max_abs_arcsec = std::abs(d);
+      out.at_counts = n;
+    }
+  }
+  out.rms_arcsec = std::sqrt(sum_sq / (steps + 1));
+  return out;
+}
+
+namespace fit {
+namespace {
+
+// An axis whose counts move less than this between null and offset was not calibrated along.
+constexpr double kMinSpreadCounts = 200.0;  // ~22 arcsec
+// Offset positions closer than this are one position for telling the coefficients apart.
+constexpr double kDistinctCounts = 50.0;
+
+const char* axis_name(Axis a) { return a == Axis::alpha ? "pitch" : "yaw"; }
+const char* counts_column(Axis a) { return a == Axis::alpha ? "counts_alpha" : "counts_beta"; }
+double counts_of(const Dwell& d, Axis a) { return a == Axis::alpha ? d.counts_alpha : d.counts_beta; }
+double ref_of(const Dwell& d, Axis a) { return a == Axis::alpha ? d.ref_pitch_arcsec : d.ref_yaw_arcsec; }
+
+}  // namespace
+
+void add_pair_rows(AxisData& d, Axis axis, const Dwell& null_dwell, const Dwell& offset_dwell) {
+  d.n_plus.push_back(counts_of(offset_dwell, axis));
+  d.n_minus.push_back(counts_of(null_dwell, axis));
+  d.y_arcsec.push_back(ref_of(offset_dwell, axis) - ref_of(null_dwell, axis));
+  d.cover(counts_of(offset_dwell, axis), ref_of(offset_dwell, axis));
+  d.cover(counts_of(null_dwell, axis), ref_of(null_dwell, axis));
+}
+
+void add_null(AxisData& d, Axis axis, const Dwell& null_dwell) {
+  d.null_counts_sum += counts_of(null_dwell, axis);
+  d.null_ref_arcsec_sum += ref_of(null_dwell, axis);
+  ++d.null_dwells;
+  d.cover(counts_of(null_dwell, axis), ref_of(null_dwell, axis));
+}
+
+void add_absolute_row(AxisData& d, Axis axis, const Dwell& dwell) {
+  d.n_plus.push_back(counts_of(dwell, axis));
+  d.y_arcsec.push_back(ref_of(dwell, axis));
+  d.cover(counts_of(dwell, axis), ref_of(dwell, axis));
+}
+
+void check_axis(const AxisData& d, Axis axis, const std::string& origin) {
+  const std::string where = fmt::format("{}: {} axis ({})", origin.empty() ? "samples" : origin,
+                                        axis_name(axis), counts_column(axis));
+  const size_t p = d.parameters();
+  const char* what = d.differences ? "changes null <-> offset" : "dwells";
+  if (d.rows() == 0) throw DataError(fmt::format("{}: no {}: nothing to fit", where, what));
+  double spread = 0, ref_spread = 0;
+  if (d.differences) {
+    for (size_t i = 0; i < d.rows(); ++i) {
+      spread = std::max(spread, std::abs(d.n_plus[i] - d.n_minus[i]));
+      ref_spread = std::max(ref_spread, std::abs(d.y_arcsec[i]));
+    }
+  } else {
+    spread = d.counts_hi - d.counts_lo;
+    ref_spread = d.ref_hi_arcsec - d.ref_lo_arcsec;
+  }
+  if (spread < kMinSpreadCounts) {
+    throw DataError(fmt::format(
+        "{}: no offsets along {}: the counts move by at most {:.0f} counts ({:.1f} arcsec of reference) "
+        "across the recording, so the {} transfer function cannot be told from this data; a calibration "
+        "needs offsets along both pitch and yaw",
+        where, axis_name(axis), spread, ref_spread, axis_name(axis)));
+  }
+  std::vector<double> pos = d.n_plus;
+  std::sort(pos.begin(), pos.end());
+  size_t distinct = pos.empty() ? 0 : 1;
+  for (size_t i = 1; i < pos.size(); ++i) {
+    if (pos[i] - pos[i - 1] > kDistinctCounts) ++distinct;
+  }
+  const size_t need = p + 1;
+  if (distinct < need || d.rows() < p + 2) {
+    throw DataError(fmt::format(
+        "{}: too few points: {} {} at {} distinct positions (>{:.0f} counts apart); at least {} positions "
+        "and {} {} are needed to tell the {} coefficients {} apart",
+        where, d.rows(), what, distinct, kDistinctCounts, need, p + 2, what, p,
+        d.differences ? "C2..C8" : "C1..C8"));
+  }
+  if (d.differences && d.null_dwells == 0) {
+    throw DataError(fmt::format("{}: no null dwells: C1 follows from the null condition", where));
+  }
+}
+
+AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const CalibrationOptions& opts) {
+  AxisFit out;
+  out.axis = axis_name(axis);
+  out.coefficient_key = axis == Axis::alpha ? "alpha" : "beta";
+  RefineOptions ro;
+  ro.max_iterations = opts.max_iterations;
+  ro.threads = opts.threads > 0 ? opts.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+
+  struct Start {
+    AxisCoeffs c;
+    std::string label;
+  };
+  std::vector<Start> starts;
+  const auto nodes = gram.best_nodes(opts.refine_nodes);
+  for (const auto& n : nodes) {
+    starts.push_back({gram.coefficients(n),
+                      fmt::format("grid node w = ({:.2e}, {:.2e}) rad/count", gram.frequency(n.j), gram.frequency(n.k))});
+  }
+  if (opts.init) starts.push_back({axis == Axis::alpha ? opts.init->alpha : opts.init->beta, "start set (--init)"});
+  if (starts.empty()) {
+    throw DataError(fmt::format(
+        "{} axis: no pair of grid frequencies gives a solvable linear problem: the data cannot separate "
+        "the slope and the two sinusoids",
+        out.axis));
+  }
+  out.solver.candidates = starts.size();
+  out.solver.grid_rows = gram.rows();
+  out.solver.grid_rms_arcsec =
+      nodes.empty() ? std::nan("") : std::sqrt(nodes.front().cost / static_cast<double>(gram.rows()));
+
+  const size_t stride = std::max<size_t>(1, (d.rows() + opts.screen_max_rows - 1) / std::max<size_t>(1, opts.screen_max_rows));
+  std::optional<Refined> best;
+  std::string best_label;
+  for (const auto& s : starts) {
+    Refined r = refine_axis(d, s.c, ro, stride);
+    if (r.usable && (!best || r.final_cost < best->final_cost)) {
+      best = std::move(r);
+      best_label = s.label;
+    }
+  }
+  if (!best) throw std::runtime_error(fmt::format("{} axis: the solver failed from every start", out.axis));
+  Refined fin = stride == 1 ? std::move(*best) : refine_axis(d, best->coeffs, ro, 1);
+  if (!fin.usable) throw std::runtime_error(fmt::format("{} axis: the solver failed: {}", out.axis, fin.brief));
+
+  out.coeffs = fin.coeffs;
+  out.solver.start = best_label;
+  out.solver.brief = fin.brief;
+  out.solver.iterations = fin.iterations;
+  out.solver.initial_cost = fin.initial_cost;
+  out.solver.final_cost = fin.final_cost;
+  out.solver.converged = fin.converged;
+
+  const Uncertainty u = uncertainty(d, out.coeffs, ro);
+  out.sigma = u.sigma;
+  out.angle_sigma_max_arcsec = u.angle_sigma_max_arcsec;
+  out.covariance_pseudo_inverse = u.pseudo_inverse;
+  out.covariance_note = u.note;
+
+  ResidualStats& st = out.residuals;
+  st.points = d.rows();
+  double sum = 0, sum_sq = 0;
+  for (size_t i = 0; i < d.rows(); ++i) {
+    const double a = std::abs(residual_arcsec(d, out.coeffs, i));
+    sum += a;
+    sum_sq += a * a;
+    st.max_abs_arcsec = std::max(st.max_abs_arcsec, a);
+  }
+  const double m = static_cast<double>(st.points);
+  st.mean_abs_arcsec = sum / m;
+  st.rms_arcsec = std::sqrt(sum_sq / m);
+  st.sd_arcsec = st.points > 1 ? std::sqrt(std::max(0.0, (sum_sq - m * st.mean_abs_arcsec * st.mean_abs_arcsec) / (m - 1))) : 0.0;
+  st.range_deg = {d.ref_lo_arcsec / kArcsecPerDeg, d.ref_hi_arcsec / kArcsecPerDeg};
+  out.counts_range = {d.counts_lo, d.counts_hi};
+  return out;
+}
+
+}  // namespace fit
+
+CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const CalibrationOptions& opts,
+                                   const std::string& source, size_t samples) {
+  const std::string src = source.empty() ? "samples" : source;
+  CalibrationReport rep;
+  rep.method = opts.method;
+  rep.source = source;
+  rep.unit = opts.unit;
+  rep.samples = samples;
+  for (const auto& d : dwells) (d.phase == Phase::null ? rep.null_dwells : rep.offset_dwells)++;
+  if (dwells.empty()) {
+    throw DataError(fmt::format("{}: no null or offset rows: nothing to calibrate (slew and move rows are not used)", src));
+  }
+  if (rep.offset_dwells == 0) {
+    throw DataError(fmt::format("{}: no offset dwells ({} null dwells): the transfer function cannot be told "
+                                "from the null alone", src, rep.null_dwells));
+  }
+  const bool diff = opts.method == Method::differences;
+  fit::AxisData a, b;
+  a.differences = b.differences = diff;
+  if (diff) {
+    if (rep.null_dwells == 0) {
+      throw DataError(fmt::format(
+          "{}: no null dwells: the differences method measures every offset against a neighbouring null "
+          "dwell and fixes C1 by the null condition (record null dwells between offsets, or use "
+          "--method absolute)",
+          src));
+    }
+    const auto pairs = pair_dwells(dwells);
+    rep.pairs = pairs.size();
+    for (const auto& p : pairs) {
+      fit::add_pair_rows(a, fit::Axis::alpha, dwells[p.null_index], dwells[p.offset_index]);
+      fit::add_pair_rows(b, fit::Axis::beta, dwells[p.null_index], dwells[p.offset_index]);
+    }
+    for (const auto& d : dwells) {
+      if (d.phase != Phase::null) continue;
+      fit::add_null(a, fit::Axis::alpha, d);
+      fit::add_null(b, fit::Axis::beta, d);
+    }
+  } else {
+    for (const auto& d : dwells) {
+      fit::add_absolute_row(a, fit::Axis::alpha, d);
+      fit::add_absolute_row(b, fit::Axis::beta, d);
+    }
+  }
+  fit::check_axis(a, fit::Axis::alpha, source);
+  fit::check_axis(b, fit::Axis::beta, source);
+
+  auto fit_one = [&](const fit::AxisData& d, fit::Axis axis) {
+    fit::FrequencyGram gram(opts.grid, diff);
+    const size_t stride = std::max<size_t>(1, (d.rows() + opts.grid_max_rows - 1) / std::max<size_t>(1, opts.grid_max_rows));
+    if (stride == 1) {
+      gram.add(d.n_plus.data(), diff ? d.n_minus.data() : nullptr, d.y_arcsec.data(), d.rows());
+    } else {
+      for (size_t i = 0; i < d.rows(); i += stride) gram.add(d.n_plus[i], diff ? d.n_minus[i] : 0.0, d.y_arcsec[i]);
+    }
+    return fit::fit_axis(d, gram, axis, opts);
+  };
+  rep.pitch = fit_one(a, fit::Axis::alpha);
+  rep.yaw = fit_one(b, fit::Axis::beta);
+  if (rep.unit.empty() && opts.init) rep.unit = opts.init->unit;
+  return rep;
+}
+
+CalibrationReport calibrate(const SampleTable& samples, const CalibrationOptions& opts) {
+  return calibrate_dwells(average_dwells(samples), opts, samples.origin, samples.size());
+}
+
+}  // namespace fpss

@@ -1,0 +1,111 @@
+// The calibrator: fits both axes' transfer functions to a null-to-offset recording (paper section 2).
+#pragma once
+#include <array>
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "calib/coefficients.h"
+#include "calib/dwells.h"
+#include "calib/residuals.h"
+#include "calib/samples.h"
+#include "calib/varpro.h"
+
+namespace fpss {
+
+enum class Method {
+  differences,  // the paper's: C2..C8 on changes null <-> offset, C1 from the null condition
+  absolute,     // C1..C8 on the dwells' absolute reference angles
+};
+std::string_view to_string(Method m);
+std::optional<Method> parse_method(std::string_view s);
+
+struct CalibrationOptions {
+  Method method = Method::differences;
+  std::optional<CoefficientSet> init;  // also tried as a start, besides the grid's best nodes
+  fit::GridConfig grid;
+  // Per axis, the grid stage uses at most this many rows (an evenly strided subset beyond);
+  // the refinement always uses all of them.
+  size_t grid_max_rows = 100000;
+  // Competing starts are refined on at most this many rows; only the winner sees all rows.
+  size_t screen_max_rows = 20000;
+  size_t refine_nodes = 4;  // grid local minima refined
+  int threads = 0;  // Ceres threads; 0: the machine's
+  int max_iterations = 200;
+  std::string unit;  // written to the coefficient set
+};
+
+// Table 1 of the paper: residuals of one axis's fit, arcsec.
+struct ResidualStats {
+  double mean_abs_arcsec = 0;
+  double sd_arcsec = 0;  // standard deviation of |residual| (Table 1 prints mean |r| +- sd)
+  double max_abs_arcsec = 0;
+  double rms_arcsec = 0;
+  size_t points = 0;
+  std::array<double, 2> range_deg{};  // reference angles of the dwells used, [lo, hi]
+};
+
+struct SolverInfo {
+  std::string start;  // which start won: "grid w=(..)" or "init"
+  size_t candidates = 0;  // starts refined
+  size_t grid_rows = 0;  // rows the grid stage saw
+  double grid_rms_arcsec = 0;  // residual RMS at the best grid node
+  std::string brief;  // Ceres BriefReport of the final refinement
+  int iterations = 0;
+  double initial_cost = 0, final_cost = 0;  // 0.5 sum r^2, arcsec^2
+  bool converged = false;
+};
+
+struct AxisFit {
+  std::string axis;  // "pitch" or "yaw"
+  std::string coefficient_key;  // "alpha" or "beta"
+  AxisCoeffs coeffs{};
+  std::array<double, 8> sigma{};  // 1-sigma of C1..C8
+  double angle_sigma_max_arcsec = 0;  // 1-sigma of the fitted angle, max over the count range
+  bool covariance_pseudo_inverse = false;
+  std::string covariance_note;
+  std::array<double, 2> counts_range{};  // the calibrated count range
+  ResidualStats residuals;
+  SolverInfo solver;
+};
+
+struct CalibrationReport {
+  Method method = Method::differences;
+  std::string source;  // the samples file
+  std::string unit;
+  size_t samples = 0, null_dwells = 0, offset_dwells = 0, pairs = 0;
+  AxisFit pitch, yaw;  // pitch from counts_alpha (alpha), yaw from counts_beta (beta)
+
+  // The fitted set in the coefficient-file format, with residuals, uncertainties, method,
+  // solver summary and source as extra keys.
+  CoefficientSet coefficients() const;
+};
+
+// Throws DataError when the recording cannot determine a transfer function (naming what is
+// missing), std::runtime_error when the solver fails.
+CalibrationReport calibrate(const SampleTable& samples, const CalibrationOptions& opts = {});
+CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const CalibrationOptions& opts,
+                                   const std::string& source = {}, size_t samples = 0);
+
+// How far one transfer function is from another over [lo, hi] counts, arcsec.
+struct TransferDifference {
+  double max_abs_arcsec = 0, rms_arcsec = 0, at_counts = 0;
+};
+TransferDifference compare_transfer(const AxisCoeffs& a, const AxisCoeffs& b, double lo_counts,
+                                    double hi_counts, int steps = 2000);
+
+namespace fit {
+// Shared by the batch and the streaming calibrator.
+enum class Axis { alpha, beta };
+void add_pair_rows(AxisData& d, Axis axis, const Dwell& null_dwell, const Dwell& offset_dwell);
+void add_null(AxisData& d, Axis axis, const Dwell& null_dwell);
+void add_absolute_row(AxisData& d, Axis axis, const Dwell& dwell);
+// DataError when the rows cannot tell this axis's coefficients apart.
+void check_axis(const AxisData& d, Axis axis, const std::string& origin);
+// Best grid nodes (+ the start set) -> screened refinement -> full refinement -> covariance.
+AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const CalibrationOptions& opts);
+}  // namespace fit
+
+}  // namespace fpss

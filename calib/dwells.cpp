@@ -1,0 +1,101 @@
+#include "calib/dwells.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "calib/errors.h"
+
+namespace fpss {
+
+std::optional<Dwell> DwellBuilder::add(const Sample& s) {
+  if (s.phase != Phase::null && s.phase != Phase::offset) return std::nullopt;
+  std::optional<Dwell> done;
+  if (open_ && s.step != step_) done = close();
+  const double v[4] = {s.counts_alpha, s.counts_beta, s.ref_pitch_arcsec, s.ref_yaw_arcsec};
+  if (!open_) {
+    open_ = true;
+    step_ = s.step;
+    phase_ = s.phase;
+    sums_ = Sums{};
+    sums_.t0 = s.time_s;
+    for (int i = 0; i < 4; ++i) sums_.o[i] = v[i];
+  } else if (s.phase != phase_) {
+    throw DataError(fmt::format(
+        "{}: step {} holds both null and offset rows; each dwell must be one or the other "
+        "(cannot tell which reference the sensor saw)",
+        origin_.empty() ? "samples" : origin_, s.step));
+  }
+  sums_.n += 1;
+  sums_.t1 = s.time_s;
+  for (int i = 0; i < 4; ++i) {
+    const double d = v[i] - sums_.o[i];
+    sums_.s[i] += d;
+    sums_.ss[i] += d * d;
+  }
+  return done;
+}
+
+std::optional<Dwell> DwellBuilder::flush() { return open_ ? close() : std::nullopt; }
+
+std::optional<Dwell> DwellBuilder::close() {
+  open_ = false;
+  const double n = sums_.n;
+  double mean[4], sd[4];
+  for (int i = 0; i < 4; ++i) {
+    const double m = sums_.s[i] / n;
+    mean[i] = sums_.o[i] + m;
+    sd[i] = n > 1 ? std::sqrt(std::max(0.0, (sums_.ss[i] - n * m * m) / (n - 1))) : 0.0;
+  }
+  Dwell d;
+  d.step = step_;
+  d.phase = phase_;
+  d.samples = static_cast<size_t>(n);
+  d.t_start_s = sums_.t0;
+  d.t_end_s = sums_.t1;
+  d.counts_alpha = mean[0];
+  d.counts_beta = mean[1];
+  d.ref_pitch_arcsec = mean[2];
+  d.ref_yaw_arcsec = mean[3];
+  d.sd_counts_alpha = sd[0];
+  d.sd_counts_beta = sd[1];
+  d.sd_ref_pitch_arcsec = sd[2];
+  d.sd_ref_yaw_arcsec = sd[3];
+  return d;
+}
+
+std::vector<DwellPair> DwellPairer::add(const Dwell& d) {
+  const size_t index = count_++;
+  std::vector<DwellPair> out;
+  if (d.phase == Phase::null) {
+    for (size_t off : waiting_offsets_) out.push_back({index, off, false});
+    waiting_offsets_.clear();
+    last_null_ = index;
+  } else {
+    if (last_null_) out.push_back({*last_null_, index, true});
+    waiting_offsets_.push_back(index);
+  }
+  return out;
+}
+
+std::vector<Dwell> average_dwells(const SampleTable& t) {
+  std::vector<Dwell> out;
+  DwellBuilder b(t.origin);
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (auto d = b.add(t.row(i))) out.push_back(*d);
+  }
+  if (auto d = b.flush()) out.push_back(*d);
+  return out;
+}
+
+std::vector<DwellPair> pair_dwells(const std::vector<Dwell>& dwells) {
+  std::vector<DwellPair> out;
+  DwellPairer p;
+  for (const auto& d : dwells) {
+    auto got = p.add(d);
+    out.insert(out.end(), got.begin(), got.end());
+  }
+  return out;
+}
+
+}  // namespace fpss

@@ -1,0 +1,73 @@
+// Dwell averaging and null/offset pairing: the samples a calibration fits, reduced to one record per dwell.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/samples.h"
+
+namespace fpss {
+
+// The mean of the null/offset rows of one step. Scatter is the sample standard deviation
+// (0 for a single sample): it tells how well the mean is known, not how good the fit is.
+struct Dwell {
+  int64_t step = 0;
+  Phase phase = Phase::null;  // null or offset, never slew/move
+  size_t samples = 0;
+  double t_start_s = 0, t_end_s = 0;
+  double counts_alpha = 0, counts_beta = 0;
+  double ref_pitch_arcsec = 0, ref_yaw_arcsec = 0;
+  double sd_counts_alpha = 0, sd_counts_beta = 0;
+  double sd_ref_pitch_arcsec = 0, sd_ref_yaw_arcsec = 0;
+};
+
+// One change the differences method fits: from the null dwell to the offset dwell
+// (null_first) or back from the offset to the next null.
+struct DwellPair {
+  size_t null_index = 0, offset_index = 0;  // into the dwell list the pairer was fed
+  bool null_first = true;
+};
+
+// Folds rows into dwells one at a time, so live recording and batch files share one path.
+// Rows of phase slew/move are ignored; a step holding both null and offset rows is a DataError.
+class DwellBuilder {
+ public:
+  explicit DwellBuilder(std::string origin = {}) : origin_(std::move(origin)) {}
+  // Returns the dwell that the previous step completed, when this row starts a new one.
+  std::optional<Dwell> add(const Sample& s);
+  // The dwell still open (end of data).
+  std::optional<Dwell> flush();
+
+ private:
+  struct Sums {
+    double n = 0, t0 = 0, t1 = 0;
+    // Shifted sums (first value as origin) keep the variance exact for large counts.
+    double o[4] = {0, 0, 0, 0}, s[4] = {0, 0, 0, 0}, ss[4] = {0, 0, 0, 0};
+  };
+  std::optional<Dwell> close();
+  std::string origin_;
+  bool open_ = false;
+  int64_t step_ = 0;
+  Phase phase_ = Phase::null;
+  Sums sums_;
+};
+
+// Pairs each offset dwell with the nearest null dwell before it and the nearest after it.
+class DwellPairer {
+ public:
+  // Index of `d` in the caller's dwell list is the number of dwells added before it.
+  // Returns the pairs this dwell completes.
+  std::vector<DwellPair> add(const Dwell& d);
+
+ private:
+  size_t count_ = 0;
+  std::optional<size_t> last_null_;
+  std::vector<size_t> waiting_offsets_;  // offsets since the last null, paired when the next null comes
+};
+
+std::vector<Dwell> average_dwells(const SampleTable& t);
+std::vector<DwellPair> pair_dwells(const std::vector<Dwell>& dwells);
+
+}  // namespace fpss

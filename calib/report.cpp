@@ -1,0 +1,132 @@
+#include "calib/report.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+namespace fpss {
+namespace {
+
+nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+nlohmann::ordered_json axis_residuals(const AxisFit& a) {
+  nlohmann::ordered_json j;
+  j["mean_abs_arcsec"] = a.residuals.mean_abs_arcsec;
+  j["sd_arcsec"] = a.residuals.sd_arcsec;
+  j["max_abs_arcsec"] = a.residuals.max_abs_arcsec;
+  j["points"] = a.residuals.points;
+  j["range_deg"] = {a.residuals.range_deg[0], a.residuals.range_deg[1]};
+  j["rms_arcsec"] = a.residuals.rms_arcsec;
+  j["counts_range"] = {a.counts_range[0], a.counts_range[1]};
+  return j;
+}
+
+}  // namespace
+
+nlohmann::json residuals_json(const CalibrationReport& r) {
+  nlohmann::ordered_json j;
+  j["pitch"] = axis_residuals(r.pitch);
+  j["yaw"] = axis_residuals(r.yaw);
+  return j;
+}
+
+nlohmann::json uncertainties_json(const CalibrationReport& r) {
+  nlohmann::ordered_json j;
+  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+    nlohmann::json s = nlohmann::json::array();
+    for (double v : a->sigma) s.push_back(number_or_null(v));
+    j[a->coefficient_key] = s;
+  }
+  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+    nlohmann::ordered_json ax;
+    ax["angle_sigma_max_arcsec"] = number_or_null(a->angle_sigma_max_arcsec);
+    ax["pseudo_inverse"] = a->covariance_pseudo_inverse;
+    ax["covariance"] = a->covariance_note;
+    j[a->axis] = ax;
+  }
+  return j;
+}
+
+nlohmann::json solver_json(const CalibrationReport& r) {
+  nlohmann::ordered_json j;
+  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+    nlohmann::ordered_json s;
+    s["start"] = a->solver.start;
+    s["candidates"] = a->solver.candidates;
+    s["grid_rows"] = a->solver.grid_rows;
+    s["grid_rms_arcsec"] = number_or_null(a->solver.grid_rms_arcsec);
+    s["iterations"] = a->solver.iterations;
+    s["initial_cost"] = a->solver.initial_cost;
+    s["final_cost"] = a->solver.final_cost;
+    s["converged"] = a->solver.converged;
+    s["brief"] = a->solver.brief;
+    j[a->axis] = s;
+  }
+  return j;
+}
+
+CoefficientSet CalibrationReport::coefficients() const {
+  CoefficientSet s;
+  s.unit = unit;
+  s.alpha = pitch.coeffs;
+  s.beta = yaw.coeffs;
+  s.extra["kind"] = "fitted";
+  s.extra["method"] = std::string(to_string(method));
+  s.extra["source"] = source;
+  s.extra["samples"] = samples;
+  s.extra["dwells"] = {{"null", null_dwells}, {"offset", offset_dwells}, {"pairs", pairs}};
+  s.extra["residuals"] = residuals_json(*this);
+  s.extra["uncertainties"] = uncertainties_json(*this);
+  s.extra["solver"] = solver_json(*this);
+  return s;
+}
+
+std::string summary_text(const CalibrationReport& r) {
+  std::string o;
+  o += fmt::format("Calibration{} from {} (method: {}; {} samples, {} null and {} offset dwells{})\n\n",
+                   r.unit.empty() ? "" : " of " + r.unit, r.source.empty() ? "samples" : r.source,
+                   to_string(r.method), r.samples, r.null_dwells, r.offset_dwells,
+                   r.method == Method::differences ? fmt::format(", {} changes", r.pairs) : "");
+  o += fmt::format("{:<15} {:>16}  {:>22}  {:>15}  {:>7}\n", "axis", "range (deg)", "mean residual (arcsec)",
+                   "max (arcsec)", "points");
+  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+    o += fmt::format("{:<15} {:>7.2f} to {:<5.2f}  {:>13.2f} +- {:<5.2f}  {:>15.2f}  {:>7}\n",
+                     fmt::format("{} ({})", a->axis, a->coefficient_key), a->residuals.range_deg[1],
+                     a->residuals.range_deg[0], a->residuals.mean_abs_arcsec, a->residuals.sd_arcsec,
+                     a->residuals.max_abs_arcsec, a->residuals.points);
+  }
+  o += fmt::format("\n{:<4} {:>30}  {:>30}\n", "", "alpha (pitch) +- 1 sigma", "beta (yaw) +- 1 sigma");
+  for (int i = 0; i < 8; ++i) {
+    o += fmt::format("C{:<3} {:>16.7e} +- {:<10.2e}  {:>16.7e} +- {:<10.2e}\n", i + 1, r.pitch.coeffs[i],
+                     r.pitch.sigma[i], r.yaw.coeffs[i], r.yaw.sigma[i]);
+  }
+  o += "(radians, N in counts)\n\n";
+  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+    o += fmt::format("{}: 1-sigma of the fitted angle over counts [{:.0f}, {:.0f}]: at most {:.3f} arcsec{}\n",
+                     a->axis, a->counts_range[0], a->counts_range[1], a->angle_sigma_max_arcsec,
+                     a->covariance_pseudo_inverse ? " (pseudo-inverse: J^T J rank deficient)" : "");
+  }
+  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+    o += fmt::format("{}: start {} (best of {}); {}\n", a->axis, a->solver.start, a->solver.candidates,
+                     a->solver.brief);
+  }
+  return o;
+}
+
+TruthComparison compare_to_truth(const CalibrationReport& r, const CoefficientSet& truth) {
+  TruthComparison t;
+  t.pitch = compare_transfer(r.pitch.coeffs, truth.alpha, r.pitch.counts_range[0], r.pitch.counts_range[1]);
+  t.yaw = compare_transfer(r.yaw.coeffs, truth.beta, r.yaw.counts_range[0], r.yaw.counts_range[1]);
+  return t;
+}
+
+std::string truth_text(const TruthComparison& t, const std::string& truth_name) {
+  std::string o = fmt::format("\nFit minus truth ({}) over the calibrated count range:\n", truth_name);
+  o += fmt::format("  pitch (alpha): max {:.4f} arcsec (at N = {:.0f}), rms {:.4f} arcsec\n", t.pitch.max_abs_arcsec,
+                   t.pitch.at_counts, t.pitch.rms_arcsec);
+  o += fmt::format("  yaw (beta):    max {:.4f} arcsec (at N = {:.0f}), rms {:.4f} arcsec\n", t.yaw.max_abs_arcsec,
+                   t.yaw.at_counts, t.yaw.rms_arcsec);
+  return o;
+}
+
+}  // namespace fpss

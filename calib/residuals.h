@@ -1,0 +1,129 @@
+// What the fit sees of one axis, the scaled parameters Ceres moves, and the residual functors
+// (templated over the one transfer function, so they serve doubles and Ceres jets alike).
+#pragma once
+#include <algorithm>
+#include <array>
+#include <cstddef>
+#include <vector>
+
+#include "calib/transfer_function.h"
+#include "calib/units.h"
+
+namespace fpss::fit {
+
+// Counts over half the field: the unit the count axis is scaled by inside the fit.
+inline constexpr double kCountScale = 16384.0;
+// The prelaunch scale factor (Table A-1, Table 2 footnote a), rad/count.
+inline constexpr double kNominalC2 = 0.5326322e-6;
+
+// One axis's data as the fit sees it.
+//  differences: one row per change, ref_change = f(n_plus) - f(n_minus), n_plus at the offset dwell,
+//               n_minus at its null dwell; C1 cancels and follows from the null condition.
+//  absolute:    one row per dwell, ref = f(n_plus); n_minus is unused (empty).
+struct AxisData {
+  bool differences = true;
+  std::vector<double> n_plus, n_minus, y_arcsec;
+  // The null condition (paper eq. 3): the mean null-dwell counts and reference.
+  double null_counts_sum = 0, null_ref_arcsec_sum = 0;
+  size_t null_dwells = 0;
+  // What the rows cover: counts and reference angle of the dwells used.
+  double counts_lo = 0, counts_hi = 0, ref_lo_arcsec = 0, ref_hi_arcsec = 0;
+  bool covered = false;
+
+  size_t rows() const { return y_arcsec.size(); }
+  size_t parameters() const { return differences ? 7 : 8; }
+  double null_counts() const { return null_counts_sum / static_cast<double>(null_dwells); }
+  double null_ref_arcsec() const { return null_ref_arcsec_sum / static_cast<double>(null_dwells); }
+  void cover(double counts, double ref_arcsec) {
+    if (!covered) {
+      counts_lo = counts_hi = counts;
+      ref_lo_arcsec = ref_hi_arcsec = ref_arcsec;
+      covered = true;
+      return;
+    }
+    counts_lo = std::min(counts_lo, counts); counts_hi = std::max(counts_hi, counts);
+    ref_lo_arcsec = std::min(ref_lo_arcsec, ref_arcsec); ref_hi_arcsec = std::max(ref_hi_arcsec, ref_arcsec);
+  }
+};
+
+// Scaled coefficients u, chosen so every Jacobian column is of order 1..100 arcsec
+// (raw C2 columns are ~1e9 times larger than C5 columns). S = kCountScale, k = arcsec per rad:
+//   u[0] = C1 k   [arcsec]            (absolute method only; differences fit u[1..7])
+//   u[1] = C2 k S [arcsec over S counts]
+//   u[2] = C3 k   [arcsec]   u[3] = C4 S [rad over S counts]   u[4] = C5 [rad]
+//   u[5] = C6 k   [arcsec]   u[6] = C7 S                       u[7] = C8 [rad]
+using Scaled = std::array<double, 8>;
+
+// C_i = u_i * factor_i.
+inline constexpr std::array<double, 8> kScaleFactor = {
+    1 / kArcsecPerRad, 1 / (kArcsecPerRad * kCountScale), 1 / kArcsecPerRad, 1 / kCountScale, 1.0,
+    1 / kArcsecPerRad, 1 / kCountScale, 1.0};
+
+inline Scaled to_scaled(const AxisCoeffs& c) {
+  Scaled u{};
+  for (size_t i = 0; i < 8; ++i) u[i] = c[i] / kScaleFactor[i];
+  return u;
+}
+inline AxisCoeffs from_scaled(const Scaled& u) {
+  AxisCoeffs c{};
+  for (size_t i = 0; i < 8; ++i) c[i] = u[i] * kScaleFactor[i];
+  return c;
+}
+
+// Coefficients of the same transfer function giving arcsec instead of radians, from u[1..7]
+// (`u27`) and C1 in arcsec: transfer_angle(out, N) is then the angle in arcsec.
+template <typename T>
+inline void arcsec_coeffs(const T* u27, const T& c1_arcsec, T out[8]) {
+  out[0] = c1_arcsec;
+  out[1] = u27[0] / kCountScale;
+  out[2] = u27[1];
+  out[3] = u27[2] / kCountScale;
+  out[4] = u27[3];
+  out[5] = u27[4];
+  out[6] = u27[5] / kCountScale;
+  out[7] = u27[6];
+}
+
+// Residuals of a run of difference rows, arcsec. Parameter block: u[1..7] (7 values).
+struct DifferenceResiduals {
+  const double* n_plus;
+  const double* n_minus;
+  const double* ref_change_arcsec;
+  int count;
+
+  template <typename T>
+  bool operator()(const T* u27, T* r) const {
+    T c[8];
+    arcsec_coeffs(u27, T(0.0), c);
+    for (int i = 0; i < count; ++i) {
+      r[i] = transfer_angle(c, n_plus[i]) - transfer_angle(c, n_minus[i]) - ref_change_arcsec[i];
+    }
+    return true;
+  }
+};
+
+// Residuals of a run of absolute rows, arcsec. Parameter block: u[0..7] (8 values).
+struct AbsoluteResiduals {
+  const double* n;
+  const double* ref_arcsec;
+  int count;
+
+  template <typename T>
+  bool operator()(const T* u, T* r) const {
+    T c[8];
+    arcsec_coeffs(u + 1, u[0], c);
+    for (int i = 0; i < count; ++i) r[i] = transfer_angle(c, n[i]) - ref_arcsec[i];
+    return true;
+  }
+};
+
+// Residual of row i in arcsec for plain coefficients (radians), for statistics.
+inline double residual_arcsec(const AxisData& d, const AxisCoeffs& c, size_t i) {
+  if (d.differences) {
+    return rad_to_arcsec(transfer_angle(c.data(), d.n_plus[i]) - transfer_angle(c.data(), d.n_minus[i])) -
+           d.y_arcsec[i];
+  }
+  return rad_to_arcsec(transfer_angle(c.data(), d.n_plus[i])) - d.y_arcsec[i];
+}
+
+}  // namespace fpss::fit

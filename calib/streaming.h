@@ -1,0 +1,61 @@
+// The paper's recursive least squares as a streaming estimator: one null/offset change at a time,
+// a current estimate after each, and at the end the same refinement as the batch fit.
+#pragma once
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/calibrator.h"
+
+namespace fpss {
+
+// Information-form recursive least squares: each change is a rank-one update of the frequency
+// grid's Gram matrix (fit::FrequencyGram), which is the exact recursive LS of every grid node at
+// once; current() picks the best node. Each change is also kept as one small record (counts at
+// null and offset, reference change), on which finish() runs the batch fit's refinement, so the
+// two agree on the same data.
+class StreamingCalibrator {
+ public:
+  // Differences method only (the paper's); throws std::invalid_argument otherwise.
+  explicit StreamingCalibrator(CalibrationOptions opts = {}, std::string source = "stream");
+
+  // Rows as they are recorded; a dwell enters when the next step starts (or at finish()).
+  void add_sample(const Sample& s);
+  // A whole dwell: an offset pairs with the last null, a null with the offsets since the last null.
+  void add_dwell(const Dwell& d);
+  // One change directly: the null dwell and the offset dwell it was measured against.
+  void add_pair(const Dwell& null_dwell, const Dwell& offset_dwell);
+  // Counts the null dwell's null condition (C1); add_dwell does this itself.
+  void add_null(const Dwell& null_dwell);
+
+  size_t pairs() const { return pitch_.rows(); }
+
+  struct Estimate {
+    bool valid = false;
+    std::string why_not;  // when not valid: what the data cannot tell yet
+    size_t pairs = 0;
+    AxisCoeffs alpha{}, beta{};  // best grid node, linear parameters exact, C1 by the null condition
+    double rms_pitch_arcsec = 0, rms_yaw_arcsec = 0;  // residual RMS over the changes so far
+  };
+  // Cheap (a few thousand 6x6 solves): meant to be called after every change.
+  Estimate current() const;
+
+  // The full fit of everything added so far (the batch fit's refinement and report).
+  CalibrationReport finish();
+
+ private:
+  void take_dwell(const Dwell& d);
+
+  CalibrationOptions opts_;
+  std::string source_;
+  DwellBuilder builder_;
+  DwellPairer pairer_;
+  std::vector<Dwell> recent_;  // dwells the pairer may still refer to, by index
+  size_t first_recent_ = 0;  // pairer index of recent_[0]
+  size_t samples_ = 0, null_dwells_ = 0, offset_dwells_ = 0;
+  fit::AxisData pitch_, yaw_;
+  fit::FrequencyGram gram_pitch_, gram_yaw_;
+};
+
+}  // namespace fpss

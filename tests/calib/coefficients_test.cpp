@@ -1,0 +1,128 @@
+// Coefficient files: the 14 published sets, round trips, and every way a file can be wrong.
+#include "calib/coefficients.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+
+#include <unistd.h>
+
+#include "calib/errors.h"
+
+namespace fpss {
+namespace {
+
+namespace fs = std::filesystem;
+
+class TempDir {
+ public:
+  TempDir() {
+    path_ = fs::temp_directory_path() /
+            ("fpss-coeff-" + std::to_string(::getpid()) + "-" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  fs::path file(const std::string& name, const std::string& text) const {
+    const auto p = path_ / name;
+    std::ofstream(p) << text;
+    return p;
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "<no InputError>";
+}
+
+TEST(Coefficients, FourteenPublishedSetsThreeFlagged) {
+  const auto names = published_names();
+  ASSERT_EQ(names.size(), 14u);
+  EXPECT_EQ(names.front(), "a-1-fpss1");
+  EXPECT_EQ(names.back(), "a-7-fpss2");
+  std::vector<std::string> suspect;
+  for (const auto& n : names) {
+    if (is_suspect(load_published(n))) suspect.push_back(n);
+  }
+  EXPECT_EQ(suspect, (std::vector<std::string>{"a-1-fpss1", "a-3-fpss2", "a-7-fpss1"}));
+  // Figures as printed: Table A-7 FPSS1 B7 and Table A-2 FPSS2 A1.
+  EXPECT_DOUBLE_EQ(load_published("a-7-fpss1").beta[6], 0.1877559e-5);
+  EXPECT_DOUBLE_EQ(load_published("a-2-fpss2").alpha[0], 0.8337881e-3);
+  EXPECT_EQ(load_published("a-2-fpss2").unit, "FPSS2");
+}
+
+TEST(Coefficients, SaveLoadRoundTripKeepsExtraKeys) {
+  TempDir d;
+  CoefficientSet s = load_published("a-5-fpss2");
+  s.extra["residuals"] = {{"pitch", {{"points", 12}}}};
+  const auto p = d.path() / "out.json";
+  save_coefficients(p, s);
+  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
+  const CoefficientSet r = load_coefficients(p);
+  EXPECT_EQ(r.unit, s.unit);
+  EXPECT_EQ(r.alpha, s.alpha);  // bit-exact: JSON numbers are written shortest round-trip
+  EXPECT_EQ(r.beta, s.beta);
+  EXPECT_EQ(r.extra, s.extra);
+}
+
+TEST(Coefficients, BadFilesNameTheFileAndKey) {
+  TempDir d;
+  const std::string good8 = "[1,2,3,4,5,6,7,8]";
+  auto msg = [&](const std::string& name, const std::string& text) {
+    const auto p = d.file(name, text);
+    return error_of([&] { load_coefficients(p); });
+  };
+  std::string m = msg("missing.json", R"({"unit": "X", "alpha": )" + good8 + "}");
+  EXPECT_NE(m.find("missing.json"), std::string::npos) << m;
+  EXPECT_NE(m.find("missing key \"beta\""), std::string::npos) << m;
+
+  m = msg("short.json", R"({"alpha": [1,2,3,4,5,6,7], "beta": )" + good8 + "}");
+  EXPECT_NE(m.find("\"alpha\" must be an array of 8 numbers"), std::string::npos) << m;
+
+  m = msg("long.json", R"({"alpha": )" + good8 + R"(, "beta": [1,2,3,4,5,6,7,8,9]})");
+  EXPECT_NE(m.find("\"beta\" must be an array of 8"), std::string::npos) << m;
+
+  m = msg("string.json", R"({"alpha": [1,2,3,"x",5,6,7,8], "beta": )" + good8 + "}");
+  EXPECT_NE(m.find("\"alpha\"[3] (C4) must be a finite number"), std::string::npos) << m;
+
+  m = msg("overflow.json", R"({"alpha": )" + good8 + R"(, "beta": [1,2,3,4,5,6,7,1e999]})");
+  EXPECT_NE(m.find("overflow.json: not valid JSON"), std::string::npos) << m;
+  EXPECT_NE(m.find("number overflow"), std::string::npos) << m;
+
+  m = msg("bad.json", R"({"alpha": [1,2,3,4,5,6,7,8], "beta": )");
+  EXPECT_NE(m.find("bad.json: not valid JSON"), std::string::npos) << m;
+
+  m = msg("array.json", "[1, 2]");
+  EXPECT_NE(m.find("expected a JSON object"), std::string::npos) << m;
+
+  m = msg("unit.json", R"({"unit": 3, "alpha": )" + good8 + R"(, "beta": )" + good8 + "}");
+  EXPECT_NE(m.find("\"unit\" must be a string"), std::string::npos) << m;
+
+  m = error_of([&] { load_coefficients(d.path() / "nonexistent.json"); });
+  EXPECT_NE(m.find("cannot open"), std::string::npos) << m;
+
+  m = error_of([] { load_published("a-9-fpss3"); });
+  EXPECT_NE(m.find("no published coefficient set \"a-9-fpss3\""), std::string::npos) << m;
+}
+
+TEST(Coefficients, NonFiniteValuesInAJsonObjectAreRefused) {
+  nlohmann::json j = {{"alpha", {1, 2, 3, 4, 5, 6, 7, 8}}, {"beta", {1, 2, 3, 4, 5, 6, 7, 8}}};
+  j["beta"][4] = std::numeric_limits<double>::quiet_NaN();
+  const std::string m = error_of([&] { parse_coefficients(j, "mem"); });
+  EXPECT_NE(m.find("mem: \"beta\"[4] (C5) must be a finite number"), std::string::npos) << m;
+}
+
+}  // namespace
+}  // namespace fpss

@@ -1,0 +1,148 @@
+// fpss-stand calibrate end to end: the contract's command line, its files and exit codes.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/coefficients.h"
+#include "calib/samples.h"
+#include "fixtures/recording.h"
+
+namespace fpss {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int code = -1;
+  std::string out, err;
+};
+
+class Command : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("fpss-cmd-calibrate-" + std::to_string(::getpid()) + "-" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  Result run(const std::string& args) const {
+    const std::string out = (dir_ / "stdout").string(), err = (dir_ / "stderr").string();
+    const std::string cmd = std::string(FPSS_BINARY_DIR) + "/stand/fpss-stand calibrate " + args + " >" + out +
+                            " 2>" + err;
+    const int status = std::system(cmd.c_str());
+    Result r;
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+  }
+  static std::string slurp(const fs::path& p) {
+    std::ifstream in(p);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  std::string write(const std::string& name, const std::string& text) const {
+    std::ofstream(dir_ / name) << text;
+    return path(name);
+  }
+  std::string recording(const std::string& name, GridPlan plan = {}) const {
+    BenchConfig cfg = default_bench_config();
+    cfg.truth = load_published("a-5-fpss1");
+    write_samples_csv(dir_ / name, simulate_null_offset(cfg, plan));
+    return path(name);
+  }
+
+  fs::path dir_;
+};
+
+const std::string kTruth = std::string(FPSS_SOURCE_DIR) + "/calib/data/published/a-5-fpss1.json";
+
+TEST_F(Command, WritesTheCoefficientFileWithResidualsAndPrintsTableOne) {
+  const std::string data = recording("rec.csv");
+  const Result r = run("--data " + data + " --out " + path("cal.json") + " --truth " + kTruth);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("pitch (alpha)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("mean residual (arcsec)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("Fit minus truth"), std::string::npos) << r.out;
+  const CoefficientSet s = load_coefficients(path("cal.json"));
+  EXPECT_EQ(s.unit, "FPSS1");  // from --truth when no --unit or --init
+  const auto& res = s.extra.at("residuals");
+  for (const char* axis : {"pitch", "yaw"}) {
+    for (const char* k : {"mean_abs_arcsec", "sd_arcsec", "max_abs_arcsec", "points", "range_deg"}) {
+      EXPECT_TRUE(res.at(axis).contains(k)) << axis << " " << k;
+    }
+    EXPECT_LT(s.extra.at("truth_comparison").at(axis).at("max_abs_arcsec").get<double>(), 0.1);
+  }
+  EXPECT_EQ(s.extra.at("source"), data);
+  EXPECT_EQ(s.extra.at("method"), "differences");
+}
+
+TEST_F(Command, AbsoluteMethodStartSetAndUnit) {
+  const std::string data = recording("rec.csv");
+  const Result r = run("--data " + data + " --out " + path("cal.json") + " --method absolute --init " + kTruth +
+                       " --unit SN-42");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const CoefficientSet s = load_coefficients(path("cal.json"));
+  EXPECT_EQ(s.unit, "SN-42");
+  EXPECT_EQ(s.extra.at("method"), "absolute");
+}
+
+TEST_F(Command, BadInputExitsTwoWithAClearMessageAndWritesNothing) {
+  const std::string data = recording("rec.csv");
+  const std::string out = path("cal.json");
+  struct Case {
+    std::string args, message;
+  };
+  const std::string h = "time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha,counts_beta\n";
+  GridPlan pitch_only;
+  pitch_only.yaw = false;
+  const std::vector<Case> cases = {
+      {"--data " + write("bad.csv", h + "0,null,1,0,0,12x,0\n") + " --out " + out,
+       "bad.csv:2: column \"counts_alpha\": expected a finite number, got \"12x\""},
+      {"--data " + write("nocol.csv", "time_s,phase,step\n0,null,1\n") + " --out " + out,
+       "missing required column \"ref_pitch_arcsec\""},
+      {"--data " + write("back.csv", h + "1,null,1,0,0,0,0\n0,null,1,0,0,0,0\n") + " --out " + out,
+       "time goes backwards"},
+      {"--data " + recording("pitch.csv", pitch_only) + " --out " + out, "no offsets along yaw"},
+      {"--data " + write("few.csv", h + "0,null,1,0,0,0,0\n1,offset,2,100,100,900,900\n2,null,3,0,0,0,0\n") +
+           " --out " + out,
+       "too few points"},
+      {"--data " + path("absent.csv") + " --out " + out, "cannot open samples file"},
+      {"--data " + data + " --out " + out + " --init " + write("init.json", "{\"alpha\": [1,2,3"),
+       "not valid JSON"},
+      {"--data " + data + " --out " + out + " --truth " +
+           write("t.json", R"({"alpha": [1,2,3,4,5,6,7], "beta": [1,2,3,4,5,6,7,8]})"),
+       "must be an array of 8 numbers"},
+      {"--data " + data + " --out " + out + " --method relative", "relative"},
+      {"--out " + out, "--data is required"},
+  };
+  for (const auto& c : cases) {
+    const Result r = run(c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << c.args << "\n" << r.err;
+    EXPECT_FALSE(fs::exists(out)) << c.args;
+  }
+}
+
+TEST_F(Command, Help) {
+  const Result r = run("--help");
+  EXPECT_EQ(r.code, 0);
+  for (const char* opt : {"--data", "--out", "--init", "--method", "--truth", "--unit"}) {
+    EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
+  }
+}
+
+}  // namespace
+}  // namespace fpss

@@ -1,0 +1,156 @@
+// The samples CSV (the stand's recording format): reading, writing, appending, and malformed files.
+#include "calib/samples.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+
+#include "calib/errors.h"
+
+namespace fpss {
+namespace {
+
+namespace fs = std::filesystem;
+
+const char* kHeader = "time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha,counts_beta\n";
+
+std::string error_of(const std::string& text) {
+  try {
+    parse_samples_csv(text, "rec.csv");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "<no InputError>";
+}
+
+fs::path temp_path(const std::string& name) {
+  const auto dir = fs::temp_directory_path() / ("fpss-samples-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return dir / (::testing::UnitTest::GetInstance()->current_test_info()->name() + name);
+}
+
+TEST(Samples, ColumnsInAnyOrderExtrasKept) {
+  const std::string text =
+      "# a comment before the header\n"
+      "counts_beta,note,phase,time_s,step,ref_yaw_arcsec,counts_alpha,ref_pitch_arcsec,temperature_c\n"
+      "-12,\"a, quoted\",null,0.5,1,0.01,3,-0.02,20.5\r\n"
+      "\n"
+      "1000.5,,offset,1.0,2,120.25,-7,+0.5,\n";
+  const SampleTable t = parse_samples_csv(text, "mem");
+  ASSERT_EQ(t.size(), 2u);
+  EXPECT_EQ(t.phase[0], Phase::null);
+  EXPECT_EQ(t.phase[1], Phase::offset);
+  EXPECT_EQ(t.step[1], 2);
+  EXPECT_DOUBLE_EQ(t.counts_beta[1], 1000.5);
+  EXPECT_DOUBLE_EQ(t.ref_pitch_arcsec[1], 0.5);
+  EXPECT_EQ(t.extra_names(), (std::vector<std::string>{"note", "temperature_c"}));
+  EXPECT_EQ(t.extra_column("note")[0], "a, quoted");
+  const auto temp = t.numeric_column("temperature_c");
+  EXPECT_EQ(temp[0], 20.5);
+  EXPECT_TRUE(std::isnan(temp[1]));  // empty cell
+  EXPECT_THROW(t.numeric_column("note"), InputError);  // "a, quoted" is not a number
+}
+
+TEST(Samples, MalformedRowsNameLineAndColumn) {
+  const std::string h = kHeader;
+  std::string m = error_of("time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha\n0,null,1,0,0,0\n");
+  EXPECT_NE(m.find("rec.csv:1: missing required column \"counts_beta\""), std::string::npos) << m;
+
+  m = error_of(h + "0,null,1,0,0,0,0\n0.1,null,1,0,abc,0,0\n");
+  EXPECT_NE(m.find("rec.csv:3: column \"ref_yaw_arcsec\": expected a finite number, got \"abc\""), std::string::npos) << m;
+
+  m = error_of(h + "0,null,1,0,0,inf,0\n");
+  EXPECT_NE(m.find("rec.csv:2: column \"counts_alpha\": expected a finite number, got \"inf\""), std::string::npos) << m;
+
+  m = error_of(h + "0,null,1,0,0,0,nan\n");
+  EXPECT_NE(m.find("column \"counts_beta\": expected a finite number"), std::string::npos) << m;
+
+  m = error_of(h + "0,sideways,1,0,0,0,0\n");
+  EXPECT_NE(m.find("rec.csv:2: column \"phase\": expected null, offset, slew or move, got \"sideways\""),
+            std::string::npos) << m;
+
+  m = error_of(h + "0,null,1.5,0,0,0,0\n");
+  EXPECT_NE(m.find("column \"step\": expected an integer"), std::string::npos) << m;
+
+  m = error_of(h + "1.0,null,1,0,0,0,0\n0.5,null,1,0,0,0,0\n");
+  EXPECT_NE(m.find("rec.csv:3: column \"time_s\": time goes backwards"), std::string::npos) << m;
+
+  m = error_of(h + "0,null,2,0,0,0,0\n1,null,1,0,0,0,0\n");
+  EXPECT_NE(m.find("rec.csv:3: column \"step\": step decreases"), std::string::npos) << m;
+
+  m = error_of(h + "0,null,1,0,0,0\n");
+  EXPECT_NE(m.find("rec.csv:2: expected 7 fields as in the header, got 6"), std::string::npos) << m;
+
+  m = error_of(h + "0,\"null,1,0,0,0,0\n");
+  EXPECT_NE(m.find("rec.csv:2: unterminated quote"), std::string::npos) << m;
+
+  m = error_of("time_s,time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha,counts_beta\n");
+  EXPECT_NE(m.find("column \"time_s\" appears twice"), std::string::npos) << m;
+
+  m = error_of("");
+  EXPECT_NE(m.find("empty file"), std::string::npos) << m;
+
+  try {
+    read_samples_csv(temp_path("absent.csv"));
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot open samples file"), std::string::npos);
+  }
+}
+
+TEST(Samples, WriteReadRoundTripIsExact) {
+  SampleTable t;
+  t.add_extra_column("temperature_c");
+  t.push_back({0.1, Phase::null, 1, 0.1 + 0.2, -1e-7, 3, -4}, {"20.25"});
+  t.push_back({0.3, Phase::offset, 2, 1512.0000001, 0.0, 13777.5, -1}, {""});
+  t.push_back({0.4, Phase::slew, 3, 1.0 / 3.0, 2.0 / 3.0, -16000, 16000}, {"x,y"});
+  const auto p = temp_path(".csv");
+  write_samples_csv(p, t);
+  const SampleTable r = read_samples_csv(p);
+  EXPECT_EQ(r.time_s, t.time_s);
+  EXPECT_EQ(r.phase, t.phase);
+  EXPECT_EQ(r.step, t.step);
+  EXPECT_EQ(r.ref_pitch_arcsec, t.ref_pitch_arcsec);
+  EXPECT_EQ(r.ref_yaw_arcsec, t.ref_yaw_arcsec);
+  EXPECT_EQ(r.counts_alpha, t.counts_alpha);
+  EXPECT_EQ(r.counts_beta, t.counts_beta);
+  EXPECT_EQ(r.extra_column("temperature_c"), t.extra_column("temperature_c"));
+  EXPECT_EQ(r.origin, p.string());
+  fs::remove(p);
+}
+
+TEST(Samples, WriterAppendsAfterAMatchingHeaderOnly) {
+  const auto p = temp_path(".csv");
+  fs::remove(p);
+  {
+    SamplesCsvWriter w(p, {"temperature_c"});
+    w.append({0, Phase::null, 1, 0, 0, 1, 2}, {"20"});
+    w.sync();
+    EXPECT_EQ(w.rows_written(), 1u);
+  }
+  {
+    SamplesCsvWriter w(p, {"temperature_c"});
+    EXPECT_EQ(w.rows_written(), 1u);  // counted what was there
+    w.append({1, Phase::offset, 2, 10, 0, 90, 2}, {"21"});
+  }
+  const SampleTable t = read_samples_csv(p);
+  ASSERT_EQ(t.size(), 2u);
+  EXPECT_EQ(t.phase[1], Phase::offset);
+  EXPECT_EQ(t.extra_column("temperature_c")[1], "21");
+  EXPECT_THROW(SamplesCsvWriter(p, {}), InputError);  // different header: refuse to append
+  fs::remove(p);
+}
+
+TEST(Samples, PhaseNamesRoundTrip) {
+  for (Phase p : {Phase::null, Phase::offset, Phase::slew, Phase::move}) {
+    EXPECT_EQ(parse_phase(to_string(p)), p);
+  }
+  EXPECT_FALSE(parse_phase("NULL").has_value());
+}
+
+}  // namespace
+}  // namespace fpss

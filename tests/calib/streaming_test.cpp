@@ -1,0 +1,98 @@
+// The streaming (recursive least squares) estimator: live estimates and agreement with the batch fit.
+#include "calib/streaming.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "fixtures/recording.h"
+
+namespace fpss {
+namespace {
+
+SampleTable recording(const CoefficientSet& truth, uint64_t seed = 3) {
+  BenchConfig cfg = default_bench_config();
+  cfg.truth = truth;
+  cfg.seed = seed;
+  return simulate_null_offset(cfg, GridPlan{});
+}
+
+CalibrationOptions one_thread() {
+  CalibrationOptions o;
+  o.threads = 1;
+  return o;
+}
+
+TEST(Streaming, EstimatesConvergeAsPairsArrive) {
+  const auto truth = load_published("a-2-fpss2");
+  const SampleTable t = recording(truth);
+  const auto dwells = average_dwells(t);
+  StreamingCalibrator s(one_thread());
+  EXPECT_FALSE(s.current().valid);
+  size_t first_valid = 0;
+  std::vector<double> rms;
+  for (const auto& d : dwells) {
+    s.add_dwell(d);
+    const auto e = s.current();
+    if (!e.valid) {
+      EXPECT_FALSE(e.why_not.empty());
+      continue;
+    }
+    if (first_valid == 0) first_valid = e.pairs;
+    rms.push_back(std::max(e.rms_pitch_arcsec, e.rms_yaw_arcsec));
+  }
+  // Pitch offsets come first: the estimate needs the yaw offsets too before it is valid.
+  EXPECT_GT(first_valid, 28u);
+  ASSERT_FALSE(rms.empty());
+  EXPECT_EQ(s.pairs(), 56u);
+  const auto e = s.current();
+  ASSERT_TRUE(e.valid);
+  // The best grid node alone (no refinement) is already close to the noise and the truth.
+  std::printf("after %zu pairs: grid-node rms %.3f/%.3f arcsec, max from truth %.3f/%.3f arcsec\n", e.pairs,
+              e.rms_pitch_arcsec, e.rms_yaw_arcsec,
+              compare_transfer(e.alpha, truth.alpha, -13000, 13000).max_abs_arcsec,
+              compare_transfer(e.beta, truth.beta, -13000, 13000).max_abs_arcsec);
+  EXPECT_LT(e.rms_pitch_arcsec, 0.1);
+  EXPECT_LT(e.rms_yaw_arcsec, 0.1);
+  EXPECT_LT(compare_transfer(e.alpha, truth.alpha, -13000, 13000).max_abs_arcsec, 0.3);
+  EXPECT_LT(compare_transfer(e.beta, truth.beta, -13000, 13000).max_abs_arcsec, 0.3);
+}
+
+TEST(Streaming, FinishAgreesWithTheBatchFitWhicheverWayTheDataComeIn) {
+  const auto truth = load_published("a-4-fpss1");
+  const SampleTable t = recording(truth, 11);
+  const CalibrationReport batch = calibrate(t, one_thread());
+
+  StreamingCalibrator by_sample(one_thread());
+  for (size_t i = 0; i < t.size(); ++i) by_sample.add_sample(t.row(i));
+  const CalibrationReport a = by_sample.finish();
+
+  // Pairs fed directly, as a procedure that forms them itself would.
+  StreamingCalibrator by_pair(one_thread());
+  const auto dwells = average_dwells(t);
+  for (const auto& p : pair_dwells(dwells)) by_pair.add_pair(dwells[p.null_index], dwells[p.offset_index]);
+  for (const auto& d : dwells) if (d.phase == Phase::null) by_pair.add_null(d);
+  const CalibrationReport b = by_pair.finish();
+
+  for (const CalibrationReport* r : {&a, &b}) {
+    EXPECT_EQ(r->pairs, batch.pairs);
+    EXPECT_LT(compare_transfer(r->pitch.coeffs, batch.pitch.coeffs, batch.pitch.counts_range[0],
+                               batch.pitch.counts_range[1]).max_abs_arcsec, 0.1);
+    EXPECT_LT(compare_transfer(r->yaw.coeffs, batch.yaw.coeffs, batch.yaw.counts_range[0],
+                               batch.yaw.counts_range[1]).max_abs_arcsec, 0.1);
+    EXPECT_EQ(r->pitch.residuals.points, batch.pitch.residuals.points);
+  }
+  EXPECT_EQ(a.samples, t.size());
+  EXPECT_EQ(a.null_dwells, batch.null_dwells);
+  EXPECT_EQ(a.offset_dwells, batch.offset_dwells);
+}
+
+TEST(Streaming, OnlyTheDifferencesMethod) {
+  CalibrationOptions o;
+  o.method = Method::absolute;
+  EXPECT_THROW(StreamingCalibrator{o}, std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace fpss
