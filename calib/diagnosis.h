@@ -1,0 +1,104 @@
+// Sim-to-real gap diagnosis: which unmodelled bench effect explains model(counts) - reference, checked on held-out steps.
+#pragma once
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/coefficients.h"
+#include "calib/samples.h"
+
+namespace fpss {
+
+// The candidate effects, named exactly as the emulator's --effect option (issue 3).
+const std::vector<std::string>& diagnosis_effect_names();
+
+// One effect with parameters in the emulator's names, conventions and units. The coefficients
+// effect carries the sensor's true transfer function instead of numbers.
+struct EffectParams {
+  std::string name;
+  std::map<std::string, double> params;
+  std::optional<CoefficientSet> coefficients;
+};
+
+struct DiagnosisOptions {
+  // Time from a dwell's arrival (in-position) to its first sample, when no time_since_move_s
+  // column says it; settling amplitudes refer to the arrival.
+  double settle_s = 0.0;
+  // time_skew is searched within +-max_skew_s; the first and last max_skew_s of every slew
+  // segment are left out of every score (the reference outside a segment is not recorded).
+  double max_skew_s = 0.25;
+  // One step in `heldout_every` of each kind (dwells, slews) is held out.
+  int heldout_every = 3;
+  bool second_effect = true;
+  // A second effect is looked for only while the first leaves more than this times the noise floor.
+  double second_effect_gap_ratio = 1.2;
+};
+
+struct WhereEntry {
+  std::string factor;  // constant, angle, cross_angle, slew_rate, approach_direction, time, time_since_move, temperature
+  std::string axis;    // pitch, yaw, both
+  double share = 0;    // part of the held-out gap's mean square this factor accounts for
+  std::string detail;
+};
+
+struct EffectResult {
+  std::string name;
+  nlohmann::ordered_json params;  // emulator names and units
+  int parameters = 0;             // free parameters fitted
+  double fit_rms_arcsec = 0;      // on the fit rows
+  double heldout_rms_arcsec = 0;  // on the held-out rows
+  double score = 0;               // selection score, lower is better (none = 0)
+  nlohmann::ordered_json notes = nlohmann::ordered_json::object();
+};
+
+struct NotObservable {
+  std::string name;
+  std::string reason;
+  bool incomplete_recording = false;  // the recording lacks a part every diagnosis recording should have
+};
+
+struct Diagnosis {
+  std::string source;
+  std::string cause = "none";
+  std::vector<EffectResult> causes;  // in order; empty for none
+  double gap_before_arcsec = 0;
+  double gap_after_arcsec = 0;      // the first cause alone
+  double gap_after_all_arcsec = 0;  // every cause in `causes`
+  double noise_floor_arcsec = 0;
+  std::vector<WhereEntry> where;        // before any effect is added
+  std::vector<WhereEntry> where_after;  // what is left once the causes are added
+  std::vector<EffectResult> effects;    // every candidate tried, best first
+  std::vector<NotObservable> not_observable;
+  nlohmann::ordered_json split;
+  nlohmann::ordered_json recording;  // what the data holds: rows, steps, spans
+  std::vector<std::string> warnings;
+
+  bool incomplete_recording() const;
+  // GAP.json
+  nlohmann::ordered_json to_json() const;
+};
+
+// Throws InputError/DataError naming what cannot be told apart when the recording cannot
+// support any diagnosis (no rows, a single dwell, counts the model cannot map).
+Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts = {});
+
+// The forward model: what the sensor would read (pitch, yaw arcsec per row, through the model's
+// transfer function) given the recording's reference angles and times, with `effect` applied
+// under the emulator's conventions. For `coefficients` the sensor's counts come from the
+// effect's transfer function and are mapped back through `model`.
+struct SensorPrediction {
+  std::vector<double> pitch_arcsec, yaw_arcsec;
+  std::vector<bool> predictable;  // false where the data cannot say (e.g. skewed time outside a segment)
+};
+SensorPrediction predict_sensor(const SampleTable& data, const CoefficientSet& model, const EffectParams& effect,
+                                const DiagnosisOptions& opts = {});
+
+// The HTML report: the residual against every factor before and after, and the residual map
+// over the field (gnuplot SVG inlined when gnuplot is installed; tables otherwise).
+void write_diagnosis_report(const std::string& html_path, const SampleTable& data, const CoefficientSet& model,
+                            const Diagnosis& d, const DiagnosisOptions& opts = {});
+
+}  // namespace fpss

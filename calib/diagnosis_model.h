@@ -1,0 +1,103 @@
+// Inside the diagnosis: the recording as per-row features (residuals, motion, approach, settling
+// clock, split) and the candidate effects' forward models with their least-squares fits.
+#pragma once
+#include <algorithm>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/diagnosis.h"
+
+namespace fpss::diag {
+
+enum class StepKind : uint8_t { dwell, motion };
+enum class Use : uint8_t { excluded, fit, heldout };
+
+struct Step {
+  int64_t id = 0;
+  size_t begin = 0, end = 0;  // rows [begin, end)
+  StepKind kind = StepKind::dwell;
+  bool heldout = false;
+  bool moves[2] = {false, false};  // motion steps: which axes move
+};
+
+// Per-row arrays, index 0 pitch (alpha), 1 yaw (beta). Angles arcsec, times s.
+struct Recording {
+  std::string origin;
+  size_t n = 0;
+  std::vector<double> t;
+  std::vector<double> ref[2];
+  std::vector<double> counts[2];
+  std::vector<double> meas[2];  // model(counts)
+  std::vector<double> res[2];   // meas - ref
+  std::vector<double> temp;     // temperature_c, NaN when absent
+  bool has_temperature = false;
+  std::vector<uint32_t> step_of;  // index into steps
+  std::vector<Step> steps;
+  std::vector<double> vel[2];       // reference rate, arcsec/s (0 in dwells)
+  std::vector<int8_t> dir[2];       // backlash: sign of the axis's last motion (0 before any)
+  std::vector<int8_t> move_dir[2];  // settling: sign of the axis's last move (emulator: kept by axes that did not move)
+  std::vector<double> since_move;   // s since the last arrival; NaN while moving
+  std::vector<Use> use;
+  std::vector<uint32_t> fit_rows, heldout_rows;
+  CoefficientSet model;
+  double guard_s = 0;
+  size_t dwells = 0, motions = 0, excluded_rows = 0;
+};
+
+// Builds the features. Throws InputError/DataError when the data cannot be used at all.
+Recording prepare(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts);
+
+// The residual (meas - ref) an effect adds, per axis and row, arcsec.
+struct Contribution {
+  std::vector<double> v[2];
+  void resize(size_t n) { v[0].assign(n, 0.0); v[1].assign(n, 0.0); }
+};
+
+// One candidate: its forward model and its fit. `target` is what the effect should explain
+// (the residual, or the residual less other effects during a joint fit).
+class Candidate {
+ public:
+  virtual ~Candidate() = default;
+  virtual std::string name() const = 0;
+  virtual int parameters() const = 0;
+  virtual void fit(const Recording& r, const Contribution& target, const std::vector<uint32_t>& rows) = 0;
+  // Writes the effect's contribution for every row (0 where the effect says nothing).
+  virtual void contribute(const Recording& r, Contribution& out) const = 0;
+  virtual nlohmann::ordered_json params() const = 0;
+  // Sets parameters from the emulator's names (forward-model use and tests).
+  virtual void set(const EffectParams& p) = 0;
+  virtual nlohmann::ordered_json notes() const { return nlohmann::ordered_json::object(); }
+};
+
+std::unique_ptr<Candidate> make_candidate(const std::string& name);
+
+// Scalar minimisation on [lo, hi]: a grid of `steps` points (the objective may have several
+// minima), then golden section in the bracket around the best node.
+template <typename F>
+double minimise_1d(F&& f, double lo, double hi, int steps, double tol) {
+  double best_x = lo, best_f = f(lo);
+  const double dx = (hi - lo) / steps;
+  for (int i = 1; i <= steps; ++i) {
+    const double x = lo + dx * i, v = f(x);
+    if (v < best_f) { best_f = v; best_x = x; }
+  }
+  double a = std::max(lo, best_x - dx), b = std::min(hi, best_x + dx);
+  constexpr double g = 0.6180339887498949;
+  double c = b - g * (b - a), d = a + g * (b - a), fc = f(c), fd = f(d);
+  while (b - a > tol) {
+    if (fc < fd) { b = d; d = c; fd = fc; c = b - g * (b - a); fc = f(c); }
+    else { a = c; c = d; fc = fd; d = a + g * (b - a); fd = f(d); }
+  }
+  const double x = 0.5 * (a + b);
+  return f(x) <= best_f ? x : best_x;
+}
+
+// Reference of the row's own step at time tq (linear interpolation between its samples, held
+// constant beyond them); dwells give their reference at rest.
+double reference_at(const Recording& r, const Step& s, int axis, double tq, size_t hint);
+
+}  // namespace fpss::diag

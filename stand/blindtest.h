@@ -1,0 +1,68 @@
+// The blind check of the diagnosis: random effects on the simulated bench, only the recording and the model handed over.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/diagnosis.h"
+#include "fixtures/bench.h"
+#include "fixtures/recording.h"
+
+namespace fpss {
+
+// The classes drawn: the ten effects and none.
+const std::vector<std::string>& blindtest_classes();
+
+// The session every case records: a null-offset grid on both axes (dwells sampled from 0.2 s
+// after arrival, so settling shows) and continuous slews on both axes at 300 and 600 arcsec/s.
+SessionPlan blindtest_plan();
+// The bench: the default (truth a-6-fpss1, 0.3-count noise, 0.05 arcsec encoder noise) with a
+// non-monotonic temperature profile (ramp plus a sinusoid), so temperature and drift differ.
+BenchConfig blindtest_bench(uint64_t seed);
+// What the diagnosis is told about the recording procedure (not about the effect): when its
+// dwells start after arrival.
+DiagnosisOptions blindtest_diagnosis_options();
+
+// A random effect of one class with a magnitude clearly above noise but realistic.
+// `cls` "none" gives no effect. Deterministic in `seed`.
+std::vector<Effect> draw_effects(const std::string& cls, uint64_t seed, const BenchConfig& bench);
+
+struct BlindCase {
+  int index = 0;
+  std::string truth;                 // class drawn
+  nlohmann::ordered_json truth_params = nlohmann::ordered_json::object();
+  std::string cause;                 // what the diagnosis said
+  std::vector<std::string> causes;
+  nlohmann::ordered_json fitted_params = nlohmann::ordered_json::object();
+  bool correct = false;
+  double param_error = 0;            // largest relative error over the truth's parameters (correct cases)
+  nlohmann::ordered_json param_errors = nlohmann::ordered_json::object();
+  double gap_before_arcsec = 0, gap_after_arcsec = 0, noise_floor_arcsec = 0;
+  size_t rows = 0;
+};
+
+struct BlindTestOptions {
+  int cases = 22;
+  uint64_t seed = 1;
+};
+
+struct BlindTestReport {
+  std::vector<BlindCase> cases;
+  double accuracy() const;                          // top-1, all cases
+  double accuracy(const std::string& cls) const;    // top-1 among cases of that truth
+  double false_alarm_rate() const;                  // truth none, cause not none
+  nlohmann::ordered_json to_json() const;
+  std::string to_text() const;                      // confusion matrix and figures
+};
+
+// Runs `cases` cases; classes are drawn as shuffled blocks of all eleven, so any 11 consecutive
+// cases cover every class. `progress` is called after each case.
+BlindTestReport run_blindtest(const BlindTestOptions& opts, const std::function<void(const BlindCase&)>& progress = {});
+
+// One case, for tests: record with `effects`, diagnose, score against the truth.
+BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Effect>& effects, uint64_t seed);
+
+}  // namespace fpss
