@@ -109,7 +109,27 @@ code { font-size: 0.9em; }
 footer { margin-top: 2em; color: #777; font-size: 0.85em; }
 )css";
 
-// The run.json fields worth a row; long texts (procedure, stand file) go in folded blocks.
+// Flattens run.json into rows "key" / "key.sub" (two levels); long texts (procedure and stand
+// files) and lists (sessions) go in folded blocks.
+void flatten_run(const std::string& key, const nlohmann::json& v, int depth, std::string& rows,
+                 std::string& blocks) {
+  if (v.is_object() && depth < 2 && !v.empty()) {
+    for (auto it = v.begin(); it != v.end(); ++it) {
+      flatten_run(key.empty() ? it.key() : key + "." + it.key(), it.value(), depth + 1, rows, blocks);
+    }
+    return;
+  }
+  if (v.is_null()) return;
+  const std::string text = v.is_string() ? v.get<std::string>() : v.dump(1);
+  if (text.size() > 160 || text.find('\n') != std::string::npos) {
+    blocks += fmt::format("<details><summary><code>{}</code></summary><pre>{}</pre></details>\n",
+                          html_escape(key), html_escape(text));
+  } else {
+    rows += fmt::format("<tr><th class=\"l\">{}</th><td class=\"l\">{}</td></tr>\n", html_escape(key),
+                        html_escape(text));
+  }
+}
+
 void run_section(std::string& h, const nlohmann::json& run) {
   h += "<section id=\"run\"><h2>Run</h2>\n";
   if (!run.is_object() || run.empty()) {
@@ -117,18 +137,7 @@ void run_section(std::string& h, const nlohmann::json& run) {
     return;
   }
   std::string rows, blocks;
-  for (auto it = run.begin(); it != run.end(); ++it) {
-    const auto& v = it.value();
-    std::string text = v.is_string() ? v.get<std::string>() : v.dump(1);
-    const bool long_text = text.size() > 160 || text.find('\n') != std::string::npos;
-    if (long_text) {
-      blocks += fmt::format("<details><summary><code>{}</code></summary><pre>{}</pre></details>\n",
-                            html_escape(it.key()), html_escape(text));
-    } else {
-      rows += fmt::format("<tr><th class=\"l\">{}</th><td class=\"l\">{}</td></tr>\n", html_escape(it.key()),
-                          html_escape(text));
-    }
-  }
+  flatten_run("", run, 0, rows, blocks);
   h += "<table>\n" + rows + "</table>\n" + blocks + "</section>\n";
 }
 
@@ -447,12 +456,8 @@ ReportInput load_report_input(const fs::path& run_dir) {
   if (!fs::is_directory(run_dir)) throw InputError(fmt::format("{}: not a run folder (no such directory)", run_dir.string()));
   ReportInput in;
   const fs::path samples_path = run_dir / "samples.csv";
-  const fs::path cal_path = run_dir / "calibration.json";
   const fs::path run_path = run_dir / "run.json";
   if (!fs::exists(samples_path)) throw InputError(fmt::format("{}: missing: the run recorded no samples", samples_path.string()));
-  if (!fs::exists(cal_path)) {
-    throw InputError(fmt::format("{}: missing: the run has no calibration to report on", cal_path.string()));
-  }
   if (fs::exists(run_path)) {
     try {
       in.run = nlohmann::json::parse(read_text(run_path, "run.json"));
@@ -460,6 +465,20 @@ ReportInput load_report_input(const fs::path& run_dir) {
       throw InputError(fmt::format("{}: not valid JSON: {}", run_path.string(), e.what()));
     }
     if (!in.run.is_object()) throw InputError(fmt::format("{}: expected a JSON object", run_path.string()));
+  }
+  // A procedure may calibrate more than once (calibration-2.json, ...): run.json names the last.
+  fs::path cal_path = run_dir / "calibration.json";
+  if (in.run.contains("files") && in.run["files"].is_object() && in.run["files"].contains("calibration") &&
+      in.run["files"]["calibration"].is_string()) {
+    const fs::path named = in.run["files"]["calibration"].get<std::string>();
+    if (named.has_parent_path() || named.empty()) {
+      throw InputError(fmt::format("{}: files.calibration must be a file name in the run folder, got \"{}\"",
+                                   run_path.string(), named.string()));
+    }
+    cal_path = run_dir / named;
+  }
+  if (!fs::exists(cal_path)) {
+    throw InputError(fmt::format("{}: missing: the run has no calibration to report on", cal_path.string()));
   }
   in.calibration = load_coefficients(cal_path);
   in.calibration_origin = cal_path.filename().string();
@@ -482,7 +501,10 @@ ReportInput load_report_input(const fs::path& run_dir) {
   };
   std::string unit = field("unit");
   if (unit.empty()) unit = in.calibration.unit;
-  const std::string procedure = field("procedure");
+  std::string procedure = field("procedure");
+  if (in.run.contains("procedure") && in.run["procedure"].is_object()) {
+    procedure = in.run["procedure"].value("name", "");
+  }
   in.title = fmt::format("Run {}{}{}", run_dir.filename().string(), unit.empty() ? "" : " \u2014 unit " + unit,
                          procedure.empty() ? "" : ", " + procedure);
   return in;

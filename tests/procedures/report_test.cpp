@@ -117,15 +117,20 @@ CoefficientSet perturbed() {
   return c;
 }
 
+// run.json as the engine writes it (procedures/session.cpp), in part.
 nlohmann::json run_json() {
-  return {{"run_id", "20240501T120000Z-FPSS1-discrete_grid"},
+  return {{"format", "fpss-stand run/1"},
+          {"run_id", "20240501T120000Z-FPSS1-discrete_grid"},
           {"unit", "FPSS1"},
-          {"procedure", "discrete_grid"},
-          {"procedure_hash", "3f2a"},
-          {"procedure_text", "name: discrete_grid\nsteps:\n  - home: {}\n  - null_offset_grid: {extent_deg: 0.42}\n"},
+          {"procedure",
+           {{"name", "discrete_grid"},
+            {"sha256", "3f2a"},
+            {"text", "name: discrete_grid\nsteps:\n  - home: {}\n  - null_offset_grid: {extent_deg: 0.42}\n"}}},
           {"emulated", true},
-          {"seed", 7},
+          {"emulator", {{"seed", 7}}},
           {"outcome", "completed"},
+          {"sessions", {{{"session", 1}, {"pid", 123}}}},
+          {"files", {{"samples", "samples.csv"}, {"calibration", "calibration.json"}}},
           {"note", "<b>operator</b> & co"}};
 }
 
@@ -264,7 +269,10 @@ TEST(Report, PageHasTheSummaryAndInlineSvgPlots) {
   // run.json's fields are shown, escaped; the procedure text folded away.
   EXPECT_NE(html.find("&lt;b&gt;operator&lt;/b&gt; &amp; co"), std::string::npos);
   EXPECT_EQ(html.find("<b>operator</b>"), std::string::npos);
-  EXPECT_NE(html.find("<summary><code>procedure_text</code></summary>"), std::string::npos);
+  EXPECT_NE(html.find("<summary><code>procedure.text</code></summary><pre>name: discrete_grid\nsteps:"),
+            std::string::npos);
+  EXPECT_NE(html.find("<th class=\"l\">emulator.seed</th><td class=\"l\">7</td>"), std::string::npos);
+  EXPECT_NE(html.find(", discrete_grid</title>"), std::string::npos);
   EXPECT_NE(html.find("<td class=\"l\">null after</td>"), std::string::npos);  // the residual table
 }
 
@@ -279,6 +287,22 @@ TEST(Report, ACalibrationMadeOnOtherDataIsPointedOut) {
   const std::string html = render_report(load_report_input(dir.path()), opts);
   EXPECT_NE(html.find("differs from the residuals recomputed here"), std::string::npos);
   EXPECT_NE(html.find("pitch: 10 points, mean 0.500 arcsec"), std::string::npos);
+}
+
+TEST(Report, UsesTheCalibrationRunJsonNames) {
+  TempDir dir;
+  make_run_folder(dir.path());
+  auto run = run_json();
+  run["files"]["calibration"] = "calibration-2.json";
+  std::ofstream(dir.path() / "run.json") << run.dump();
+  EXPECT_THROW(load_report_input(dir.path()), InputError);  // named but absent
+  save_coefficients(dir.path() / "calibration-2.json", truth());
+  const ReportInput in = load_report_input(dir.path());
+  EXPECT_EQ(in.calibration_origin, "calibration-2.json");
+  EXPECT_NEAR(in.residuals.pitch.max_abs_arcsec.value(), 0.0, 1e-6);  // the truth fits exactly
+  run["files"]["calibration"] = "../elsewhere.json";
+  std::ofstream(dir.path() / "run.json") << run.dump();
+  EXPECT_THROW(load_report_input(dir.path()), InputError);
 }
 
 TEST(Report, WithoutGnuplotTheTablesStillRender) {
