@@ -10,12 +10,16 @@ std::optional<Interpolated> interpolate_at(const std::vector<GimbalFix>& fixes, 
   if (fixes.empty() || t_s < fixes.front().gimbal_time_s || t_s > fixes.back().gimbal_time_s) return std::nullopt;
   auto hi = std::lower_bound(fixes.begin(), fixes.end(), t_s,
                              [](const GimbalFix& f, double t) { return f.gimbal_time_s < t; });
-  if (hi == fixes.begin()) return Interpolated{hi->pitch_arcsec, hi->yaw_arcsec, hi->status};
+  if (hi == fixes.begin()) return Interpolated{hi->pitch_arcsec, hi->yaw_arcsec, hi->status, 0.0};
   auto lo = hi - 1;
-  const double span = hi->gimbal_time_s - lo->gimbal_time_s;
-  const double w = span > 0 ? (t_s - lo->gimbal_time_s) / span : 0.0;
-  return Interpolated{lo->pitch_arcsec + w * (hi->pitch_arcsec - lo->pitch_arcsec),
-                      lo->yaw_arcsec + w * (hi->yaw_arcsec - lo->yaw_arcsec), lo->status};
+  const double h = hi->gimbal_time_s - lo->gimbal_time_s;
+  if (h <= 0) return Interpolated{hi->pitch_arcsec, hi->yaw_arcsec, lo->status, 0.0};
+  const double u = (t_s - lo->gimbal_time_s) / h;
+  const double h00 = (1 + 2 * u) * (1 - u) * (1 - u), h10 = u * (1 - u) * (1 - u);
+  const double h01 = u * u * (3 - 2 * u), h11 = u * u * (u - 1);
+  auto herm = [&](double p0, double v0, double p1, double v1) { return h00 * p0 + h10 * h * v0 + h01 * p1 + h11 * h * v1; };
+  return Interpolated{herm(lo->pitch_arcsec, lo->pitch_rate_arcsec_s, hi->pitch_arcsec, hi->pitch_rate_arcsec_s),
+                      herm(lo->yaw_arcsec, lo->yaw_rate_arcsec_s, hi->yaw_arcsec, hi->yaw_rate_arcsec_s), lo->status, h};
 }
 
 double clock_offset(const std::vector<double>& host_s, const std::vector<double>& device_s, double scale) {

@@ -11,14 +11,18 @@ struct GimbalFix {
   double gimbal_time_s = 0;
   double host_time_s = 0;  // host steady clock at receipt
   double pitch_arcsec = 0, yaw_arcsec = 0;
+  double pitch_rate_arcsec_s = 0, yaw_rate_arcsec_s = 0;
   uint16_t status = 0;
 };
 
-// The gimbal position at gimbal time t, linear between the two readings around it; nullopt
-// outside the readings (no extrapolation). `fixes` sorted by gimbal_time_s.
+// The gimbal position at gimbal time t from the two readings around it: cubic Hermite on their
+// positions and rates (exact for constant acceleration, so a reading missed while the axis
+// accelerates costs little); nullopt outside the readings (no extrapolation). `fixes` sorted by
+// gimbal_time_s.
 struct Interpolated {
   double pitch_arcsec = 0, yaw_arcsec = 0;
   uint16_t status = 0;  // of the reading before t
+  double gap_s = 0;     // time between the two readings used
 };
 std::optional<Interpolated> interpolate_at(const std::vector<GimbalFix>& fixes, double t_s);
 

@@ -42,6 +42,7 @@ nlohmann::json to_json(const BenchSettings& b) {
       {"watchdog_s", b.watchdog_s},
       {"clock", b.clock == ClockSync::shared ? "shared" : "host"},
       {"sensor_time_offset_s", b.sensor_time_offset_s},
+      {"max_reference_gap_s", b.max_reference_gap_s},
       {"time_scale", b.time_scale},
   };
 }

@@ -45,6 +45,7 @@ struct BenchSettings {
   double watchdog_s = 0;                 // gimbal watchdog during the run (0: off)
   ClockSync clock = ClockSync::host;
   double sensor_time_offset_s = 0;       // added to sensor time before aligning (known latency)
+  double max_reference_gap_s = 0.05;     // slews: a frame between gimbal readings further apart is skipped
   double time_scale = 1;                 // bench seconds per wall second (an emulator's speed-up)
   double poll_interval_s = 0.002;        // wall seconds between gimbal polls while waiting
 

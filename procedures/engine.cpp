@@ -140,7 +140,7 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
 double Engine::sensor_clock_s(const SensorSample& f) const {
   const double t = b_.clock == ClockSync::shared ? unwrap_near(f.sensor_time_us, last_gimbal_time_s_)
                                                  : f.sensor_time_s;
-  return t + b_.sensor_time_offset_s;
+  return std::round((t + b_.sensor_time_offset_s) * 1e6) / 1e6;
 }
 
 double Engine::stand_time(double sensor_time_s) {
@@ -152,6 +152,8 @@ double Engine::stand_time(double sensor_time_s) {
     sensor_t0_ = sensor_time_s;
     t = last_time_;
   }
+  // Whole microseconds, as the devices count them: no 0.020000000000000018 in the recording.
+  t = std::round(t * 1e6) / 1e6;
   last_time_ = t;
   return t;
 }
@@ -304,10 +306,11 @@ void Engine::measure_dwell(const Action& a, int session) {
     } catch (const DeviceError& e) {
       log_.warn("point {}: no temperature ({})", a.point + 1, e.what());
     }
-    const double p = 0.5 * (before.pitch_arcsec + after.pitch_arcsec);
-    const double y = 0.5 * (before.yaw_arcsec + after.yaw_arcsec);
+    // The encoders count milliarcseconds: their mean to the microarcsecond is exact enough.
+    const double p = std::round(0.5e6 * (before.pitch_arcsec + after.pitch_arcsec)) / 1e6;
+    const double y = std::round(0.5e6 * (before.yaw_arcsec + after.yaw_arcsec)) / 1e6;
     const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(p, y);
-    const double gtime = 0.5 * (before.sample_time_us + after.sample_time_us) * 1e-6;
+    const double gtime = std::round(0.5 * static_cast<double>(before.sample_time_us + after.sample_time_us)) / 1e6;
     std::vector<RecordedRow> rows;
     rows.reserve(frames.size());
     for (const auto& f : frames) {
@@ -329,7 +332,10 @@ void Engine::measure_dwell(const Action& a, int session) {
       r.session = session;
       rows.push_back(r);
     }
-    rec_.append_point(a.point, rows, attempt, session);
+    {
+      Timed t(stats_.storage_s);
+      rec_.append_point(a.point, rows, attempt, session);
+    }
     ++stats_.points;
     if (hooks_.point_done) hooks_.point_done(a, rows);
   });
@@ -353,8 +359,8 @@ void Engine::measure_slew(const Action& a, int session) {
     std::vector<GimbalFix> fixes;
     std::vector<SensorSample> frames;
     auto fix = [&](const GimbalState& st) {
-      fixes.push_back(GimbalFix{static_cast<double>(st.sample_time_us) * 1e-6, st.host_time_s, st.pitch_arcsec,
-                                st.yaw_arcsec, st.status});
+      fixes.push_back(GimbalFix{static_cast<double>(st.sample_time_us) / 1e6, st.host_time_s, st.pitch_arcsec,
+                                st.yaw_arcsec, st.pitch_rate_arcsec_s, st.yaw_rate_arcsec_s, st.status});
     };
     auto drain = [&] {
       Timed t(stats_.device_s);
@@ -420,7 +426,7 @@ void Engine::measure_slew(const Action& a, int session) {
         auto it = std::lower_bound(fixes.begin(), fixes.end(), frames[i].host_time_s,
                                    [](const GimbalFix& f, double h) { return f.host_time_s < h; });
         const double ref = (it == fixes.end() ? fixes.back() : *it).gimbal_time_s;
-        s_times[i] = unwrap_near(frames[i].sensor_time_us, ref) + b_.sensor_time_offset_s;
+        s_times[i] = std::round((unwrap_near(frames[i].sensor_time_us, ref) + b_.sensor_time_offset_s) * 1e6) / 1e6;
         g_times[i] = s_times[i];
       }
     } else {
@@ -447,19 +453,24 @@ void Engine::measure_slew(const Action& a, int session) {
       log_.warn("point {}: no temperature ({})", a.point + 1, e.what());
     }
     std::vector<RecordedRow> rows;
-    int invalid = 0;
+    int invalid = 0, gapped = 0;
     double next_keep = -std::numeric_limits<double>::infinity();
     for (size_t i = 0; i < frames.size(); ++i) {
       const auto& f = frames[i];
       auto at = interpolate_at(fixes, g_times[i]);
       if (!at) continue;  // before the first or after the last gimbal reading: no reference
+      if (at->gap_s > b_.max_reference_gap_s) {
+        ++gapped;  // the gimbal was not read often enough around this frame to trust its reference
+        continue;
+      }
       if (!f.valid()) {
         ++invalid;
         continue;
       }
-      if (s_times[i] < next_keep) continue;
+      // One sample per period on the sensor's clock (a microsecond of slack for float rounding).
+      if (s_times[i] + 1e-6 < next_keep) continue;
       next_keep = std::isfinite(next_keep) ? next_keep + a.sample_period_s : s_times[i] + a.sample_period_s;
-      while (next_keep <= s_times[i]) next_keep += a.sample_period_s;
+      while (next_keep <= s_times[i] + 1e-6) next_keep += a.sample_period_s;
       const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(at->pitch_arcsec, at->yaw_arcsec);
       RecordedRow r;
       r.sensor_time_s = s_times[i];
@@ -484,7 +495,18 @@ void Engine::measure_slew(const Action& a, int session) {
                                       frames.size(), invalid));
     }
     if (invalid > 0) log_.warn("point {}: {} invalid frame(s) during the slew skipped", a.point + 1, invalid);
-    rec_.append_point(a.point, rows, attempt, session);
+    if (gapped > 0) {
+      log_.info("point {}: {} frame(s) skipped: gimbal readings around them more than {} s apart", a.point + 1, gapped,
+                b_.max_reference_gap_s);
+    }
+    double max_gap = 0;
+    for (size_t i = 1; i < fixes.size(); ++i) max_gap = std::max(max_gap, fixes[i].gimbal_time_s - fixes[i - 1].gimbal_time_s);
+    log_.debug("point {}: slew of {} frames, {} kept, {} gimbal readings (largest gap {:.1f} ms of bench time)",
+               a.point + 1, frames.size(), rows.size(), fixes.size(), max_gap * 1e3);
+    {
+      Timed t(stats_.storage_s);
+      rec_.append_point(a.point, rows, attempt, session);
+    }
     ++stats_.points;
     if (hooks_.point_done) hooks_.point_done(a, rows);
   });
@@ -616,7 +638,10 @@ EngineResult Engine::run(int session) {
           break;
         case Action::Kind::calibrate:
           log_.info("step {}: calibrate", a.step_index);
-          if (hooks_.calibrate) hooks_.calibrate(a);
+          if (hooks_.calibrate) {
+            Timed t(stats_.calibrate_s);
+            hooks_.calibrate(a);
+          }
           break;
         case Action::Kind::check: {
           log_.info("step {}: check", a.step_index);

@@ -39,10 +39,13 @@ struct EngineStats {
   double wall_s = 0;         // total in run()
   double device_s = 0;       // inside device calls (I/O and the devices' own waiting)
   double sleep_s = 0;        // settle times and poll intervals
+  double storage_s = 0;      // appending and syncing samples.csv and the journal (fsync)
+  double calibrate_s = 0;    // calibrate steps (a fit, not per point)
   int64_t points = 0;        // points measured in this session
   int64_t remeasured = 0;    // extra attempts
   int64_t recoveries = 0;    // fault clears, stream restarts
-  double own_s() const { return wall_s - device_s - sleep_s; }
+  // The controller's own work: everything but waiting on devices, sleeping, the disk's fsync and fits.
+  double own_s() const { return wall_s - device_s - sleep_s - storage_s - calibrate_s; }
 };
 
 // Calibrate and check steps run outside the engine (they are computation on the recording).

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "calib/coefficients.h"
 #include "calib/errors.h"
 
 namespace fpss {
@@ -219,35 +220,16 @@ StepBody parse_calibrate(MapReader& r, const std::string& origin) {
   if (auto p = r.string("init")) {
     std::filesystem::path f(*p);
     if (f.is_relative()) f = std::filesystem::path(origin).parent_path() / f;
-    s.init = f;
-  }
-  YAML::Node opts = r.node("options");
-  if (opts.IsDefined()) {
-    if (!opts.IsMap()) {
-      r.diagnostics().error(opts, fmt::format("{}: field options: expected a map, got {}", r.where(),
-                                              describe_node(opts)));
-    } else {
-      for (auto it = opts.begin(); it != opts.end(); ++it) {
-        const auto& v = it->second;
-        const std::string key = it->first.Scalar();
-        if (v.IsScalar() && v.Tag() != "!") {
-          try {
-            s.options[key] = v.as<double>();
-            continue;
-          } catch (const YAML::Exception&) {
-          }
-          try {
-            s.options[key] = v.as<bool>();
-            continue;
-          } catch (const YAML::Exception&) {
-          }
-        }
-        if (v.IsScalar()) s.options[key] = v.Scalar();
-        else r.diagnostics().error(v, fmt::format("{}: options.{}: expected a number, true/false or text",
-                                                  r.where(), key));
-      }
+    try {
+      load_coefficients(f);  // checked now, before anything moves
+      s.init = f;
+    } catch (const InputError& e) {
+      r.diagnostics().error(r.node("init"), fmt::format("{}: field init: {}", r.where(), e.what()));
     }
   }
+  if (auto v = r.integer("max_iterations", false, 1, 100000)) s.max_iterations = static_cast<int>(*v);
+  if (auto v = r.integer("refine_nodes", false, 1, 1000)) s.refine_nodes = static_cast<int>(*v);
+  if (auto v = r.integer("threads", false, 0, 256)) s.threads = static_cast<int>(*v);
   return s;
 }
 

@@ -74,7 +74,9 @@ struct SlewStep {
 struct CalibrateStep {
   std::string method = "differences";         // differences | absolute
   std::optional<std::filesystem::path> init;  // starting coefficient file (relative to the procedure)
-  nlohmann::json options = nlohmann::json::object();  // further calibrator options, passed through
+  std::optional<int> max_iterations;          // the calibrator's options (calib/calibrator.h)
+  std::optional<int> refine_nodes;
+  std::optional<int> threads;
 };
 
 struct ResidualLimits {

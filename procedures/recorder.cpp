@@ -58,7 +58,7 @@ std::string utc_compact(const std::string& iso) {
 namespace {
 std::string safe_name(const std::string& s) {
   std::string o;
-  for (char c : s) o += (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_') ? c : '_';
+  for (char c : s) o += (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-') ? c : '_';
   return o.empty() ? "unknown" : o;
 }
 

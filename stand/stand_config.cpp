@@ -148,6 +148,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
     if (auto s = r.choice("sync", {"host", "shared"})) b.clock = *s == "shared" ? ClockSync::shared : ClockSync::host;
     if (auto v = r.number("sensor_offset_s")) b.sensor_time_offset_s = *v;
     if (auto v = r.positive("time_scale")) b.time_scale = *v;
+    if (auto v = r.positive("max_reference_gap_s")) b.max_reference_gap_s = *v;
     r.finish();
   }
   // points

@@ -1,0 +1,38 @@
+// Progress of a run: one rewritten line on a terminal, plain log lines otherwise.
+#pragma once
+#include <chrono>
+#include <cstdio>
+#include <string>
+
+#include <spdlog/logger.h>
+
+namespace fpss {
+
+class Progress {
+ public:
+  // `done` points were completed before this session (a resume); `tty` draws the live line on `out`.
+  Progress(size_t total, size_t done, bool tty, spdlog::logger& log, FILE* out = stderr);
+
+  // A point was completed; `live` is the streaming estimator's word on it (may be empty).
+  void point_done(const std::string& live);
+  // Removes the live line before other output (a terminal only).
+  void clear();
+  void finish();
+
+  size_t done() const { return done_; }
+  std::string line(const std::string& live) const;  // the text shown, for tests and logs
+
+ private:
+  size_t total_, done_, start_done_;
+  bool tty_;
+  spdlog::logger& log_;
+  FILE* out_;
+  std::chrono::steady_clock::time_point t0_;
+  std::chrono::steady_clock::time_point last_draw_{};
+  bool drawn_ = false;
+};
+
+// "1:05", "12:03:09"
+std::string clock_text(double seconds);
+
+}  // namespace fpss
