@@ -151,12 +151,8 @@ TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
 }
 
 TEST(TcpStream, ConnectionRefusedNamesErrno) {
-  int port;
-  {
-    test::TcpListener l;
-    port = l.port();
-  }
-  auto s = make_byte_stream("tcp:127.0.0.1:" + std::to_string(port));
+  test::RefusingPort refusing;
+  auto s = make_byte_stream("tcp:127.0.0.1:" + std::to_string(refusing.port()));
   std::string msg = error_of([&] { s->open(); });
   EXPECT_THAT(msg, HasSubstr("cannot connect"));
   EXPECT_THAT(msg, HasSubstr("errno 111"));

@@ -7,6 +7,7 @@
 
 #include "drivers/endpoints.h"
 #include "modbus_test_server.h"
+#include "test_util.h"
 
 using fpss::test::ModbusTestServer;
 using testing::HasSubstr;
@@ -14,10 +15,12 @@ using Action = ModbusTestServer::Action;
 namespace fpss {
 namespace {
 
-GimbalOptions fast_options(const std::string& endpoint) {
+// A generous response timeout so that a loaded machine never causes a retry the test does not
+// expect; tests that provoke timeouts on purpose pass a shorter one.
+GimbalOptions fast_options(const std::string& endpoint, double response_timeout_s = 5.0) {
   GimbalOptions o;
   o.endpoint = endpoint;
-  o.response_timeout_s = 0.2;
+  o.response_timeout_s = response_timeout_s;
   o.retries = 2;
   o.backoff_s = 0.01;
   o.poll_interval_s = 0.005;
@@ -180,7 +183,7 @@ TEST(ModbusGimbal, TimeoutsAreRetriedOnAFreshConnectionThenSucceed) {
   server.set_hook([](const ModbusTestServer::Request&, std::size_t i) {
     return ModbusTestServer::Decision{i < 2 ? Action::drop : Action::reply, 0};
   });
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(fast_options(server.endpoint(), 1.0));
   g.connect();
   server.set_input_i32(0, 42'000);
   EXPECT_DOUBLE_EQ(g.read_state().pitch_arcsec, 42.0);
@@ -195,7 +198,7 @@ TEST(ModbusGimbal, PersistentTimeoutEndsInAClearError) {
   server.set_hook([](const ModbusTestServer::Request&, std::size_t) {
     return ModbusTestServer::Decision{Action::drop, 0};
   });
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(fast_options(server.endpoint(), 1.0));
   g.connect();
   std::string msg = error_of([&] { g.read_state(); });
   EXPECT_THAT(msg, HasSubstr("input registers 0..14"));
@@ -245,12 +248,8 @@ TEST(ModbusGimbal, BusyIsRetriedOtherExceptionsAreNot) {
 }
 
 TEST(ModbusGimbal, NoServerGivesConnectionRefusedWithErrno) {
-  int port;
-  {
-    ModbusTestServer server;  // take an ephemeral port, then free it
-    port = server.port();
-  }
-  GimbalOptions o = fast_options("modbus-tcp:127.0.0.1:" + std::to_string(port));
+  test::RefusingPort refusing;
+  GimbalOptions o = fast_options("modbus-tcp:127.0.0.1:" + std::to_string(refusing.port()));
   ModbusGimbal g(o);
   std::string msg = error_of([&] { g.connect(); });
   EXPECT_THAT(msg, HasSubstr("cannot connect"));

@@ -106,6 +106,28 @@ class TcpListener {
   int port_ = 0;
 };
 
+// A loopback port that is bound but never listens: connecting is refused, and no other process
+// can take the port while this object lives (a freed ephemeral port could be reused under ctest -j).
+class RefusingPort {
+ public:
+  RefusingPort() {
+    fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (::bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) throw std::runtime_error("bind");
+    socklen_t len = sizeof a;
+    ::getsockname(fd_, reinterpret_cast<sockaddr*>(&a), &len);
+    port_ = ntohs(a.sin_port);
+  }
+  ~RefusingPort() { ::close(fd_); }
+  int port() const { return port_; }
+
+ private:
+  int fd_ = -1;
+  int port_ = 0;
+};
+
 // The sensor electronics as the test plays them on the far end of a pty or socket: answers command
 // lines through a handler and lets the test write sample frames, garbage and corrupt frames.
 class FakeElectronics {
