@@ -119,7 +119,7 @@ void flatten_run(const std::string& key, const nlohmann::json& v, int depth, std
     }
     return;
   }
-  if (v.is_null()) return;
+  if (v.is_null() || (v.is_string() && v.get<std::string>().empty())) return;
   const std::string text = v.is_string() ? v.get<std::string>() : v.dump(1);
   if (text.size() > 160 || text.find('\n') != std::string::npos) {
     blocks += fmt::format("<details><summary><code>{}</code></summary><pre>{}</pre></details>\n",

@@ -334,7 +334,7 @@ TEST(Catalogue, ConcurrentWritersLoseNothing) {
   TempDir dir;
   const auto db = dir.path() / "stand.db";
   constexpr int kWriters = 4;
-  constexpr int kRunsEach = 150;
+  constexpr int kRunsEach = 100;
 
   int go[2];
   ASSERT_EQ(::pipe(go), 0);
