@@ -23,7 +23,8 @@ std::vector<double> GridStep::offsets_arcsec() const {
   std::vector<double> pos;
   // A small tolerance so that 0.42 / 0.06 gives 7 offsets despite rounding.
   const int n = static_cast<int>(std::floor(extent_arcsec / step_arcsec + 1e-9));
-  for (int k = 1; k <= n; ++k) pos.push_back(k * step_arcsec);
+  // To the microarcsecond: 3 x (0.14 deg) is 1512 arcsec, not 1512.0000000000002.
+  for (int k = 1; k <= n; ++k) pos.push_back(std::round(k * step_arcsec * 1e6) / 1e6);
   std::vector<double> out;
   switch (order) {
     case Order::outward:

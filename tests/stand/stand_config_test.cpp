@@ -1,0 +1,113 @@
+// Stand files: every field, the axis mapping (the paper's Table 2 geometry), and every error at file:line:column.
+#include <gtest/gtest.h>
+
+#include "calib/errors.h"
+#include "stand/stand_config.h"
+#include "tests/procedures/run_util.h"
+
+namespace fpss {
+namespace {
+
+bool has_error(const Diagnostics& d, int line, int col, const std::string& part) {
+  for (const auto& e : d.all()) {
+    if (e.mark.line == line && e.mark.column == col && e.message.find(part) != std::string::npos) return true;
+  }
+  return false;
+}
+
+TEST(StandConfig, ExampleStandFile) {
+  const StandConfig c = load_stand_file(test::source_dir() / "procedures" / "example_stand.yaml");
+  EXPECT_EQ(c.stand_id, "lab-bench-1");
+  EXPECT_EQ(c.unit_serial, "FPSS1-SN042");
+  EXPECT_EQ(c.gimbal.endpoint, "modbus-tcp:192.168.10.20:502");
+  EXPECT_EQ(c.sensor.endpoint, "serial:/dev/ttyUSB0:115200");
+  EXPECT_EQ(c.gimbal.retries, 3);
+  EXPECT_DOUBLE_EQ(c.bench.limits.pitch_min_arcsec, -2700);
+  EXPECT_DOUBLE_EQ(c.bench.limits.yaw_max_arcsec, 2700);
+  EXPECT_DOUBLE_EQ(c.gimbal.limits.pitch_max_arcsec, 2700);  // the driver enforces the same limits
+  EXPECT_DOUBLE_EQ(c.bench.sample_rate_hz, 50);
+  EXPECT_DOUBLE_EQ(c.bench.watchdog_s, 2);
+  EXPECT_EQ(c.bench.clock, ClockSync::host);
+  EXPECT_EQ(c.bench.max_remeasure, 3);
+  EXPECT_EQ(c.bench.axes.describe(), "pitch = +beta, yaw = -alpha");
+}
+
+TEST(StandConfig, Table2MappingGivesSensorFrameReferences) {
+  Diagnostics d("s.yaml");
+  StandConfig c = parse_stand("gimbal: {endpoint: 'modbus-tcp:127.0.0.1:1502'}\nsensor: {endpoint: 'pty:/dev/pts/9'}\n"
+                              "axes: {pitch: beta, yaw: -alpha}\n",
+                              "s.yaml", d);
+  ASSERT_TRUE(d.empty()) << d.text();
+  // Gimbal at pitch +100, yaw +200: the sensor's beta sees +100, its alpha sees -200.
+  auto [alpha, beta] = c.bench.axes.sensor_from_stand(100, 200);
+  EXPECT_DOUBLE_EQ(alpha, -200);
+  EXPECT_DOUBLE_EQ(beta, 100);
+  auto [p, y] = c.bench.axes.stand_from_sensor(alpha, beta);
+  EXPECT_DOUBLE_EQ(p, 100);
+  EXPECT_DOUBLE_EQ(y, 200);
+  // Default: alpha -> pitch, beta -> yaw.
+  AxisMapping def;
+  EXPECT_EQ(def.sensor_from_stand(100, 200), (std::pair<double, double>{100, 200}));
+}
+
+TEST(StandConfig, EveryErrorAtOnce) {
+  const std::string text =
+      "stand: x\n"                                   // 1
+      "gimbal:\n"                                    // 2
+      "  endpoint: serial:/dev/ttyUSB0\n"            // 3  not a Modbus endpoint
+      "  retries: many\n"                            // 4  wrong type
+      "sensor:\n"                                    // 5
+      "  endpoint: pty\n"                            // 6  malformed endpoint
+      "  sample_rate_hz: 500\n"                      // 7  out of range
+      "soft_limits:\n"                               // 8
+      "  pitch_deg: [0.5, -0.5]\n"                   // 9  min > max
+      "  roll_deg: [-1, 1]\n"                        // 10 unknown field
+      "axes: {pitch: alpha, yaw: alpha}\n"           // 11 alpha twice
+      "colour: red\n";                               // 12 unknown field
+  Diagnostics d("stand.yaml");
+  parse_stand(text, "stand.yaml", d);
+  EXPECT_TRUE(has_error(d, 3, 13, "is a serial endpoint; expected modbus-tcp")) << d.text();
+  EXPECT_TRUE(has_error(d, 4, 12, "field retries: expected an integer, got \"many\"")) << d.text();
+  EXPECT_TRUE(has_error(d, 6, 13, "sensor: field endpoint:")) << d.text();
+  EXPECT_TRUE(has_error(d, 7, 19, "expected an integer in 1..200")) << d.text();
+  EXPECT_TRUE(has_error(d, 9, 14, "expected min < max")) << d.text();
+  EXPECT_TRUE(has_error(d, 10, 3, "unknown field \"roll_deg\"")) << d.text();
+  EXPECT_TRUE(has_error(d, 11, 7, "pitch and yaw both map to alpha")) << d.text();
+  EXPECT_TRUE(has_error(d, 12, 1, "unknown field \"colour\"")) << d.text();
+  EXPECT_EQ(d.size(), 8u) << d.text();
+}
+
+TEST(StandConfig, MissingDevicesAndBadMapping) {
+  Diagnostics d("s.yaml");
+  parse_stand("axes: {pitch: gamma}\nsoft_limits: {yaw_arcsec: [100, 200]}\n", "s.yaml", d);
+  EXPECT_TRUE(has_error(d, 1, 1, "missing field gimbal")) << d.text();
+  EXPECT_TRUE(has_error(d, 1, 1, "missing field sensor")) << d.text();
+  EXPECT_TRUE(has_error(d, 1, 15, "expected alpha, beta, +alpha")) << d.text();
+  EXPECT_TRUE(has_error(d, 2, 14, "must contain the null")) << d.text();
+}
+
+TEST(StandConfig, ProfileRateAboveTheLimit) {
+  Diagnostics d("s.yaml");
+  parse_stand("gimbal: {endpoint: 'modbus-tcp:h:1', profile_rate_deg_s: 2}\nsensor: {endpoint: 'tcp:h:2'}\n"
+              "soft_limits: {max_rate_deg_s: 1}\n",
+              "s.yaml", d);
+  ASSERT_EQ(d.size(), 1u) << d.text();
+  EXPECT_NE(d.text().find("profile rate 7200 arcsec/s is above soft_limits max rate 3600"), std::string::npos);
+}
+
+TEST(StandConfig, LoadThrowsInputError) {
+  test::TempDir tmp("stand");
+  test::write_file(tmp / "s.yaml", "gimbal: [1, 2]\n");
+  EXPECT_THROW(load_stand_file(tmp / "s.yaml"), InputError);
+  EXPECT_THROW(load_stand_file(tmp / "missing.yaml"), InputError);
+}
+
+TEST(StandConfig, EmulatedStand) {
+  StandConfig c = emulated_stand(50);
+  EXPECT_EQ(c.bench.clock, ClockSync::shared);
+  EXPECT_DOUBLE_EQ(c.bench.time_scale, 50);
+  EXPECT_DOUBLE_EQ(c.bench.wall(5.0), 0.1);
+}
+
+}  // namespace
+}  // namespace fpss
