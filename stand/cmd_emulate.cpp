@@ -125,7 +125,7 @@ void add_emulate(CLI::App& app, Runner& run) {
   sub->add_option("--serial-link", args->serial_link, "Symlink to the sensor pty at this path (removed at exit)");
   sub->add_option("--speed", args->speed, "Bench clock runs this many times faster than the wall clock")
       ->capture_default_str()
-      ->check(CLI::Range(1e-6, 10000.0));
+      ->check(CLI::Range(0.01, 1000.0));
   auto* seed = sub->add_option("--seed", args->seed, "Seed of all bench noise")->capture_default_str();
   sub->add_option("--effect", args->effects, "Injected effect NAME:key=value,... (repeatable)");
   sub->add_option("--truth", args->truth_file, "Coefficient file: the sensor's true transfer function")
