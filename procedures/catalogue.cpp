@@ -473,7 +473,9 @@ void Catalogue::record_run_end(const std::string& run_id, const std::string& out
   }
 }
 
-int64_t Catalogue::record_calibration(const CalibrationRecord& cal) {
+namespace {
+
+void check_calibration(const CalibrationRecord& cal) {
   require_unit(cal.unit);
   if (cal.source != "run" && cal.source != "import") {
     throw std::invalid_argument(fmt::format("calibration source must be run or import, not \"{}\"", cal.source));
@@ -482,35 +484,64 @@ int64_t Catalogue::record_calibration(const CalibrationRecord& cal) {
     throw std::invalid_argument("a calibration from a run names its run id, an import none");
   }
   if (!cal.coefficients.is_object()) throw std::invalid_argument("calibration coefficients must be a JSON object");
+}
+
+// The insert itself, inside the caller's transaction.
+int64_t insert_calibration(SQLite::Database& db, const CalibrationRecord& cal) {
+  if (cal.run_id && !run_exists(db, *cal.run_id)) {
+    throw std::invalid_argument(fmt::format("record_calibration: no run {}", *cal.run_id));
+  }
+  insert_unit(db, cal.unit);
+  const std::string now = utc_now_iso();
+  static const std::string sql = fmt::format(
+      "INSERT INTO calibrations(unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, "
+      "coefficients_json, {}) VALUES(:unit, :source, :run_id, :source_ref, :label, :date, :recorded, "
+      ":method, :coefficients, {})",
+      stat_columns("{}_{}"), stat_columns(":{}_{}"));
+  SQLite::Statement st(db, sql);
+  st.bind(":unit", cal.unit);
+  st.bind(":source", cal.source);
+  bind_opt(st, ":run_id", cal.run_id);
+  st.bind(":source_ref", cal.source_ref.empty() && cal.run_id ? *cal.run_id : cal.source_ref);
+  st.bind(":label", cal.label);
+  st.bind(":date", cal.date_utc.empty() ? now : cal.date_utc);
+  st.bind(":recorded", now);
+  st.bind(":method", cal.method);
+  st.bind(":coefficients", cal.coefficients.dump());
+  bind_stats(st, "pitch", cal.pitch);
+  bind_stats(st, "yaw", cal.yaw);
+  st.exec();
+  return db.getLastInsertRowid();
+}
+
+}  // namespace
+
+int64_t Catalogue::record_calibration(const CalibrationRecord& cal) {
+  check_calibration(cal);
   try {
-    return write_txn(*db_, [&]() -> int64_t {
-      if (cal.run_id && !run_exists(*db_, *cal.run_id)) {
-        throw std::invalid_argument(fmt::format("record_calibration: no run {}", *cal.run_id));
-      }
-      insert_unit(*db_, cal.unit);
-      const std::string now = utc_now_iso();
-      static const std::string sql = fmt::format(
-          "INSERT INTO calibrations(unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, "
-          "coefficients_json, {}) VALUES(:unit, :source, :run_id, :source_ref, :label, :date, :recorded, "
-          ":method, :coefficients, {})",
-          stat_columns("{}_{}"), stat_columns(":{}_{}"));
-      SQLite::Statement st(*db_, sql);
-      st.bind(":unit", cal.unit);
-      st.bind(":source", cal.source);
-      bind_opt(st, ":run_id", cal.run_id);
-      st.bind(":source_ref", cal.source_ref.empty() && cal.run_id ? *cal.run_id : cal.source_ref);
-      st.bind(":label", cal.label);
-      st.bind(":date", cal.date_utc.empty() ? now : cal.date_utc);
-      st.bind(":recorded", now);
-      st.bind(":method", cal.method);
-      st.bind(":coefficients", cal.coefficients.dump());
-      bind_stats(st, "pitch", cal.pitch);
-      bind_stats(st, "yaw", cal.yaw);
-      st.exec();
-      return db_->getLastInsertRowid();
-    });
+    return write_txn(*db_, [&] { return insert_calibration(*db_, cal); });
   } catch (const SQLite::Exception& e) {
     fail(path_, "cannot record a calibration of " + cal.unit, e);
+  }
+}
+
+std::pair<int64_t, bool> Catalogue::record_import_once(const CalibrationRecord& cal) {
+  check_calibration(cal);
+  if (cal.source != "import") throw std::invalid_argument("record_import_once: the calibration is not an import");
+  if (cal.date_utc.empty()) throw std::invalid_argument("record_import_once: an import needs its date");
+  try {
+    return write_txn(*db_, [&]() -> std::pair<int64_t, bool> {
+      SQLite::Statement q(*db_,
+                          "SELECT id FROM calibrations WHERE unit = ? AND source = 'import' AND date_utc = ? "
+                          "AND coefficients_json = ? ORDER BY id LIMIT 1");
+      q.bind(1, cal.unit);
+      q.bind(2, cal.date_utc);
+      q.bind(3, cal.coefficients.dump());
+      if (q.executeStep()) return {q.getColumn(0).getInt64(), false};
+      return {insert_calibration(*db_, cal), true};
+    });
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot import a calibration of " + cal.unit, e);
   }
 }
 

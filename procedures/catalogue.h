@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -141,6 +142,10 @@ class Catalogue {
                       const std::string& ended_utc = "");
   // Returns the new calibration's id. Registers the unit; checks run_id exists when given.
   int64_t record_calibration(const CalibrationRecord& cal);
+  // An import (source "import") recorded unless the unit already holds an import of the same date
+  // with the same coefficient JSON; check and insert are one transaction, so two processes
+  // importing one file at once record it once. Returns the id and whether it was new.
+  std::pair<int64_t, bool> record_import_once(const CalibrationRecord& cal);
   int64_t record_acceptance(const AcceptanceRecord& acc);
 
   std::vector<std::string> units() const;

@@ -390,6 +390,60 @@ TEST(Catalogue, ConcurrentWritersLoseNothing) {
   EXPECT_EQ(cals, static_cast<size_t>(kWriters * kRunsEach));
 }
 
+// Several processes importing the same published calibrations at once: each is recorded once.
+TEST(Catalogue, ConcurrentImportsOfOneFileRecordItOnce) {
+  TempDir dir;
+  const auto db = dir.path() / "stand.db";
+  const std::vector<std::string> names = {"a-2-fpss1", "a-3-fpss1", "a-4-fpss1"};
+  auto import_of = [](const std::string& name) {
+    const auto set = load_published(name);
+    CalibrationRecord c = CalibrationRecord::from_calibration_json(to_json(set), name);
+    c.source = "import";
+    c.source_ref = name + ".json";
+    c.method = "imported";
+    c.date_utc = set.extra.at("date").get<std::string>();
+    return c;
+  };
+  int go[2], done[2];
+  ASSERT_EQ(::pipe(go), 0);
+  ASSERT_EQ(::pipe(done), 0);
+  std::vector<pid_t> kids;
+  for (int w = 0; w < 4; ++w) {
+    kids.push_back(fork_child([&] {
+      ::close(go[1]);
+      ::close(done[0]);
+      char c;
+      if (::read(go[0], &c, 1) != 0) throw std::runtime_error("barrier");
+      Catalogue cat(db);
+      int inserted = 0;
+      for (int round = 0; round < 10; ++round) {
+        for (const auto& n : names) inserted += cat.record_import_once(import_of(n)).second ? 1 : 0;
+      }
+      write_all(done[1], fmt::format("{}\n", inserted));
+    }));
+  }
+  ::close(go[0]);
+  ::close(done[1]);
+  ::close(go[1]);
+  int inserted = 0;
+  for (size_t i = 0; i < kids.size(); ++i) inserted += std::stoi(read_line(done[0]));
+  for (pid_t k : kids) EXPECT_EQ(wait_exit_code(k), 0);
+  ::close(done[0]);
+  EXPECT_EQ(inserted, 3);
+  EXPECT_EQ(count_rows(db, "calibrations"), 3);
+  Catalogue cat(db);
+  EXPECT_EQ(cat.integrity_check(), "ok");
+  const auto again = cat.record_import_once(import_of("a-3-fpss1"));
+  EXPECT_FALSE(again.second);
+  EXPECT_EQ(cat.find_calibration(again.first)->label, "");
+  auto other_date = import_of("a-3-fpss1");
+  other_date.date_utc = "1981-01-01";
+  EXPECT_TRUE(cat.record_import_once(other_date).second);
+  auto from_run = import_of("a-3-fpss1");
+  from_run.source = "run";
+  EXPECT_THROW(cat.record_import_once(from_run), std::invalid_argument);
+}
+
 // A writer killed in the middle of a transaction: the file opens, is sound, keeps every committed
 // row and none of the uncommitted ones, and another writer can go on at once.
 TEST(Catalogue, WriterKilledMidTransactionLeavesASoundFile) {
