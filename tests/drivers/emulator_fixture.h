@@ -1,0 +1,115 @@
+// Shared set-up of the driver-against-emulator tests: an in-process emulated bench on ephemeral ports, driver options.
+#pragma once
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "calib/coefficients.h"
+#include "drivers/endpoints.h"
+#include "drivers/modbus_gimbal.h"
+#include "drivers/serial_sensor.h"
+#include "fixtures/emulator.h"
+#include "test_util.h"
+
+namespace fpss::e2e {
+
+using test::eventually;
+
+template <class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(no exception)";
+}
+
+// A per-test folder under the system temp dir, removed with everything in it.
+class TempDir {
+ public:
+  TempDir() {
+    std::string tmpl = (std::filesystem::temp_directory_path() / "fpss-e2e-XXXXXX").string();
+    if (!::mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp");
+    path_ = tmpl;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// Emulator options for a test: ephemeral Modbus port, a bench clock fast enough that moves of
+// a few hundred arcsec take a few wall milliseconds.
+inline EmulatorOptions emulator_options(double speed = 20.0) {
+  EmulatorOptions o;
+  o.modbus_port = 0;
+  o.speed = speed;
+  return o;
+}
+
+// Generous timeouts: a loaded machine must never cause a retry or a timeout the test does not
+// provoke on purpose. Tests about timeouts pass shorter ones.
+inline GimbalOptions gimbal_options(const std::string& endpoint, double response_timeout_s = 5.0) {
+  GimbalOptions o;
+  o.endpoint = endpoint;
+  o.response_timeout_s = response_timeout_s;
+  o.retries = 2;
+  o.backoff_s = 0.01;
+  o.max_backoff_s = 0.05;
+  o.poll_interval_s = 0.005;
+  return o;
+}
+
+inline SensorOptions sensor_options(const std::string& endpoint, double command_timeout_s = 5.0) {
+  SensorOptions o;
+  o.endpoint = endpoint;
+  o.command_timeout_s = command_timeout_s;
+  o.command_retries = 1;
+  o.reconnects = 2;
+  o.reconnect_backoff_s = 0.02;
+  return o;
+}
+
+// What the emulator's gimbal holds in its target registers (ground truth, not over the wire).
+struct Targets {
+  double pitch_arcsec, yaw_arcsec;
+  bool operator==(const Targets&) const = default;
+};
+inline Targets bench_targets(Emulator& emu) {
+  return emu.with_bench([](Bench& b) { return Targets{b.target_pitch_arcsec(), b.target_yaw_arcsec()}; });
+}
+inline GimbalReadout bench_gimbal(Emulator& emu) {
+  return emu.with_bench([](Bench& b) { return b.gimbal_noiseless(); });
+}
+
+// Manual bench clock: advance in small steps, polling through the driver, until the gimbal is
+// in position (each poll is a request, so the watchdog is fed as a polling host would feed it).
+inline GimbalState settle_manual(Emulator& emu, ModbusGimbal& g, double step_s = 0.1, int max_steps = 600) {
+  GimbalState s;
+  for (int i = 0; i < max_steps; ++i) {
+    emu.advance_by(step_s);
+    s = g.read_state();
+    if (s.has(kInPosition) && !s.has(kMoving)) return s;
+  }
+  ADD_FAILURE() << "gimbal not in position after " << max_steps * step_s << " bench s";
+  return s;
+}
+
+// How far one sample may invert from the true angle: half a count of rounding plus five sigma of
+// the bench's count noise, at the local slope of the transfer function.
+inline double tolerance_arcsec(const AxisModel& m, double counts, double count_noise) {
+  return std::abs(rad_to_arcsec(m.slope_rad_per_count(counts))) * (0.5 + 5.0 * count_noise);
+}
+
+}  // namespace fpss::e2e
