@@ -44,6 +44,10 @@ namespace {
 constexpr double kMinSpreadCounts = 200.0;  // ~22 arcsec
 // Offset positions closer than this are one position for telling the coefficients apart.
 constexpr double kDistinctCounts = 50.0;
+// Grid local minima refined only when their cost is within this factor of the best node's.
+constexpr double kKeepCostRatio = 10.0;
+constexpr int kScreenIterations = 50;
+constexpr size_t kRowsPerThreadMin = 20000;
 
 const char* axis_name(Axis a) { return a == Axis::alpha ? "pitch" : "yaw"; }
 const char* counts_column(Axis a) { return a == Axis::alpha ? "counts_alpha" : "counts_beta"; }
@@ -96,11 +100,17 @@ void check_axis(const AxisData& d, Axis axis, const std::string& origin) {
         "needs offsets along both pitch and yaw",
         where, axis_name(axis), spread, ref_spread, axis_name(axis)));
   }
+  // Positions at least kDistinctCounts from the last one counted: a dense scan counts by its
+  // extent, a few positions repeated many times count once each.
   std::vector<double> pos = d.n_plus;
   std::sort(pos.begin(), pos.end());
-  size_t distinct = pos.empty() ? 0 : 1;
-  for (size_t i = 1; i < pos.size(); ++i) {
-    if (pos[i] - pos[i - 1] > kDistinctCounts) ++distinct;
+  size_t distinct = 0;
+  double last = 0;
+  for (double n : pos) {
+    if (distinct == 0 || n - last > kDistinctCounts) {
+      ++distinct;
+      last = n;
+    }
   }
   const size_t need = p + 1;
   if (distinct < need || d.rows() < p + 2) {
@@ -130,6 +140,9 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
   std::vector<Start> starts;
   const auto nodes = gram.best_nodes(opts.refine_nodes);
   for (const auto& n : nodes) {
+    // A local minimum far above the best one is another basin's poor relative: frequency
+    // quantisation costs a factor of a few at most, not orders of magnitude.
+    if (n.cost > kKeepCostRatio * nodes.front().cost + 1e-12) continue;
     starts.push_back({gram.coefficients(n),
                       fmt::format("grid node w = ({:.2e}, {:.2e}) rad/count", gram.frequency(n.j), gram.frequency(n.k))});
   }
@@ -145,18 +158,23 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
   out.solver.grid_rms_arcsec =
       nodes.empty() ? std::nan("") : std::sqrt(nodes.front().cost / static_cast<double>(gram.rows()));
 
-  const size_t stride = std::max<size_t>(1, (d.rows() + opts.screen_max_rows - 1) / std::max<size_t>(1, opts.screen_max_rows));
+  const double fraction = std::min(1.0, static_cast<double>(opts.screen_max_rows) / static_cast<double>(d.rows()));
+  // Screening: every start gets a bounded number of iterations; the winner then goes on.
+  RefineOptions screen = ro;
+  screen.max_iterations = std::min(ro.max_iterations, kScreenIterations);
+  // Small problems are faster on one thread than paying for the pool.
+  if (fraction >= 1.0 && d.rows() < kRowsPerThreadMin) screen.threads = ro.threads = 1;
   std::optional<Refined> best;
   std::string best_label;
   for (const auto& s : starts) {
-    Refined r = refine_axis(d, s.c, ro, stride);
+    Refined r = refine_axis(d, s.c, screen, fraction);
     if (r.usable && (!best || r.final_cost < best->final_cost)) {
       best = std::move(r);
       best_label = s.label;
     }
   }
   if (!best) throw std::runtime_error(fmt::format("{} axis: the solver failed from every start", out.axis));
-  Refined fin = stride == 1 ? std::move(*best) : refine_axis(d, best->coeffs, ro, 1);
+  Refined fin = fraction >= 1.0 && best->converged ? std::move(*best) : refine_axis(d, best->coeffs, ro);
   if (!fin.usable) throw std::runtime_error(fmt::format("{} axis: the solver failed: {}", out.axis, fin.brief));
 
   out.coeffs = fin.coeffs;
@@ -242,11 +260,13 @@ CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const Calib
 
   auto fit_one = [&](const fit::AxisData& d, fit::Axis axis) {
     fit::FrequencyGram gram(opts.grid, diff);
-    const size_t stride = std::max<size_t>(1, (d.rows() + opts.grid_max_rows - 1) / std::max<size_t>(1, opts.grid_max_rows));
-    if (stride == 1) {
+    const double fraction = std::min(1.0, static_cast<double>(opts.grid_max_rows) / static_cast<double>(d.rows()));
+    if (fraction >= 1.0) {
       gram.add(d.n_plus.data(), diff ? d.n_minus.data() : nullptr, d.y_arcsec.data(), d.rows());
     } else {
-      for (size_t i = 0; i < d.rows(); i += stride) gram.add(d.n_plus[i], diff ? d.n_minus[i] : 0.0, d.y_arcsec[i]);
+      for (size_t i = 0; i < d.rows(); ++i) {
+        if (fit::in_spread_subset(i, fraction)) gram.add(d.n_plus[i], diff ? d.n_minus[i] : 0.0, d.y_arcsec[i]);
+      }
     }
     return fit::fit_axis(d, gram, axis, opts);
   };

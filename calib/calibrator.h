@@ -26,8 +26,8 @@ struct CalibrationOptions {
   Method method = Method::differences;
   std::optional<CoefficientSet> init;  // also tried as a start, besides the grid's best nodes
   fit::GridConfig grid;
-  // Per axis, the grid stage uses at most this many rows (an evenly strided subset beyond);
-  // the refinement always uses all of them.
+  // Per axis, the grid stage uses at most about this many rows (an evenly spread subset beyond,
+  // fit::in_spread_subset); the refinement always uses all of them.
   size_t grid_max_rows = 100000;
   // Competing starts are refined on at most this many rows; only the winner sees all rows.
   size_t screen_max_rows = 20000;

@@ -26,11 +26,12 @@ struct Strided {
   std::vector<double> n_plus, n_minus, y;
 };
 
-RowView view_of(const AxisData& d, size_t stride, Strided& keep) {
-  if (stride <= 1) {
+RowView view_of(const AxisData& d, double fraction, Strided& keep) {
+  if (fraction >= 1.0) {
     return {d.n_plus.data(), d.differences ? d.n_minus.data() : nullptr, d.y_arcsec.data(), d.rows()};
   }
-  for (size_t i = 0; i < d.rows(); i += stride) {
+  for (size_t i = 0; i < d.rows(); ++i) {
+    if (!in_spread_subset(i, fraction)) continue;
     keep.n_plus.push_back(d.n_plus[i]);
     if (d.differences) keep.n_minus.push_back(d.n_minus[i]);
     keep.y.push_back(d.y_arcsec[i]);
@@ -112,9 +113,9 @@ double null_condition_c1(const AxisData& d, const AxisCoeffs& c) {
   return arcsec_to_rad(d.null_ref_arcsec()) - transfer_angle(g.data(), d.null_counts());
 }
 
-Refined refine_axis(const AxisData& d, const AxisCoeffs& start, const RefineOptions& opts, size_t stride) {
+Refined refine_axis(const AxisData& d, const AxisCoeffs& start, const RefineOptions& opts, double fraction) {
   Strided keep;
-  const RowView v = view_of(d, stride, keep);
+  const RowView v = view_of(d, fraction, keep);
   AxisCoeffs s = start;
   if (d.differences) s[0] = 0;
   Scaled u = to_scaled(s);
@@ -153,7 +154,7 @@ Refined refine_axis(const AxisData& d, const AxisCoeffs& start, const RefineOpti
 
 Uncertainty uncertainty(const AxisData& d, const AxisCoeffs& fit, const RefineOptions& opts) {
   Strided keep;
-  const RowView v = view_of(d, 1, keep);
+  const RowView v = view_of(d, 1.0, keep);
   AxisCoeffs s = fit;
   if (d.differences) s[0] = 0;
   Scaled u = to_scaled(s);

@@ -20,7 +20,7 @@ struct RefineOptions {
 struct Refined {
   AxisCoeffs coeffs{};  // differences: C1 from the null condition; absolute: fitted
   double initial_cost = 0, final_cost = 0;  // Ceres cost, 0.5 * sum r^2, arcsec^2
-  size_t rows = 0;  // rows used (every `stride`-th)
+  size_t rows = 0;  // rows used
   int iterations = 0;
   bool usable = false, converged = false;
   std::string brief;  // Ceres BriefReport
@@ -36,9 +36,9 @@ struct Uncertainty {
   std::string note;
 };
 
-// Least squares from `start` over every `stride`-th row of `d`. Throws nothing on a poor fit;
-// `usable` false means Ceres could not produce a solution.
-Refined refine_axis(const AxisData& d, const AxisCoeffs& start, const RefineOptions& opts, size_t stride = 1);
+// Least squares from `start` over an evenly spread `fraction` of the rows of `d` (in_spread_subset).
+// Throws nothing on a poor fit; `usable` false means Ceres could not produce a solution.
+Refined refine_axis(const AxisData& d, const AxisCoeffs& start, const RefineOptions& opts, double fraction = 1.0);
 
 // The covariance of the coefficients at `fit` over all rows, scaled by the residual variance.
 // The differences method's C1 inherits its uncertainty through the null condition; the angle

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "calib/transfer_function.h"
@@ -45,6 +46,17 @@ struct AxisData {
     ref_lo_arcsec = std::min(ref_lo_arcsec, ref_arcsec); ref_hi_arcsec = std::max(ref_hi_arcsec, ref_arcsec);
   }
 };
+
+// Whether row i belongs to an evenly spread subset holding `fraction` of the rows. Golden-ratio
+// (Weyl) selection rather than every k-th row: recordings are periodic (pitch and yaw offsets
+// alternate, each offset gives a change forward and one back), and a stride of 4 would keep
+// only the forward changes of pitch offsets and leave yaw with nothing to fit.
+inline bool in_spread_subset(size_t i, double fraction) {
+  if (fraction >= 1.0) return true;
+  constexpr double kGolden = 0.6180339887498949;
+  const double x = static_cast<double>(i) * kGolden;
+  return x - static_cast<double>(static_cast<uint64_t>(x)) < fraction;
+}
 
 // Scaled coefficients u, chosen so every Jacobian column is of order 1..100 arcsec
 // (raw C2 columns are ~1e9 times larger than C5 columns). S = kCountScale, k = arcsec per rad:
