@@ -2,6 +2,7 @@
 #include "drivers/modbus_gimbal.h"
 
 #include <modbus.h>
+#include <poll.h>
 #include <spdlog/spdlog.h>
 
 #include <fmt/format.h>
@@ -108,6 +109,7 @@ void ModbusGimbal::ContextDeleter::operator()(_modbus* ctx) const {
 
 ModbusGimbal::ModbusGimbal(GimbalOptions options) : options_(std::move(options)) {
   Endpoint ep = parse_endpoint(options_.endpoint);  // fail early on a bad string, still no I/O
+  rtu_ = ep.kind == Endpoint::Kind::modbus_rtu;
   if (ep.kind != Endpoint::Kind::modbus_tcp && ep.kind != Endpoint::Kind::modbus_rtu)
     throw EndpointError(fmt::format("bad gimbal endpoint '{}': expected modbus-tcp:HOST:PORT or "
                                     "modbus-rtu:DEVICE[:BAUD]",
@@ -151,6 +153,25 @@ void ModbusGimbal::close_link() {
   link_up_ = false;
 }
 
+// RTU replies carry no transaction id, and closing and reopening the port keeps what the
+// device sent meanwhile: a reply that comes after the driver gave up on its request would be
+// taken for the next request's, and every later read would be one reply behind. So before
+// each request drop what is pending, and before a retry after a link failure also wait until
+// the line has been quiet for one response timeout (bounded), dropping what arrives meanwhile.
+void ModbusGimbal::discard_stale_rtu_input(bool until_quiet) {
+  modbus_t* ctx = ctx_.get();
+  modbus_flush(ctx);
+  if (!until_quiet) return;
+  const pollfd quiet{modbus_get_socket(ctx), POLLIN, 0};
+  const int quiet_ms = std::max(1, static_cast<int>(std::lround(options_.response_timeout_s * 1000)));
+  for (int round = 0; round < 16; ++round) {
+    pollfd p = quiet;
+    const int rc = ::poll(&p, 1, quiet_ms);
+    if (rc == 0 || (rc < 0 && errno != EINTR)) return;
+    modbus_flush(ctx);
+  }
+}
+
 void ModbusGimbal::connect() {
   wanted_ = true;
   double backoff = options_.backoff_s;
@@ -184,6 +205,7 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
                                   where(o, addr, count)));
   double backoff = options_.backoff_s;
   std::string last;
+  bool link_failed = false;  // a late reply to an earlier attempt may still come (RTU)
   for (int attempt = 0;; ++attempt) {
     if (!link_up_) {
       try {
@@ -195,6 +217,7 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
       }
     }
     if (link_up_) {
+      if (rtu_) discard_stale_rtu_input(link_failed);
       modbus_t* ctx = ctx_.get();
       int rc = -1;
       switch (op) {
@@ -215,7 +238,10 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
       last = busy ? exception_text(e) : fmt::format("{} (errno {})", modbus_strerror(e), e);
       // Timeout, dropped link, corrupt or mismatched reply: a late answer could still arrive and be
       // taken for the next one, so drop the link and start clean.
-      if (!busy) close_link();
+      if (!busy) {
+        close_link();
+        link_failed = true;
+      }
     }
     if (attempt >= options_.retries)
       throw DeviceError(fmt::format("gimbal {}: {} of {} failed after {} attempts: {}", options_.endpoint,

@@ -91,12 +91,14 @@ class ModbusGimbal : public Gimbal {
   int transact(Op op, int addr, int count, uint16_t* regs);
   void open_link();   // new context + modbus_connect, one attempt; throws with errno
   void close_link();
+  void discard_stale_rtu_input(bool until_quiet);
   void command(uint16_t cmd);
 
   GimbalOptions options_;
   std::unique_ptr<_modbus, ContextDeleter> ctx_;
   bool link_up_ = false;  // modbus_connect succeeded and no failure since
   bool wanted_ = false;   // connect() called and not disconnect(): failures may reconnect
+  bool rtu_ = false;      // RTU: replies carry no transaction id (discard_stale_rtu_input)
   ModbusCounters counters_;
 };
 

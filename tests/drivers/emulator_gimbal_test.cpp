@@ -355,5 +355,42 @@ TEST(GimbalOverRtu, MovesAndRecoversFromAnUnansweredRequestOnTheEmulatorsPty) {
   EXPECT_TRUE(gimbal.wait_in_position(60.0).has(kInPosition));
 }
 
+// RTU replies carry no transaction id: a reply that comes after the driver gave up on it must not
+// be taken for the answer to a later request (every later read would then be one reply behind).
+TEST(GimbalOverRtu, AReplyDelayedPastTheTimeoutIsNeverTakenForALaterOne) {
+  EmulatorOptions o = e2e::emulator_options();
+  o.modbus_rtu = true;
+  Emulator emu(o);
+  emu.start();
+  GimbalOptions go = gimbal_options(emu.endpoints().gimbal_rtu(), 0.3);
+  go.retries = 3;
+  ModbusGimbal gimbal(go);
+  gimbal.connect();
+  gimbal.read_state();
+  emu.inject("modbus_delay:delay_s=0.5");
+  // A reply answers a request sent after the call began: its bench time is not older than that.
+  // Half a bench second between calls makes a reply left over from the previous call stand out.
+  auto fresh_read = [&] {
+    const double t_prev_s = emu.bench_time_s();
+    EXPECT_TRUE(eventually([&] { return emu.bench_time_s() > t_prev_s + 0.5; }));
+    const double t_before_s = emu.bench_time_s();
+    GimbalState s = gimbal.read_state();
+    EXPECT_GE(static_cast<double>(s.sample_time_us) * 1e-6, t_before_s - 1e-3);
+    return s;
+  };
+  fresh_read();
+  EXPECT_EQ(emu.stats().modbus_rtu.delayed, 1u);
+  const uint64_t retries = gimbal.counters().retries;
+  EXPECT_GE(retries, 1u);
+  for (int i = 0; i < 3; ++i) fresh_read();
+  // Writes and reads of other functions get their own replies, and a move is seen as it happens.
+  gimbal.move_to(250, -250);
+  EXPECT_NEAR(gimbal.wait_in_position(60.0).pitch_arcsec, 250, 0.5);
+  EXPECT_EQ(get_i32(gimbal.read_holding_registers(gimbal_reg::kPitchTargetMas, 2).data()), 250'000);
+  EXPECT_NEAR(fresh_read().yaw_arcsec, -250, 0.5);
+  // Once the fault is over the line is clean: not one more retry.
+  EXPECT_EQ(gimbal.counters().retries, retries);
+}
+
 }  // namespace
 }  // namespace fpss
