@@ -28,7 +28,7 @@ struct CalibrationOptions {
   fit::GridConfig grid;
   // Per axis, the grid stage uses at most about this many rows (an evenly spread subset beyond,
   // fit::in_spread_subset); the refinement always uses all of them.
-  size_t grid_max_rows = 100000;
+  size_t grid_max_rows = 30000;
   // Competing starts are refined on at most this many rows; only the winner sees all rows.
   size_t screen_max_rows = 20000;
   size_t refine_nodes = 4;  // grid local minima refined

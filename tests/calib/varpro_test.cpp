@@ -153,5 +153,21 @@ TEST(Refine, AngleUncertaintyMatchesTheScatterOfRepeatedFits) {
   EXPECT_LT(predicted, 2.0 * empirical);
 }
 
+TEST(Refine, RankDeficientCovarianceFallsBackToThePseudoInverseAndSaysSo) {
+  // Both sinusoids at one frequency: their amplitudes and phases trade freely (J^T J singular).
+  const AxisCoeffs degenerate = {0, 5.3e-7, 2e-5, 2.5e-4, 0.3, 1e-5, 2.5e-4, 0.3};
+  const AxisData d = changes_of(degenerate, 30, 0.05);
+  const Uncertainty u = uncertainty(d, degenerate, RefineOptions{});
+  EXPECT_TRUE(u.pseudo_inverse);
+  EXPECT_NE(u.note.find("rank deficient"), std::string::npos) << u.note;
+  for (double s : u.sigma) EXPECT_TRUE(std::isfinite(s));
+  // What the data do see stays meaningful: the angle's 1-sigma is of the order of the noise.
+  EXPECT_GT(u.angle_sigma_max_arcsec, 0.005);
+  EXPECT_LT(u.angle_sigma_max_arcsec, 0.2);
+  // A well-posed fit is not flagged.
+  const Uncertainty ok = uncertainty(changes_of(kOnGrid, 30, 0.05), kOnGrid, RefineOptions{});
+  EXPECT_FALSE(ok.pseudo_inverse) << ok.note;
+}
+
 }  // namespace
 }  // namespace fpss::fit
