@@ -4,8 +4,11 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Dense>
+
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numeric>
 
@@ -176,6 +179,27 @@ Observability observability(const Recording& r) {
   return o;
 }
 
+// Why two effects can look alike, for the ambiguity note.
+std::string why_alike(const std::string& a, const std::string& b) {
+  auto is = [&](const char* x, const char* y) { return (a == x && b == y) || (a == y && b == x); };
+  if (is("backlash", "settling")) {
+    return "a settling with a time constant much longer than the dwells acts like backlash at rest; slews (moving, "
+           "no settling) or longer dwells tell them apart";
+  }
+  if (is("drift", "temperature") || is("bias", "temperature")) {
+    return "the temperature follows time (or barely changes) in this recording; a non-monotonic temperature profile "
+           "tells them apart";
+  }
+  if (is("scale_factor", "coefficients") || is("bias", "coefficients")) {
+    return "a refitted transfer function absorbs any offset or scale; more offsets or a wider field tell them apart";
+  }
+  if (is("boresight_roll", "axis_nonorthogonality")) {
+    return "both turn pitch into yaw; only a roll also turns yaw into pitch, which needs yaw offsets";
+  }
+  if (a == "none" || b == "none") return "the effect is barely above the noise of this recording";
+  return "the held-out data barely tells them apart";
+}
+
 struct Scored {
   std::unique_ptr<Candidate> cand;
   Contribution contrib;
@@ -206,20 +230,23 @@ Scored fit_one(const Recording& r, const std::string& name, const Contribution& 
 
 // ------------------------------------------------------------------ where
 
-struct FactorValues {
-  const char* name;
-  std::vector<double> x[2];  // per axis; NaN rows form their own group
-  int bins;
-  const char* unit;
-  const char* nan_label;
+// Each factor explains the residual through a few smooth functions of itself (a cubic in the
+// factor, its own constant for rows where it does not apply), fitted on the fit rows and judged
+// on the held-out rows, so a flexible factor cannot claim what it merely memorised.
+struct Factor {
+  std::string name;
+  int dims = 0;
+  // Basis functions of row i for axis a, written to phi[0..dims).
+  std::function<void(size_t i, int a, double* phi)> basis;
+  // For the words: the value binned, NaN for "does not apply", and the sign the residual is read with.
+  std::function<double(size_t i, int a)> value;
+  std::function<double(size_t i, int a)> sign;
+  int bins = 10;
   bool discrete = false;
+  std::string nan_label;
 };
 
 std::string signed_num(double v, int prec = 2) { return fmt::format("{:+.{}f}", v, prec); }
-
-struct BinStats {
-  std::vector<double> sum, n;  // bins + 1 (last: NaN group)
-};
 
 int bin_of(double x, double lo, double hi, int bins) {
   if (!std::isfinite(x)) return bins;
@@ -227,7 +254,20 @@ int bin_of(double x, double lo, double hi, int bins) {
   return std::clamp(static_cast<int>((x - lo) / (hi - lo) * bins), 0, bins - 1);
 }
 
-std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e_in[2]) {
+// Scales x from [lo, hi] to [-1, 1].
+struct Scale {
+  double lo = -1, hi = 1;
+  double operator()(double x) const { return hi > lo ? 2 * (x - lo) / (hi - lo) - 1 : 0.0; }
+};
+
+void cubic(double x, double* phi) {
+  phi[0] = 1;
+  phi[1] = x;
+  phi[2] = x * x;
+  phi[3] = x * x * x;
+}
+
+std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec) {
   const std::vector<uint32_t>& F = r.fit_rows;
   const std::vector<uint32_t>& H = r.heldout_rows;
   double total = 0;
@@ -236,111 +276,200 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
   if (total <= 0) return out;
   const char* axis_name[2] = {"pitch", "yaw"};
 
-  // constant
-  double mean[2];
-  std::vector<WhereEntry> per_axis;
-  for (int a = 0; a < 2; ++a) {
-    double s = 0;
-    for (uint32_t i : F) s += e_in[a][i];
-    mean[a] = F.empty() ? 0 : s / static_cast<double>(F.size());
-    double before = 0, after = 0;
-    for (uint32_t i : H) { before += e_in[a][i] * e_in[a][i]; after += (e_in[a][i] - mean[a]) * (e_in[a][i] - mean[a]); }
-    per_axis.push_back({"constant", axis_name[a], std::max(0.0, before - after) / total,
-                        fmt::format("mean residual {} arcsec", signed_num(mean[a]))});
-  }
-
-  std::vector<FactorValues> factors;
-  auto add_factor = [&](const char* name, int bins, const char* unit, const char* nan_label, auto&& value, bool discrete = false) {
-    FactorValues f{name, {}, bins, unit, nan_label, discrete};
-    for (int a = 0; a < 2; ++a) {
-      f.x[a].resize(r.n);
-      for (size_t i = 0; i < r.n; ++i) f.x[a][i] = value(i, a);
+  auto range = [&](auto&& v) {
+    Scale s{std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+    for (size_t i = 0; i < r.n; ++i) {
+      if (r.use[i] == Use::excluded) continue;
+      const double x = v(i);
+      if (std::isfinite(x)) { s.lo = std::min(s.lo, x); s.hi = std::max(s.hi, x); }
     }
-    factors.push_back(std::move(f));
+    if (!(s.hi >= s.lo)) s = Scale{};
+    return s;
   };
-  add_factor("angle", 12, "arcsec", "", [&](size_t i, int a) { return r.ref[a][i]; });
-  add_factor("cross_angle", 12, "arcsec", "", [&](size_t i, int a) { return r.ref[1 - a][i]; });
-  add_factor("slew_rate", 8, "arcsec/s", "at rest", [&](size_t i, int a) {
-    return r.steps[r.step_of[i]].kind == StepKind::motion && std::abs(r.vel[a][i]) > 1.0 ? r.vel[a][i] : kNaN;
-  });
-  add_factor("approach_direction", 3, "", "", [&](size_t i, int a) { return static_cast<double>(r.dir[a][i]); }, true);
-  add_factor("time", 10, "s", "", [&](size_t i, int) { return r.t[i]; });
-  add_factor("time_since_move", 8, "s", "while moving", [&](size_t i, int) { return r.since_move[i]; });
-  if (r.has_temperature) add_factor("temperature", 10, "C", "no reading", [&](size_t i, int) { return r.temp[i]; });
+  const Scale ang[2] = {range([&](size_t i) { return r.ref[0][i]; }), range([&](size_t i) { return r.ref[1][i]; })};
+  auto moving = [&](size_t i, int a) {
+    return r.steps[r.step_of[i]].kind == StepKind::motion && std::abs(r.vel[a][i]) > 1.0;
+  };
+  const Scale rate[2] = {range([&](size_t i) { return moving(i, 0) ? r.vel[0][i] : kNaN; }),
+                         range([&](size_t i) { return moving(i, 1) ? r.vel[1][i] : kNaN; })};
+  const Scale time = range([&](size_t i) { return r.t[i]; });
+  const Scale since = range([&](size_t i) { return r.since_move[i]; });
+  const Scale temp = range([&](size_t i) { return r.temp[i]; });
+  auto one = [](size_t, int) { return 1.0; };
 
-  for (const auto& f : factors) {
-    for (int a = 0; a < 2; ++a) {
-      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-      for (uint32_t i : F) if (std::isfinite(f.x[a][i])) { lo = std::min(lo, f.x[a][i]); hi = std::max(hi, f.x[a][i]); }
-      for (uint32_t i : H) if (std::isfinite(f.x[a][i])) { lo = std::min(lo, f.x[a][i]); hi = std::max(hi, f.x[a][i]); }
-      if (f.discrete) { lo = -1.5; hi = 1.5; }
-      const int nb = f.bins;
-      std::vector<double> sum(nb + 1, 0.0), cnt(nb + 1, 0.0);
-      for (uint32_t i : F) {
-        const int b = bin_of(f.x[a][i], lo, hi, nb);
-        sum[b] += e_in[a][i] - mean[a];
-        cnt[b] += 1;
+  std::vector<Factor> factors;
+  factors.push_back({"constant", 1, [](size_t, int, double* p) { p[0] = 1; }, [](size_t, int) { return 0.0; }, one, 1,
+                     false, ""});
+  factors.push_back({"angle", 4, [&](size_t i, int a, double* p) { cubic(ang[a](r.ref[a][i]), p); },
+                     [&](size_t i, int a) { return r.ref[a][i]; }, one, 12, false, ""});
+  factors.push_back({"cross_angle", 4, [&](size_t i, int a, double* p) { cubic(ang[1 - a](r.ref[1 - a][i]), p); },
+                     [&](size_t i, int a) { return r.ref[1 - a][i]; }, one, 12, false, ""});
+  factors.push_back({"slew_rate", 5,
+                     [&](size_t i, int a, double* p) {
+                       const bool m = moving(i, a);
+                       p[0] = m ? 0.0 : 1.0;
+                       cubic(m ? rate[a](r.vel[a][i]) : 0.0, p + 1);
+                       if (!m) p[1] = 0;
+                     },
+                     [&](size_t i, int a) { return moving(i, a) ? r.vel[a][i] : kNaN; }, one, 8, false, "at rest"});
+  factors.push_back({"approach_direction", 3,
+                     [&](size_t i, int a, double* p) {
+                       p[0] = r.dir[a][i] < 0; p[1] = r.dir[a][i] == 0; p[2] = r.dir[a][i] > 0;
+                     },
+                     [&](size_t i, int a) { return static_cast<double>(r.dir[a][i]); }, one, 3, true, ""});
+  factors.push_back({"time", 4, [&](size_t i, int, double* p) { cubic(time(r.t[i]), p); },
+                     [&](size_t i, int) { return r.t[i]; }, one, 10, false, ""});
+  // Settling acts in the direction of the move: the decay is read signed by it.
+  factors.push_back({"time_since_move", 6,
+                     [&](size_t i, int a, double* p) {
+                       const double tm = r.since_move[i];
+                       const bool ok = std::isfinite(tm);
+                       p[0] = ok ? 0.0 : 1.0;
+                       p[1] = ok ? 1.0 : 0.0;
+                       cubic(ok ? since(tm) : 0.0, p + 2);
+                       for (int k = 2; k < 6; ++k) p[k] *= ok ? r.move_dir[a][i] : 0.0;
+                     },
+                     [&](size_t i, int a) { return r.move_dir[a][i] != 0 ? r.since_move[i] : kNaN; },
+                     [&](size_t i, int a) { return r.move_dir[a][i] != 0 ? static_cast<double>(r.move_dir[a][i]) : 1.0; },
+                     8, false, "while moving or before any move"});
+  if (r.has_temperature) {
+    factors.push_back({"temperature", 5,
+                       [&](size_t i, int, double* p) {
+                         const bool ok = std::isfinite(r.temp[i]);
+                         p[0] = ok ? 0.0 : 1.0;
+                         cubic(ok ? temp(r.temp[i]) : 0.0, p + 1);
+                         if (!ok) p[1] = 0;
+                       },
+                       [&](size_t i, int) { return r.temp[i]; }, one, 10, false, "without a temperature reading"});
+  }
+
+
+  // Greedy: the factor whose fit (on the fit rows) removes most of what is left on the held-out
+  // rows, less 2 noise variances per parameter so that a flexible factor does not win by noise,
+  // takes its share; its fit is removed and the next is sought. Shares therefore add up.
+  std::vector<double> e[2] = {e_in[0], e_in[1]};
+  const double penalty = 2.0 * noise_arcsec * noise_arcsec;
+  std::vector<bool> used(factors.size(), false);
+  struct Pick {
+    double gain[2] = {0, 0};
+    Eigen::VectorXd x[2];
+  };
+  auto fit_factor = [&](const Factor& f, int a, Eigen::VectorXd& x) {
+    Eigen::MatrixXd G = Eigen::MatrixXd::Zero(f.dims, f.dims);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(f.dims), phi(f.dims);
+    for (uint32_t i : F) {
+      f.basis(i, a, phi.data());
+      G.selfadjointView<Eigen::Lower>().rankUpdate(phi);
+      b += phi * e[a][i];
+    }
+    G = G.selfadjointView<Eigen::Lower>();
+    G.diagonal().array() += 1e-9 * (G.diagonal().maxCoeff() + 1e-30);
+    x = G.ldlt().solve(b);
+    double before = 0, after = 0;
+    for (uint32_t i : H) {
+      f.basis(i, a, phi.data());
+      const double pred = phi.dot(x);
+      before += e[a][i] * e[a][i];
+      after += (e[a][i] - pred) * (e[a][i] - pred);
+    }
+    return before - after;
+  };
+  auto describe = [&](const Factor& f, int a) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (size_t i = 0; i < r.n; ++i) {
+      const double v = f.value(i, a);
+      if (r.use[i] != Use::excluded && std::isfinite(v)) { lo = std::min(lo, v); hi = std::max(hi, v); }
+    }
+    if (f.discrete) { lo = -1.5; hi = 1.5; }
+    const int nb = f.bins;
+    std::vector<double> s2(nb + 1, 0.0), c2(nb + 1, 0.0);
+    for (size_t i = 0; i < r.n; ++i) {
+      if (r.use[i] == Use::excluded) continue;
+      const int bn = bin_of(f.value(i, a), lo, hi, nb);
+      s2[bn] += e[a][i] * f.sign(i, a);
+      c2[bn] += 1;
+    }
+    if (f.name == "constant") return fmt::format("mean residual {} arcsec", signed_num(c2[0] > 0 ? s2[0] / c2[0] : 0.0));
+    auto label = [&](int bn) -> std::string {
+      if (bn == nb) return f.nan_label;
+      if (f.discrete) {
+        const int d = bn - 1;
+        return d == 0 ? "before any move of this axis" : (d > 0 ? "after motion in +" : "after motion in -");
       }
-      double before = 0, after = 0;
-      for (uint32_t i : H) {
-        const int b = bin_of(f.x[a][i], lo, hi, nb);
-        const double e = e_in[a][i] - mean[a];
-        const double pred = cnt[b] >= 3 ? sum[b] / cnt[b] : 0.0;
-        before += e * e;
-        after += (e - pred) * (e - pred);
+      const double w = (hi - lo) / nb, x0 = lo + bn * w, x1 = lo + (bn + 1) * w;
+      if (f.name == "angle" || f.name == "cross_angle") {
+        return fmt::format("at {} {:.0f}..{:.0f} arcsec", axis_name[f.name == "angle" ? a : 1 - a], x0, x1);
       }
-      // Words: the bins (all scored rows) with the largest positive and negative means.
-      std::vector<double> s2(nb + 1, 0.0), c2(nb + 1, 0.0);
-      for (size_t i = 0; i < r.n; ++i) {
-        if (r.use[i] == Use::excluded) continue;
-        const int b = bin_of(f.x[a][i], lo, hi, nb);
-        s2[b] += e_in[a][i];
-        c2[b] += 1;
-      }
-      auto label = [&](int b) -> std::string {
-        if (b == nb) return f.nan_label;
-        if (f.discrete) {
-          const int d = b - 1;
-          return d == 0 ? "before any move of this axis" : (d > 0 ? "after motion in +" : "after motion in -");
+      if (f.name == "slew_rate") return fmt::format("at {} rates {:+.0f}..{:+.0f} arcsec/s", axis_name[a], x0, x1);
+      if (f.name == "time") return fmt::format("at time {:.1f}..{:.1f} s", x0, x1);
+      if (f.name == "time_since_move") return fmt::format("{:.2f}..{:.2f} s after a move", x0, x1);
+      return fmt::format("at {:.2f}..{:.2f} C", x0, x1);
+    };
+    int bmax = -1, bmin = -1;
+    for (int bn = 0; bn <= nb; ++bn) {
+      if (c2[bn] < 3) continue;
+      const double m = s2[bn] / c2[bn];
+      if (bmax < 0 || m > s2[bmax] / c2[bmax]) bmax = bn;
+      if (bmin < 0 || m < s2[bmin] / c2[bmin]) bmin = bn;
+    }
+    if (bmax < 0) return std::string();
+    return fmt::format("{}mean residual {} arcsec {}, {} {}",
+                       f.name == "time_since_move" ? "in the direction of the move, " : "",
+                       signed_num(s2[bmax] / c2[bmax]), label(bmax), signed_num(s2[bmin] / c2[bmin]), label(bmin));
+  };
+
+  for (int round = 0; round < 5; ++round) {
+    int best = -1;
+    double best_adj = 0.01 * total;  // a factor must take at least 1 % of the gap
+    Pick best_pick;
+    std::vector<std::pair<double, int>> raw;  // for the noise-only case: what comes closest
+    for (size_t k = 0; k < factors.size(); ++k) {
+      if (used[k]) continue;
+      Pick p;
+      for (int a = 0; a < 2; ++a) p.gain[a] = fit_factor(factors[k], a, p.x[a]);
+      const double adj = p.gain[0] + p.gain[1] - penalty * 2 * factors[k].dims;
+      raw.push_back({p.gain[0] + p.gain[1], static_cast<int>(k)});
+      if (adj > best_adj) { best_adj = adj; best = static_cast<int>(k); best_pick = p; }
+    }
+    if (best < 0) {
+      if (out.empty()) {  // nothing stands out: the three that come closest, with their (small) shares
+        std::sort(raw.begin(), raw.end(), std::greater<>());
+        for (size_t q = 0; q < raw.size() && q < 3; ++q) {
+          const Factor& f = factors[raw[q].second];
+          out.push_back({f.name, "both", std::max(0.0, raw[q].first) / total, describe(f, 0) + "; " + describe(f, 1)});
         }
-        const double w = (hi - lo) / nb;
-        const std::string fn = f.name;
-        const std::string what = fn == "angle"         ? std::string(axis_name[a])
-                                 : fn == "cross_angle" ? std::string(axis_name[1 - a])
-                                 : fn == "slew_rate"   ? std::string(axis_name[a]) + " rate"
-                                                       : fn;
-        return fmt::format("{} {:.4g}..{:.4g} {}", what, lo + b * w, lo + (b + 1) * w, f.unit);
-      };
-      int bmax = -1, bmin = -1;
-      for (int b = 0; b <= nb; ++b) {
-        if (c2[b] < 3) continue;
-        const double m = s2[b] / c2[b];
-        if (bmax < 0 || m > s2[bmax] / c2[bmax]) bmax = b;
-        if (bmin < 0 || m < s2[bmin] / c2[bmin]) bmin = b;
       }
-      std::string detail;
-      if (bmax >= 0) {
-        detail = fmt::format("mean residual {} arcsec at {}, {} at {}", signed_num(s2[bmax] / c2[bmax]), label(bmax),
-                             signed_num(s2[bmin] / c2[bmin]), label(bmin));
-      }
-      per_axis.push_back({f.name, axis_name[a], std::max(0.0, before - after) / total, detail});
+      break;
     }
-  }
-  // Merge a factor's two axes when both carry a comparable part.
-  for (size_t k = 0; k + 1 < per_axis.size(); k += 2) {
-    const WhereEntry& p = per_axis[k];
-    const WhereEntry& y = per_axis[k + 1];
-    const double hi = std::max(p.share, y.share), lo = std::min(p.share, y.share);
-    if (lo >= 0.01 && lo >= 0.25 * hi) {
-      out.push_back({p.factor, "both", p.share + y.share, fmt::format("pitch: {}; yaw: {}", p.detail, y.detail)});
+    used[best] = true;
+    const Factor& f = factors[best];
+    const double g0 = std::max(0.0, best_pick.gain[0]), g1 = std::max(0.0, best_pick.gain[1]);
+    const double hi = std::max(g0, g1), lo = std::min(g0, g1);
+    WhereEntry w;
+    w.factor = f.name;
+    if (lo >= 0.01 * total && lo >= 0.25 * hi) {
+      w.axis = "both";
+      w.share = (g0 + g1) / total;
+      w.detail = fmt::format("pitch: {}; yaw: {}", describe(f, 0), describe(f, 1));
     } else {
-      out.push_back(p.share >= y.share ? p : y);
+      const int a = g0 >= g1 ? 0 : 1;
+      w.axis = axis_name[a];
+      w.share = (a == 0 ? g0 : g1) / total;
+      w.detail = describe(f, a);
+    }
+    w.share = std::min(w.share, 1.0);
+    out.push_back(w);
+    // Remove what this factor explains (its fit on the fit rows, applied everywhere).
+    Eigen::VectorXd phi(f.dims);
+    for (int a = 0; a < 2; ++a) {
+      if (best_pick.gain[a] <= 0) continue;
+      for (size_t i = 0; i < r.n; ++i) {
+        f.basis(i, a, phi.data());
+        e[a][i] -= phi.dot(best_pick.x[a]);
+      }
     }
   }
-  std::stable_sort(out.begin(), out.end(), [](const WhereEntry& a, const WhereEntry& b) { return a.share > b.share; });
-  std::vector<WhereEntry> kept;
-  for (const auto& w : out) if (w.share >= 0.01 || kept.size() < 3) kept.push_back(w);
-  return kept;
+  return out;
 }
 
 ojson where_json(const std::vector<WhereEntry>& w) {
@@ -388,6 +517,11 @@ ojson Diagnosis::to_json() const {
     no.push_back({{"name", n.name}, {"reason", n.reason}, {"incomplete_recording", n.incomplete_recording}});
   }
   j["not_observable"] = no;
+  ojson amb = ojson::array();
+  for (const auto& m : ambiguous_with) {
+    amb.push_back({{"name", m.name}, {"score_difference", m.score_difference}, {"why", m.why}});
+  }
+  j["ambiguous_with"] = amb;
   j["split"] = split;
   j["recording"] = recording;
   j["warnings"] = warnings;
@@ -428,6 +562,13 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
   for (const auto& s : all) d.effects.push_back(s.result);
 
   const Scored& best = all.front();
+  // Close competitors: within kAmbiguous score units (a likelihood ratio of e^5) of the cause.
+  constexpr double kAmbiguous = 10.0;
+  for (size_t k = 1; k < all.size(); ++k) {
+    const double diff = all[k].result.score - best.result.score;
+    if (diff >= kAmbiguous) break;
+    d.ambiguous_with.push_back({all[k].result.name, diff, why_alike(best.result.name, all[k].result.name)});
+  }
   d.cause = best.result.name;
   d.gap_after_arcsec = best.result.heldout_rms_arcsec;
   d.gap_after_all_arcsec = d.gap_after_arcsec;
@@ -494,8 +635,8 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
     after[a].resize(r.n);
     for (size_t i = 0; i < r.n; ++i) after[a][i] = r.res[a][i] - combined.v[a][i];
   }
-  d.where = where_of(r, before);
-  d.where_after = where_of(r, after);
+  d.where = where_of(r, before, d.noise_floor_arcsec);
+  d.where_after = where_of(r, after, d.noise_floor_arcsec);
 
   // What the data holds and how it was divided.
   std::vector<int64_t> held_ids;
@@ -506,9 +647,9 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
     (s.kind == StepKind::dwell ? held_d : held_m)++;
   }
   d.split = {
-      {"method", fmt::format("by whole steps: of the dwells and of the slew segments, each in its own order, every "
-                             "{}th step is held out (a kind with two steps gives one to each side); rows are never "
-                             "split within a step",
+      {"method", fmt::format("by whole steps: of the dwells and of the slew segments, each in recording order, the "
+                             "last of every {} steps is held out (a kind with two steps gives one to each side); rows "
+                             "of one step are never divided",
                              opts.heldout_every)},
       {"fit_rows", r.fit_rows.size()},
       {"heldout_rows", r.heldout_rows.size()},
@@ -533,6 +674,9 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
         "no time_since_move_s column: dwells are taken to start {} s after their arrival (settle_s); settling "
         "amplitudes refer to that arrival",
         opts.settle_s));
+  }
+  for (const auto& m : d.ambiguous_with) {
+    d.warnings.push_back(fmt::format("{} scores within {:.1f} of {}: {}", m.name, m.score_difference, d.cause, m.why));
   }
   for (const auto& n : d.not_observable) {
     d.warnings.push_back(fmt::format("{} is not observable in this recording: {}", n.name, n.reason));

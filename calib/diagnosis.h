@@ -72,6 +72,13 @@ struct Diagnosis {
   std::vector<WhereEntry> where_after;  // what is left once the causes are added
   std::vector<EffectResult> effects;    // every candidate tried, best first
   std::vector<NotObservable> not_observable;
+  // Candidates that score almost as well as the cause: the data barely tells them apart.
+  struct Ambiguity {
+    std::string name;
+    double score_difference = 0;
+    std::string why;
+  };
+  std::vector<Ambiguity> ambiguous_with;
   nlohmann::ordered_json split;
   nlohmann::ordered_json recording;  // what the data holds: rows, steps, spans
   std::vector<std::string> warnings;

@@ -186,6 +186,8 @@ class Backlash : public Candidate {
 // After each move the true position is the target + amplitude exp(-(t - t_arrival)/tau) in the
 // direction of the move; nothing while moving.
 class Settling : public Candidate {
+  static constexpr double kMaxTau = 30.0;  // s
+
  public:
   std::string name() const override { return "settling"; }
   int parameters() const override { return 2; }
@@ -209,7 +211,7 @@ class Settling : public Candidate {
       if (amp) *amp = A;
       return syy - A * sxy;
     };
-    const double lt = minimise_1d([&](double x) { return solve(x, nullptr); }, std::log(0.02), std::log(30.0), 60, 1e-4);
+    const double lt = minimise_1d([&](double x) { return solve(x, nullptr); }, std::log(0.02), std::log(kMaxTau), 60, 1e-4);
     tau_ = std::exp(lt);
     solve(lt, &amp_);
   }
@@ -221,6 +223,10 @@ class Settling : public Candidate {
     }
   }
   ojson params() const override { return {{"amplitude_arcsec", amp_}, {"tau_s", tau_}}; }
+  ojson notes() const override {
+    if (tau_ < 0.99 * kMaxTau) return ojson::object();
+    return {{"tau_s", "at the search limit: the dwells do not resolve a decay"}};
+  }
   void set(const EffectParams& p) override { amp_ = get(p, "amplitude_arcsec"); tau_ = get(p, "tau_s"); }
 
  private:

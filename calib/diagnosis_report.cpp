@@ -3,7 +3,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -96,19 +98,22 @@ void write_diagnosis_report(const std::string& html_path, const SampleTable& dat
     char tmpl[] = "/tmp/fpss-diagnosis-XXXXXX";
     if (!::mkdtemp(tmpl)) throw std::runtime_error("cannot create a temporary folder for the report's figures");
     const fs::path dir = tmpl;
+    size_t moving_rows = 0, settle_rows = 0;
     {
       // Rows (at most ~20000, evenly strided) with every factor and both residuals.
       std::ofstream rows(dir / "rows.dat");
       const size_t stride = std::max<size_t>(1, r.n / 20000);
-      rows << "# t ref_p ref_y vel_p vel_y dir_p dir_y since temp rp ry ap ay\n";
+      rows << "# t ref_p ref_y vel_p vel_y dir_p dir_y since temp rp ry ap ay moving\n";
       for (size_t i = 0; i < r.n; i += stride) {
         if (r.use[i] == Use::excluded) continue;
         const bool moving = r.steps[r.step_of[i]].kind == StepKind::motion;
-        rows << fmt::format("{} {} {} {} {} {} {} {} {} {} {} {} {}\n", r.t[i], r.ref[0][i], r.ref[1][i],
+        if (moving) ++moving_rows;
+        if (std::isfinite(r.since_move[i])) ++settle_rows;
+        rows << fmt::format("{} {} {} {} {} {} {} {} {} {} {} {} {} {}\n", r.t[i], r.ref[0][i], r.ref[1][i],
                             moving ? r.vel[0][i] : 0.0, moving ? r.vel[1][i] : 0.0, static_cast<int>(r.dir[0][i]),
                             static_cast<int>(r.dir[1][i]), std::isfinite(r.since_move[i]) ? r.since_move[i] : -1.0,
                             std::isfinite(r.temp[i]) ? r.temp[i] : 0.0, r.res[0][i], r.res[1][i],
-                            r.res[0][i] - c.v[0][i], r.res[1][i] - c.v[1][i]);
+                            r.res[0][i] - c.v[0][i], r.res[1][i] - c.v[1][i], moving ? 1 : 0);
       }
       // Dwell means for the field map.
       std::ofstream dw(dir / "dwells.dat");
@@ -128,17 +133,21 @@ void write_diagnosis_report(const std::string& html_path, const SampleTable& dat
     std::vector<Spec> specs = {
         {"angle", "own axis angle, arcsec", 2, 3, ""},
         {"cross_angle", "other axis angle, arcsec", 3, 2, ""},
-        {"slew_rate", "own axis rate, arcsec/s", 4, 5, ""},
-        {"approach_direction", "direction of the axis's last motion", 6, 7, ""},
+        {"approach_direction", "direction of the last motion of the axis", 6, 7, ""},
         {"time", "time, s", 1, 1, ""},
-        {"time_since_move", "time since the move ended, s (dwells)", 8, 8, "since"},
     };
+    // Factors with nothing to show (no slews, no dwells after moves) are left out: gnuplot
+    // stops at an empty plot.
+    if (moving_rows > 0) specs.insert(specs.begin() + 2, {"slew_rate", "own axis rate, arcsec/s (slews)", 4, 5, "moving"});
+    if (settle_rows > 0) specs.push_back({"time_since_move", "time since the move ended, s (dwells)", 8, 8, "since"});
     if (r.has_temperature) specs.push_back({"temperature", "temperature, C", 9, 9, ""});
     std::ofstream gp(dir / "plots.gp");
     gp << "set terminal svg size 900,360 font 'sans,10' background rgb 'white'\nset grid\nset key top right\n";
     for (const auto& s : specs) {
       auto x = [&](int col) {
-        return s.cond == "since" ? fmt::format("(${} >= 0 ? ${} : 1/0)", col, col) : fmt::format("${}", col);
+        if (s.cond == "since") return fmt::format("(${} >= 0 ? ${} : 1/0)", col, col);
+        if (s.cond == "moving") return fmt::format("($14 > 0 ? ${} : 1/0)", col);
+        return fmt::format("{}", col);
       };
       gp << fmt::format("set output '{}'\nset multiplot layout 1,2\n", (dir / (s.name + ".svg")).string());
       for (int a = 0; a < 2; ++a) {
@@ -151,15 +160,28 @@ void write_diagnosis_report(const std::string& html_path, const SampleTable& dat
       }
       gp << "unset multiplot\n";
     }
-    // The residual map over the field: one arrow per dwell, 100 arcsec of arrow per arcsec of residual.
+    // The residual map over the field: one arrow per dwell, scaled by a power of ten so the largest
+    // is at most a tenth of the field (the same factor before and after).
+    double field = 1, largest = 0;
+    for (const auto& s : r.steps) {
+      if (s.kind != StepKind::dwell) continue;
+      double m[4] = {0, 0, 0, 0};
+      for (size_t i = s.begin; i < s.end; ++i) {
+        m[0] += r.ref[0][i]; m[1] += r.ref[1][i]; m[2] += r.res[0][i]; m[3] += r.res[1][i];
+      }
+      const double k = 1.0 / static_cast<double>(s.end - s.begin);
+      field = std::max({field, std::abs(m[0] * k), std::abs(m[1] * k)});
+      largest = std::max(largest, std::hypot(m[2] * k, m[3] * k));
+    }
+    const double scale = largest > 0 ? std::pow(10.0, std::floor(std::log10(0.1 * field / largest))) : 1.0;
     gp << fmt::format("set output '{}'\nset size ratio -1\nset multiplot layout 1,2\n", (dir / "field.svg").string());
     for (int k = 0; k < 2; ++k) {
-      gp << fmt::format("set title 'dwell residuals over the field, {} (x100)'\nset xlabel 'pitch, arcsec'\n"
+      gp << fmt::format("set title 'dwell residuals over the field, {} (arrows x{:g})'\nset xlabel 'pitch, arcsec'\n"
                         "set ylabel 'yaw, arcsec'\n",
-                        k == 0 ? "before" : "after");
-      gp << fmt::format("plot '{0}' using 1:2:(100*${1}):(100*${2}) with vectors head size 8,20 lc rgb '{3}' notitle, "
+                        k == 0 ? "before" : "after", scale);
+      gp << fmt::format("plot '{0}' using 1:2:({4:g}*${1}):({4:g}*${2}) with vectors head size 8,20 lc rgb '{3}' notitle, "
                         "'{0}' using 1:2 with points pt 7 ps 0.3 lc rgb 'black' notitle\n",
-                        (dir / "dwells.dat").string(), k == 0 ? 3 : 5, k == 0 ? 4 : 6, k == 0 ? "#c03020" : "#1f5fbf");
+                        (dir / "dwells.dat").string(), k == 0 ? 3 : 5, k == 0 ? 4 : 6, k == 0 ? "#c03020" : "#1f5fbf", scale);
     }
     gp << "unset multiplot\n";
     gp.close();
@@ -171,8 +193,13 @@ void write_diagnosis_report(const std::string& html_path, const SampleTable& dat
     } else {
       gnuplot_note = "gnuplot failed (" + slurp(dir / "gnuplot.log") + "): figures left out.";
     }
-    std::error_code ec;
-    fs::remove_all(dir, ec);
+    // FPSS_DIAGNOSIS_KEEP_FIGURES=1 keeps the gnuplot script and data (to redraw them elsewhere).
+    if (const char* keep = std::getenv("FPSS_DIAGNOSIS_KEEP_FIGURES"); keep && std::string(keep) == "1") {
+      std::fprintf(stderr, "diagnosis report: figures kept in %s\n", dir.c_str());
+    } else {
+      std::error_code ec;
+      fs::remove_all(dir, ec);
+    }
   } else {
     gnuplot_note = "gnuplot is not installed: figures left out (tables below).";
   }

@@ -183,6 +183,7 @@ BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Ef
   c.gap_before_arcsec = dg.gap_before_arcsec;
   c.gap_after_arcsec = dg.gap_after_arcsec;
   c.noise_floor_arcsec = dg.noise_floor_arcsec;
+  if (!dg.where.empty()) c.where = dg.where.front().factor + "/" + dg.where.front().axis;
   if (!effects.empty()) {
     const Effect& t = effects.front();
     if (t.name == "coefficients") {
@@ -304,7 +305,13 @@ ojson BlindTestReport::to_json() const {
         within10 += c.param_error <= 0.10;
       }
     }
-    ojson e{{"cases", n}, {"accuracy", n ? accuracy(t) : 0.0}, {"shrink_gap_after_over_noise", stats_json(stats(shrink))},
+    std::map<std::string, int> wh;
+    for (const auto& c : cases) if (c.truth == t) ++wh[c.where];
+    std::string lead;
+    int most = 0;
+    for (const auto& [w, k] : wh) if (k > most) { most = k; lead = w; }
+    ojson e{{"cases", n}, {"accuracy", n ? accuracy(t) : 0.0}, {"where_leading", lead}, {"where_leading_cases", most},
+            {"shrink_gap_after_over_noise", stats_json(stats(shrink))},
             {"gap_after_within_1_5_noise", within_noise}};
     if (t != "none") e["param_relative_error"] = stats_json(stats(pe)), e["params_within_10_percent"] = within10;
     per[t] = e;
@@ -339,7 +346,7 @@ ojson BlindTestReport::to_json() const {
                   {"correct", c.correct}, {"truth_params", c.truth_params}, {"fitted_params", c.fitted_params},
                   {"param_errors", c.param_errors}, {"param_error", std::isfinite(c.param_error) ? ojson(c.param_error) : ojson()},
                   {"gap_before_arcsec", c.gap_before_arcsec}, {"gap_after_arcsec", c.gap_after_arcsec},
-                  {"noise_floor_arcsec", c.noise_floor_arcsec}, {"rows", c.rows}});
+                  {"noise_floor_arcsec", c.noise_floor_arcsec}, {"where", c.where}, {"rows", c.rows}});
   }
   j["cases"] = cs;
   return j;
@@ -363,17 +370,18 @@ std::string BlindTestReport::to_text() const {
     }
     s += "\n";
   }
-  s += fmt::format("\n{:>22} {:>5} {:>8} {:>10} {:>10} {:>12} {:>12}\n", "class", "cases", "top-1", "par.err.med",
-                   "par.err.max", "shrink.med", "shrink.max");
+  s += fmt::format("\n{:>22} {:>5} {:>8} {:>11} {:>11} {:>10} {:>10}  {}\n", "class", "cases", "top-1", "par.err.med",
+                   "par.err.max", "shrink.med", "shrink.max", "where (leading factor, cases)");
   for (const auto& t : classes) {
     const ojson& e = j["per_class"][t];
     const bool has_pe = e.contains("param_relative_error") && e["param_relative_error"]["n"].get<size_t>() > 0;
-    s += fmt::format("{:>22} {:>5} {:>7.1f}% {:>10} {:>10} {:>12.2f} {:>12.2f}\n", t, e["cases"].get<size_t>(),
+    s += fmt::format("{:>22} {:>5} {:>7.1f}% {:>11} {:>11} {:>10.2f} {:>10.2f}  {} ({})\n", t, e["cases"].get<size_t>(),
                      100 * e["accuracy"].get<double>(),
                      has_pe ? fmt::format("{:.2f}%", 100 * e["param_relative_error"]["median"].get<double>()) : "-",
                      has_pe ? fmt::format("{:.2f}%", 100 * e["param_relative_error"]["max"].get<double>()) : "-",
                      e["shrink_gap_after_over_noise"]["median"].get<double>(),
-                     e["shrink_gap_after_over_noise"]["max"].get<double>());
+                     e["shrink_gap_after_over_noise"]["max"].get<double>(), e["where_leading"].get<std::string>(),
+                     e["where_leading_cases"].get<int>());
   }
   const ojson& m = j["summary"];
   s += fmt::format(

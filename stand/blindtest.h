@@ -41,6 +41,7 @@ struct BlindCase {
   double param_error = 0;            // largest relative error over the truth's parameters (correct cases)
   nlohmann::ordered_json param_errors = nlohmann::ordered_json::object();
   double gap_before_arcsec = 0, gap_after_arcsec = 0, noise_floor_arcsec = 0;
+  std::string where;  // the leading factor of `where` (factor/axis)
   size_t rows = 0;
 };
 

@@ -1,0 +1,353 @@
+// The gap diagnosis: forward models against the bench's physics, attribution, the paper's time
+// skew, what cannot be observed, the split, bad input and the report.
+#include "calib/diagnosis.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "calib/diagnosis_model.h"
+#include "calib/errors.h"
+#include "fixtures/bench.h"
+#include "fixtures/recording.h"
+
+namespace fpss {
+namespace {
+
+constexpr double kSettle = 0.2;
+
+BenchConfig bench(uint64_t seed, const std::vector<std::string>& effects, bool noisy = true) {
+  BenchConfig c = default_bench_config();
+  c.seed = seed;
+  if (!noisy) {
+    c.count_noise = 0;
+    c.encoder_noise_arcsec = 0;
+  }
+  // Ramp plus sinusoid: temperature is not a function of time alone.
+  c.temperature.ramp_c_per_s = 0.02;
+  c.temperature.amplitude_c = 1.5;
+  c.temperature.period_s = 40;
+  for (const auto& e : effects) c.effects.push_back(parse_effect(e));
+  return c;
+}
+
+SessionPlan plan(bool grid = true, bool slews = true) {
+  SessionPlan p;
+  if (grid) {
+    GridPlan g;
+    g.extent_deg = 0.36;
+    g.step_deg = 0.12;
+    g.samples_per_dwell = 20;
+    g.sample_rate_hz = 50;
+    g.settle_s = kSettle;
+    p.grids.push_back(g);
+  }
+  if (slews) {
+    for (int axis : {0, 1}) {
+      for (double rate : {300.0, 600.0}) p.slews.push_back(SlewPlan{axis, 1200.0, rate, 0.02});
+    }
+  }
+  return p;
+}
+
+DiagnosisOptions options() {
+  DiagnosisOptions o;
+  o.settle_s = kSettle + 0.005;  // the recorder sees the arrival within its 10 ms poll
+  return o;
+}
+
+SampleTable record(const BenchConfig& cfg, const SessionPlan& p = plan()) {
+  Bench b(cfg);
+  SampleTable t = record_session(b, p);
+  t.origin = "test recording";
+  return t;
+}
+
+std::string fmt_skew(double s) { return "time_skew:skew_s=" + std::to_string(s); }
+
+EffectParams to_params(const Effect& e) {
+  EffectParams p;
+  p.name = e.name;
+  p.params = e.params;
+  p.coefficients = e.coefficients;
+  return p;
+}
+
+// ------------------------------------------------------------------ forward models
+
+TEST(DiagnosisForwardModel, EveryEffectPredictsWhatTheBenchSensorReads) {
+  const std::vector<std::string> specs = {
+      "bias:pitch_arcsec=2.5,yaw_arcsec=-1.5",
+      "drift:pitch_arcsec_per_s=0.03,yaw_arcsec_per_s=-0.02",
+      "scale_factor:pitch_ppm=1500,yaw_ppm=-800",
+      "boresight_roll:roll_arcsec=400",
+      "axis_nonorthogonality:skew_arcsec=-300",
+      "backlash:width_arcsec=4",
+      "settling:amplitude_arcsec=2,tau_s=0.6",
+      "time_skew:skew_s=0.08",
+      "temperature:pitch_arcsec_per_c=1.2,yaw_arcsec_per_c=-0.7",
+  };
+  std::vector<EffectParams> effects;
+  for (const auto& s : specs) effects.push_back(to_params(parse_effect(s)));
+  effects[8].params["t0_c"] = default_bench_config().temperature.t0_c;
+  EffectParams coef;
+  coef.name = "coefficients";
+  coef.coefficients = default_bench_config().truth;
+  coef.coefficients->alpha[2] *= 1.2;
+  coef.coefficients->beta[7] += 0.2;
+  effects.push_back(coef);
+
+  for (const auto& e : effects) {
+    SCOPED_TRACE(e.name);
+    BenchConfig cfg = bench(3, {}, /*noisy=*/false);
+    Effect be;
+    be.name = e.name;
+    be.params = e.params;
+    be.params.erase("t0_c");
+    be.coefficients = e.coefficients;
+    cfg.effects = {be};
+    const SampleTable t = record(cfg);
+    const SensorPrediction p = predict_sensor(t, cfg.truth, e, options());
+    const AxisModel am = cfg.truth.alpha_model(), bm = cfg.truth.beta_model();
+    double worst = 0, effect_size = 0;
+    size_t used = 0;
+    for (size_t i = 0; i < t.size(); ++i) {
+      if (!p.predictable[i]) continue;
+      ++used;
+      const double mp = am.angle_arcsec(t.counts_alpha[i]), my = bm.angle_arcsec(t.counts_beta[i]);
+      worst = std::max({worst, std::abs(mp - p.pitch_arcsec[i]), std::abs(my - p.yaw_arcsec[i])});
+      effect_size = std::max({effect_size, std::abs(mp - t.ref_pitch_arcsec[i]), std::abs(my - t.ref_yaw_arcsec[i])});
+    }
+    EXPECT_GT(used, t.size() * 8 / 10);
+    // Integer counts: up to half a count (0.055 arcsec) off; the effect itself is far larger.
+    EXPECT_LT(worst, 0.1);
+    EXPECT_GT(effect_size, 1.0);
+  }
+}
+
+// ------------------------------------------------------------------ attribution
+
+TEST(Diagnosis, NoiseOnlyGivesNoneWithGapAfterEqualBefore) {
+  for (uint64_t seed : {11u, 12u, 13u}) {
+    const Diagnosis d = diagnose(record(bench(seed, {})), default_bench_config().truth, options());
+    EXPECT_EQ(d.cause, "none") << "seed " << seed;
+    EXPECT_TRUE(d.causes.empty());
+    EXPECT_EQ(d.gap_after_arcsec, d.gap_before_arcsec);
+    // The noise floor (within-dwell scatter) is what the residual is made of here.
+    EXPECT_NEAR(d.noise_floor_arcsec, d.gap_before_arcsec, 0.15 * d.gap_before_arcsec);
+    EXPECT_EQ(d.effects.size(), 11u);  // every candidate tried (all observable) and none
+  }
+}
+
+TEST(Diagnosis, PaperSlewCaseTimeSkewFoundLedBySlewRateWithin2ms) {
+  for (double skew : {0.020, 0.050, 0.085, 0.120}) {
+    SCOPED_TRACE(skew);
+    const Diagnosis d = diagnose(record(bench(21, {fmt_skew(skew)})), default_bench_config().truth, options());
+    ASSERT_EQ(d.cause, "time_skew");
+    EXPECT_NEAR(d.causes.front().params.at("skew_s").get<double>(), skew, 0.002);
+    ASSERT_FALSE(d.where.empty());
+    EXPECT_EQ(d.where.front().factor, "slew_rate");
+    EXPECT_GT(d.where.front().share, 0.5);
+    EXPECT_LT(d.gap_after_arcsec, 1.5 * d.noise_floor_arcsec);
+    EXPECT_GT(d.gap_before_arcsec, 10 * d.noise_floor_arcsec);
+  }
+}
+
+TEST(Diagnosis, RollIsToldApartFromNonorthogonality) {
+  const CoefficientSet m = default_bench_config().truth;
+  const Diagnosis roll = diagnose(record(bench(31, {"boresight_roll:roll_arcsec=200"})), m, options());
+  const Diagnosis skew = diagnose(record(bench(31, {"axis_nonorthogonality:skew_arcsec=200"})), m, options());
+  EXPECT_EQ(roll.cause, "boresight_roll");
+  EXPECT_EQ(skew.cause, "axis_nonorthogonality");
+  EXPECT_NEAR(roll.causes.front().params.at("roll_arcsec").get<double>(), 200, 10);
+  EXPECT_NEAR(skew.causes.front().params.at("skew_arcsec").get<double>(), 200, 10);
+}
+
+TEST(Diagnosis, TwoEffectsAreReportedInOrder) {
+  const Diagnosis d = diagnose(record(bench(41, {"time_skew:skew_s=0.06", "bias:pitch_arcsec=2,yaw_arcsec=-1.5"})),
+                               default_bench_config().truth, options());
+  ASSERT_EQ(d.causes.size(), 2u);
+  std::set<std::string> names{d.causes[0].name, d.causes[1].name};
+  EXPECT_EQ(names, (std::set<std::string>{"time_skew", "bias"}));
+  EXPECT_EQ(d.cause, d.causes[0].name);
+  EXPECT_GT(d.gap_after_arcsec, 1.5 * d.noise_floor_arcsec);  // one cause alone does not close it
+  EXPECT_LT(d.gap_after_all_arcsec, 1.5 * d.noise_floor_arcsec);
+  for (const auto& c : d.causes) {
+    if (c.name == "bias") EXPECT_NEAR(c.params.at("pitch_arcsec").get<double>(), 2.0, 0.1);
+    if (c.name == "time_skew") EXPECT_NEAR(c.params.at("skew_s").get<double>(), 0.06, 0.002);
+  }
+}
+
+// ------------------------------------------------------------------ what the data cannot tell
+
+TEST(Diagnosis, TimeSkewWithoutMotionIsNotObservableNeverGuessed) {
+  const Diagnosis d = diagnose(record(bench(51, {"time_skew:skew_s=0.1"}), plan(true, false)),
+                               default_bench_config().truth, options());
+  EXPECT_NE(d.cause, "time_skew");
+  for (const auto& e : d.effects) EXPECT_NE(e.name, "time_skew");
+  bool listed = false;
+  for (const auto& n : d.not_observable) {
+    if (n.name == "time_skew") {
+      listed = true;
+      EXPECT_NE(n.reason.find("motion"), std::string::npos) << n.reason;
+      EXPECT_TRUE(n.incomplete_recording);
+    }
+  }
+  EXPECT_TRUE(listed);
+  EXPECT_TRUE(d.incomplete_recording());
+  const auto j = d.to_json();
+  ASSERT_TRUE(j.contains("not_observable"));
+  EXPECT_EQ(j["not_observable"][0]["name"], "time_skew");
+}
+
+TEST(Diagnosis, LinearTemperatureRampCannotBeToldFromDrift) {
+  BenchConfig cfg = bench(61, {"temperature:pitch_arcsec_per_c=1.0,yaw_arcsec_per_c=-1.0"});
+  cfg.temperature.amplitude_c = 0;  // a plain ramp: temperature is a linear function of time
+  const Diagnosis d = diagnose(record(cfg), cfg.truth, options());
+  EXPECT_EQ(d.cause, "drift");
+  bool listed = false;
+  for (const auto& n : d.not_observable) {
+    if (n.name == "temperature") {
+      listed = true;
+      EXPECT_NE(n.reason.find("drift"), std::string::npos) << n.reason;
+    }
+  }
+  EXPECT_TRUE(listed);
+}
+
+TEST(Diagnosis, NoOffsetsLeavesAngleEffectsNotObservable) {
+  SessionPlan p = plan(false, true);
+  GridPlan nulls;  // two grids without offsets: null dwells only
+  nulls.extent_deg = 0.0;
+  nulls.samples_per_dwell = 20;
+  nulls.sample_rate_hz = 50;
+  p.grids = {nulls, nulls};
+  const Diagnosis d = diagnose(record(bench(71, {"scale_factor:pitch_ppm=1000,yaw_ppm=1000"}), p),
+                               default_bench_config().truth, options());
+  std::set<std::string> missing;
+  for (const auto& n : d.not_observable) if (n.incomplete_recording) missing.insert(n.name);
+  for (const char* e : {"scale_factor", "boresight_roll", "axis_nonorthogonality", "coefficients"}) {
+    EXPECT_TRUE(missing.count(e)) << e;
+  }
+  EXPECT_TRUE(d.incomplete_recording());
+  EXPECT_NE(d.cause, "scale_factor");
+}
+
+TEST(Diagnosis, ASingleDwellIsBadInputNamingWhatCannotBeToldApart) {
+  SessionPlan p;
+  GridPlan one;
+  one.extent_deg = 0.0;  // the null dwell only
+  one.samples_per_dwell = 30;
+  p.grids = {one};
+  const SampleTable t = record(bench(81, {}), p);
+  try {
+    diagnose(t, default_bench_config().truth, options());
+    FAIL() << "expected a DataError";
+  } catch (const DataError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("dwell"), std::string::npos) << m;
+    EXPECT_NE(m.find("bias"), std::string::npos) << m;
+    EXPECT_NE(m.find("test recording"), std::string::npos) << m;
+  }
+  EXPECT_THROW(diagnose(SampleTable{}, default_bench_config().truth), DataError);
+}
+
+// ------------------------------------------------------------------ split and output
+
+TEST(Diagnosis, SplitKeepsEveryStepWholeAndBothSidesCoverDwellsAndSlews) {
+  const SampleTable t = record(bench(91, {}));
+  const diag::Recording r = diag::prepare(t, default_bench_config().truth, options());
+  size_t fit_d = 0, held_d = 0, fit_m = 0, held_m = 0;
+  for (const auto& s : r.steps) {
+    std::set<diag::Use> uses;
+    for (size_t i = s.begin; i < s.end; ++i) if (r.use[i] != diag::Use::excluded) uses.insert(r.use[i]);
+    EXPECT_LE(uses.size(), 1u) << "step " << s.id << " split across fit and held-out";
+    const bool dwell = s.kind == diag::StepKind::dwell;
+    (s.heldout ? (dwell ? held_d : held_m) : (dwell ? fit_d : fit_m))++;
+  }
+  EXPECT_GT(held_d, 0u);
+  EXPECT_GT(held_m, 0u);
+  EXPECT_GT(fit_d, held_d);
+  EXPECT_GT(fit_m, held_m);
+  EXPECT_EQ(r.motions, 8u);  // 2 axes x 2 rates x there and back
+  // The split as reported.
+  const Diagnosis d = diagnose(t, default_bench_config().truth, options());
+  EXPECT_EQ(d.split["heldout_steps"]["dwells"].get<size_t>(), held_d);
+  EXPECT_EQ(d.split["heldout_rows"].get<size_t>(), r.heldout_rows.size());
+}
+
+TEST(Diagnosis, GapJsonCarriesTheContractKeysInTheEmulatorsNames) {
+  const Diagnosis d = diagnose(record(bench(101, {"backlash:width_arcsec=3"})), default_bench_config().truth, options());
+  const auto j = d.to_json();
+  for (const char* k : {"cause", "causes", "gap_before_arcsec", "gap_after_arcsec", "noise_floor_arcsec", "where", "effects",
+                        "split", "not_observable"}) {
+    EXPECT_TRUE(j.contains(k)) << k;
+  }
+  EXPECT_EQ(j["cause"], "backlash");
+  const std::set<std::string> factors = {"constant", "angle", "cross_angle", "slew_rate", "approach_direction",
+                                         "time", "time_since_move", "temperature"};
+  ASSERT_FALSE(j["where"].empty());
+  EXPECT_EQ(j["where"][0]["factor"], "approach_direction");
+  for (const auto& w : j["where"]) {
+    EXPECT_TRUE(factors.count(w["factor"].get<std::string>())) << w.dump();
+    EXPECT_TRUE(w["axis"] == "pitch" || w["axis"] == "yaw" || w["axis"] == "both") << w.dump();
+    EXPECT_GE(w["share"].get<double>(), 0.0);
+    EXPECT_LE(w["share"].get<double>(), 1.0 + 1e-9);
+    EXPECT_FALSE(w["detail"].get<std::string>().empty());
+  }
+  // Every effect's params use exactly the emulator's keys (temperature adds its reference t0_c).
+  double prev = -1e300;
+  for (const auto& e : j["effects"]) {
+    const std::string name = e["name"];
+    EXPECT_GE(e["score"].get<double>(), prev);  // ranked
+    prev = e["score"].get<double>();
+    EXPECT_TRUE(e.contains("heldout_rms_arcsec"));
+    if (name == "none") continue;
+    std::set<std::string> keys;
+    for (auto it = e["params"].begin(); it != e["params"].end(); ++it) keys.insert(it.key());
+    std::set<std::string> want;
+    for (const auto& k : effect_catalogue().at(name)) want.insert(k);
+    if (name == "coefficients") want = {"alpha", "beta"};
+    if (name == "temperature") want.insert("t0_c");
+    EXPECT_EQ(keys, want) << name;
+  }
+  EXPECT_NEAR(j["causes"][0]["params"]["width_arcsec"].get<double>(), 3.0, 0.1);
+}
+
+TEST(DiagnosisReport, FiguresWithGnuplotAndTablesWithout) {
+  const SampleTable t = record(bench(111, {"drift:pitch_arcsec_per_s=0.02,yaw_arcsec_per_s=0.01"}));
+  const CoefficientSet m = default_bench_config().truth;
+  const Diagnosis d = diagnose(t, m, options());
+  const std::string dir = ::testing::TempDir();
+  auto read = [](const std::string& f) {
+    std::ifstream in(f);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  };
+  const std::string with = dir + "/diag_with.html", without = dir + "/diag_without.html";
+  write_diagnosis_report(with, t, m, d, options());
+  const std::string h = read(with);
+  EXPECT_NE(h.find("Where the gap lies"), std::string::npos);
+  EXPECT_NE(h.find("drift"), std::string::npos);
+  if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
+    EXPECT_NE(h.find("<svg"), std::string::npos);
+    EXPECT_NE(h.find("Residual map over the field"), std::string::npos);
+    EXPECT_NE(h.find("Residual against slew_rate"), std::string::npos);
+  }
+  const std::string saved = std::getenv("PATH") ? std::getenv("PATH") : "";
+  setenv("PATH", "/nonexistent", 1);
+  write_diagnosis_report(without, t, m, d, options());
+  setenv("PATH", saved.c_str(), 1);
+  const std::string h2 = read(without);
+  EXPECT_NE(h2.find("gnuplot is not installed"), std::string::npos);
+  EXPECT_EQ(h2.find("<svg"), std::string::npos);
+  EXPECT_NE(h2.find("Where the gap lies"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace fpss
