@@ -176,6 +176,9 @@ struct DwellStats {
   double mean[2] = {0, 0};    // calibrated angle, arcsec
   double sd[2] = {0, 0};      // SD over frames
   double sd_detrended[2] = {0, 0};
+  // Standard error of the mean angle: the frames' scatter over sqrt(k), and the count
+  // quantisation (one count, uniform), which averaging over a still dwell does not remove.
+  double se[2] = {0, 0};
 };
 
 double sq(double x) { return x * x; }
@@ -231,8 +234,15 @@ std::vector<DwellStats> dwell_stats(const AcceptanceData& data, const Coefficien
         const auto& counts = ax == 0 ? s.counts_alpha : s.counts_beta;
         std::vector<double> v;
         v.reserve(d.frames);
-        for (size_t k = i; k < j; ++k) v.push_back(m.angle_arcsec(counts[k]));
+        double mean_counts = 0;
+        for (size_t k = i; k < j; ++k) {
+          v.push_back(m.angle_arcsec(counts[k]));
+          mean_counts += counts[k];
+        }
+        mean_counts /= static_cast<double>(d.frames);
         moments(t, v, d.mean[ax], d.sd[ax], d.sd_detrended[ax]);
+        const double q = std::fabs(rad_to_arcsec(m.slope_rad_per_count(mean_counts))) / std::sqrt(12.0);
+        d.se[ax] = std::sqrt(sq(d.sd[ax]) / static_cast<double>(d.frames) + q * q);
       }
     }
     out.push_back(d);
@@ -330,7 +340,7 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
       // One change's noise: two dwell means, each with its standard error.
       std::vector<double> se;
       for (const auto* d : calib) {
-        if (d->frames > 1) se.push_back(d->sd[ax] / std::sqrt(static_cast<double>(d->frames)));
+        se.push_back(d->se[ax]);
       }
       settle(mean, m, n > 0 ? sdv / std::sqrt(n) : 0.0,
              fmt::format("{} changes null <-> offset (Table 1: mean |r| +- sd = {:.3f} +- {:.3f})", n, m, sdv));
@@ -367,7 +377,7 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
           if (std::fabs(e) > w) {
             w = std::fabs(e);
             at = d;
-            w_se = d->sd[ax] / std::sqrt(static_cast<double>(d->frames));
+            w_se = d->se[ax];
           }
         }
         const double n = static_cast<double>(ver_in.size());
@@ -389,7 +399,7 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
           if (e > w) {
             w = e;
             at = d;
-            w_se = d->sd[ax] / std::sqrt(static_cast<double>(d->frames));
+            w_se = d->se[ax];
           }
         }
         settle(centre, w, w_se,
@@ -535,9 +545,8 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
     if (cal) {
       p.error_pitch_arcsec = d.mean[0] - d.ref[0];
       p.error_yaw_arcsec = d.mean[1] - d.ref[1];
-      const double k = std::sqrt(static_cast<double>(std::max<size_t>(d.frames, 1)));
-      p.se_pitch_arcsec = d.sd[0] / k;
-      p.se_yaw_arcsec = d.sd[1] / k;
+      p.se_pitch_arcsec = d.se[0];
+      p.se_yaw_arcsec = d.se[1];
       p.jitter3_pitch_arcsec = 3.0 * d.sd_detrended[0];
       p.jitter3_yaw_arcsec = 3.0 * d.sd_detrended[1];
     }

@@ -1,7 +1,10 @@
 // fpss-stand accept / compare / import: acceptance of a unit, comparison of calibrations, imports into the catalogue.
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spawn.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
@@ -9,16 +12,27 @@
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <cerrno>
+#include <cstring>
 #include <regex>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "calib/coefficients.h"
 #include "calib/compare.h"
 #include "calib/errors.h"
+#include "fixtures/bench.h"
+#include "procedures/acceptance.h"
 #include "procedures/catalogue.h"
+#include "procedures/plan.h"
+#include "procedures/recorder.h"
+#include "procedures/report.h"
+#include "procedures/session.h"
 #include "stand/commands.h"
+#include "stand/stand_config.h"
 
 extern char** environ;
 
@@ -252,15 +266,254 @@ void add_import(CLI::App& app, Runner& run) {
   });
 }
 
+// ---- accept ----
+
+struct AcceptArgs {
+  std::string stand_file, unit, procedure, limits, runs_dir = "runs", catalogue;
+  bool emulate = false, json = false, quiet = false, no_progress = false;
+  double speed = 20;
+  uint64_t seed = 1;
+  std::string bench, truth;
+  std::vector<std::string> effects, faults;
+  std::vector<CLI::Option*> emu_only;
+};
+
+std::string read_file_text(const fs::path& p, const char* what) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open {}", p.string(), what));
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Temporary file, fsync, rename: a crash leaves the old file or the new one, never half of one.
+void write_atomic(const fs::path& path, const std::string& text) {
+  const fs::path tmp = path.string() + ".tmp";
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw std::runtime_error(fmt::format("{}: cannot write: {}", tmp.string(), std::strerror(errno)));
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      ::close(fd);
+      throw std::runtime_error(fmt::format("{}: write failed: {}", tmp.string(), std::strerror(errno)));
+    }
+    done += static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0 || ::close(fd) != 0) {
+    throw std::runtime_error(fmt::format("{}: cannot sync: {}", tmp.string(), std::strerror(errno)));
+  }
+  fs::rename(tmp, path);
+}
+
+// The page when the run's own report cannot be drawn (no calibration): the certificate alone.
+std::string standalone_page(const std::string& title, const std::string& section_html, const std::string& why) {
+  return fmt::format(
+      "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{0}</title>"
+      "<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;"
+      "padding:3px 6px;vertical-align:top}}</style></head>\n<body>\n<h1>{0}</h1>\n<p>{1}</p>\n"
+      "<section id=\"acceptance\"><h2>Acceptance</h2>\n{2}</section>\n</body></html>\n",
+      html_escape(title), html_escape(why), section_html);
+}
+
+int accept_command(const AcceptArgs& a) {
+  // Everything is read and checked before anything moves: limits, procedure and its roles, stand, bench.
+  if (a.stand_file.empty() && !a.emulate) {
+    throw InputError("accept: give --stand STAND.yaml --unit SERIAL for a real bench, or --emulate");
+  }
+  if (!a.emulate) {
+    if (a.unit.empty()) throw InputError("accept --stand: give --unit SERIAL, the unit being accepted");
+    for (auto* o : a.emu_only) {
+      if (o->count() > 0) throw InputError(fmt::format("accept: {} needs --emulate", o->get_name()));
+    }
+  }
+  const fs::path limits_path = a.limits.empty() ? default_limits_path() : fs::path(a.limits);
+  const AcceptanceLimits limits = load_acceptance_limits(limits_path);
+  const fs::path proc_path = a.procedure.empty() ? default_acceptance_procedure_path() : fs::path(a.procedure);
+
+  SessionRequest req;
+  req.runs_dir = a.runs_dir;
+  req.catalogue = a.catalogue;
+  req.quiet = a.quiet;
+  req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
+  Diagnostics dp(proc_path.string());
+  req.procedure = parse_procedure(read_file_text(proc_path, "procedure file"), proc_path.string(), dp);
+  Diagnostics ds(a.stand_file);
+  if (!a.stand_file.empty()) {
+    req.stand = parse_stand(read_file_text(a.stand_file, "stand file"), a.stand_file, ds);
+    if (a.emulate) adapt_to_emulator(req.stand, a.speed);
+  } else {
+    req.stand = emulated_stand(a.speed);
+  }
+  if (!a.unit.empty() && !a.emulate) req.stand.unit_serial = a.unit;
+  Plan plan;
+  if (dp.empty() && ds.empty()) plan = expand(req.procedure, req.stand.bench, dp);
+  Diagnostics all(proc_path.string());
+  all.merge(ds);
+  all.merge(dp);
+  all.throw_if_any();
+  const auto roles = acceptance_roles(req.procedure, plan);
+  if (a.emulate) {
+    EmulatorSpec e;
+    e.speed = a.speed;
+    e.seed = a.seed;
+    e.bench_file = a.bench.empty() ? "" : fs::absolute(a.bench).string();
+    e.truth_file = a.truth.empty() ? "" : fs::absolute(a.truth).string();
+    e.unit_serial = a.unit;
+    for (const auto& spec : a.effects) {
+      const Effect eff = parse_effect(spec);  // InputError now rather than a bench that will not start
+      e.effects.push_back(eff.name == "coefficients" ? spec : format_effect(eff));
+    }
+    // Relative files named inside effects are the caller's: make them absolute for the child.
+    for (auto& spec : e.effects) {
+      const auto at = spec.find("file=");
+      if (at != std::string::npos) {
+        const auto end = spec.find(',', at);
+        const std::string file = spec.substr(at + 5, end == std::string::npos ? std::string::npos : end - at - 5);
+        spec.replace(at + 5, file.size(), fs::absolute(file).string());
+      }
+    }
+    if (!e.bench_file.empty()) (void)load_bench_file(e.bench_file);
+    if (!e.truth_file.empty()) (void)load_coefficients(e.truth_file);
+    e.faults = a.faults;
+    std::error_code ec;
+    const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+    e.exe = ec ? fs::path("/proc/self/exe") : self;
+    req.emulator = e;
+  }
+
+  const SessionResult r = run_session(req);
+  const fs::path run_dir = r.run_dir;
+  const bool completed = r.outcome == RunOutcome::completed;
+  // A unit that gives invalid frames (no Sun, an axis invalid, saturated) stops the run: that is
+  // the unit failing, judged below. Any other stop is the stand's: no verdict.
+  const bool unit_stopped = r.outcome == RunOutcome::failed && r.reason.find("invalid frame") != std::string::npos;
+  if (!completed && !unit_stopped) {
+    std::fprintf(stderr, "fpss-stand accept: the run %s: %s\nno verdict; the run folder is %s\n",
+                 to_string(r.outcome), r.reason.c_str(), run_dir.c_str());
+    return 1;
+  }
+
+  const nlohmann::json run_doc = read_json_file(run_dir / "run.json");
+  const std::string unit = run_doc.value("unit", a.unit);
+  AcceptanceData data;
+  data.roles = roles;
+  data.points_planned = plan.points;
+  data.run_completed = completed;
+  data.run_reason = r.reason;
+  if (fs::exists(run_dir / "samples.csv")) data.samples = read_samples_csv(run_dir / "samples.csv");
+  if (r.calibration && fs::exists(*r.calibration)) data.calibration = load_coefficients(*r.calibration);
+
+  const fs::path cat_path = a.catalogue.empty() ? Catalogue::default_path(a.runs_dir) : fs::path(a.catalogue);
+  const std::string run_id = run_dir.filename().string();
+  {
+    // The unit's previous calibration: the latest one not made by this run.
+    Catalogue cat(cat_path);
+    for (const auto& h : cat.unit_history(unit)) {
+      if (h.run_id && *h.run_id == run_id) continue;
+      try {
+        data.previous = parse_coefficients(h.coefficients, fmt::format("{} calibration {}", cat_path.string(), h.id));
+        data.previous_name = fmt::format("calibration {} of {} ({} {})", h.id, h.date_utc, h.source, h.source_ref);
+      } catch (const InputError&) {
+        // a record that does not parse cannot be compared; keep the one before
+      }
+    }
+  }
+
+  const Judgement j = judge(data, limits);
+  CertificateInfo info;
+  info.unit = unit;
+  if (req.emulator) {
+    info.stand = fmt::format("emulated bench (seed {}{}{}{})", req.emulator->seed,
+                             req.emulator->bench_file.empty() ? "" : ", bench " + req.emulator->bench_file,
+                             req.emulator->truth_file.empty() ? "" : ", truth " + req.emulator->truth_file,
+                             req.emulator->effects.empty() ? "" : ", effects " + fmt::format("{}", fmt::join(req.emulator->effects, " ")));
+    info.stand_detail = req.emulator->to_json();
+  } else {
+    info.stand = !req.stand.stand_id.empty() ? req.stand.stand_id : req.stand.origin;
+    info.stand_detail = {{"file", req.stand.origin}, {"settings", to_json(req.stand)}};
+  }
+  info.procedure_name = req.procedure.name;
+  info.procedure_file = fs::absolute(proc_path).lexically_normal().string();
+  info.procedure_sha256 = run_doc["procedure"].value("sha256", sha256_hex(req.procedure.text));
+  info.run_id = run_id;
+  info.run_dir = fs::absolute(run_dir).string();
+  info.run_outcome = to_string(r.outcome);
+  info.run_reason = r.reason;
+  info.points_planned = static_cast<int64_t>(plan.points);
+  info.points_completed = r.points_done;
+  info.date_utc = utc_iso_now();
+  info.calibration_file = r.calibration ? r.calibration->filename().string() : "";
+  const nlohmann::ordered_json cert = certificate_json(j, limits, info);
+
+  write_atomic(run_dir / "acceptance.json", cert.dump(1) + "\n");
+  const std::string text = certificate_text(cert);
+  write_atomic(run_dir / "certificate.txt", text);
+  // The page: the run's report with the certificate as a section, or the certificate alone.
+  const std::string section = certificate_html(cert);
+  try {
+    ReportOptions ro;
+    ro.extra_sections.push_back({"acceptance", "Acceptance", section});
+    write_report(run_dir, ro);
+  } catch (const std::exception& e) {
+    write_atomic(run_dir / "report.html",
+                 standalone_page(fmt::format("Acceptance of {} ({})", unit, run_id), section,
+                                 fmt::format("The run's report could not be drawn: {}", e.what())));
+  }
+  nlohmann::json doc = run_doc;
+  doc["acceptance"] = {{"file", "acceptance.json"}, {"certificate", "certificate.txt"},
+                       {"verdict", j.passed ? "pass" : "fail"}, {"failed", j.failed()},
+                       {"limits", {{"file", limits.origin}, {"sha256", limits.sha256}}}};
+  write_json_atomic(run_dir / "run.json", doc);
+
+  int64_t acc_id = 0;
+  {
+    Catalogue cat(cat_path);
+    AcceptanceRecord rec;
+    rec.unit = unit;
+    rec.run_id = run_id;
+    rec.passed = j.passed;
+    rec.date_utc = info.date_utc;
+    rec.certificate = nlohmann::json::parse(cert.dump());
+    acc_id = cat.record_acceptance(rec);
+  }
+
+  if (a.json) {
+    std::printf("%s\n", cert.dump(1).c_str());
+  } else {
+    std::printf("%s\n", text.c_str());
+    std::printf("acceptance %s: %s\ncertificate: %s\nreport: %s\ncatalogue: %s (acceptance %lld)\n",
+                j.passed ? "PASSED" : "FAILED", (run_dir / "acceptance.json").c_str(),
+                (run_dir / "certificate.txt").c_str(), (run_dir / "report.html").c_str(), cat_path.c_str(),
+                static_cast<long long>(acc_id));
+  }
+  std::fflush(stdout);
+  return j.passed ? 0 : 3;
+}
+
 void add_accept_command(CLI::App& app, Runner& run) {
-  auto* sub = app.add_subcommand("accept", "(not implemented yet: issue 6, acceptance)");
-  sub->allow_extras();
-  sub->callback([&run] {
-    run = [] {
-      std::fprintf(stderr, "fpss-stand accept: not implemented yet (issue 6)\n");
-      return 1;
-    };
-  });
+  auto a = std::make_shared<AcceptArgs>();
+  auto* sub = app.add_subcommand(
+      "accept", "Acceptance of a sensor unit: calibrate, verify on unseen points, measure jitter, judge, certify "
+                "(exit 0 pass, 3 fail)");
+  sub->add_option("--stand", a->stand_file, "Stand file (YAML) of a real bench");
+  sub->add_option("--unit", a->unit, "Serial of the unit (required with --stand; with --emulate, the serial it reports)");
+  sub->add_flag("--emulate", a->emulate, "Run on the emulated bench (a child process over the real wire)");
+  sub->add_option("--procedure", a->procedure, "Acceptance procedure (default procedures/acceptance.yaml)");
+  sub->add_option("--limits", a->limits, "Acceptance limits (default procedures/acceptance_limits.yaml)");
+  sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made")->capture_default_str();
+  sub->add_option("--catalogue", a->catalogue, "SQLite catalogue (default <runs-dir>/stand.db)");
+  sub->add_flag("--json", a->json, "Print acceptance.json instead of the certificate text");
+  sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
+  sub->add_flag("--no-progress", a->no_progress, "No live progress line");
+  a->emu_only.push_back(sub->add_option("--speed", a->speed, "Emulator: bench clock speed-up (default 20)"));
+  a->emu_only.push_back(sub->add_option("--seed", a->seed, "Emulator: seed of all bench noise (default 1)"));
+  a->emu_only.push_back(sub->add_option("--bench", a->bench, "Emulator: bench file (YAML)"));
+  a->emu_only.push_back(sub->add_option("--effect", a->effects, "Emulator: injected effect NAME:key=value,..."));
+  a->emu_only.push_back(sub->add_option("--fault", a->faults, "Emulator: fault NAME[:key=value,...]"));
+  a->emu_only.push_back(sub->add_option("--truth", a->truth, "Emulator: coefficient file of the sensor's truth"));
+  sub->callback([&run, a] { run = [a] { return accept_command(*a); }; });
 }
 
 }  // namespace

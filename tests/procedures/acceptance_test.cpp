@@ -24,6 +24,7 @@
 #include "fixtures/recording.h"
 #include "procedures/acceptance.h"
 #include "procedures/catalogue.h"
+#include "procedures/emulator_process.h"
 
 namespace fpss {
 namespace {
@@ -402,6 +403,201 @@ TEST(AcceptanceJudge, CertificateCarriesEveryCriterionAndTheIdentity) {
   const std::string html = certificate_html(c);
   EXPECT_NE(html.find("Acceptance: FAIL"), std::string::npos);
   EXPECT_EQ(html.find("<script"), std::string::npos);
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// fpss-stand accept end to end: the emulator child over Modbus TCP and a pty, a real catalogue.
+
+struct Cli {
+  int code = -1;
+  std::string out, err;
+};
+
+fs::path stand_binary() { return fs::path(FPSS_BINARY_DIR) / "stand" / "fpss-stand"; }
+
+Cli run_cli(const std::string& args, const fs::path& scratch) {
+  if (!fs::exists(stand_binary())) throw std::runtime_error(stand_binary().string() + " is not built");
+  const fs::path err_file = scratch / "stderr.txt";
+  const std::string cmd = "'" + stand_binary().string() + "' " + args + " 2>'" + err_file.string() + "'";
+  Cli r;
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (!p) throw std::runtime_error("popen failed");
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int status = ::pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.err = read_text(err_file);
+  return r;
+}
+
+class AcceptCli : public ::testing::Test {
+ protected:
+  fs::path runs() const { return scratch_.path() / "runs"; }
+  // Speed-up 40: the whole acceptance (163 points, 5 min of bench time) in about 8 s.
+  Cli accept(const std::string& args) {
+    return run_cli("accept --emulate --quiet --speed 40 --json --runs-dir '" + runs().string() + "' " + args,
+                   scratch_.path());
+  }
+  static std::set<std::string> failed(const nlohmann::json& cert) {
+    std::set<std::string> f;
+    for (const auto& id : cert["failed"]) f.insert(id.get<std::string>());
+    return f;
+  }
+  fs::path write(const std::string& name, const std::string& text) {
+    const fs::path p = scratch_.path() / name;
+    std::ofstream(p) << text;
+    return p;
+  }
+  Scratch scratch_;
+};
+
+TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainstItsHistory) {
+  const Cli r = accept("--seed 3");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  const auto cert = nlohmann::json::parse(r.out);
+  EXPECT_EQ(cert["verdict"], "pass");
+  EXPECT_EQ(cert["unit"], "EMU-0001");
+  EXPECT_EQ(cert["software"]["version"], FPSS_VERSION);
+  EXPECT_EQ(cert["procedure"]["sha256"], sha256_hex(read_text(default_acceptance_procedure_path())));
+  EXPECT_EQ(cert["limits"]["sha256"], limits().sha256);
+  EXPECT_NE(cert["stand"]["identity"].get<std::string>().find("emulated bench (seed 3"), std::string::npos);
+  EXPECT_EQ(cert["run"]["points_completed"], 163);
+  ASSERT_EQ(cert["criteria"].size(), 18u);  // no history yet: no consistency criterion
+  for (const auto& c : cert["criteria"]) {
+    EXPECT_TRUE(c["passed"].get<bool>()) << c.dump();
+    EXPECT_TRUE(c["measured"].is_number()) << c.dump();
+    EXPECT_FALSE(c["source"].get<std::string>().empty());
+  }
+  const fs::path dir = cert["run"]["dir"].get<std::string>();
+  EXPECT_EQ(nlohmann::json::parse(read_text(dir / "acceptance.json")), cert);
+  EXPECT_NE(read_text(dir / "certificate.txt").find("Verdict:    PASS"), std::string::npos);
+  const std::string page = read_text(dir / "report.html");
+  EXPECT_NE(page.find("id=\"acceptance\""), std::string::npos);
+  EXPECT_NE(page.find("Acceptance: PASS"), std::string::npos);
+  EXPECT_EQ(nlohmann::json::parse(read_text(dir / "run.json"))["acceptance"]["verdict"], "pass");
+  {
+    Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+    const auto acc = cat.unit_acceptances("EMU-0001");
+    ASSERT_EQ(acc.size(), 1u);
+    EXPECT_TRUE(acc[0].passed);
+    EXPECT_EQ(acc[0].run_id.value_or(""), cert["run"]["id"]);
+    EXPECT_EQ(acc[0].certificate["verdict"], "pass");
+    const auto cals = cat.unit_history("EMU-0001");
+    ASSERT_EQ(cals.size(), 1u);
+    EXPECT_EQ(cals[0].run_id.value_or(""), cert["run"]["id"]);
+  }
+
+  // The same unit again after its null moved by 4 arcsec in yaw (a bias the null condition of
+  // this run alone calibrates out): every criterion of the run passes, the history does not.
+  const Cli moved = accept("--seed 4 --effect bias:pitch_arcsec=0,yaw_arcsec=4");
+  ASSERT_EQ(moved.code, 3) << moved.err << moved.out;
+  const auto c2 = nlohmann::json::parse(moved.out);
+  EXPECT_EQ(c2["verdict"], "fail");
+  EXPECT_EQ(failed(c2), std::set<std::string>{"consistency"}) << moved.out;
+  for (const auto& c : c2["criteria"]) {
+    if (c["id"] == "consistency") {
+      EXPECT_NEAR(c["measured"].get<double>(), 4.0, 0.5);
+    }
+  }
+  Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  const auto acc = cat.unit_acceptances("EMU-0001");
+  ASSERT_EQ(acc.size(), 2u);
+  EXPECT_FALSE(acc[1].passed);
+  EXPECT_EQ(cat.unit_history("EMU-0001").size(), 2u);
+  EXPECT_EQ(cat.integrity_check(), "ok");
+}
+
+TEST_F(AcceptCli, NoisyUnitFailsOnJitter) {
+  const fs::path bench = write("noisy.yaml", "count_noise: 10\n");  // 1.1 arcsec per frame, 1 sigma
+  const Cli r = accept("--bench '" + bench.string() + "'");
+  ASSERT_EQ(r.code, 3) << r.err << r.out;
+  const auto cert = nlohmann::json::parse(r.out);
+  EXPECT_EQ(failed(cert), (std::set<std::string>{"jitter_3sigma_pitch", "jitter_3sigma_yaw"})) << r.out;
+}
+
+TEST_F(AcceptCli, BadTransferFunctionRegionFailsOnAccuracyOfThatAxis) {
+  const fs::path truth = scratch_.path() / "ripple.json";
+  save_coefficients(truth, rippled_truth(3.0));
+  const Cli r = accept("--effect 'coefficients:file=" + truth.string() + "'");
+  ASSERT_EQ(r.code, 3) << r.err << r.out;
+  const auto f = failed(nlohmann::json::parse(r.out));
+  EXPECT_TRUE(f.count("accuracy_3sigma_pitch")) << r.out;
+  for (const auto& id : f) EXPECT_NE(id.find("pitch"), std::string::npos) << id;
+  EXPECT_FALSE(f.count("jitter_3sigma_pitch"));
+}
+
+TEST_F(AcceptCli, RolledUnitFailsOnAccuracy) {
+  const Cli r = accept("--effect boresight_roll:roll_arcsec=1800");
+  ASSERT_EQ(r.code, 3) << r.err << r.out;
+  const auto f = failed(nlohmann::json::parse(r.out));
+  EXPECT_TRUE(f.count("accuracy_worst_point_pitch") && f.count("accuracy_worst_point_yaw")) << r.out;
+  EXPECT_FALSE(f.count("jitter_3sigma_pitch") || f.count("jitter_3sigma_yaw") || f.count("sun_present")) << r.out;
+}
+
+TEST_F(AcceptCli, UnitBlindNearTheEdgeFailsOnSunPresence) {
+  // The Sun is seen only within 0.39 deg: the calibration's 0.42 deg points give no valid frame.
+  const fs::path bench = write("narrow.yaml", "sun_half_fov_arcsec: 1400\n");
+  const Cli r = accept("--bench '" + bench.string() + "'");
+  ASSERT_EQ(r.code, 3) << r.err << r.out;
+  const auto cert = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(failed(cert).count("sun_present")) << r.out;
+  EXPECT_EQ(cert["run"]["outcome"], "failed");
+  EXPECT_NE(cert["run"]["reason"].get<std::string>().find("invalid frame"), std::string::npos);
+  for (const auto& c : cert["criteria"]) {
+    if (c["id"] == "sun_present") EXPECT_LT(c["measured"].get<double>(), 1.0);
+  }
+  Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  ASSERT_EQ(cat.unit_acceptances("EMU-0001").size(), 1u);
+  EXPECT_FALSE(cat.unit_acceptances("EMU-0001")[0].passed);
+}
+
+TEST_F(AcceptCli, RealBenchPathWithAStandFileAndTheUnitsSerial) {
+  // A bench started on its own (as a real one would be), reached through a stand file.
+  EmulatorLaunch l;
+  l.exe = stand_binary();
+  l.args = {"--speed", "40", "--seed", "5", "--unit-serial", "SN-0042"};
+  EmulatorProcess emu(l);
+  emu.start();
+  const fs::path stand = write("stand.yaml", "stand: bench-under-test-7\n"
+                                             "gimbal:\n  endpoint: " + emu.gimbal_endpoint() + "\n"
+                                             "sensor:\n  endpoint: " + emu.sensor_endpoint() + "\n  sample_rate_hz: 50\n"
+                                             "clock:\n  sync: shared\n  time_scale: 40\n");
+  const std::string common = "accept --quiet --json --runs-dir '" + runs().string() + "' --stand '" + stand.string() + "'";
+  // The wrong unit on the stand: bad input, nothing moved, nothing judged.
+  Cli r = run_cli(common + " --unit SN-0001", scratch_.path());
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("SN-0042"), std::string::npos) << r.err;
+  r = run_cli(common + " --unit SN-0042", scratch_.path());
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  const auto cert = nlohmann::json::parse(r.out);
+  EXPECT_EQ(cert["unit"], "SN-0042");
+  EXPECT_EQ(cert["stand"]["identity"], "bench-under-test-7");
+  EXPECT_EQ(cert["verdict"], "pass");
+  emu.stop();
+}
+
+TEST_F(AcceptCli, BadInputExitsTwoBeforeAnythingMoves) {
+  std::string text = read_text(default_limits_path());
+  text.replace(text.find("value: 3.0"), 10, "value: -3");
+  const fs::path bad_limits = write("limits.yaml", text);
+  Cli r = accept("--limits '" + bad_limits.string() + "'");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("limits.yaml:"), std::string::npos) << r.err;
+  r = accept("--procedure '" + (kProcedures / "discrete_grid.yaml").string() + "'");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("not an acceptance procedure"), std::string::npos) << r.err;
+  r = accept("--effect wobble:amount=3");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("wobble"), std::string::npos) << r.err;
+  r = run_cli("accept --stand '" + write("s.yaml", "stand: x\n").string() + "'", scratch_.path());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--unit"), std::string::npos) << r.err;
+  r = run_cli("accept --stand '" + (scratch_.path() / "s.yaml").string() + "' --unit U --seed 3", scratch_.path());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--emulate"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(runs()) && !fs::is_empty(runs())) << "a run folder was made";
 }
 
 }  // namespace
