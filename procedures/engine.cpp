@@ -282,6 +282,9 @@ void Engine::measure_dwell(const Action& a, int session) {
       }
       if (!f) throw SensorFailure(fmt::format("the sensor sent no frame within {:.2f} s", frame_wait));
       if (f->host_time_s < settled_host) continue;  // on its way before the settle ended
+      // One clock for both devices: a frame stamped before the settled gimbal reading was taken
+      // during the move, however late it arrives (a sensor stream catching up after a stall).
+      if (b_.clock == ClockSync::shared && sensor_clock_s(*f) + 1e-6 < before.sample_time_us * 1e-6) continue;
       if (!f->valid()) {
         last_bad_status = f->status;
         if (++invalid > a.max_invalid) {
