@@ -236,7 +236,9 @@ void Engine::with_remeasure(const Action& a, F&& attempt_fn) {
       recover(reason, sensor_side);
     }
   }
-  throw PointFailure(fmt::format("{} ({}) failed after {} attempts: {}", label(a), a.describe(), attempts, reason));
+  throw PointFailure(fmt::format("{} failed after {} attempts: {}",
+                                 a.is_point() ? a.describe() : fmt::format("{} ({})", label(a), a.describe()), attempts,
+                                 reason));
 }
 
 void Engine::measure_dwell(const Action& a, int session) {
@@ -470,10 +472,10 @@ void Engine::measure_slew(const Action& a, int session) {
         ++invalid;
         continue;
       }
-      // One sample per period on the sensor's clock (a microsecond of slack for float rounding).
+      // One sample per period on the sensor's clock: the first frame at least a period after the
+      // last one kept (a microsecond of slack for float rounding).
       if (s_times[i] + 1e-6 < next_keep) continue;
-      next_keep = std::isfinite(next_keep) ? next_keep + a.sample_period_s : s_times[i] + a.sample_period_s;
-      while (next_keep <= s_times[i] + 1e-6) next_keep += a.sample_period_s;
+      next_keep = s_times[i] + a.sample_period_s;
       const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(at->pitch_arcsec, at->yaw_arcsec);
       RecordedRow r;
       r.sensor_time_s = s_times[i];

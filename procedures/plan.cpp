@@ -255,10 +255,10 @@ std::string Action::describe() const {
                          rate_arcsec_s > 0 ? fmt::format(" at {} arcsec/s", rate_arcsec_s) : "");
     case Kind::settle: return fmt::format("settle {} s", settle_s);
     case Kind::dwell:
-      return fmt::format("point {:>4}  {:<6} pitch {}, yaw {}: settle {} s, {} frames", point + 1, to_string(phase),
+      return fmt::format("point {:>4} {:<6} pitch {}, yaw {}: settle {} s, {} frames", point + 1, to_string(phase),
                          deg(pitch_arcsec), deg(yaw_arcsec), settle_s, frames);
     case Kind::slew:
-      return fmt::format("point {:>4}  slew   {} {} -> {} at {} arcsec/s, one sample per {} s", point + 1,
+      return fmt::format("point {:>4} slew   {} {} -> {} at {} arcsec/s, one sample per {} s", point + 1,
                          to_string(axis), deg(axis == StandAxis::pitch ? start_pitch_arcsec : start_yaw_arcsec),
                          deg(axis == StandAxis::pitch ? pitch_arcsec : yaw_arcsec), rate_arcsec_s, sample_period_s);
     case Kind::calibrate:

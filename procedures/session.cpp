@@ -89,7 +89,7 @@ RunInfo read_run_info(const fs::path& run_dir) {
     }
     const auto& s = info.doc.at("stand");
     if (s.contains("text") && s["text"].is_string()) info.stand_text = s["text"].get<std::string>();
-    info.stand_origin = s.value("file", "");
+    if (s.contains("file") && s["file"].is_string()) info.stand_origin = s["file"].get<std::string>();
     if (info.doc.value("emulated", false)) {
       info.emulator = EmulatorSpec::from_json(info.doc.at("emulator"), path.string());
     }
@@ -279,6 +279,13 @@ SessionResult run_session(const SessionRequest& req) {
   log->sinks().push_back(file_sink);
   log->info("run {} session {}: procedure {} ({}), unit {}, {}", run_id, session, req.procedure.name,
             req.procedure.origin, unit, req.emulator ? "emulated bench" : "stand " + stand.stand_id);
+
+  // The drivers log through spdlog's default logger: their retries belong in events.log too.
+  struct DefaultLogger {
+    std::shared_ptr<spdlog::logger> prev = spdlog::default_logger();
+    explicit DefaultLogger(std::shared_ptr<spdlog::logger> l) { spdlog::set_default_logger(std::move(l)); }
+    ~DefaultLogger() { spdlog::set_default_logger(prev); }
+  } default_logger(log);
 
   RunRecorder rec(res.run_dir);
   if (rec.cut_bytes() > 0) {

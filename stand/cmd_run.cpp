@@ -133,7 +133,7 @@ int run_command(const RunArgs& a) {
     std::printf("run completed: %lld/%lld points in %.1f s -> %s\n", static_cast<long long>(r.points_done),
                 static_cast<long long>(r.points_total), r.wall_s, dir.c_str());
   } else {
-    std::fprintf(stderr, "fpss-stand run: %s: %s\n", to_string(r.outcome), r.reason.c_str());
+    if (a.quiet) std::fprintf(stderr, "fpss-stand run: %s: %s\n", to_string(r.outcome), r.reason.c_str());
     std::printf("run %s: %lld/%lld points -> %s\n", to_string(r.outcome), static_cast<long long>(r.points_done),
                 static_cast<long long>(r.points_total), dir.c_str());
     std::printf("resume with: fpss-stand run --resume %s\n", dir.c_str());

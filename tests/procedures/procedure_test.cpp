@@ -103,12 +103,12 @@ TEST(Procedure, FullGridCoversTheFieldWithDiagonals) {
   for (const auto& a : plan.actions) {
     if (a.kind == Action::Kind::dwell && a.phase == Phase::offset) offsets.insert({a.pitch_arcsec, a.yaw_arcsec});
   }
-  EXPECT_EQ(offsets.size(), 48u);  // 7 x 7 lattice without the centre
+  EXPECT_EQ(offsets.size(), 80u);  // 9 x 9 lattice without the centre
   const double e = 0.42 * 3600;
   for (auto c : {std::pair{e, e}, std::pair{-e, e}, std::pair{e, -e}, std::pair{-e, -e}}) {
     EXPECT_EQ(offsets.count(c), 1u) << c.first << "," << c.second;
   }
-  EXPECT_EQ(plan.points, 97u);
+  EXPECT_EQ(plan.points, 161u);
 }
 
 TEST(Procedure, SlewSegmentsBothRatesBothDirections) {
@@ -318,7 +318,7 @@ TEST(Plan, DryRunText) {
   EXPECT_NE(s.find("points: 113 (57 null, 56 offset, 0 slew segments); frames kept: 1130"), std::string::npos) << s;
   EXPECT_NE(s.find("estimated duration:"), std::string::npos);
   EXPECT_NE(s.find("at speed-up 20"), std::string::npos);
-  EXPECT_NE(s.find("point  113  null"), std::string::npos) << s;
+  EXPECT_NE(s.find("point  113 null"), std::string::npos) << s;
   EXPECT_NE(s.find("all targets inside the soft limits"), std::string::npos);
 }
 
