@@ -206,8 +206,10 @@ TEST_F(GimbalOnEmulator, DelaysBeyondTheRetryBudgetNameTheTimeoutAndTheLinkRecov
 }
 
 TEST_F(GimbalOnEmulator, FollowingErrorStopsTheGimbalAndClearFaultRecovers) {
-  start();
-  gimbal->set_max_rate(100);  // a long move: 1200 arcsec at 100 arcsec/s, 12 bench s
+  // A slow clock and a long move (1200 arcsec at 100 arcsec/s: 12 bench s, 2.4 wall s), so the
+  // fault lands mid-move however the test thread is scheduled.
+  start(e2e::emulator_options(5.0));
+  gimbal->set_max_rate(100);
   gimbal->move_to(1200, -1200);
   ASSERT_TRUE(eventually([&] { return gimbal->read_state().has(kMoving); }));
   emu->inject("following_error");
@@ -238,6 +240,7 @@ TEST_F(GimbalOnEmulator, FollowingErrorStopsTheGimbalAndClearFaultRecovers) {
 
   gimbal->clear_fault();
   EXPECT_EQ(gimbal->read_state().fault, GimbalFault::none);
+  gimbal->set_max_rate(1800);
   move_and_wait(300, 300);
 }
 
