@@ -20,6 +20,7 @@
 #include "procedures/catalogue.h"
 #include "procedures/emulator_process.h"
 #include "procedures/progress.h"
+#include "procedures/report.h"
 #include "procedures/recorder.h"
 
 namespace fpss {
@@ -483,6 +484,18 @@ SessionResult run_session(const SessionRequest& req) {
   if (res.calibration) doc["files"]["calibration"] = res.calibration->filename().string();
   write_json_atomic(res.run_dir / "run.json", doc);
   with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id, to_string(er.outcome), end_utc); });
+
+  // The report needs a calibration (this session's or an earlier one's); a failure to draw it
+  // never fails the run: the recording is what matters.
+  if (fs::exists(res.run_dir / "calibration.json")) {
+    try {
+      const auto t0 = std::chrono::steady_clock::now();
+      res.report = write_report(res.run_dir);
+      log->info("report: {} ({:.2f} s)", res.report->string(), seconds_since(t0));
+    } catch (const std::exception& e) {
+      log->warn("report not written: {}", e.what());
+    }
+  }
 
   log->info("run {}: {} ({} of {} points){}", run_id, to_string(er.outcome), er.points_done, plan.points,
             er.reason.empty() ? "" : ": " + er.reason);

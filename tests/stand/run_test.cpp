@@ -99,6 +99,8 @@ TEST(Run, DiscreteGridCalibratesWithinATenthOfAnArcsecondOfTheTruth) {
   EXPECT_NE(r.out.find("run completed: 113/113 points"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("calibration: " + (run / "calibration.json").string()), std::string::npos) << r.out;
   EXPECT_NE(run.filename().string().find("-EMU-0001-discrete_grid"), std::string::npos);
+  EXPECT_NE(r.out.find("report: " + (run / "report.html").string()), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(run / "report.html"));
 
   const auto doc = run_json(run);
   EXPECT_EQ(doc["outcome"], "completed");
