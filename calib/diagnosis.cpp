@@ -582,9 +582,32 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
       double best_score = best.result.score;
       std::optional<std::pair<EffectResult, EffectResult>> pick;
       Contribution pick_contrib;
+      // Screen every other candidate on what the first leaves (one fit each), then fit the
+      // most promising few jointly with the first.
+      Contribution left, k2;
+      left.resize(r.n);
+      k2.resize(r.n);
+      for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) left.v[a][i] = r.res[a][i] - best.contrib.v[a][i];
+      std::vector<std::pair<double, std::string>> screened;
       for (const auto& s : all) {
         const std::string& name2 = s.result.name;
         if (name2 == "none" || name2 == d.cause) continue;
+        auto c2 = diag::make_candidate(name2);
+        c2->fit(r, left, r.fit_rows);
+        c2->contribute(r, k2);
+        double ms = 0;
+        for (uint32_t i : r.heldout_rows) {
+          for (int a = 0; a < 2; ++a) {
+            const double e = left.v[a][i] - k2.v[a][i];
+            ms += e * e;
+          }
+        }
+        ms /= N;
+        screened.push_back({penalised(ms, ms0, best.result.parameters + c2->parameters(), N), name2});
+      }
+      std::sort(screened.begin(), screened.end());
+      if (screened.size() > 3) screened.resize(3);
+      for (const auto& [proxy, name2] : screened) {
         auto c1 = diag::make_candidate(d.cause);
         auto c2 = diag::make_candidate(name2);
         Contribution k1 = best.contrib, k2, t;

@@ -166,17 +166,4 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
   return r;
 }
 
-double reference_at(const Recording& r, const Step& s, int axis, double tq, size_t hint) {
-  const auto& t = r.t;
-  const auto& ref = r.ref[axis];
-  if (tq <= t[s.begin]) return ref[s.begin];
-  if (tq >= t[s.end - 1]) return ref[s.end - 1];
-  size_t j = std::clamp(hint, s.begin, s.end - 2);
-  while (j + 1 < s.end - 1 && t[j + 1] <= tq) ++j;
-  while (j > s.begin && t[j] > tq) --j;
-  const double dt = t[j + 1] - t[j];
-  const double w = dt > 0 ? (tq - t[j]) / dt : 0.0;
-  return ref[j] + w * (ref[j + 1] - ref[j]);
-}
-
 }  // namespace fpss::diag

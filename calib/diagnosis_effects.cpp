@@ -241,37 +241,48 @@ class TimeSkew : public Candidate {
   std::string name() const override { return "time_skew"; }
   int parameters() const override { return 1; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
-    std::vector<uint32_t> moving;
+    std::vector<uint32_t> moving, coarse;
     for (uint32_t i : rows) if (r.steps[r.step_of[i]].kind == StepKind::motion) moving.push_back(i);
-    auto cost = [&](double s) {
+    // The grid stage (it only has to land in the right valley) sees at most ~4000 rows.
+    const size_t stride = std::max<size_t>(1, moving.size() / 4000);
+    for (size_t k = 0; k < moving.size(); k += stride) coarse.push_back(moving[k]);
+    auto cost = [&](const std::vector<uint32_t>& use, double s) {
       double c = 0;
-      size_t hint = 0;
+      size_t j = 0;
       uint32_t cur = UINT32_MAX;
-      for (uint32_t i : moving) {
+      for (uint32_t i : use) {
         const Step& st = r.steps[r.step_of[i]];
-        if (r.step_of[i] != cur) { cur = r.step_of[i]; hint = st.begin; }
+        if (r.step_of[i] != cur) { cur = r.step_of[i]; j = st.begin; }
+        double p[2];
+        shown(r, st, r.t[i] - s, j, p);
         for (int a = 0; a < 2; ++a) {
-          const double p = st.moves[a] ? reference_at(r, st, a, r.t[i] - s, hint) - r.ref[a][i] : 0.0;
-          const double e = tg.v[a][i] - p;
+          const double e = tg.v[a][i] - (st.moves[a] ? p[a] - r.ref[a][i] : 0.0);
           c += e * e;
         }
-        hint = i > 0 ? i - 1 : 0;
       }
       return c;
     };
     const double lim = r.guard_s;
-    skew_ = lim > 0 ? minimise_1d(cost, -lim, lim, std::max(20, static_cast<int>(std::ceil(2 * lim / 0.004))), 1e-6) : 0.0;
+    if (!(lim > 0) || moving.empty()) { skew_ = 0; return; }
+    constexpr double kStep = 0.004;  // s; the reference is sampled every 20 ms or more
+    const int steps = std::max(20, static_cast<int>(std::ceil(2 * lim / kStep)));
+    double best = -lim, best_c = std::numeric_limits<double>::infinity();
+    for (int k = 0; k <= steps; ++k) {
+      const double sk = -lim + 2 * lim * k / steps, c = cost(coarse, sk);
+      if (c < best_c) { best_c = c; best = sk; }
+    }
+    const double d = 2 * lim / steps;
+    skew_ = minimise_1d([&](double sk) { return cost(moving, sk); }, std::max(-lim, best - 2 * d), std::min(lim, best + 2 * d), 8, 1e-6);
   }
   void contribute(const Recording& r, Contribution& out) const override {
     out.resize(r.n);
     for (const Step& st : r.steps) {
       if (st.kind != StepKind::motion) continue;
-      size_t hint = st.begin;
+      size_t j = st.begin;
       for (size_t i = st.begin; i < st.end; ++i) {
-        for (int a = 0; a < 2; ++a) {
-          out.v[a][i] = st.moves[a] ? reference_at(r, st, a, r.t[i] - skew_, hint) - r.ref[a][i] : 0.0;
-        }
-        hint = i > st.begin ? i - 1 : st.begin;
+        double p[2];
+        shown(r, st, r.t[i] - skew_, j, p);
+        for (int a = 0; a < 2; ++a) out.v[a][i] = st.moves[a] ? p[a] - r.ref[a][i] : 0.0;
       }
     }
   }
@@ -279,6 +290,26 @@ class TimeSkew : public Candidate {
   void set(const EffectParams& p) override { skew_ = get(p, "skew_s"); }
 
  private:
+  // The reference of step `st` at time tq (both axes): linear between its samples, held at its
+  // ends. `j` is the segment found last; queries come in time order, so it only moves forward.
+  static void shown(const Recording& r, const Step& st, double tq, size_t& j, double* p) {
+    const auto& t = r.t;
+    if (st.end - st.begin < 2 || tq <= t[st.begin]) {
+      for (int a = 0; a < 2; ++a) p[a] = r.ref[a][st.begin];
+      return;
+    }
+    if (tq >= t[st.end - 1]) {
+      for (int a = 0; a < 2; ++a) p[a] = r.ref[a][st.end - 1];
+      return;
+    }
+    j = std::clamp(j, st.begin, st.end - 2);
+    while (j > st.begin && t[j] > tq) --j;
+    while (j + 2 < st.end && t[j + 1] <= tq) ++j;
+    const double dt = t[j + 1] - t[j];
+    const double w = dt > 0 ? (tq - t[j]) / dt : 0.0;
+    for (int a = 0; a < 2; ++a) p[a] = r.ref[a][j] + w * (r.ref[a][j + 1] - r.ref[a][j]);
+  }
+
   double skew_ = 0;
 };
 
@@ -446,10 +477,15 @@ AxisCoeffs refit_axis(const AxisCoeffs& model, const std::vector<double>& n, con
       }
     }
   }
+  // The refinement sees at most ~6000 rows (evenly strided): eight coefficients are pinned
+  // far below the noise by that many.
+  const size_t rs = std::max<size_t>(1, n.size() / 6000);
+  std::vector<double> nr, yr;
+  for (size_t i = 0; i < n.size(); i += rs) { nr.push_back(n[i]); yr.push_back(y[i]); }
   std::array<double, 8> from_model = to_u(model);
-  refine(best_u, n, y);
-  refine(from_model, n, y);
-  return from_u(cost_of(best_u, n, y) <= cost_of(from_model, n, y) ? best_u : from_model);
+  refine(best_u, nr, yr);
+  refine(from_model, nr, yr);
+  return from_u(cost_of(best_u, nr, yr) <= cost_of(from_model, nr, yr) ? best_u : from_model);
 }
 
 class Coefficients : public Candidate {

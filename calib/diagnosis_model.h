@@ -96,8 +96,4 @@ double minimise_1d(F&& f, double lo, double hi, int steps, double tol) {
   return f(x) <= best_f ? x : best_x;
 }
 
-// Reference of the row's own step at time tq (linear interpolation between its samples, held
-// constant beyond them); dwells give their reference at rest.
-double reference_at(const Recording& r, const Step& s, int axis, double tq, size_t hint);
-
 }  // namespace fpss::diag

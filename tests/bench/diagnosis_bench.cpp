@@ -1,0 +1,102 @@
+// The diagnosis at scale: the 200-case blind check with its targets, and diagnose (CSV parse
+// included) on bench recordings of 25k to 200k rows with a complexity fit.
+#include <benchmark/benchmark.h>
+
+#include <cstdio>
+#include <map>
+#include <string>
+
+#include "calib/diagnosis.h"
+#include "calib/samples.h"
+#include "stand/blindtest.h"
+
+namespace fpss {
+namespace {
+
+// ------------------------------------------------------------------ 200-case blind check
+
+void BM_BlindTest200(benchmark::State& state) {
+  BlindTestReport rep;
+  for (auto _ : state) {
+    BlindTestOptions o;
+    o.cases = 200;
+    o.seed = static_cast<uint64_t>(state.range(0));
+    rep = run_blindtest(o);
+  }
+  const auto j = rep.to_json();
+  const auto& s = j["summary"];
+  state.counters["accuracy"] = s["accuracy"].get<double>();
+  state.counters["lowest_class"] = s["lowest_class_accuracy"].get<double>();
+  state.counters["false_alarms"] = s["false_alarm_rate_on_none"].get<double>();
+  state.counters["params_10pct"] = s["params_within_10_percent"].get<double>() / s["correct_effect_cases"].get<double>();
+  state.counters["param_err_max"] = s["param_relative_error"]["max"].get<double>();
+  state.counters["shrink_max"] = s["shrink_gap_after_over_noise"]["max"].get<double>();
+  std::printf("\n%s\n", rep.to_text().c_str());
+  const bool met = s["accuracy"].get<double>() >= 0.95 && s["lowest_class_accuracy"].get<double>() >= 0.95 &&
+                   s["false_alarm_rate_on_none"].get<double>() <= 0.05 &&
+                   s["params_within_10_percent"].get<size_t>() == s["correct_effect_cases"].get<size_t>() &&
+                   s["gap_after_within_1_5_noise"].get<size_t>() == s["cases"].get<size_t>();
+  std::printf("targets %s\n", met ? "met" : "NOT MET");
+  if (!met) state.SkipWithError("blind-check targets not met");
+}
+BENCHMARK(BM_BlindTest200)->Arg(7)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+
+// ------------------------------------------------------------------ diagnose on large recordings
+
+// Bench recordings of at least `rows` rows: the blind test's session (grid + slews at two rates
+// on both axes) repeated on one bench, steps renumbered, then cut to `rows`; a time skew and a
+// bias, so the second-effect search runs too. Written as CSV text: parse + diagnose are timed.
+const std::string& recording_csv(size_t rows) {
+  static std::map<size_t, std::string> cache;
+  if (auto it = cache.find(rows); it != cache.end()) return it->second;
+  BenchConfig cfg = blindtest_bench(99);
+  cfg.effects = {parse_effect("time_skew:skew_s=0.05"), parse_effect("bias:pitch_arcsec=1.5,yaw_arcsec=-1")};
+  Bench bench(cfg);
+  SampleTable all;
+  all.add_extra_column("temperature_c");
+  int64_t step0 = 0;
+  while (all.size() < rows) {
+    const SampleTable part = record_session(bench, blindtest_plan());
+    const auto& temp = part.extra_column("temperature_c");
+    int64_t last = 0;
+    for (size_t i = 0; i < part.size() && all.size() < rows; ++i) {
+      Sample s = part.row(i);
+      s.step += step0;
+      last = s.step;
+      all.push_back(s, {temp[i]});
+    }
+    step0 = last;
+  }
+  const std::string path = "/tmp/fpss-bench-diagnosis-" + std::to_string(rows) + ".csv";
+  write_samples_csv(path, all);
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  std::string text;
+  char buf[1 << 16];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) text.append(buf, n);
+  std::fclose(f);
+  std::remove(path.c_str());
+  return cache[rows] = text;
+}
+
+void BM_DiagnoseRows(benchmark::State& state) {
+  const size_t rows = static_cast<size_t>(state.range(0));
+  const std::string& csv = recording_csv(rows);
+  const CoefficientSet model = blindtest_bench(99).truth;
+  Diagnosis d;
+  for (auto _ : state) {
+    const SampleTable t = parse_samples_csv(csv, "bench.csv");
+    d = diagnose(t, model, blindtest_diagnosis_options());
+    benchmark::DoNotOptimize(d.gap_after_arcsec);
+  }
+  state.SetComplexityN(static_cast<int64_t>(rows));
+  state.counters["rows"] = static_cast<double>(rows);
+  state.counters["causes"] = static_cast<double>(d.causes.size());
+  state.SetLabel(d.cause + (d.causes.size() > 1 ? "+" + d.causes[1].name : ""));
+}
+BENCHMARK(BM_DiagnoseRows)
+    ->Arg(25000)->Arg(50000)->Arg(100000)->Arg(200000)
+    ->Iterations(2)->Unit(benchmark::kMillisecond)->UseRealTime()->Complexity(benchmark::oN);
+
+}  // namespace
+}  // namespace fpss
