@@ -64,7 +64,7 @@ class RunRecorder {
   RunRecorder(const RunRecorder&) = delete;
   RunRecorder& operator=(const RunRecorder&) = delete;
 
-  // Appends the rows of one point, syncs samples.csv, then journals the point (and syncs that).
+  // Appends the rows of one point, syncs samples.csv, then journals the point.
   void append_point(int64_t point, const std::vector<RecordedRow>& rows, int attempts, int session);
 
   const std::vector<JournalEntry>& journal() const { return journal_; }
@@ -78,7 +78,8 @@ class RunRecorder {
   std::filesystem::path samples_path() const { return dir_ / "samples.csv"; }
   std::filesystem::path journal_path() const { return dir_ / "points.jsonl"; }
 
-  // Reads the journal, ignoring a torn last line; InputError for anything else malformed.
+  // Reads the journal, ignoring a torn or unreadable last line; InputError for anything else
+  // malformed (a gap, a repeat, a bad line followed by good ones).
   static std::vector<JournalEntry> read_journal(const std::filesystem::path& path);
 
  private:

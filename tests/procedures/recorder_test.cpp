@@ -94,6 +94,27 @@ TEST(Recorder, ResumeCutsATornPointAndATornJournalLine) {
   EXPECT_EQ(journal.back().attempts, 2);
 }
 
+TEST(Recorder, AnUnreadableLastJournalLineIsAPointNotYetDone) {
+  TempDir tmp("recorder-nul");
+  const fs::path dir = tmp / "run";
+  uint64_t synced = 0;
+  {
+    RunRecorder rec(dir);
+    for (int64_t p = 0; p < 2; ++p) rec.append_point(p, point_rows(p, 2, p), 1, 1);
+    synced = fs::file_size(dir / "samples.csv");
+    rec.append_point(2, point_rows(2, 2, 2), 1, 1);
+  }
+  // A power cut can leave the unsynced journal's last line as zeros.
+  const std::string j = test::read_file(dir / "points.jsonl");
+  const size_t last = j.rfind('\n', j.size() - 2) + 1;
+  test::write_file(dir / "points.jsonl", j.substr(0, last) + std::string(j.size() - last - 1, '\0') + "\n");
+  RunRecorder rec(dir);
+  EXPECT_EQ(rec.next_point(), 2);
+  EXPECT_EQ(fs::file_size(dir / "samples.csv"), synced);
+  rec.append_point(2, point_rows(2, 2, 2), 1, 2);
+  EXPECT_EQ(RunRecorder::read_journal(dir / "points.jsonl").size(), 3u);
+}
+
 TEST(Recorder, ResumeOfAFolderWithHeaderOnly) {
   TempDir tmp("recorder-empty");
   const fs::path dir = tmp / "run";

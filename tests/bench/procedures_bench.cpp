@@ -1,0 +1,167 @@
+// The procedure engine's speed: the discrete grid end to end against the emulator (the binary,
+// over Modbus TCP and a pty, default speed-up 20), and the controller's own work per point with
+// devices that answer at once, so nothing but the controller is measured.
+#include <benchmark/benchmark.h>
+#include <spdlog/sinks/null_sink.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+
+#include "procedures/engine.h"
+#include "procedures/plan.h"
+#include "procedures/procedure.h"
+#include "procedures/recorder.h"
+#include "tests/procedures/run_util.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double now_s() { return std::chrono::duration<double>(Clock::now().time_since_epoch()).count(); }
+
+// `fpss-stand run procedures/discrete_grid.yaml --emulate` as a user runs it.
+void BM_DiscreteGridEmulated(benchmark::State& state) {
+  fpss::test::TempDir tmp("bench-grid");
+  nlohmann::json engine;
+  int64_t points = 0;
+  int n = 0;
+  for (auto _ : state) {
+    const fs::path runs = tmp / ("runs" + std::to_string(n++));
+    const auto t0 = Clock::now();
+    const auto r = fpss::test::run_cli({"run", (fpss::test::source_dir() / "procedures" / "discrete_grid.yaml").string(),
+                                        "--emulate", "--runs-dir", runs.string(), "--quiet"},
+                                       tmp.path, "grid", 300);
+    state.SetIterationTime(std::chrono::duration<double>(Clock::now() - t0).count());
+    if (r.code != 0) {
+      state.SkipWithError(("run failed: " + r.err).c_str());
+      return;
+    }
+    const auto doc = fpss::read_json_file(fpss::test::run_dirs(runs).front() / "run.json");
+    engine = doc["sessions"][0]["engine"];
+    points = doc["points"]["completed"].get<int64_t>();
+  }
+  const double p = static_cast<double>(points);
+  state.counters["points"] = p;
+  state.counters["own_ms_per_point"] = engine["own_s"].get<double>() / p * 1e3;
+  state.counters["storage_ms_per_point"] = engine["storage_s"].get<double>() / p * 1e3;
+  state.counters["device_ms_per_point"] = engine["device_s"].get<double>() / p * 1e3;
+  state.counters["sleep_ms_per_point"] = engine["sleep_s"].get<double>() / p * 1e3;
+  state.counters["calibrate_s"] = engine["calibrate_s"].get<double>();
+}
+BENCHMARK(BM_DiscreteGridEmulated)->Iterations(2)->UseManualTime()->Unit(benchmark::kSecond);
+
+// Devices that are always where they were told to be and always have a frame ready.
+class InstantGimbal : public fpss::Gimbal {
+ public:
+  void connect() override {}
+  void disconnect() override {}
+  bool connected() const override { return true; }
+  fpss::GimbalState read_state() override {
+    fpss::GimbalState s;
+    s.pitch_arcsec = p_;
+    s.yaw_arcsec = y_;
+    s.status = fpss::kHomed | fpss::kInPosition;
+    s.sample_time_us = (t_us_ += 1000);
+    s.host_time_s = now_s();
+    return s;
+  }
+  void set_max_rate(double) override {}
+  void move_to(double p, double y) override { p_ = p, y_ = y; }
+  fpss::GimbalState wait_in_position(double) override { return read_state(); }
+  void start_rate(double, double) override {}
+  void stop() override {}
+  void home() override { p_ = y_ = 0; }
+  void clear_fault() override {}
+  void set_watchdog(double) override {}
+
+ private:
+  double p_ = 0, y_ = 0;
+  uint64_t t_us_ = 0;
+};
+
+class InstantSensor : public fpss::Sensor {
+ public:
+  void connect() override {}
+  void disconnect() override {}
+  bool connected() const override { return true; }
+  std::string identify() override { return "FPSS,SN=BENCH,FW=0"; }
+  void set_rate(int) override {}
+  void start() override {}
+  void stop() override {}
+  double temperature_c() override { return 20.0; }
+  std::optional<fpss::SensorSample> next_sample(double) override {
+    fpss::SensorSample s;
+    s.seq = static_cast<uint16_t>(n_);
+    s.sensor_time_us = static_cast<uint32_t>(n_ * 20000);
+    s.sensor_time_s = static_cast<double>(n_) * 0.02;
+    s.counts_alpha = static_cast<int16_t>(n_ % 1000);
+    s.counts_beta = static_cast<int16_t>(-(n_ % 1000));
+    s.status = fpss::kSunPresent | fpss::kAlphaValid | fpss::kBetaValid;
+    s.host_time_s = now_s();
+    ++n_;
+    return s;
+  }
+  void flush() override {}
+  fpss::SensorStats stats() const override { return {}; }
+
+ private:
+  uint64_t n_ = 0;
+};
+
+// The engine over the discrete grid's 113 points with instant devices and a real recorder
+// (samples.csv and the journal synced at every point): what the controller costs per point.
+void BM_EngineControllerPerPoint(benchmark::State& state) {
+  fpss::test::TempDir tmp("bench-engine");
+  const fpss::Procedure proc =
+      fpss::load_procedure(fpss::test::source_dir() / "procedures" / "discrete_grid.yaml");
+  fpss::BenchSettings b;
+  b.time_scale = 1e12;  // settle times become nothing: only the controller is left
+  b.clock = fpss::ClockSync::shared;
+  fpss::Diagnostics d("bench");
+  const fpss::Plan plan = fpss::expand(proc, b, d);
+  auto log = std::make_shared<spdlog::logger>("bench", std::make_shared<spdlog::sinks::null_sink_mt>());
+  InstantGimbal g;
+  InstantSensor s;
+  fpss::EngineStats total;
+  int n = 0;
+  for (auto _ : state) {
+    fpss::RunRecorder rec(tmp / ("run" + std::to_string(n++)));
+    fpss::RunControl ctl;
+    fpss::EngineHooks hooks;  // no calibrate: the fit is timed by the calibrator's own benchmark
+    fpss::Engine engine(g, s, b, plan, rec, *log, ctl, hooks);
+    const auto r = engine.run();
+    if (r.outcome != fpss::RunOutcome::completed) {
+      state.SkipWithError(r.reason.c_str());
+      return;
+    }
+    const auto& st = engine.stats();
+    total.wall_s += st.wall_s;
+    total.device_s += st.device_s;
+    total.sleep_s += st.sleep_s;
+    total.storage_s += st.storage_s;
+    total.points += st.points;
+  }
+  const double p = static_cast<double>(total.points);
+  state.counters["own_ms_per_point"] = total.own_s() / p * 1e3;
+  state.counters["storage_ms_per_point"] = total.storage_s / p * 1e3;
+  state.counters["wall_ms_per_point"] = total.wall_s / p * 1e3;
+}
+BENCHMARK(BM_EngineControllerPerPoint)->Iterations(5)->Unit(benchmark::kMillisecond);
+
+void BM_ParseAndExpandDiscreteGrid(benchmark::State& state) {
+  const std::string text =
+      fpss::test::read_file(fpss::test::source_dir() / "procedures" / "discrete_grid.yaml");
+  fpss::BenchSettings b;
+  for (auto _ : state) {
+    fpss::Diagnostics d("discrete_grid.yaml");
+    const fpss::Procedure p = fpss::parse_procedure(text, "discrete_grid.yaml", d);
+    const fpss::Plan plan = fpss::expand(p, b, d);
+    benchmark::DoNotOptimize(plan.points);
+  }
+}
+BENCHMARK(BM_ParseAndExpandDiscreteGrid)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
