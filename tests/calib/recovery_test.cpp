@@ -21,8 +21,13 @@ SampleTable recording_of(const CoefficientSet& truth, uint64_t seed) {
   cfg.seed = seed;
   cfg.count_noise = 0.3;             // counts, Gaussian, then rounded to integers
   cfg.encoder_noise_arcsec = 0.05;   // reference noise
-  GridPlan plan;                     // +-0.42 deg along pitch and yaw, 5 samples per dwell
+  // +-0.42 deg along pitch and yaw in 0.06 deg steps. 10 samples per dwell: with 5, the fit's
+  // own 1-sigma at the range ends (~0.05 arcsec) puts about 4 % of axis fits over 0.1 arcsec
+  // across seeds (noise, not the fitter: the fit's cost is always below the truth's); with 10,
+  // none of 220 seeded fits did (worst 0.091 arcsec).
+  GridPlan plan;
   plan.extent_deg = 0.42;
+  plan.samples_per_dwell = 10;
   plan.pitch = plan.yaw = true;
   return simulate_null_offset(cfg, plan);
 }
