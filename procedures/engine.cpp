@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <ctime>
 #include <limits>
 #include <thread>
 
@@ -158,9 +159,23 @@ double Engine::stand_time(double sensor_time_s) {
   return t;
 }
 
+namespace {
+// Seconds since an ISO 8601 UTC time (2024-05-01T12:00:00Z); 0 when it cannot be read.
+double seconds_since_utc(const std::string& iso) {
+  std::tm tm{};
+  if (iso.empty() || !strptime(iso.c_str(), "%Y-%m-%dT%H:%M:%SZ", &tm)) return 0;
+  const std::time_t then = timegm(&tm);
+  return std::max(0.0, std::difftime(std::time(nullptr), then));
+}
+}  // namespace
+
 void Engine::prepare() {
   host_t0_ = host_now_s();
   time_base_ = last_time_ = rec_.last_time_s();
+  if (!rec_.journal().empty()) {
+    // A resume: the stand's time went on while the run was down (at the bench's pace).
+    time_base_ += seconds_since_utc(rec_.journal().back().utc) * b_.time_scale;
+  }
   GimbalState st = read_gimbal();
   Timed t(stats_.device_s);
   if (st.has(kFault) || st.fault != GimbalFault::none) {
