@@ -221,12 +221,10 @@ void add_import(CLI::App& app, Runner& run) {
       }
 
       Catalogue cat(catalogue_path(o->db, o->runs_dir));
-      // Importing the same file for the same date again is a no-op, so a script may repeat it.
-      std::optional<int64_t> existing;
-      for (const auto& h : cat.unit_history(o->unit)) {
-        if (h.source == "import" && h.date_utc == date && h.coefficients == j) existing = h.id;
-      }
-      const int64_t id = existing ? *existing : cat.record_calibration(rec);
+      // Importing the same file for the same date again is a no-op, so a script may repeat it;
+      // check and insert are one transaction, so two imports at once record it once.
+      const auto [id, inserted] = cat.record_import_once(rec);
+      const std::optional<int64_t> existing = inserted ? std::nullopt : std::optional<int64_t>(id);
 
       // The change against the calibration just before it in the unit's history.
       const auto history = cat.unit_history(o->unit);

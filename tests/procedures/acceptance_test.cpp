@@ -2,12 +2,18 @@
 // simulated bench (good unit and each kind of defect), the certificate; and `fpss-stand accept`
 // end to end over the real wire against the emulator child.
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
+
+#include <chrono>
+#include <thread>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fcntl.h>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -25,6 +31,8 @@
 #include "procedures/acceptance.h"
 #include "procedures/catalogue.h"
 #include "procedures/emulator_process.h"
+
+extern char** environ;
 
 namespace fpss {
 namespace {
@@ -576,6 +584,85 @@ TEST_F(AcceptCli, RealBenchPathWithAStandFileAndTheUnitsSerial) {
   EXPECT_EQ(cert["stand"]["identity"], "bench-under-test-7");
   EXPECT_EQ(cert["verdict"], "pass");
   emu.stop();
+}
+
+// Starts `fpss-stand args...` with stdout and stderr to files; returns its pid.
+pid_t spawn_stand(const std::vector<std::string>& args, const fs::path& out, const fs::path& err) {
+  std::vector<std::string> all{stand_binary().string()};
+  all.insert(all.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : all) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  pid_t pid = -1;
+  const int rc = ::posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  if (rc != 0) throw std::runtime_error("posix_spawn failed");
+  return pid;
+}
+
+int wait_code(pid_t pid) {
+  int status = 0;
+  if (::waitpid(pid, &status, 0) != pid) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
+  auto args = [&](const std::string& unit, const std::string& seed) {
+    return std::vector<std::string>{"accept", "--emulate", "--quiet", "--speed", "40", "--json", "--runs-dir",
+                                    runs().string(), "--unit", unit, "--seed", seed};
+  };
+  const fs::path dir = scratch_.path();
+  const pid_t a = spawn_stand(args("UNIT-A", "7"), dir / "a.out", dir / "a.err");
+  const pid_t b = spawn_stand(args("UNIT-B", "8"), dir / "b.out", dir / "b.err");
+  const pid_t c = spawn_stand(args("UNIT-C", "9"), dir / "c.out", dir / "c.err");
+  // Kill C once its run is in the catalogue and has recorded points (the catalogue is shared).
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  bool c_running = false;
+  while (!c_running && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (!fs::exists(Catalogue::default_path(runs()))) continue;
+    try {
+      Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+      for (const auto& r : cat.list_runs({.unit = "UNIT-C", .limit = 0})) {
+        c_running = fs::exists(fs::path(r.run_dir) / "points.jsonl") && fs::file_size(fs::path(r.run_dir) / "points.jsonl") > 0;
+      }
+    } catch (const std::exception&) {
+      // the catalogue is being created by another process: look again
+    }
+  }
+  ASSERT_TRUE(c_running) << read_text(dir / "c.err");
+  ASSERT_EQ(::kill(c, SIGKILL), 0);
+  EXPECT_EQ(wait_code(c), 128 + SIGKILL);
+  EXPECT_EQ(wait_code(a), 0) << read_text(dir / "a.err");
+  EXPECT_EQ(wait_code(b), 0) << read_text(dir / "b.err");
+
+  Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  EXPECT_EQ(cat.integrity_check(), "ok");
+  for (const char* unit : {"UNIT-A", "UNIT-B"}) {
+    const auto acc = cat.unit_acceptances(unit);
+    ASSERT_EQ(acc.size(), 1u) << unit;
+    EXPECT_TRUE(acc[0].passed);
+    EXPECT_EQ(cat.unit_history(unit).size(), 1u);
+    const auto runs_of = cat.list_runs({.unit = unit, .limit = 0});
+    ASSERT_EQ(runs_of.size(), 1u);
+    EXPECT_EQ(runs_of[0].outcome, "completed");
+  }
+  // The killed one: its run stays "running" and is seen as stale; no verdict was recorded.
+  const auto killed = cat.list_runs({.unit = "UNIT-C", .limit = 0});
+  ASSERT_EQ(killed.size(), 1u);
+  EXPECT_EQ(killed[0].outcome, "running");
+  EXPECT_TRUE(killed[0].stale());
+  EXPECT_TRUE(cat.unit_acceptances("UNIT-C").empty());
+  // And the catalogue takes the next acceptance as usual.
+  const Cli again = accept("--unit UNIT-C --seed 10");
+  EXPECT_EQ(again.code, 0) << again.err;
+  Catalogue after(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  EXPECT_EQ(after.unit_acceptances("UNIT-C").size(), 1u);
+  EXPECT_EQ(after.integrity_check(), "ok");
 }
 
 TEST_F(AcceptCli, BadInputExitsTwoBeforeAnythingMoves) {
