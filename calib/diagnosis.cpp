@@ -50,17 +50,18 @@ double mean_square(const Recording& r, const Contribution* c, const std::vector<
 // consecutive rows of a dwell (var = 6 sigma^2 for white noise; smooth effects such as settling,
 // drift or temperature nearly cancel), clipped at 4 sigma to drop the odd step change.
 double noise_floor(const Recording& r, double* per_axis) {
-  auto estimate = [&](StepKind kind, int a, size_t* used) {
+  // order 2: second differences (var 6 sigma^2), order 1: first differences (var 2 sigma^2).
+  auto estimate = [&](StepKind kind, int a, int order, size_t* used) {
     std::vector<double> d2;
     for (const auto& s : r.steps) {
       if (s.kind != kind) continue;
-      for (size_t i = s.begin + 1; i + 1 < s.end; ++i) {
-        const double d = r.res[a][i + 1] - 2 * r.res[a][i] + r.res[a][i - 1];
+      for (size_t i = s.begin + 1; i + (order == 2 ? 1 : 0) < s.end; ++i) {
+        const double d = order == 2 ? r.res[a][i + 1] - 2 * r.res[a][i] + r.res[a][i - 1] : r.res[a][i] - r.res[a][i - 1];
         d2.push_back(d * d);
       }
     }
     *used = d2.size();
-    if (d2.empty()) return kNaN;
+    if (d2.size() < 10) return kNaN;
     double ms = std::accumulate(d2.begin(), d2.end(), 0.0) / static_cast<double>(d2.size());
     for (int it = 0; it < 3; ++it) {
       const double lim = 16.0 * ms;
@@ -70,17 +71,14 @@ double noise_floor(const Recording& r, double* per_axis) {
       if (m == 0) break;
       ms = s / static_cast<double>(m);
     }
-    return std::sqrt(ms / 6.0);
+    return std::sqrt(ms / (order == 2 ? 6.0 : 2.0));
   };
   double sig[2];
   for (int a = 0; a < 2; ++a) {
     size_t used = 0;
-    sig[a] = estimate(StepKind::dwell, a, &used);
-    if (used < 10) {
-      size_t m = 0;
-      const double s2 = estimate(StepKind::motion, a, &m);
-      if (m > used) sig[a] = s2;
-    }
+    sig[a] = estimate(StepKind::dwell, a, 2, &used);
+    if (!std::isfinite(sig[a])) sig[a] = estimate(StepKind::motion, a, 2, &used);
+    if (!std::isfinite(sig[a])) sig[a] = estimate(StepKind::dwell, a, 1, &used);
     if (per_axis) per_axis[a] = sig[a];
   }
   return std::sqrt(0.5 * (sig[0] * sig[0] + sig[1] * sig[1]));
@@ -304,12 +302,14 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
                      [&](size_t i, int a) { return r.ref[a][i]; }, one, 12, false, ""});
   factors.push_back({"cross_angle", 4, [&](size_t i, int a, double* p) { cubic(ang[1 - a](r.ref[1 - a][i]), p); },
                      [&](size_t i, int a) { return r.ref[1 - a][i]; }, one, 12, false, ""});
-  factors.push_back({"slew_rate", 5,
+  // Linear in the rate: slews come at few rates (a held-out segment may run at a rate and
+  // direction the fit rows lack), and a straight line is what a few rates support.
+  factors.push_back({"slew_rate", 3,
                      [&](size_t i, int a, double* p) {
                        const bool m = moving(i, a);
                        p[0] = m ? 0.0 : 1.0;
-                       cubic(m ? rate[a](r.vel[a][i]) : 0.0, p + 1);
-                       if (!m) p[1] = 0;
+                       p[1] = m ? 1.0 : 0.0;
+                       p[2] = m ? rate[a](r.vel[a][i]) : 0.0;
                      },
                      [&](size_t i, int a) { return moving(i, a) ? r.vel[a][i] : kNaN; }, one, 8, false, "at rest"});
   factors.push_back({"approach_direction", 3,
@@ -510,6 +510,8 @@ ojson Diagnosis::to_json() const {
   j["selection"] = {
       {"score", "N ln(MSE / MSE_none) + k ln N on the held-out rows: N = 2 x held-out rows (both axes), MSE the "
                 "held-out mean square of residual - effect, k the effect's free parameters; lower is better, none = 0"},
+      {"cause", "the best score that also takes at least 0.1 x noise floor^2 off the held-out mean square; none "
+                "when no candidate does"},
       {"second_effect", "fitted jointly with the first (alternating least squares) when the first leaves more than "
                         "1.2x the noise floor; kept when its joint score beats the first alone"}};
   ojson no = ojson::array();
@@ -561,10 +563,27 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
   std::stable_sort(all.begin(), all.end(), [](const Scored& a, const Scored& b) { return a.result.score < b.result.score; });
   for (const auto& s : all) d.effects.push_back(s.result);
 
-  const Scored& best = all.front();
+  // No noise floor from the data (dwells of one or two samples, no slews): the best held-out
+  // RMS bounds it from above.
+  if (!std::isfinite(d.noise_floor_arcsec)) {
+    d.noise_floor_arcsec = all.front().result.heldout_rms_arcsec;
+    d.warnings.push_back("dwells too short for within-dwell scatter: the noise floor is the best candidate's held-out "
+                         "RMS (an upper bound)");
+  }
+  // The cause: the best-scoring candidate that is also material, i.e. takes at least a tenth of
+  // the noise variance off the held-out mean square (with very many rows, a statistically
+  // significant but negligible effect would otherwise count); none if no candidate is.
+  const double material = 0.1 * d.noise_floor_arcsec * d.noise_floor_arcsec;
+  size_t pick = 0;
+  for (size_t k = 0; k < all.size(); ++k) {
+    const auto& e = all[k].result;
+    if (e.name == "none") { pick = k; break; }
+    if (ms0 - e.heldout_rms_arcsec * e.heldout_rms_arcsec >= material) { pick = k; break; }
+  }
+  const Scored& best = all[pick];
   // Close competitors: within kAmbiguous score units (a likelihood ratio of e^5) of the cause.
   constexpr double kAmbiguous = 10.0;
-  for (size_t k = 1; k < all.size(); ++k) {
+  for (size_t k = pick + 1; k < all.size(); ++k) {
     const double diff = all[k].result.score - best.result.score;
     if (diff >= kAmbiguous) break;
     d.ambiguous_with.push_back({all[k].result.name, diff, why_alike(best.result.name, all[k].result.name)});

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <numeric>
@@ -162,7 +164,8 @@ std::vector<Effect> draw_effects(const std::string& cls, uint64_t seed, const Be
   throw std::invalid_argument("blindtest: unknown class " + cls);
 }
 
-BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Effect>& effects, uint64_t seed) {
+BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Effect>& effects, uint64_t seed,
+                         const std::string& save_dir) {
   BenchConfig cfg = blindtest_bench(seed);
   const CoefficientSet model = cfg.truth;  // the sim model: the coefficient file the bench used as truth
   cfg.effects = effects;
@@ -194,6 +197,22 @@ BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Ef
     }
   }
   if (!dg.causes.empty()) c.fitted_params = dg.causes.front().params;
+  if (!save_dir.empty()) {
+    namespace fs = std::filesystem;
+    fs::create_directories(save_dir);
+    const fs::path dir = save_dir;
+    write_samples_csv(dir / fmt::format("case-{}.csv", index), rec);
+    save_coefficients(dir / "model.json", model);
+    std::ofstream(dir / fmt::format("case-{}-gap.json", index)) << dg.to_json().dump(1) << "\n";
+    ojson truth{{"class", cls}, {"effects", ojson::array()}, {"settle_s", blindtest_diagnosis_options().settle_s}};
+    for (const auto& e : effects) {
+      ojson p = ojson::object();
+      for (const auto& [k, v] : e.params) p[k] = v;
+      if (e.coefficients) p = {{"alpha", e.coefficients->alpha}, {"beta", e.coefficients->beta}};
+      truth["effects"].push_back({{"name", e.name}, {"params", p}});
+    }
+    std::ofstream(dir / fmt::format("case-{}-truth.json", index)) << truth.dump(1) << "\n";
+  }
   if (c.correct && !effects.empty()) {
     const Effect& t = effects.front();
     const ojson& f = dg.causes.front().params;
@@ -233,7 +252,7 @@ BlindTestReport run_blindtest(const BlindTestOptions& opts, const std::function<
     const uint64_t seed = mix(opts.seed, static_cast<uint64_t>(i) + 1);
     const BenchConfig cfg = blindtest_bench(seed);
     const auto effects = draw_effects(cls, mix(seed, 0xEFFEC7), cfg);
-    rep.cases.push_back(run_blind_case(i, cls, effects, seed));
+    rep.cases.push_back(run_blind_case(i, cls, effects, seed, opts.save_dir));
     if (progress) progress(rep.cases.back());
   }
   return rep;

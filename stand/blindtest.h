@@ -48,6 +48,10 @@ struct BlindCase {
 struct BlindTestOptions {
   int cases = 22;
   uint64_t seed = 1;
+  // When set: each case's recording (case-N.csv), the sim model (model.json), the truth
+  // (case-N-truth.json) and the diagnosis (case-N-gap.json) are written there, so a case can be
+  // re-run with `fpss-stand diagnose`.
+  std::string save_dir;
 };
 
 struct BlindTestReport {
@@ -64,6 +68,7 @@ struct BlindTestReport {
 BlindTestReport run_blindtest(const BlindTestOptions& opts, const std::function<void(const BlindCase&)>& progress = {});
 
 // One case, for tests: record with `effects`, diagnose, score against the truth.
-BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Effect>& effects, uint64_t seed);
+BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Effect>& effects, uint64_t seed,
+                         const std::string& save_dir = {});
 
 }  // namespace fpss

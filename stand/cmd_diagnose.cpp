@@ -86,6 +86,8 @@ void add_blindtest_command(CLI::App& app, Runner& run) {
   sub->add_option("--cases", o->b.cases, "number of cases (classes drawn in shuffled blocks of all eleven)")->default_val(22);
   sub->add_option("--seed", o->b.seed, "seed of the draws and of the bench noise")->default_val(1);
   sub->add_flag("--json", o->json, "print the results as JSON");
+  sub->add_option("--save", o->b.save_dir,
+                  "folder for every case's recording, model, truth and GAP.json (to re-run `diagnose` on them)");
   sub->add_flag("--quiet", o->quiet, "no progress lines on stderr");
   sub->callback([o, &run] {
     run = [o] {

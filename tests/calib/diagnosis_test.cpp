@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <set>
@@ -148,7 +149,12 @@ TEST(Diagnosis, PaperSlewCaseTimeSkewFoundLedBySlewRateWithin2ms) {
     SCOPED_TRACE(skew);
     const Diagnosis d = diagnose(record(bench(21, {fmt_skew(skew)})), default_bench_config().truth, options());
     ASSERT_EQ(d.cause, "time_skew");
-    EXPECT_NEAR(d.causes.front().params.at("skew_s").get<double>(), skew, 0.002);
+    const double fitted = d.causes.front().params.at("skew_s").get<double>();
+    std::printf("time skew %.3f s: fitted %.5f s (error %+.3f ms), where %s/%s %.1f %%, gap %.3f -> %.4f arcsec "
+                "(noise %.4f)\n",
+                skew, fitted, 1e3 * (fitted - skew), d.where.front().factor.c_str(), d.where.front().axis.c_str(),
+                100 * d.where.front().share, d.gap_before_arcsec, d.gap_after_arcsec, d.noise_floor_arcsec);
+    EXPECT_NEAR(fitted, skew, 0.002);
     ASSERT_FALSE(d.where.empty());
     EXPECT_EQ(d.where.front().factor, "slew_rate");
     EXPECT_GT(d.where.front().share, 0.5);
