@@ -504,9 +504,9 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
     J.criteria.push_back(sun);
   }
 
-  // 6. Consistency with the unit's previous calibration (only when it has one).
+  // 6. Consistency with the unit's last accepted or imported calibration (only when it has one).
   if (data.previous) {
-    Criterion con = make("consistency", "Change since the unit's previous calibration (max |B - A|, +-0.35 deg)", "",
+    Criterion con = make("consistency", "Change since the unit's last accepted or imported calibration (max |B - A|, +-0.35 deg)", "",
                          L.consistency_arcsec, "consistency_arcsec", "<=", "arcsec");
     if (!cal) {
       settle(con, std::nullopt, 0, no_cal);

@@ -37,7 +37,7 @@ struct AcceptanceLimits {
   Limit verified_extent_deg;          // the verification reaches at least +-this on each axis
   Limit verification_points_min;      // verification offset points inside the radius
   Limit sun_present_fraction;         // planned points measured with every frame valid (sun present)
-  Limit consistency_arcsec;           // max |B - A| against the unit's previous calibration, when there is one
+  Limit consistency_arcsec;           // max |B - A| against the unit's last accepted or imported calibration, if any
 };
 
 // Parses a limits file; every error (missing limit, missing source, wrong type, unknown key) at
@@ -67,7 +67,7 @@ struct AcceptanceData {
   std::map<int64_t, PointRole> roles;        // by step
   size_t points_planned = 0;
   std::optional<CoefficientSet> calibration; // the run's fit (calibration.json), absent if it never ran
-  std::optional<CoefficientSet> previous;    // the unit's previous calibration, for consistency
+  std::optional<CoefficientSet> previous;    // the unit's last accepted or imported calibration
   std::string previous_name;                 // how to name it in the certificate
   bool run_completed = true;
   std::string run_reason;                    // why the run stopped early

@@ -15,6 +15,7 @@
 #include <cerrno>
 #include <cstring>
 #include <regex>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -406,13 +407,20 @@ int accept_command(const AcceptArgs& a) {
   const fs::path cat_path = a.catalogue.empty() ? Catalogue::default_path(a.runs_dir) : fs::path(a.catalogue);
   const std::string run_id = run_dir.filename().string();
   {
-    // The unit's previous calibration: the latest one not made by this run.
+    // The unit's reference calibration: the latest one that passed an acceptance here, or was
+    // imported (a calibration done elsewhere); a failed acceptance's fit is no reference.
     Catalogue cat(cat_path);
+    std::set<std::string> accepted_runs;
+    for (const auto& acc : cat.unit_acceptances(unit)) {
+      if (acc.passed && acc.run_id) accepted_runs.insert(*acc.run_id);
+    }
     for (const auto& h : cat.unit_history(unit)) {
       if (h.run_id && *h.run_id == run_id) continue;
+      if (h.source != "import" && !(h.run_id && accepted_runs.count(*h.run_id))) continue;
       try {
         data.previous = parse_coefficients(h.coefficients, fmt::format("{} calibration {}", cat_path.string(), h.id));
-        data.previous_name = fmt::format("calibration {} of {} ({} {})", h.id, h.date_utc, h.source, h.source_ref);
+        data.previous_name = fmt::format("calibration {} of {} ({} {}{})", h.id, h.date_utc, h.source, h.source_ref,
+                                         h.source == "import" ? "" : ", accepted");
       } catch (const InputError&) {
         // a record that does not parse cannot be compared; keep the one before
       }
@@ -466,7 +474,7 @@ int accept_command(const AcceptArgs& a) {
   write_json_atomic(run_dir / "run.json", doc);
 
   int64_t acc_id = 0;
-  {
+  try {
     Catalogue cat(cat_path);
     AcceptanceRecord rec;
     rec.unit = unit;
@@ -475,6 +483,10 @@ int accept_command(const AcceptArgs& a) {
     rec.date_utc = info.date_utc;
     rec.certificate = nlohmann::json::parse(cert.dump());
     acc_id = cat.record_acceptance(rec);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fpss-stand accept: verdict %s written to %s, but the catalogue %s could not record it: %s\n",
+                 j.passed ? "pass" : "fail", (run_dir / "acceptance.json").c_str(), cat_path.c_str(), e.what());
+    return 1;
   }
 
   if (a.json) {

@@ -509,12 +509,26 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
       EXPECT_NEAR(c["measured"].get<double>(), 4.0, 0.5);
     }
   }
-  Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
-  const auto acc = cat.unit_acceptances("EMU-0001");
-  ASSERT_EQ(acc.size(), 2u);
-  EXPECT_FALSE(acc[1].passed);
-  EXPECT_EQ(cat.unit_history("EMU-0001").size(), 2u);
-  EXPECT_EQ(cat.integrity_check(), "ok");
+  {
+    Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+    const auto acc = cat.unit_acceptances("EMU-0001");
+    ASSERT_EQ(acc.size(), 2u);
+    EXPECT_FALSE(acc[1].passed);
+    EXPECT_EQ(cat.unit_history("EMU-0001").size(), 2u);
+    EXPECT_EQ(cat.integrity_check(), "ok");
+  }
+
+  // Back to the original null: judged against the accepted calibration, not the failed one.
+  const Cli back = accept("--seed 5");
+  ASSERT_EQ(back.code, 0) << back.err << back.out;
+  const auto c3 = nlohmann::json::parse(back.out);
+  for (const auto& c : c3["criteria"]) {
+    if (c["id"] == "consistency") {
+      EXPECT_LT(c["measured"].get<double>(), 0.5) << c.dump();
+      EXPECT_NE(c["detail"].get<std::string>().find(", accepted"), std::string::npos) << c.dump();
+    }
+  }
+  EXPECT_EQ(c3["criteria"].size(), 19u);
 }
 
 TEST_F(AcceptCli, NoisyUnitFailsOnJitter) {
