@@ -456,6 +456,10 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
       w.axis = axis_name[a];
       w.share = (a == 0 ? g0 : g1) / total;
       w.detail = describe(f, a);
+      // The other axis's (smaller) part of the same factor, when it counts, as its own entry.
+      if (lo >= 0.01 * total) {
+        out.push_back({f.name, axis_name[1 - a], lo / total, describe(f, 1 - a)});
+      }
     }
     w.share = std::min(w.share, 1.0);
     out.push_back(w);
@@ -469,6 +473,7 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
       }
     }
   }
+  std::stable_sort(out.begin(), out.end(), [](const WhereEntry& a, const WhereEntry& b) { return a.share > b.share; });
   return out;
 }
 
@@ -716,6 +721,12 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
         "no time_since_move_s column: dwells are taken to start {} s after their arrival (settle_s); settling "
         "amplitudes refer to that arrival",
         opts.settle_s));
+  }
+  if (d.cause != "none" && d.gap_after_all_arcsec > 1.5 * d.noise_floor_arcsec) {
+    d.warnings.push_back(fmt::format(
+        "the cause{} leave{} {:.2f}x the noise floor on the held-out rows: something else is at work too (see "
+        "where_after)",
+        d.causes.size() > 1 ? "s" : "", d.causes.size() > 1 ? "" : "s", d.gap_after_all_arcsec / d.noise_floor_arcsec));
   }
   for (const auto& m : d.ambiguous_with) {
     d.warnings.push_back(fmt::format("{} scores within {:.1f} of {}: {}", m.name, m.score_difference, d.cause, m.why));
