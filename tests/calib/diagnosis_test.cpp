@@ -183,8 +183,12 @@ TEST(Diagnosis, TwoEffectsAreReportedInOrder) {
   EXPECT_GT(d.gap_after_arcsec, 1.5 * d.noise_floor_arcsec);  // one cause alone does not close it
   EXPECT_LT(d.gap_after_all_arcsec, 1.5 * d.noise_floor_arcsec);
   for (const auto& c : d.causes) {
-    if (c.name == "bias") EXPECT_NEAR(c.params.at("pitch_arcsec").get<double>(), 2.0, 0.1);
-    if (c.name == "time_skew") EXPECT_NEAR(c.params.at("skew_s").get<double>(), 0.06, 0.002);
+    if (c.name == "bias") {
+      EXPECT_NEAR(c.params.at("pitch_arcsec").get<double>(), 2.0, 0.1);
+    }
+    if (c.name == "time_skew") {
+      EXPECT_NEAR(c.params.at("skew_s").get<double>(), 0.06, 0.002);
+    }
   }
 }
 
