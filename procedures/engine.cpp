@@ -285,7 +285,9 @@ void Engine::measure_dwell(const Action& a, int session) {
     check_still(before, "before");
     const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
     std::vector<SensorSample> frames;
+    std::vector<GimbalState> refs;
     frames.reserve(static_cast<size_t>(a.frames));
+    refs.reserve(static_cast<size_t>(a.frames));
     int invalid = 0;
     uint8_t last_bad_status = 0;
     while (static_cast<int>(frames.size()) < a.frames) {
@@ -311,14 +313,15 @@ void Engine::measure_dwell(const Action& a, int session) {
         continue;
       }
       frames.push_back(*f);
+      // Each frame gets its own encoder reading: the dwell's reference is then the mean of as many
+      // readings as frames, not of two (the encoders' noise dominates a dwell's error otherwise).
+      try {
+        refs.push_back(read_gimbal());
+      } catch (const DeviceError& e) {
+        throw GimbalFailure(e.what());
+      }
+      check_still(refs.back(), "while");
     }
-    GimbalState after;
-    try {
-      after = read_gimbal();
-    } catch (const DeviceError& e) {
-      throw GimbalFailure(e.what());
-    }
-    check_still(after, "after");
     double temp = std::numeric_limits<double>::quiet_NaN();
     try {
       Timed t(stats_.device_s);
@@ -326,14 +329,12 @@ void Engine::measure_dwell(const Action& a, int session) {
     } catch (const DeviceError& e) {
       log_.warn("point {}: no temperature ({})", a.point + 1, e.what());
     }
-    // The encoders count milliarcseconds: their mean to the microarcsecond is exact enough.
-    const double p = std::round(0.5e6 * (before.pitch_arcsec + after.pitch_arcsec)) / 1e6;
-    const double y = std::round(0.5e6 * (before.yaw_arcsec + after.yaw_arcsec)) / 1e6;
-    const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(p, y);
-    const double gtime = std::round(0.5 * static_cast<double>(before.sample_time_us + after.sample_time_us)) / 1e6;
     std::vector<RecordedRow> rows;
     rows.reserve(frames.size());
-    for (const auto& f : frames) {
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const auto& f = frames[i];
+      const GimbalState& g = refs[i];
+      const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(g.pitch_arcsec, g.yaw_arcsec);
       RecordedRow r;
       r.sensor_time_s = sensor_clock_s(f);
       r.sample = Sample{stand_time(r.sensor_time_s), a.phase, a.point + 1, ref_a, ref_b,
@@ -341,10 +342,10 @@ void Engine::measure_dwell(const Action& a, int session) {
       r.frame_seq = f.seq;
       r.sensor_status = f.status;
       r.host_time_s = session_host_s(f.host_time_s);
-      r.gimbal_time_s = gtime;
-      r.gimbal_pitch_arcsec = p;
-      r.gimbal_yaw_arcsec = y;
-      r.gimbal_status = before.status;
+      r.gimbal_time_s = static_cast<double>(g.sample_time_us) / 1e6;
+      r.gimbal_pitch_arcsec = g.pitch_arcsec;
+      r.gimbal_yaw_arcsec = g.yaw_arcsec;
+      r.gimbal_status = g.status;
       r.target_pitch_arcsec = a.pitch_arcsec;
       r.target_yaw_arcsec = a.yaw_arcsec;
       r.temperature_c = temp;
