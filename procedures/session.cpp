@@ -181,6 +181,13 @@ SessionResult run_session(const SessionRequest& req) {
   SessionResult res;
   const bool resuming = !req.resume_dir.empty();
 
+  // From here on SIGINT/SIGTERM ask for a clean stop rather than killing the process, so a run
+  // folder once made always says how its run ended.
+  RunControl own;
+  RunControl& control = req.control ? *req.control : own;
+  std::optional<SignalScope> signals;
+  if (!req.control) signals.emplace(control);
+
   Diagnostics d(req.procedure.origin);
   const Plan plan = expand(req.procedure, req.stand.bench, d);
   d.throw_if_any();
@@ -374,7 +381,8 @@ SessionResult run_session(const SessionRequest& req) {
       try {
         for (const auto& r : rows) live->add_sample(r.sample);
         // The estimate costs a few thousand small solves: refresh it twice a second at most.
-        if (std::chrono::steady_clock::now() - last_estimate > std::chrono::milliseconds(500)) {
+        const bool last = progress.done() + 1 >= plan.points;
+        if (last || std::chrono::steady_clock::now() - last_estimate > std::chrono::milliseconds(500)) {
           last_estimate = std::chrono::steady_clock::now();
           const auto est = live->current();
           if (est.valid) {
@@ -434,12 +442,8 @@ SessionResult run_session(const SessionRequest& req) {
     return broken;
   };
 
-  RunControl own;
-  RunControl& control = req.control ? *req.control : own;
   EngineResult er;
   {
-    std::optional<SignalScope> signals;
-    if (!req.control) signals.emplace(control);
     Engine engine(*gimbal, *sensor, stand.bench, plan, rec, *log, control, hooks);
     er = engine.run(session);
     res.stats = engine.stats();
