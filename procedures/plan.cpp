@@ -33,6 +33,9 @@ class Expander {
 
   Plan run() {
     for (const auto& st : proc_.steps) {
+      // A step with errors of its own is already reported; the others are still checked against
+      // the stand, so one pass shows every error.
+      if (!st.valid) continue;
       step_ = &st;
       std::visit([this](const auto& body) { add(body); }, st.body);
       flush_limit_errors();

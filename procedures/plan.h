@@ -49,6 +49,7 @@ struct Plan {
 
 // Expands the procedure for the stand; errors (a target outside the soft limits, a rate above
 // the limit, a sample period shorter than the sensor's) go to `d` with the step's file:line:col.
+// Steps that failed to parse are skipped, so a procedure with errors can still be checked.
 Plan expand(const Procedure& proc, const BenchSettings& bench, Diagnostics& d);
 
 // Physical seconds for a point-to-point move with a trapezoidal profile on both axes at once.

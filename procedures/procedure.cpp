@@ -307,6 +307,7 @@ Procedure parse_procedure(std::string_view text, const std::string& origin, Diag
                                                     : describe_node(item)));
       continue;
     }
+    const size_t errors_before = d.size();
     const std::string where = fmt::format("step {} ({})", index, type);
     const TextMark mark = TextMark::of(item.IsMap() ? item.begin()->first : item);
     MapReader r(fields, where, d);
@@ -326,6 +327,7 @@ Procedure parse_procedure(std::string_view text, const std::string& origin, Diag
       continue;
     }
     r.finish();
+    st.valid = d.size() == errors_before;
     p.steps.push_back(std::move(st));
   }
   return p;

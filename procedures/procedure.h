@@ -97,6 +97,7 @@ struct Step {
   size_t index = 0;  // 1-based position in `steps`
   TextMark mark;
   StepBody body;
+  bool valid = true;  // parsed without error (only valid steps are expanded)
 };
 
 struct Procedure {

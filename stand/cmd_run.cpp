@@ -97,7 +97,9 @@ int run_command(const RunArgs& a) {
     } else {
       req.stand = emulated_stand(a.speed);
     }
-    if (dp.empty() && ds.empty()) expand(req.procedure, req.stand.bench, dp);
+    // The plan is checked against the stand even when some steps are broken (those are skipped),
+    // but not against a broken stand file, whose limits would be guesses.
+    if (ds.empty()) expand(req.procedure, req.stand.bench, dp);
     Diagnostics all(a.procedure);
     all.merge(ds);
     all.merge(dp);

@@ -180,6 +180,10 @@ TEST(Run, BadProceduresAndStandFilesExit2AndMoveNothing) {
   EXPECT_NE(r.err.find(f + ":6:22: step 5 (sample): field frames: expected an integer, got \"many\""),
             std::string::npos)
       << r.err;
+  // ... and in the same pass the valid steps are checked against the stand's soft limits.
+  EXPECT_NE(r.err.find(f + ":5:5: step 4 (move): target out of soft limits: pitch +1.5000 deg"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("4 errors:"), std::string::npos) << r.err;
   // Out of limits: found by expanding against the stand once the file parses.
   test::write_file(tmp / "far.yaml", "steps:\n  - home\n  - move: {pitch_deg: 1.5}\n  - sample: {frames: 2}\n");
   r = test::run_cli({"run", (tmp / "far.yaml").string(), "--emulate", "--runs-dir", runs.string()}, tmp.path);
