@@ -2,7 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <tuple>
 #include <string>
 
 #include "calib/errors.h"
@@ -33,8 +35,16 @@ void Diagnostics::merge(const Diagnostics& other) {
 }
 
 std::string Diagnostics::text() const {
+  // In reading order: file by file (as first met), then line and column.
+  std::vector<std::string> files;
+  for (const auto& d : all_) if (std::find(files.begin(), files.end(), d.file) == files.end()) files.push_back(d.file);
+  auto rank = [&](const Diagnostic& d) { return std::find(files.begin(), files.end(), d.file) - files.begin(); };
+  std::vector<Diagnostic> sorted = all_;
+  std::stable_sort(sorted.begin(), sorted.end(), [&](const Diagnostic& a, const Diagnostic& b) {
+    return std::tuple(rank(a), a.mark.line, a.mark.column) < std::tuple(rank(b), b.mark.line, b.mark.column);
+  });
   std::string s;
-  for (const auto& d : all_) {
+  for (const auto& d : sorted) {
     if (!s.empty()) s += '\n';
     s += d.str();
   }
