@@ -163,8 +163,12 @@ void add_run(CLI::App& app, Runner& run) {
   a->speed_opt = sub->add_option("--speed", a->speed, "Emulator: bench clock speed-up (default 20)");
   a->emu_only.push_back(sub->add_option("--seed", a->seed, "Emulator: seed of all bench noise (default 1)"));
   a->emu_only.push_back(sub->add_option("--bench", a->bench, "Emulator: bench file (YAML)"));
-  a->emu_only.push_back(sub->add_option("--effect", a->effects, "Emulator: injected effect NAME:key=value,..."));
-  a->emu_only.push_back(sub->add_option("--fault", a->faults, "Emulator: fault NAME[:key=value,...] (docs/emulator.md)"));
+  // One value per occurrence (--effect A --effect B), so a procedure after them stays positional.
+  a->emu_only.push_back(sub->add_option("--effect", a->effects, "Emulator: injected effect NAME:key=value,... (repeatable)")
+                            ->allow_extra_args(false));
+  a->emu_only.push_back(
+      sub->add_option("--fault", a->faults, "Emulator: fault NAME[:key=value,...] (repeatable; docs/emulator.md)")
+          ->allow_extra_args(false));
   a->emu_only.push_back(sub->add_option("--truth", a->truth, "Emulator: coefficient file of the sensor's truth"));
   a->emu_only.push_back(sub->add_option("--unit-serial", a->unit_serial, "Emulator: serial number the sensor reports"));
   a->emu_only.push_back(a->speed_opt);
