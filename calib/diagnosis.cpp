@@ -490,6 +490,51 @@ ojson effect_json(const EffectResult& e) {
   return j;
 }
 
+// Two candidates fitted jointly by alternating least squares (each on the residual less the
+// other), from the first's single fit, until the fit rows' sum of squares settles.
+struct JointFit {
+  EffectResult e[2];
+  Contribution sum;
+  double score = 0;
+};
+
+JointFit joint_fit(const Recording& r, const Scored& first, const std::string& name2, double ms0, double N) {
+  auto c1 = diag::make_candidate(first.result.name);
+  auto c2 = diag::make_candidate(name2);
+  Contribution k1 = first.contrib, k2, t, sum;
+  k2.resize(r.n);
+  t.resize(r.n);
+  sum.resize(r.n);
+  double prev = std::numeric_limits<double>::infinity();
+  for (int it = 0; it < 8; ++it) {
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k1.v[a][i];
+    c2->fit(r, t, r.fit_rows);
+    c2->contribute(r, k2);
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k2.v[a][i];
+    c1->fit(r, t, r.fit_rows);
+    c1->contribute(r, k1);
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) sum.v[a][i] = k1.v[a][i] + k2.v[a][i];
+    const double sse = mean_square(r, &sum, r.fit_rows);
+    if (prev - sse <= 1e-6 * sse) break;
+    prev = sse;
+  }
+  JointFit j;
+  const double ms = mean_square(r, &sum, r.heldout_rows);
+  j.score = penalised(ms, ms0, c1->parameters() + c2->parameters(), N);
+  Candidate* c[2] = {c1.get(), c2.get()};
+  for (int q = 0; q < 2; ++q) {
+    j.e[q].name = c[q]->name();
+    j.e[q].params = c[q]->params();
+    j.e[q].parameters = c[q]->parameters();
+    j.e[q].notes = c[q]->notes();
+    j.e[q].fit_rms_arcsec = std::sqrt(mean_square(r, &sum, r.fit_rows));  // jointly
+    j.e[q].heldout_rms_arcsec = std::sqrt(ms);
+    j.e[q].score = j.score;
+  }
+  j.sum = std::move(sum);
+  return j;
+}
+
 }  // namespace
 
 bool Diagnosis::incomplete_recording() const {
@@ -517,8 +562,11 @@ ojson Diagnosis::to_json() const {
                 "held-out mean square of residual - effect, k the effect's free parameters; lower is better, none = 0"},
       {"cause", "the best score that also takes at least 0.1 x noise floor^2 off the held-out mean square; none "
                 "when no candidate does"},
-      {"second_effect", "fitted jointly with the first (alternating least squares) when the first leaves more than "
-                        "1.2x the noise floor; kept when its joint score beats the first alone"}};
+      {"second_effect", "when the cause leaves more than 1.2x the noise floor: around each of the three best single "
+                        "effects by held-out score and the two best by fit-row residual, the others are screened on "
+                        "what it leaves and the best three fitted jointly with it (alternating least squares); the best "
+                        "pair is kept when its score beats the best single; causes[0] is the member that alone "
+                        "explains more, causes[1] carries the joint figures"}};
   ojson no = ojson::array();
   for (const auto& n : not_observable) {
     no.push_back({{"name", n.name}, {"reason", n.reason}, {"incomplete_recording", n.incomplete_recording}});
@@ -586,94 +634,98 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
     if (ms0 - e.heldout_rms_arcsec * e.heldout_rms_arcsec >= material) { pick = k; break; }
   }
   const Scored& best = all[pick];
-  // Close competitors: within kAmbiguous score units (a likelihood ratio of e^5) of the cause.
-  constexpr double kAmbiguous = 10.0;
-  for (size_t k = pick + 1; k < all.size(); ++k) {
-    const double diff = all[k].result.score - best.result.score;
-    if (diff >= kAmbiguous) break;
-    d.ambiguous_with.push_back({all[k].result.name, diff, why_alike(best.result.name, all[k].result.name)});
-  }
   d.cause = best.result.name;
   d.gap_after_arcsec = best.result.heldout_rms_arcsec;
   d.gap_after_all_arcsec = d.gap_after_arcsec;
   Contribution combined;
   combined.resize(r.n);
   if (d.cause != "none") {
-    EffectResult first = best.result;
+    d.causes = {best.result};
     combined = best.contrib;
-    // A second effect, fitted jointly with the first, when the first leaves a gap above noise.
+    // A second effect when the first leaves a gap above noise. Pairs are sought around a few
+    // single effects (the best single may be a flexible stand-in for two simpler ones, e.g. a
+    // settling with an endless tau for backlash plus drift): the others are screened on what
+    // that one leaves, the three most promising are fitted jointly with it, and the best pair is
+    // kept when it beats the best single's score.
     if (opts.second_effect && d.gap_after_arcsec > opts.second_effect_gap_ratio * d.noise_floor_arcsec) {
-      double best_score = best.result.score;
-      std::optional<std::pair<EffectResult, EffectResult>> pick;
-      Contribution pick_contrib;
-      // Screen every other candidate on what the first leaves (one fit each), then fit the
-      // most promising few jointly with the first.
-      Contribution left, k2;
-      left.resize(r.n);
-      k2.resize(r.n);
-      for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) left.v[a][i] = r.res[a][i] - best.contrib.v[a][i];
-      std::vector<std::pair<double, std::string>> screened;
-      for (const auto& s : all) {
-        const std::string& name2 = s.result.name;
-        if (name2 == "none" || name2 == d.cause) continue;
-        auto c2 = diag::make_candidate(name2);
-        c2->fit(r, left, r.fit_rows);
-        c2->contribute(r, k2);
-        double ms = 0;
-        for (uint32_t i : r.heldout_rows) {
-          for (int a = 0; a < 2; ++a) {
-            const double e = left.v[a][i] - k2.v[a][i];
-            ms += e * e;
-          }
-        }
-        ms /= N;
-        screened.push_back({penalised(ms, ms0, best.result.parameters + c2->parameters(), N), name2});
+      // Firsts: the three best held-out scores and the two best in-sample fits (with two effects
+      // at once a single fit can be biased by the other effect so that it fails on the held-out
+      // rows while still taking the most off the fit rows).
+      std::vector<const Scored*> firsts;
+      auto add_first = [&](const Scored* f) {
+        if (f->result.name != "none" && std::find(firsts.begin(), firsts.end(), f) == firsts.end()) firsts.push_back(f);
+      };
+      for (size_t k = 0, m = 0; k < all.size() && m < 3; ++k) {
+        if (all[k].result.name == "none") continue;
+        add_first(&all[k]);
+        ++m;
       }
-      std::sort(screened.begin(), screened.end());
-      if (screened.size() > 3) screened.resize(3);
-      for (const auto& [proxy, name2] : screened) {
-        auto c1 = diag::make_candidate(d.cause);
-        auto c2 = diag::make_candidate(name2);
-        Contribution k1 = best.contrib, k2, t;
+      std::vector<const Scored*> by_fit;
+      for (const auto& s1 : all) if (s1.result.name != "none") by_fit.push_back(&s1);
+      std::sort(by_fit.begin(), by_fit.end(), [&](const Scored* a, const Scored* b) {
+        return penalised(a->result.fit_rms_arcsec * a->result.fit_rms_arcsec, 1.0, a->result.parameters, N) <
+               penalised(b->result.fit_rms_arcsec * b->result.fit_rms_arcsec, 1.0, b->result.parameters, N);
+      });
+      for (size_t k = 0; k < by_fit.size() && k < 2; ++k) add_first(by_fit[k]);
+      std::optional<JointFit> pair;
+      for (const Scored* fp : firsts) {
+        const Scored& f = *fp;
+        Contribution left, k2;
+        left.resize(r.n);
         k2.resize(r.n);
-        t.resize(r.n);
-        for (int it = 0; it < 4; ++it) {
-          for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k1.v[a][i];
-          c2->fit(r, t, r.fit_rows);
+        for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) left.v[a][i] = r.res[a][i] - f.contrib.v[a][i];
+        std::vector<std::pair<double, std::string>> screened;
+        for (const auto& s2 : all) {
+          const std::string& name2 = s2.result.name;
+          if (name2 == "none" || name2 == f.result.name) continue;
+          auto c2 = diag::make_candidate(name2);
+          c2->fit(r, left, r.fit_rows);
           c2->contribute(r, k2);
-          for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k2.v[a][i];
-          c1->fit(r, t, r.fit_rows);
-          c1->contribute(r, k1);
+          double ms = 0;
+          for (uint32_t i : r.heldout_rows) {
+            for (int a = 0; a < 2; ++a) ms += (left.v[a][i] - k2.v[a][i]) * (left.v[a][i] - k2.v[a][i]);
+          }
+          screened.push_back({penalised(ms / N, ms0, c2->parameters(), N), name2});
         }
-        Contribution sum;
-        sum.resize(r.n);
-        for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) sum.v[a][i] = k1.v[a][i] + k2.v[a][i];
-        const double ms = mean_square(r, &sum, r.heldout_rows);
-        const int k = c1->parameters() + c2->parameters();
-        const double score = penalised(ms, ms0, k, N);
-        if (score < best_score) {
-          best_score = score;
-          EffectResult e1 = first, e2;
-          e1.params = c1->params();
-          e1.notes = c1->notes();
-          e2.name = name2;
-          e2.params = c2->params();
-          e2.parameters = c2->parameters();
-          e2.notes = c2->notes();
-          e2.fit_rms_arcsec = std::sqrt(mean_square(r, &sum, r.fit_rows));
-          e2.heldout_rms_arcsec = std::sqrt(ms);
-          e2.score = score;
-          pick = std::make_pair(e1, e2);
-          pick_contrib = sum;
+        std::sort(screened.begin(), screened.end());
+        if (screened.size() > 3) screened.resize(3);
+        for (const auto& sc : screened) {
+          JointFit j = joint_fit(r, f, sc.second, ms0, N);
+          if (!pair || j.score < pair->score) pair = std::move(j);
         }
       }
-      if (pick) {
-        d.causes = {pick->first, pick->second};
-        d.gap_after_all_arcsec = pick->second.heldout_rms_arcsec;
-        combined = pick_contrib;
+      if (pair && pair->score < best.result.score) {
+        // In order: the one that alone explains more first.
+        auto single = [&](const std::string& n) -> const Scored& {
+          for (const auto& s : all) if (s.result.name == n) return s;
+          return all.front();
+        };
+        EffectResult e1 = pair->e[0], e2 = pair->e[1];
+        if (single(e2.name).result.score < single(e1.name).result.score) std::swap(e1, e2);
+        const Scored& lead = single(e1.name);
+        e1.fit_rms_arcsec = lead.result.fit_rms_arcsec;  // the first's own figures, alone
+        e1.heldout_rms_arcsec = lead.result.heldout_rms_arcsec;
+        e1.score = lead.result.score;
+        d.cause = e1.name;
+        d.gap_after_arcsec = lead.result.heldout_rms_arcsec;
+        d.causes = {e1, e2};
+        d.gap_after_all_arcsec = e2.heldout_rms_arcsec;
+        combined = pair->sum;
       }
     }
-    if (d.causes.empty()) d.causes = {first};
+  }
+  // Close competitors of the cause: singles within kAmbiguous score units (a likelihood ratio of
+  // e^5) of its own score.
+  constexpr double kAmbiguous = 10.0;
+  if (d.cause != "none") {
+    double cause_score = 0;
+    for (const auto& s : all) if (s.result.name == d.cause) cause_score = s.result.score;
+    for (const auto& s : all) {
+      const std::string& n = s.result.name;
+      if (std::any_of(d.causes.begin(), d.causes.end(), [&](const EffectResult& c) { return c.name == n; })) continue;
+      const double diff = s.result.score - cause_score;
+      if (std::abs(diff) < kAmbiguous) d.ambiguous_with.push_back({n, diff, why_alike(d.cause, n)});
+    }
   }
 
   std::vector<double> before[2], after[2];

@@ -502,7 +502,19 @@ class Coefficients : public Candidate {
         n.push_back(r.counts[a][i]);
         y.push_back(r.meas[a][i] - tg.v[a][i]);  // the angle the sensor's true function gives here
       }
-      c_[a] = n.size() >= 8 ? refit_axis(model[a], n, y) : model[a];
+      if (n.size() < 8) {
+        c_[a] = model[a];
+      } else if (fitted_) {
+        // Refitted again (a joint fit with another effect): the last solution is a good start.
+        const size_t rs = std::max<size_t>(1, n.size() / 6000);
+        std::vector<double> nr, yr;
+        for (size_t i = 0; i < n.size(); i += rs) { nr.push_back(n[i]); yr.push_back(y[i]); }
+        std::array<double, 8> u = to_u(c_[a]);
+        refine(u, nr, yr);
+        c_[a] = from_u(u);
+      } else {
+        c_[a] = refit_axis(model[a], n, y);
+      }
       const auto [lo, hi] = std::minmax_element(n.begin(), n.end());
       if (!n.empty()) { lo_[a] = *lo; hi_[a] = *hi; }
     }
