@@ -145,7 +145,10 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
   // clock
   {
     MapReader r(top.node("clock"), "clock", d);
-    if (auto s = r.choice("sync", {"host", "shared"})) b.clock = *s == "shared" ? ClockSync::shared : ClockSync::host;
+    if (auto s = r.choice("sync", {"host", "shared"})) {
+      b.clock = *s == "shared" ? ClockSync::shared : ClockSync::host;
+      c.clock_sync_given = true;
+    }
     if (auto v = r.number("sensor_offset_s")) b.sensor_time_offset_s = *v;
     if (auto v = r.positive("time_scale")) b.time_scale = *v;
     if (auto v = r.positive("max_reference_gap_s")) b.max_reference_gap_s = *v;
@@ -173,7 +176,9 @@ StandConfig load_stand_file(const std::filesystem::path& path) {
 }
 
 void adapt_to_emulator(StandConfig& c, double speed) {
-  c.bench.clock = ClockSync::shared;  // the emulator's devices both report the bench clock
+  // The emulator's devices both report the bench clock; a stand file may still ask for the host
+  // alignment (to exercise it against the emulator).
+  if (!c.clock_sync_given) c.bench.clock = ClockSync::shared;
   c.bench.time_scale = speed;
 }
 

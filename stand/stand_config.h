@@ -18,7 +18,8 @@ StandConfig load_stand_file(const std::filesystem::path& path);
 // The stand `--emulate` uses when no stand file is given: the emulator's gimbal and sensor
 // (endpoints filled in once it is up), its bench clock shared by both devices, speed-up `speed`.
 StandConfig emulated_stand(double speed);
-// Makes a stand (from a file or not) drive an emulator: shared bench clock, the speed-up as time scale.
+// Makes a stand (from a file or not) drive an emulator: the speed-up as time scale, and the shared
+// bench clock unless the file chose clock.sync itself.
 void adapt_to_emulator(StandConfig& stand, double speed);
 
 }  // namespace fpss

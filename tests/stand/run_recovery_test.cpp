@@ -1,5 +1,9 @@
 // `fpss-stand run` end to end over the real wire (the binary forks the emulator) when things go
 // wrong: it survives SIGKILL (resume), SIGTERM, device faults and bad input.
+#include <fmt/format.h>
+
+#include <cstring>
+
 #include "tests/stand/run_helpers.h"
 
 namespace fpss {
@@ -73,31 +77,34 @@ TEST(Run, SigkillThenResumeGivesTheSamePoints) {
   EXPECT_EQ(test::run_cli({"run", "--resume", run_b.string(), "--quiet"}, tmp.path, "again").code, 2);
 }
 
-TEST(Run, SigtermStopsSafelyAndMarksTheRunInterrupted) {
-  TempDir tmp("run-sigterm");
-  const auto runs = tmp / "runs";
-  Cli c({"run", proc("discrete_grid.yaml"), "--emulate", "--runs-dir", runs.string(), "--quiet"}, tmp.path);
-  ASSERT_TRUE(test::wait_for(
-      [&] {
-        const auto d = test::run_dirs(runs);
-        return !d.empty() && test::count_lines(d.front() / "points.jsonl") >= 5;
-      },
-      60));
-  c.signal(SIGTERM);
-  EXPECT_EQ(c.wait(60), 1);
-  const fs::path run = only_run(runs);
-  const auto doc = run_json(run);
-  EXPECT_EQ(doc["outcome"], "interrupted");
-  EXPECT_NE(doc["reason"].get<std::string>().find("signal 15"), std::string::npos);
-  EXPECT_TRUE(doc["safe_state"].get<bool>());
-  EXPECT_TRUE(doc.contains("ended_utc"));
-  const std::string events = test::read_file(run / "events.log");
-  EXPECT_NE(events.find("gimbal back at null"), std::string::npos) << events;
-  // The recording up to the interruption is whole.
-  const SampleTable t = read_samples_csv(run / "samples.csv");
-  expect_contiguous_points(t, static_cast<int64_t>(RunRecorder::read_journal(run / "points.jsonl").size()));
-  Catalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
-  EXPECT_EQ(cat.find_run(run.filename().string())->outcome, "interrupted");
+TEST(Run, SigtermAndSigintStopSafelyAndMarkTheRunInterrupted) {
+  for (const int sig : {SIGTERM, SIGINT}) {
+    SCOPED_TRACE(strsignal(sig));
+    TempDir tmp("run-signal");
+    const auto runs = tmp / "runs";
+    Cli c({"run", proc("discrete_grid.yaml"), "--emulate", "--runs-dir", runs.string(), "--quiet"}, tmp.path);
+    ASSERT_TRUE(test::wait_for(
+        [&] {
+          const auto d = test::run_dirs(runs);
+          return !d.empty() && test::count_lines(d.front() / "points.jsonl") >= 5;
+        },
+        60));
+    c.signal(sig);
+    EXPECT_EQ(c.wait(60), 1);
+    const fs::path run = only_run(runs);
+    const auto doc = run_json(run);
+    EXPECT_EQ(doc["outcome"], "interrupted");
+    EXPECT_NE(doc["reason"].get<std::string>().find(fmt::format("signal {}", sig)), std::string::npos);
+    EXPECT_TRUE(doc["safe_state"].get<bool>());
+    EXPECT_TRUE(doc.contains("ended_utc"));
+    const std::string events = test::read_file(run / "events.log");
+    EXPECT_NE(events.find("gimbal back at null"), std::string::npos) << events;
+    // The recording up to the interruption is whole.
+    const SampleTable t = read_samples_csv(run / "samples.csv");
+    expect_contiguous_points(t, static_cast<int64_t>(RunRecorder::read_journal(run / "points.jsonl").size()));
+    Catalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
+    EXPECT_EQ(cat.find_run(run.filename().string())->outcome, "interrupted");
+  }
 }
 
 TEST(Run, DeviceFaultsAreRecovered) {

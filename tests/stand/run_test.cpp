@@ -149,5 +149,45 @@ TEST(Run, ContinuousSlewAlignsTheTwoClocks) {
   EXPECT_LT(worst, 1.0);
 }
 
+TEST(Run, SlewAlignedThroughTheHostClock) {
+  // The stand file asks for the host alignment (separate device clocks related through the
+  // host's receive times) although the emulator could share its clock: the references must still
+  // be the gimbal's position at each frame's time.
+  TempDir tmp("run-hostclock");
+  test::write_file(tmp / "stand.yaml", "gimbal: {endpoint: 'modbus-tcp:127.0.0.1:1'}\nsensor: {endpoint: 'pty:/dev/null'}\n"
+                                       "clock: {sync: host}\n");
+  test::write_file(tmp / "slew.yaml",
+                   "steps:\n  - home\n  - sample: {frames: 10}\n"
+                   "  - continuous_slew: {axis: pitch, amplitude_deg: 0.1, rate_arcsec_s: 300, sample_period_s: 0.04, "
+                   "settle_s: 0.2}\n");
+  const auto runs = tmp / "runs";
+  const auto r = test::run_cli({"run", (tmp / "slew.yaml").string(), "--emulate", "--stand", (tmp / "stand.yaml").string(),
+                                "--speed", "2", "--runs-dir", runs.string(), "--quiet"},
+                               tmp.path);
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  const fs::path run = only_run(runs);
+  EXPECT_EQ(run_json(run)["stand"]["settings"]["bench"]["clock"], "host");
+  const SampleTable t = read_samples_csv(run / "samples.csv");
+  const CoefficientSet truth = load_published("a-6-fpss1");
+  double a0 = 0;
+  int n0 = 0, slews = 0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.phase[i] != Phase::null) continue;
+    a0 += truth.alpha_model().angle_arcsec(t.counts_alpha[i]) - t.ref_pitch_arcsec[i];
+    ++n0;
+  }
+  ASSERT_GT(n0, 0);
+  a0 /= n0;
+  const auto st = t.numeric_column("sensor_time_s"), gt = t.numeric_column("gimbal_time_s");
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.phase[i] != Phase::slew) continue;
+    ++slews;
+    // One bench clock underneath: the host alignment must find them within a few milliseconds.
+    EXPECT_LT(std::fabs(gt[i] - st[i]), 0.005) << i;
+    EXPECT_LT(std::fabs(truth.alpha_model().angle_arcsec(t.counts_alpha[i]) - t.ref_pitch_arcsec[i] - a0), 1.0) << i;
+  }
+  EXPECT_GT(slews, 50);
+}
+
 }  // namespace
 }  // namespace fpss
