@@ -177,6 +177,13 @@ Observability observability(const Recording& r) {
   return o;
 }
 
+// One effect is a special case of the other: a refitted transfer function contains any bias
+// (C1) and scale factor (C1, C2, C3, C6 scaled together). Such pairs are never fitted.
+bool contained(const std::string& a, const std::string& b) {
+  auto is = [&](const char* x, const char* y) { return (a == x && b == y) || (a == y && b == x); };
+  return is("coefficients", "bias") || is("coefficients", "scale_factor");
+}
+
 // Why two effects can look alike, for the ambiguity note.
 std::string why_alike(const std::string& a, const std::string& b) {
   auto is = [&](const char* x, const char* y) { return (a == x && b == y) || (a == y && b == x); };
@@ -490,38 +497,90 @@ ojson effect_json(const EffectResult& e) {
   return j;
 }
 
-// Two candidates fitted jointly by alternating least squares (each on the residual less the
-// other), from the first's single fit, until the fit rows' sum of squares settles.
+// Two candidates fitted jointly: alternating least squares (each on the residual less the
+// other) for their nonlinear parameters, then one least-squares solve over the linear columns of
+// both (alternation alone converges slowly when the two are correlated), until the fit rows' sum
+// of squares settles.
 struct JointFit {
   EffectResult e[2];
   Contribution sum;
   double score = 0;
 };
 
+void joint_linear_step(const Recording& r, Candidate* c[2], Contribution* k[2]) {
+  std::vector<Contribution> cols[2];
+  bool has[2];
+  for (int q = 0; q < 2; ++q) has[q] = c[q]->columns(r, cols[q]);
+  if (!has[0] && !has[1]) return;
+  std::vector<const Contribution*> all_cols;
+  for (int q = 0; q < 2; ++q) if (has[q]) for (const auto& col : cols[q]) all_cols.push_back(&col);
+  const int m = static_cast<int>(all_cols.size());
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(m, m);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
+  for (uint32_t i : r.fit_rows) {
+    for (int a = 0; a < 2; ++a) {
+      double target = r.res[a][i];
+      for (int q = 0; q < 2; ++q) if (!has[q]) target -= k[q]->v[a][i];
+      for (int x = 0; x < m; ++x) {
+        const double vx = all_cols[x]->v[a][i];
+        if (vx == 0) continue;
+        b(x) += vx * target;
+        for (int y = 0; y <= x; ++y) G(x, y) += vx * all_cols[y]->v[a][i];
+      }
+    }
+  }
+  G = G.selfadjointView<Eigen::Lower>();
+  G.diagonal().array() += 1e-12 * (G.diagonal().maxCoeff() + 1e-30);
+  const Eigen::VectorXd w = G.ldlt().solve(b);
+  int at = 0;
+  for (int q = 0; q < 2; ++q) {
+    if (!has[q]) continue;
+    std::vector<double> wq(w.data() + at, w.data() + at + cols[q].size());
+    at += static_cast<int>(cols[q].size());
+    c[q]->set_linear(wq);
+    c[q]->contribute(r, *k[q]);
+  }
+}
+
 JointFit joint_fit(const Recording& r, const Scored& first, const std::string& name2, double ms0, double N) {
-  auto c1 = diag::make_candidate(first.result.name);
+  auto c1 = first.cand->clone();
   auto c2 = diag::make_candidate(name2);
   Contribution k1 = first.contrib, k2, t, sum;
   k2.resize(r.n);
   t.resize(r.n);
   sum.resize(r.n);
+  Candidate* c[2] = {c1.get(), c2.get()};
+  Contribution* k[2] = {&k1, &k2};
+  // A temperature's zero point and a constant offset (a bias, or the C1 of a refitted transfer
+  // function) trade against each other: by the emulator's convention the profile starts at t0_c,
+  // so t0_c is held at the first temperature reading.
+  const bool offset = first.result.name == "bias" || name2 == "bias" || first.result.name == "coefficients" ||
+                      name2 == "coefficients";
+  if (offset && r.has_temperature) {
+    double t_first = 0;
+    for (size_t i = 0; i < r.n; ++i) if (std::isfinite(r.temp[i])) { t_first = r.temp[i]; break; }
+    for (Candidate* q : c) if (q->name() == "temperature") q->hold("t0_c", t_first);
+  }
   double prev = std::numeric_limits<double>::infinity();
-  for (int it = 0; it < 8; ++it) {
+  for (int it = 0; it < 20; ++it) {
     for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k1.v[a][i];
     c2->fit(r, t, r.fit_rows);
     c2->contribute(r, k2);
+    // The first's single fit had to absorb the second too; once the second is in, it starts
+    // afresh (a refitted transfer function may otherwise stay in a wrong basin).
+    if (it == 0) c1->restart();
     for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k2.v[a][i];
     c1->fit(r, t, r.fit_rows);
     c1->contribute(r, k1);
+    joint_linear_step(r, c, k);
     for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) sum.v[a][i] = k1.v[a][i] + k2.v[a][i];
     const double sse = mean_square(r, &sum, r.fit_rows);
-    if (prev - sse <= 1e-6 * sse) break;
+    if (prev - sse <= 1e-7 * sse) break;
     prev = sse;
   }
   JointFit j;
   const double ms = mean_square(r, &sum, r.heldout_rows);
   j.score = penalised(ms, ms0, c1->parameters() + c2->parameters(), N);
-  Candidate* c[2] = {c1.get(), c2.get()};
   for (int q = 0; q < 2; ++q) {
     j.e[q].name = c[q]->name();
     j.e[q].params = c[q]->params();
@@ -565,8 +624,10 @@ ojson Diagnosis::to_json() const {
       {"second_effect", "when the cause leaves more than 1.2x the noise floor: around each of the three best single "
                         "effects by held-out score and the two best by fit-row residual, the others are screened on "
                         "what it leaves and the best three fitted jointly with it (alternating least squares); the best "
-                        "pair is kept when its score beats the best single; causes[0] is the member that alone "
-                        "explains more, causes[1] carries the joint figures"}};
+                        "pair is kept when its score beats the best single and it takes at least 0.1 x noise floor^2 "
+                        "more off the held-out mean square; a refitted transfer function is never paired with a bias "
+                        "or a scale factor (it contains both); causes[0] is the member that alone explains more, "
+                        "causes[1] carries the joint figures"}};
   ojson no = ojson::array();
   for (const auto& n : not_observable) {
     no.push_back({{"name", n.name}, {"reason", n.reason}, {"incomplete_recording", n.incomplete_recording}});
@@ -647,7 +708,10 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
     // settling with an endless tau for backlash plus drift): the others are screened on what
     // that one leaves, the three most promising are fitted jointly with it, and the best pair is
     // kept when it beats the best single's score.
-    if (opts.second_effect && d.gap_after_arcsec > opts.second_effect_gap_ratio * d.noise_floor_arcsec) {
+    // Also when the cause is the catch-all refitted transfer function: it contains a bias and a
+    // scale factor, and two simple effects may explain the same with far fewer parameters.
+    if (opts.second_effect &&
+        (d.gap_after_arcsec > opts.second_effect_gap_ratio * d.noise_floor_arcsec || d.cause == "coefficients")) {
       // Firsts: the three best held-out scores and the two best in-sample fits (with two effects
       // at once a single fit can be biased by the other effect so that it fails on the held-out
       // rows while still taking the most off the fit rows).
@@ -677,15 +741,25 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
         std::vector<std::pair<double, std::string>> screened;
         for (const auto& s2 : all) {
           const std::string& name2 = s2.result.name;
-          if (name2 == "none" || name2 == f.result.name) continue;
+          if (name2 == "none" || name2 == f.result.name || contained(f.result.name, name2)) continue;
+          // One pass: the other fitted on what the first leaves, then both linear parts solved
+          // together (a single's fit can be a compromise only a joint solve undoes).
+          auto c1 = f.cand->clone();
           auto c2 = diag::make_candidate(name2);
           c2->fit(r, left, r.fit_rows);
           c2->contribute(r, k2);
+          Contribution k1 = f.contrib;
+          Candidate* cc[2] = {c1.get(), c2.get()};
+          Contribution* kk[2] = {&k1, &k2};
+          joint_linear_step(r, cc, kk);
           double ms = 0;
           for (uint32_t i : r.heldout_rows) {
-            for (int a = 0; a < 2; ++a) ms += (left.v[a][i] - k2.v[a][i]) * (left.v[a][i] - k2.v[a][i]);
+            for (int a = 0; a < 2; ++a) {
+              const double e = r.res[a][i] - k1.v[a][i] - k2.v[a][i];
+              ms += e * e;
+            }
           }
-          screened.push_back({penalised(ms / N, ms0, c2->parameters(), N), name2});
+          screened.push_back({penalised(ms / N, ms0, c1->parameters() + c2->parameters(), N), name2});
         }
         std::sort(screened.begin(), screened.end());
         if (screened.size() > 3) screened.resize(3);
@@ -694,7 +768,11 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
           if (!pair || j.score < pair->score) pair = std::move(j);
         }
       }
-      if (pair && pair->score < best.result.score) {
+      // Kept when it scores better and is material too: at least 0.1 x noise floor^2 off the
+      // held-out mean square that the first alone leaves.
+      const double after1 = best.result.heldout_rms_arcsec * best.result.heldout_rms_arcsec;
+      if (pair && pair->score < best.result.score &&
+          after1 - pair->e[1].heldout_rms_arcsec * pair->e[1].heldout_rms_arcsec >= material) {
         // In order: the one that alone explains more first.
         auto single = [&](const std::string& n) -> const Scored& {
           for (const auto& s : all) if (s.result.name == n) return s;

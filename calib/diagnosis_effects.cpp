@@ -27,9 +27,18 @@ double get(const EffectParams& p, const char* key) {
 // Least squares of one scale factor: target ~ c * x over rows, both axes pooled when asked.
 double ratio(double sxy, double sxx) { return sxx > 0 ? sxy / sxx : 0.0; }
 
+// A column with values on one axis only (the other zero).
+Contribution axis_column(const Recording& r, int axis, const std::vector<double>& v) {
+  Contribution c;
+  c.resize(r.n);
+  c.v[axis] = v;
+  return c;
+}
+
 // ------------------------------------------------------------------ bias
 class Bias : public Candidate {
  public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Bias>(*this); }
   std::string name() const override { return "bias"; }
   int parameters() const override { return 2; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
@@ -44,6 +53,12 @@ class Bias : public Candidate {
   }
   ojson params() const override { return {{"pitch_arcsec", b_[0]}, {"yaw_arcsec", b_[1]}}; }
   void set(const EffectParams& p) override { b_[0] = get(p, "pitch_arcsec"); b_[1] = get(p, "yaw_arcsec"); }
+  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
+    const std::vector<double> one(r.n, 1.0);
+    cols = {axis_column(r, 0, one), axis_column(r, 1, one)};
+    return true;
+  }
+  void set_linear(const std::vector<double>& w) override { b_[0] = w[0]; b_[1] = w[1]; }
 
  private:
   double b_[2] = {0, 0};
@@ -52,6 +67,7 @@ class Bias : public Candidate {
 // ------------------------------------------------------------------ drift: rate * t (bench time)
 class Drift : public Candidate {
  public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Drift>(*this); }
   std::string name() const override { return "drift"; }
   int parameters() const override { return 2; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
@@ -69,6 +85,11 @@ class Drift : public Candidate {
     k_[0] = get(p, "pitch_arcsec_per_s");
     k_[1] = get(p, "yaw_arcsec_per_s");
   }
+  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
+    cols = {axis_column(r, 0, r.t), axis_column(r, 1, r.t)};
+    return true;
+  }
+  void set_linear(const std::vector<double>& w) override { k_[0] = w[0]; k_[1] = w[1]; }
 
  private:
   double k_[2] = {0, 0};
@@ -78,6 +99,7 @@ class Drift : public Candidate {
 // The gimbal reads (1 + ppm 1e-6) x the true angle: the sensor sees ref / (1 + ppm 1e-6).
 class ScaleFactor : public Candidate {
  public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<ScaleFactor>(*this); }
   std::string name() const override { return "scale_factor"; }
   int parameters() const override { return 2; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
@@ -96,6 +118,13 @@ class ScaleFactor : public Candidate {
   }
   ojson params() const override { return {{"pitch_ppm", ppm_[0]}, {"yaw_ppm", ppm_[1]}}; }
   void set(const EffectParams& p) override { ppm_[0] = get(p, "pitch_ppm"); ppm_[1] = get(p, "yaw_ppm"); }
+  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
+    cols = {axis_column(r, 0, r.ref[0]), axis_column(r, 1, r.ref[1])};
+    return true;
+  }
+  void set_linear(const std::vector<double>& w) override {
+    for (int a = 0; a < 2; ++a) ppm_[a] = (1.0 / (1.0 + w[a]) - 1.0) * 1e6;
+  }
 
  private:
   double ppm_[2] = {0, 0};
@@ -105,6 +134,7 @@ class ScaleFactor : public Candidate {
 // Sensor pitch = p cos phi - y sin phi, sensor yaw = p sin phi + y cos phi.
 class BoresightRoll : public Candidate {
  public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<BoresightRoll>(*this); }
   std::string name() const override { return "boresight_roll"; }
   int parameters() const override { return 1; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
@@ -128,6 +158,15 @@ class BoresightRoll : public Candidate {
   }
   ojson params() const override { return {{"roll_arcsec", rad_to_arcsec(phi_)}}; }
   void set(const EffectParams& p) override { phi_ = arcsec_to_rad(get(p, "roll_arcsec")); }
+  // Linear in sin(phi) once cos(phi) - 1 (below 1e-5 of the angle for rolls under 15 arcmin) is left out.
+  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
+    Contribution c;
+    c.resize(r.n);
+    for (size_t i = 0; i < r.n; ++i) { c.v[0][i] = -r.ref[1][i]; c.v[1][i] = r.ref[0][i]; }
+    cols = {c};
+    return true;
+  }
+  void set_linear(const std::vector<double>& w) override { phi_ = std::asin(std::clamp(w[0], -1.0, 1.0)); }
 
  private:
   double phi_ = 0;
@@ -137,6 +176,7 @@ class BoresightRoll : public Candidate {
 // Sensor yaw = y + sin(skew) p; pitch untouched.
 class AxisNonorthogonality : public Candidate {
  public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<AxisNonorthogonality>(*this); }
   std::string name() const override { return "axis_nonorthogonality"; }
   int parameters() const override { return 1; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
@@ -150,6 +190,11 @@ class AxisNonorthogonality : public Candidate {
   }
   ojson params() const override { return {{"skew_arcsec", rad_to_arcsec(std::asin(s_))}}; }
   void set(const EffectParams& p) override { s_ = std::sin(arcsec_to_rad(get(p, "skew_arcsec"))); }
+  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
+    cols = {axis_column(r, 1, r.ref[0])};
+    return true;
+  }
+  void set_linear(const std::vector<double>& w) override { s_ = std::clamp(w[0], -1.0, 1.0); }
 
  private:
   double s_ = 0;  // sin(skew)
@@ -159,6 +204,7 @@ class AxisNonorthogonality : public Candidate {
 // Each axis's true position lags the encoder by width/2 against its last motion.
 class Backlash : public Candidate {
  public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Backlash>(*this); }
   std::string name() const override { return "backlash"; }
   int parameters() const override { return 1; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
@@ -177,6 +223,14 @@ class Backlash : public Candidate {
   }
   ojson params() const override { return {{"width_arcsec", w_}}; }
   void set(const EffectParams& p) override { w_ = get(p, "width_arcsec"); }
+  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
+    Contribution c;
+    c.resize(r.n);
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) c.v[a][i] = -0.5 * r.dir[a][i];
+    cols = {c};
+    return true;
+  }
+  void set_linear(const std::vector<double>& w) override { w_ = w[0]; }
 
  private:
   double w_ = 0;
@@ -189,6 +243,7 @@ class Settling : public Candidate {
   static constexpr double kMaxTau = 30.0;  // s
 
  public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Settling>(*this); }
   std::string name() const override { return "settling"; }
   int parameters() const override { return 2; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
@@ -228,6 +283,16 @@ class Settling : public Candidate {
     return {{"tau_s", "at the search limit: the dwells do not resolve a decay"}};
   }
   void set(const EffectParams& p) override { amp_ = get(p, "amplitude_arcsec"); tau_ = get(p, "tau_s"); }
+  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
+    Settling unit = *this;
+    unit.amp_ = 1.0;
+    Contribution c;
+    c.resize(r.n);
+    unit.contribute(r, c);
+    cols = {c};
+    return true;
+  }
+  void set_linear(const std::vector<double>& w) override { amp_ = w[0]; }
 
  private:
   double amp_ = 0, tau_ = 1;
@@ -238,6 +303,7 @@ class Settling : public Candidate {
 // sees the reference interpolated at t - skew; at rest it sees the same as the reference.
 class TimeSkew : public Candidate {
  public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<TimeSkew>(*this); }
   std::string name() const override { return "time_skew"; }
   int parameters() const override { return 1; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
@@ -317,6 +383,7 @@ class TimeSkew : public Candidate {
 // The sensor sees p + k (T - T0) on each axis; T0 (the profile's t0_c) is fitted too.
 class Temperature : public Candidate {
  public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Temperature>(*this); }
   std::string name() const override { return "temperature"; }
   int parameters() const override { return 3; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
@@ -330,7 +397,7 @@ class Temperature : public Candidate {
       lo = std::min(lo, T); hi = std::max(hi, T);
       for (int a = 0; a < 2; ++a) { sy[a] += tg.v[a][i]; sTy[a] += T * tg.v[a][i]; syy[a] += tg.v[a][i] * tg.v[a][i]; }
     }
-    if (n == 0) { k_[0] = k_[1] = 0; t0_ = 0; return; }
+    if (n == 0) { k_[0] = k_[1] = 0; return; }
     auto cost = [&](double T0, double* k) {
       const double dd = sTT - 2 * T0 * sT + T0 * T0 * n;
       double c = 0;
@@ -343,7 +410,7 @@ class Temperature : public Candidate {
       return c;
     };
     const double span = std::max(hi - lo, 0.1);
-    t0_ = minimise_1d([&](double T0) { return cost(T0, nullptr); }, lo - 20 * span, hi + 20 * span, 800, 1e-7 * span);
+    if (!held_) t0_ = minimise_1d([&](double T0) { return cost(T0, nullptr); }, lo - 20 * span, hi + 20 * span, 800, 1e-7 * span);
     cost(t0_, k_);
   }
   void contribute(const Recording& r, Contribution& out) const override {
@@ -360,9 +427,25 @@ class Temperature : public Candidate {
     k_[1] = get(p, "yaw_arcsec_per_c");
     t0_ = p.params.count("t0_c") ? p.params.at("t0_c") : 20.0;
   }
+  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
+    std::vector<double> d(r.n);
+    for (size_t i = 0; i < r.n; ++i) d[i] = std::isfinite(r.temp[i]) ? r.temp[i] - t0_ : 0.0;
+    cols = {axis_column(r, 0, d), axis_column(r, 1, d)};
+    return true;
+  }
+  void set_linear(const std::vector<double>& w) override { k_[0] = w[0]; k_[1] = w[1]; }
+  void hold(const std::string& key, double value) override {
+    if (key == "t0_c") { t0_ = value; held_ = true; }
+  }
+  ojson notes() const override {
+    if (!held_) return ojson::object();
+    return {{"t0_c", "held at the recording's first temperature reading: with a constant offset also fitted (bias, "
+                     "or a refitted C1), the temperature at which the effect vanishes cannot be told apart from it"}};
+  }
 
  private:
   double k_[2] = {0, 0}, t0_ = 20.0;
+  bool held_ = false;
 };
 
 // ------------------------------------------------------------------ coefficients
@@ -490,6 +573,7 @@ AxisCoeffs refit_axis(const AxisCoeffs& model, const std::vector<double>& n, con
 
 class Coefficients : public Candidate {
  public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Coefficients>(*this); }
   std::string name() const override { return "coefficients"; }
   int parameters() const override { return 16; }
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
@@ -530,6 +614,7 @@ class Coefficients : public Candidate {
     }
   }
   ojson params() const override { return {{"alpha", c_[0]}, {"beta", c_[1]}}; }
+  void restart() override { fitted_ = false; }
   void set(const EffectParams& p) override {
     if (p.coefficients) { c_[0] = p.coefficients->alpha; c_[1] = p.coefficients->beta; }
   }

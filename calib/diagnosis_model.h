@@ -70,7 +70,19 @@ class Candidate {
   virtual nlohmann::ordered_json params() const = 0;
   // Sets parameters from the emulator's names (forward-model use and tests).
   virtual void set(const EffectParams& p) = 0;
+  virtual std::unique_ptr<Candidate> clone() const = 0;
   virtual nlohmann::ordered_json notes() const { return nlohmann::ordered_json::object(); }
+  // The contribution as a linear combination of columns, any nonlinear parameter held (settling's
+  // tau, temperature's T0), so that two effects can be solved jointly by one least-squares
+  // problem (alternating fits converge slowly when two effects are correlated, e.g. a bias and a
+  // drift). False for effects without such a form (time_skew, coefficients).
+  virtual bool columns(const Recording& r, std::vector<Contribution>& cols) const { return false; }
+  // Sets the column weights (as many as columns() gave).
+  virtual void set_linear(const std::vector<double>& w) {}
+  // Holds a parameter at a value in later fits (a degeneracy resolved by convention).
+  virtual void hold(const std::string& key, double value) {}
+  // The next fit starts afresh (global search) instead of from the last solution.
+  virtual void restart() {}
 };
 
 std::unique_ptr<Candidate> make_candidate(const std::string& name);

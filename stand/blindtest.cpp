@@ -10,6 +10,7 @@
 #include <map>
 #include <numeric>
 #include <random>
+#include <set>
 
 #include "calib/units.h"
 
@@ -182,21 +183,33 @@ BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Ef
   c.rows = rec.size();
   c.cause = dg.cause;
   for (const auto& e : dg.causes) c.causes.push_back(e.name);
-  c.correct = dg.cause == cls;
+  if (effects.size() <= 1) {
+    c.correct = dg.cause == cls;
+  } else {
+    std::set<std::string> want, got;
+    for (const auto& e : effects) want.insert(e.name);
+    for (const auto& e : dg.causes) got.insert(e.name);
+    c.correct = want == got;
+  }
   c.gap_before_arcsec = dg.gap_before_arcsec;
   c.gap_after_arcsec = dg.gap_after_arcsec;
+  c.gap_after_all_arcsec = dg.gap_after_all_arcsec;
   c.noise_floor_arcsec = dg.noise_floor_arcsec;
   if (!dg.where.empty()) c.where = dg.where.front().factor + "/" + dg.where.front().axis;
-  if (!effects.empty()) {
-    const Effect& t = effects.front();
+  auto truth_of = [](const Effect& t) {
+    ojson j = ojson::object();
     if (t.name == "coefficients") {
-      c.truth_params = {{"alpha", t.coefficients->alpha}, {"beta", t.coefficients->beta},
-                        {"source", t.coefficients->extra.value("perturbation", "")}};
+      j = {{"alpha", t.coefficients->alpha}, {"beta", t.coefficients->beta},
+           {"source", t.coefficients->extra.value("perturbation", "")}};
     } else {
-      for (const auto& [k, v] : t.params) c.truth_params[k] = v;
+      for (const auto& [k, v] : t.params) j[k] = v;
     }
-  }
-  if (!dg.causes.empty()) c.fitted_params = dg.causes.front().params;
+    return j;
+  };
+  if (effects.size() == 1) c.truth_params = truth_of(effects.front());
+  for (size_t k = 0; effects.size() > 1 && k < effects.size(); ++k) c.truth_params[effects[k].name] = truth_of(effects[k]);
+  if (dg.causes.size() == 1) c.fitted_params = dg.causes.front().params;
+  for (size_t k = 0; dg.causes.size() > 1 && k < dg.causes.size(); ++k) c.fitted_params[dg.causes[k].name] = dg.causes[k].params;
   if (!save_dir.empty()) {
     namespace fs = std::filesystem;
     fs::create_directories(save_dir);
@@ -214,21 +227,26 @@ BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Ef
     std::ofstream(dir / fmt::format("case-{}-truth.json", index)) << truth.dump(1) << "\n";
   }
   if (c.correct && !effects.empty()) {
-    const Effect& t = effects.front();
-    const ojson& f = dg.causes.front().params;
     double worst = 0;
-    if (t.name == "coefficients") {
-      const double ea = coefficient_error(f.at("alpha").get<AxisCoeffs>(), t.coefficients->alpha, model.alpha, 1500);
-      const double eb = coefficient_error(f.at("beta").get<AxisCoeffs>(), t.coefficients->beta, model.beta, 1500);
-      c.param_errors = {{"alpha_transfer", ea}, {"beta_transfer", eb}};
-      worst = std::max(ea, eb);
-    } else {
-      for (const auto& [k, v] : t.params) {
-        const double e = rel(param(f, k.c_str()), v);
-        c.param_errors[k] = e;
-        worst = std::max(worst, e);
+    for (const Effect& t : effects) {
+      const ojson* fp = nullptr;
+      for (const auto& e : dg.causes) if (e.name == t.name) fp = &e.params;
+      const ojson& f = *fp;  // correct: every truth effect is among the causes
+      const std::string pre = effects.size() > 1 ? t.name + "." : "";
+      if (t.name == "coefficients") {
+        const double ea = coefficient_error(f.at("alpha").get<AxisCoeffs>(), t.coefficients->alpha, model.alpha, 1500);
+        const double eb = coefficient_error(f.at("beta").get<AxisCoeffs>(), t.coefficients->beta, model.beta, 1500);
+        c.param_errors[pre + "alpha_transfer"] = ea;
+        c.param_errors[pre + "beta_transfer"] = eb;
+        worst = std::max({worst, ea, eb});
+      } else {
+        for (const auto& [k, v] : t.params) {
+          const double e = rel(param(f, k.c_str()), v);
+          c.param_errors[pre + k] = e;
+          worst = std::max(worst, e);
+        }
+        if (t.name == "temperature") c.param_errors[pre + "t0_c_abs"] = std::abs(param(f, "t0_c") - cfg.temperature.t0_c);
       }
-      if (t.name == "temperature") c.param_errors["t0_c_abs"] = std::abs(param(f, "t0_c") - cfg.temperature.t0_c);
     }
     c.param_error = worst;
   } else {
@@ -239,8 +257,40 @@ BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Ef
 
 BlindTestReport run_blindtest(const BlindTestOptions& opts, const std::function<void(const BlindCase&)>& progress) {
   BlindTestReport rep;
+  rep.pairs = opts.pairs;
   const auto& classes = blindtest_classes();
   std::vector<std::string> block;
+  if (opts.pairs) {
+    // Every unordered pair of different effects but the two a refitted transfer function
+    // contains, in shuffled blocks.
+    const auto& names = diagnosis_effect_names();
+    std::vector<std::pair<std::string, std::string>> all;
+    for (size_t a = 0; a < names.size(); ++a) {
+      for (size_t b = a + 1; b < names.size(); ++b) {
+        const bool contained = (names[a] == "coefficients" || names[b] == "coefficients") &&
+                               (names[a] == "bias" || names[b] == "bias" || names[a] == "scale_factor" || names[b] == "scale_factor");
+        if (!contained) all.emplace_back(names[a], names[b]);
+      }
+    }
+    std::vector<std::pair<std::string, std::string>> order;
+    for (int i = 0; i < opts.cases; ++i) {
+      const size_t k = static_cast<size_t>(i) % all.size();
+      if (k == 0) {
+        order = all;
+        std::mt19937_64 g(mix(opts.seed, 0x9A1B + static_cast<uint64_t>(i) / all.size()));
+        std::shuffle(order.begin(), order.end(), g);
+      }
+      const auto& [a, b] = order[k];
+      const uint64_t seed = mix(opts.seed, static_cast<uint64_t>(i) + 1);
+      const BenchConfig cfg = blindtest_bench(seed);
+      std::vector<Effect> effects = draw_effects(a, mix(seed, 0xEFFEC7), cfg);
+      const auto second = draw_effects(b, mix(seed, 0xEFFEC8), cfg);
+      effects.insert(effects.end(), second.begin(), second.end());
+      rep.cases.push_back(run_blind_case(i, a + "+" + b, effects, seed, opts.save_dir));
+      if (progress) progress(rep.cases.back());
+    }
+    return rep;
+  }
   for (int i = 0; i < opts.cases; ++i) {
     const size_t k = static_cast<size_t>(i) % classes.size();
     if (k == 0) {
@@ -299,9 +349,64 @@ ojson stats_json(const Stats& s) { return {{"n", s.n}, {"median", s.median}, {"p
 
 }  // namespace
 
+namespace {
+
+std::vector<std::string> split_pair(const std::string& cls) {
+  const auto p = cls.find('+');
+  if (p == std::string::npos) return {cls};
+  return {cls.substr(0, p), cls.substr(p + 1)};
+}
+
+ojson case_json(const BlindCase& c) {
+  return {{"index", c.index}, {"truth", c.truth}, {"cause", c.cause}, {"causes", c.causes}, {"correct", c.correct},
+          {"truth_params", c.truth_params}, {"fitted_params", c.fitted_params}, {"param_errors", c.param_errors},
+          {"param_error", std::isfinite(c.param_error) ? ojson(c.param_error) : ojson()},
+          {"gap_before_arcsec", c.gap_before_arcsec}, {"gap_after_arcsec", c.gap_after_arcsec},
+          {"gap_after_all_arcsec", c.gap_after_all_arcsec}, {"noise_floor_arcsec", c.noise_floor_arcsec},
+          {"where", c.where}, {"rows", c.rows}};
+}
+
+}  // namespace
+
 ojson BlindTestReport::to_json() const {
   const auto& classes = blindtest_classes();
   ojson j;
+  if (pairs) {
+    size_t both = 0, one = 0, within10 = 0, within_noise = 0;
+    std::vector<double> pe, shrink;
+    std::map<std::string, std::pair<int, int>> per;  // effect: present, found
+    for (const auto& c : cases) {
+      both += c.correct;
+      size_t found = 0;
+      for (const auto& e : split_pair(c.truth)) {
+        const bool f = std::find(c.causes.begin(), c.causes.end(), e) != c.causes.end();
+        found += f;
+        per[e].first++;
+        per[e].second += f;
+      }
+      one += found > 0;
+      shrink.push_back(c.gap_after_all_arcsec / c.noise_floor_arcsec);
+      within_noise += c.gap_after_all_arcsec <= 1.5 * c.noise_floor_arcsec;
+      if (c.correct) { pe.push_back(c.param_error); within10 += c.param_error <= 0.10; }
+    }
+    const double n = std::max<double>(1, static_cast<double>(cases.size()));
+    j["summary"] = {{"mode", "pairs"},
+                    {"cases", cases.size()},
+                    {"both_found", both / n},
+                    {"at_least_one_found", one / n},
+                    {"param_relative_error", stats_json(stats(pe))},
+                    {"params_within_10_percent", within10},
+                    {"both_found_cases", both},
+                    {"shrink_gap_after_all_over_noise", stats_json(stats(shrink))},
+                    {"gap_after_all_within_1_5_noise", within_noise}};
+    ojson pj = ojson::object();
+    for (const auto& [e, pf] : per) pj[e] = {{"present", pf.first}, {"found", pf.second}};
+    j["per_effect"] = pj;
+    ojson cs = ojson::array();
+    for (const auto& c : cases) cs.push_back(case_json(c));
+    j["cases"] = cs;
+    return j;
+  }
   ojson conf = ojson::object();
   for (const auto& t : classes) {
     ojson row = ojson::object();
@@ -360,19 +465,38 @@ ojson BlindTestReport::to_json() const {
   j["per_class"] = per;
   j["confusion"] = conf;
   ojson cs = ojson::array();
-  for (const auto& c : cases) {
-    cs.push_back({{"index", c.index}, {"truth", c.truth}, {"cause", c.cause}, {"causes", c.causes},
-                  {"correct", c.correct}, {"truth_params", c.truth_params}, {"fitted_params", c.fitted_params},
-                  {"param_errors", c.param_errors}, {"param_error", std::isfinite(c.param_error) ? ojson(c.param_error) : ojson()},
-                  {"gap_before_arcsec", c.gap_before_arcsec}, {"gap_after_arcsec", c.gap_after_arcsec},
-                  {"noise_floor_arcsec", c.noise_floor_arcsec}, {"where", c.where}, {"rows", c.rows}});
-  }
+  for (const auto& c : cases) cs.push_back(case_json(c));
   j["cases"] = cs;
   return j;
 }
 
 std::string BlindTestReport::to_text() const {
   const auto& classes = blindtest_classes();
+  if (pairs) {
+    const ojson j = to_json();
+    const ojson& m = j["summary"];
+    std::string s = fmt::format("blind test, two effects per case: {} cases\n\n{:>22} {:>8} {:>6}\n", cases.size(),
+                                "effect", "present", "found");
+    for (auto it = j["per_effect"].begin(); it != j["per_effect"].end(); ++it) {
+      s += fmt::format("{:>22} {:>8} {:>6}\n", it.key(), (*it)["present"].get<int>(), (*it)["found"].get<int>());
+    }
+    s += "\nmissed:\n";
+    for (const auto& c : cases) {
+      if (c.correct) continue;
+      std::string got;
+      for (const auto& e : c.causes) got += (got.empty() ? "" : ", ") + e;
+      s += fmt::format("  case {:3d}  {:<40} -> {}\n", c.index, c.truth, got.empty() ? "none" : got);
+    }
+    s += fmt::format(
+        "\nboth found {:.1f}%, at least one {:.1f}%; parameters within 10% of the truth: {}/{} (median error {:.2f}%, "
+        "max {:.2f}%)\ngap_after_all within 1.5x noise floor: {}/{} (median {:.2f}, max {:.2f})\n",
+        100 * m["both_found"].get<double>(), 100 * m["at_least_one_found"].get<double>(),
+        m["params_within_10_percent"].get<size_t>(), m["both_found_cases"].get<size_t>(),
+        100 * m["param_relative_error"]["median"].get<double>(), 100 * m["param_relative_error"]["max"].get<double>(),
+        m["gap_after_all_within_1_5_noise"].get<size_t>(), cases.size(),
+        m["shrink_gap_after_all_over_noise"]["median"].get<double>(), m["shrink_gap_after_all_over_noise"]["max"].get<double>());
+    return s;
+  }
   const std::map<std::string, std::string> abbr = {
       {"bias", "bias"},   {"drift", "drft"},    {"scale_factor", "scal"}, {"boresight_roll", "roll"},
       {"axis_nonorthogonality", "nort"}, {"backlash", "blsh"}, {"settling", "setl"}, {"time_skew", "skew"},

@@ -32,7 +32,7 @@ std::vector<Effect> draw_effects(const std::string& cls, uint64_t seed, const Be
 
 struct BlindCase {
   int index = 0;
-  std::string truth;                 // class drawn
+  std::string truth;                 // class drawn ("a+b" for a pair)
   nlohmann::ordered_json truth_params = nlohmann::ordered_json::object();
   std::string cause;                 // what the diagnosis said
   std::vector<std::string> causes;
@@ -41,6 +41,7 @@ struct BlindCase {
   double param_error = 0;            // largest relative error over the truth's parameters (correct cases)
   nlohmann::ordered_json param_errors = nlohmann::ordered_json::object();
   double gap_before_arcsec = 0, gap_after_arcsec = 0, noise_floor_arcsec = 0;
+  double gap_after_all_arcsec = 0;  // with every cause reported
   std::string where;  // the leading factor of `where` (factor/axis)
   size_t rows = 0;
 };
@@ -52,10 +53,15 @@ struct BlindTestOptions {
   // (case-N-truth.json) and the diagnosis (case-N-gap.json) are written there, so a case can be
   // re-run with `fpss-stand diagnose`.
   std::string save_dir;
+  // Two different effects per case instead of one (or none); correct when `causes` names both.
+  // Pairs one of which a refitted transfer function contains (bias, scale_factor with
+  // coefficients) are not drawn: they cannot be told apart by construction.
+  bool pairs = false;
 };
 
 struct BlindTestReport {
   std::vector<BlindCase> cases;
+  bool pairs = false;
   double accuracy() const;                          // top-1, all cases
   double accuracy(const std::string& cls) const;    // top-1 among cases of that truth
   double false_alarm_rate() const;                  // truth none, cause not none

@@ -89,13 +89,16 @@ void add_blindtest_command(CLI::App& app, Runner& run) {
   sub->add_option("--save", o->b.save_dir,
                   "folder for every case's recording, model, truth and GAP.json (to re-run `diagnose` on them)");
   sub->add_flag("--quiet", o->quiet, "no progress lines on stderr");
+  sub->add_flag("--pairs", o->b.pairs, "two different effects per case (correct when both are reported)");
   sub->callback([o, &run] {
     run = [o] {
       if (o->b.cases < 1) throw InputError("--cases must be at least 1");
       const BlindTestReport rep = run_blindtest(o->b, [&](const BlindCase& c) {
         if (o->quiet) return;
+        std::string got = c.cause;
+        for (size_t k = 1; k < c.causes.size(); ++k) got += "+" + c.causes[k];
         std::fprintf(stderr, "case %3d  %-22s -> %-22s %s  gap %.3f -> %.3f (noise %.3f)\n", c.index, c.truth.c_str(),
-                     c.cause.c_str(), c.correct ? "ok  " : "MISS", c.gap_before_arcsec, c.gap_after_arcsec,
+                     got.c_str(), c.correct ? "ok  " : "MISS", c.gap_before_arcsec, c.gap_after_all_arcsec,
                      c.noise_floor_arcsec);
       });
       if (o->json) std::printf("%s\n", rep.to_json().dump(1).c_str());

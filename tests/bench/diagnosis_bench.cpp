@@ -41,6 +41,26 @@ void BM_BlindTest200(benchmark::State& state) {
 }
 BENCHMARK(BM_BlindTest200)->Arg(7)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 
+// Two effects per case: every distinguishable pair twice (86 cases).
+void BM_BlindTestPairs(benchmark::State& state) {
+  BlindTestReport rep;
+  for (auto _ : state) {
+    BlindTestOptions o;
+    o.cases = 86;
+    o.seed = static_cast<uint64_t>(state.range(0));
+    o.pairs = true;
+    rep = run_blindtest(o);
+  }
+  const auto j = rep.to_json();
+  const auto& s = j["summary"];
+  state.counters["both_found"] = s["both_found"].get<double>();
+  state.counters["one_found"] = s["at_least_one_found"].get<double>();
+  state.counters["param_err_max"] = s["param_relative_error"]["max"].get<double>();
+  state.counters["shrink_max"] = s["shrink_gap_after_all_over_noise"]["max"].get<double>();
+  std::printf("\n%s\n", rep.to_text().c_str());
+}
+BENCHMARK(BM_BlindTestPairs)->Arg(7)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+
 // ------------------------------------------------------------------ diagnose on large recordings
 
 // Bench recordings of at least `rows` rows: the blind test's session (grid + slews at two rates
