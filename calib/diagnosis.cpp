@@ -768,18 +768,23 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
           if (!pair || j.score < pair->score) pair = std::move(j);
         }
       }
-      // Kept when it scores better and is material too: at least 0.1 x noise floor^2 off the
-      // held-out mean square that the first alone leaves.
-      const double after1 = best.result.heldout_rms_arcsec * best.result.heldout_rms_arcsec;
-      if (pair && pair->score < best.result.score &&
-          after1 - pair->e[1].heldout_rms_arcsec * pair->e[1].heldout_rms_arcsec >= material) {
+      // Kept when it scores better than the best single and its second member is material: it
+      // takes at least 0.1 x noise floor^2 off the held-out mean square its first leaves alone.
+      auto single = [&](const std::string& n) -> const Scored& {
+        for (const auto& s : all) if (s.result.name == n) return s;
+        return all.front();
+      };
+      bool keep = pair && pair->score < best.result.score;
+      EffectResult e1, e2;
+      if (keep) {
         // In order: the one that alone explains more first.
-        auto single = [&](const std::string& n) -> const Scored& {
-          for (const auto& s : all) if (s.result.name == n) return s;
-          return all.front();
-        };
-        EffectResult e1 = pair->e[0], e2 = pair->e[1];
+        e1 = pair->e[0];
+        e2 = pair->e[1];
         if (single(e2.name).result.score < single(e1.name).result.score) std::swap(e1, e2);
+        const double alone = single(e1.name).result.heldout_rms_arcsec;
+        keep = alone * alone - pair->e[1].heldout_rms_arcsec * pair->e[1].heldout_rms_arcsec >= material;
+      }
+      if (keep) {
         const Scored& lead = single(e1.name);
         e1.fit_rms_arcsec = lead.result.fit_rms_arcsec;  // the first's own figures, alone
         e1.heldout_rms_arcsec = lead.result.heldout_rms_arcsec;
