@@ -142,7 +142,8 @@ void write_diagnosis_report(const std::string& html_path, const SampleTable& dat
     if (settle_rows > 0) specs.push_back({"time_since_move", "time since the move ended, s (dwells)", 8, 8, "since"});
     if (r.has_temperature) specs.push_back({"temperature", "temperature, C", 9, 9, ""});
     std::ofstream gp(dir / "plots.gp");
-    gp << "set terminal svg size 900,360 font 'sans,10' background rgb 'white'\nset grid\nset key top right\n";
+    gp << "set terminal svg size 900,360 font 'sans,10' background rgb 'white'\nset termoption noenhanced\n"
+          "set grid\nset key top right\n";
     for (const auto& s : specs) {
       auto x = [&](int col) {
         if (s.cond == "since") return fmt::format("(${} >= 0 ? ${} : 1/0)", col, col);
@@ -154,8 +155,8 @@ void write_diagnosis_report(const std::string& html_path, const SampleTable& dat
         const int col = a == 0 ? s.col_p : s.col_y;
         gp << fmt::format("set title '{} residual vs {}'\nset xlabel '{}'\nset ylabel 'arcsec'\n", a == 0 ? "pitch" : "yaw",
                           s.name, s.xlabel);
-        gp << fmt::format("plot '{0}' using {1}:{2} with points pt 7 ps 0.2 lc rgb '#c0c0c0' title 'before', "
-                          "'{0}' using {1}:{3} with points pt 7 ps 0.2 lc rgb '#1f5fbf' title 'after'\n",
+        gp << fmt::format("plot '{0}' using {1}:{2} with points pt 7 ps 0.3 lc rgb '#c0c0c0' title 'before', "
+                          "'{0}' using {1}:{3} with points pt 7 ps 0.3 lc rgb '#1f5fbf' title 'after'\n",
                           (dir / "rows.dat").string(), x(col), a == 0 ? 10 : 11, a == 0 ? 12 : 13);
       }
       gp << "unset multiplot\n";
