@@ -9,9 +9,9 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
-#include <sstream>
 
 #include "calib/errors.h"
+#include "calib/text_file.h"
 
 namespace fpss {
 
@@ -228,11 +228,7 @@ SampleTable parse_samples_csv(std::string_view text, const std::string& origin) 
 }
 
 SampleTable read_samples_csv(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open samples file", path.string()));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return parse_samples_csv(ss.str(), path.string());
+  return parse_samples_csv(read_text_file(path, "samples file"), path.string());
 }
 
 std::string format_number(double v) {

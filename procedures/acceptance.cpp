@@ -5,11 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
-#include <sstream>
 
 #include "calib/compare.h"
 #include "calib/errors.h"
+#include "calib/text_file.h"
 #include "calib/units.h"
 #include "procedures/yaml_diag.h"
 
@@ -96,11 +95,7 @@ AcceptanceLimits parse_acceptance_limits(const std::string& text, const std::str
 }
 
 AcceptanceLimits load_acceptance_limits(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open the acceptance limits file", path.string()));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return parse_acceptance_limits(ss.str(), path.string());
+  return parse_acceptance_limits(read_text_file(path, "the acceptance limits file"), path.string());
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -4,11 +4,10 @@
 #include <openssl/evp.h>
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
+#include "calib/text_file.h"
 
 namespace fpss {
 
@@ -334,12 +333,9 @@ Procedure parse_procedure(std::string_view text, const std::string& origin, Diag
 }
 
 Procedure load_procedure(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open procedure file", path.string()));
-  std::ostringstream ss;
-  ss << in.rdbuf();
+  const std::string text = read_text_file(path, "procedure file");
   Diagnostics d(path.string());
-  Procedure p = parse_procedure(ss.str(), path.string(), d);
+  Procedure p = parse_procedure(text, path.string(), d);
   d.throw_if_any();
   return p;
 }

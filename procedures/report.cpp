@@ -8,15 +8,14 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <map>
-#include <sstream>
 #include <tuple>
 
 #include "calib/calibrator.h"
 #include "calib/dwells.h"
 #include "calib/errors.h"
 #include "calib/residuals.h"
+#include "calib/text_file.h"
 #include "calib/units.h"
 #include "procedures/report_plot.h"
 
@@ -52,14 +51,6 @@ AxisResidualStats axis_stats(const fit::AxisData& d, const AxisCoeffs& c) {
     st.range_hi_deg = d.ref_hi_arcsec / kArcsecPerDeg;
   }
   return st;
-}
-
-std::string read_text(const fs::path& p, const char* what) {
-  std::ifstream in(p, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open {}", p.string(), what));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
 }
 
 void write_atomic(const fs::path& path, const std::string& text) {
@@ -460,7 +451,7 @@ ReportInput load_report_input(const fs::path& run_dir) {
   if (!fs::exists(samples_path)) throw InputError(fmt::format("{}: missing: the run recorded no samples", samples_path.string()));
   if (fs::exists(run_path)) {
     try {
-      in.run = nlohmann::json::parse(read_text(run_path, "run.json"));
+      in.run = nlohmann::json::parse(read_text_file(run_path, "run.json"));
     } catch (const nlohmann::json::parse_error& e) {
       throw InputError(fmt::format("{}: not valid JSON: {}", run_path.string(), e.what()));
     }

@@ -16,7 +16,6 @@
 #include <cstring>
 #include <regex>
 #include <set>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -25,6 +24,7 @@
 #include "calib/coefficients.h"
 #include "calib/compare.h"
 #include "calib/errors.h"
+#include "calib/text_file.h"
 #include "fixtures/bench.h"
 #include "procedures/acceptance.h"
 #include "procedures/catalogue.h"
@@ -277,14 +277,6 @@ struct AcceptArgs {
   std::vector<CLI::Option*> emu_only;
 };
 
-std::string read_file_text(const fs::path& p, const char* what) {
-  std::ifstream in(p, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open {}", p.string(), what));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 // Temporary file, fsync, rename: a crash leaves the old file or the new one, never half of one.
 void write_atomic(const fs::path& path, const std::string& text) {
   const fs::path tmp = path.string() + ".tmp";
@@ -337,10 +329,10 @@ int accept_command(const AcceptArgs& a) {
   req.quiet = a.quiet;
   req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
   Diagnostics dp(proc_path.string());
-  req.procedure = parse_procedure(read_file_text(proc_path, "procedure file"), proc_path.string(), dp);
+  req.procedure = parse_procedure(read_text_file(proc_path, "procedure file"), proc_path.string(), dp);
   Diagnostics ds(a.stand_file);
   if (!a.stand_file.empty()) {
-    req.stand = parse_stand(read_file_text(a.stand_file, "stand file"), a.stand_file, ds);
+    req.stand = parse_stand(read_text_file(a.stand_file, "stand file"), a.stand_file, ds);
     if (a.emulate) adapt_to_emulator(req.stand, a.speed);
   } else {
     req.stand = emulated_stand(a.speed);

@@ -5,13 +5,12 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "calib/errors.h"
+#include "calib/text_file.h"
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
 #include "procedures/session.h"
@@ -34,14 +33,6 @@ struct RunArgs {
   CLI::Option* speed_opt = nullptr;
   std::vector<CLI::Option*> emu_only;
 };
-
-std::string read_text(const fs::path& p, const char* what) {
-  std::ifstream in(p, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open {}", p.string(), what));
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 int run_command(const RunArgs& a) {
   SessionRequest req;
@@ -87,12 +78,12 @@ int run_command(const RunArgs& a) {
       }
     }
     // Validate everything before anything moves, and report every error of both files at once.
-    const std::string ptext = read_text(a.procedure, "procedure file");
+    const std::string ptext = read_text_file(a.procedure, "procedure file");
     Diagnostics dp(a.procedure);
     req.procedure = parse_procedure(ptext, a.procedure, dp);
     Diagnostics ds(a.stand_file);
     if (!a.stand_file.empty()) {
-      req.stand = parse_stand(read_text(a.stand_file, "stand file"), a.stand_file, ds);
+      req.stand = parse_stand(read_text_file(a.stand_file, "stand file"), a.stand_file, ds);
       if (a.emulate) adapt_to_emulator(req.stand, a.speed);
     } else {
       req.stand = emulated_stand(a.speed);

@@ -3,10 +3,9 @@
 #include <fmt/format.h>
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 
 #include "calib/errors.h"
+#include "calib/text_file.h"
 #include "drivers/endpoints.h"
 
 namespace fpss {
@@ -165,12 +164,9 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
 }
 
 StandConfig load_stand_file(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open stand file", path.string()));
-  std::ostringstream ss;
-  ss << in.rdbuf();
+  const std::string text = read_text_file(path, "stand file");
   Diagnostics d(path.string());
-  StandConfig c = parse_stand(ss.str(), path.string(), d);
+  StandConfig c = parse_stand(text, path.string(), d);
   d.throw_if_any();
   return c;
 }
