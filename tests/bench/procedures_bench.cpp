@@ -31,9 +31,9 @@ void BM_DiscreteGridEmulated(benchmark::State& state) {
   for (auto _ : state) {
     const fs::path runs = tmp / ("runs" + std::to_string(n++));
     const auto t0 = Clock::now();
-    const auto r = fpss::test::run_cli({"run", (fpss::test::source_dir() / "procedures" / "discrete_grid.yaml").string(),
-                                        "--emulate", "--runs-dir", runs.string(), "--quiet"},
-                                       tmp.path, "grid", 300);
+    const auto r = fpss::test::run_stand({"run", (fpss::test::source_dir() / "procedures" / "discrete_grid.yaml").string(),
+                                          "--emulate", "--runs-dir", runs.string(), "--quiet"},
+                                         tmp.path(), "grid", 300);
     state.SetIterationTime(std::chrono::duration<double>(Clock::now() - t0).count());
     if (r.code != 0) {
       state.SkipWithError(("run failed: " + r.err).c_str());

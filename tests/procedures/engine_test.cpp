@@ -25,7 +25,7 @@ namespace fs = std::filesystem;
 struct Bench {
   explicit Bench(const fs::path& dir, std::vector<std::string> args = {}) {
     EmulatorLaunch l;
-    l.exe = test::fpss_binary();
+    l.exe = test::stand_binary();
     l.args = {"--speed", "20", "--seed", "5"};
     l.args.insert(l.args.end(), args.begin(), args.end());
     l.log = dir / "emulator.log";
@@ -75,7 +75,7 @@ std::shared_ptr<spdlog::logger> quiet_log() {
 TEST(Engine, EmulatorProcessReportsBothEndpoints) {
   TempDir tmp("engine-emu");
   EmulatorLaunch l;
-  l.exe = test::fpss_binary();
+  l.exe = test::stand_binary();
   l.log = tmp / "emu.log";
   EmulatorProcess emu(l);
   EXPECT_FALSE(emu.running());
@@ -100,7 +100,7 @@ TEST(Engine, EmulatorProcessReportsBothEndpoints) {
 
 TEST(Engine, RunsAPlanAndRecordsEveryPoint) {
   TempDir tmp("engine-run");
-  Bench bench(tmp.path);
+  Bench bench(tmp.path());
   const Procedure p = grid();
   const Plan plan = plan_of(p, bench.settings);
   RunRecorder rec(tmp / "run");
@@ -136,7 +136,7 @@ TEST(Engine, RunsAPlanAndRecordsEveryPoint) {
 
 TEST(Engine, AbortStopsReturnsToNullAndKeepsTheRecording) {
   TempDir tmp("engine-abort");
-  Bench bench(tmp.path);
+  Bench bench(tmp.path());
   const Procedure p = grid();
   const Plan plan = plan_of(p, bench.settings);
   RunRecorder rec(tmp / "run");
@@ -178,7 +178,7 @@ TEST(Engine, AbortStopsReturnsToNullAndKeepsTheRecording) {
 
 TEST(Engine, PauseHoldsBetweenPoints) {
   TempDir tmp("engine-pause");
-  Bench bench(tmp.path);
+  Bench bench(tmp.path());
   const Procedure p = grid();
   const Plan plan = plan_of(p, bench.settings);
   RunRecorder rec(tmp / "run");
@@ -211,7 +211,7 @@ TEST(Engine, PauseHoldsBetweenPoints) {
 TEST(Engine, FollowingErrorIsClearedAndThePointMeasuredAgain) {
   TempDir tmp("engine-fe");
   // The fault fires at the 40th Modbus request: in the middle of the grid.
-  Bench bench(tmp.path, {"--fault", "following_error:at_request=40"});
+  Bench bench(tmp.path(), {"--fault", "following_error:at_request=40"});
   const Procedure p = grid();
   const Plan plan = plan_of(p, bench.settings);
   RunRecorder rec(tmp / "run");

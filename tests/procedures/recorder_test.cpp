@@ -152,8 +152,8 @@ TEST(Recorder, DamagedRecordingsAreRefused) {
 
 TEST(Recorder, RunFoldersAreUniqueAndNamed) {
   TempDir tmp("recorder-dirs");
-  const auto a = make_run_dir(tmp.path, "2026-01-02T03:04:05Z", "FPSS1-SN/42", "discrete_grid");
-  const auto b = make_run_dir(tmp.path, "2026-01-02T03:04:05Z", "FPSS1-SN/42", "discrete_grid");
+  const auto a = make_run_dir(tmp.path(), "2026-01-02T03:04:05Z", "FPSS1-SN/42", "discrete_grid");
+  const auto b = make_run_dir(tmp.path(), "2026-01-02T03:04:05Z", "FPSS1-SN/42", "discrete_grid");
   EXPECT_EQ(a.filename(), "20260102T030405Z-FPSS1-SN_42-discrete_grid");
   EXPECT_EQ(b.filename(), "20260102T030405Z-FPSS1-SN_42-discrete_grid-2");
   EXPECT_TRUE(fs::is_directory(a));
