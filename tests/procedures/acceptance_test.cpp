@@ -3,20 +3,11 @@
 // end to end over the real wire against the emulator child.
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <chrono>
-#include <thread>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <fcntl.h>
 #include <filesystem>
-#include <fstream>
-#include <random>
 #include <set>
 #include <string>
 #include <vector>
@@ -31,8 +22,7 @@
 #include "procedures/acceptance.h"
 #include "procedures/catalogue.h"
 #include "procedures/emulator_process.h"
-
-extern char** environ;
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
@@ -40,27 +30,8 @@ namespace fs = std::filesystem;
 
 const fs::path kProcedures = fs::path(FPSS_SOURCE_DIR) / "procedures";
 
-class Scratch {
- public:
-  Scratch() {
-    std::random_device rd;
-    path_ = fs::temp_directory_path() / ("fpss-acceptance-" + std::to_string(::getpid()) + "-" + std::to_string(rd()));
-    fs::create_directories(path_);
-  }
-  ~Scratch() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
-
-std::string read_text(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(f), {}};
-}
+using test::CommandResult;
+using test::read_file;
 
 const Criterion& criterion(const Judgement& j, const std::string& id) {
   for (const auto& c : j.criteria) {
@@ -104,7 +75,7 @@ TEST(AcceptanceLimits, DefaultFileHasEveryLimitWithItsSource) {
 }
 
 TEST(AcceptanceLimits, EveryErrorAtOnceWithLineNumbers) {
-  std::string text = read_text(default_limits_path());
+  std::string text = read_file(default_limits_path());
   // Drop one limit, give another a non-number and a third an empty source, add an unknown key.
   auto replace = [&](const std::string& from, const std::string& to) {
     const auto at = text.find(from);
@@ -417,58 +388,31 @@ TEST(AcceptanceJudge, CertificateCarriesEveryCriterionAndTheIdentity) {
 // ---------------------------------------------------------------------------------------------
 // fpss-stand accept end to end: the emulator child over Modbus TCP and a pty, a real catalogue.
 
-struct Cli {
-  int code = -1;
-  std::string out, err;
-};
-
-fs::path stand_binary() { return fs::path(FPSS_BINARY_DIR) / "stand" / "fpss-stand"; }
-
-Cli run_cli(const std::string& args, const fs::path& scratch) {
-  if (!fs::exists(stand_binary())) throw std::runtime_error(stand_binary().string() + " is not built");
-  const fs::path err_file = scratch / "stderr.txt";
-  const std::string cmd = "'" + stand_binary().string() + "' " + args + " 2>'" + err_file.string() + "'";
-  Cli r;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) throw std::runtime_error("popen failed");
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.err = read_text(err_file);
-  return r;
-}
-
 class AcceptCli : public ::testing::Test {
  protected:
   fs::path runs() const { return scratch_.path() / "runs"; }
   // Speed-up 40: the whole acceptance (163 points, 5 min of bench time) in about 8 s.
-  Cli accept(const std::string& args) {
-    return run_cli("accept --emulate --quiet --speed 40 --json --runs-dir '" + runs().string() + "' " + args,
-                   scratch_.path());
+  CommandResult accept(const std::string& args) {
+    return test::run_stand_shell(
+        "accept --emulate --quiet --speed 40 --json --runs-dir '" + runs().string() + "' " + args, scratch_.path());
   }
   static std::set<std::string> failed(const nlohmann::json& cert) {
     std::set<std::string> f;
     for (const auto& id : cert["failed"]) f.insert(id.get<std::string>());
     return f;
   }
-  fs::path write(const std::string& name, const std::string& text) {
-    const fs::path p = scratch_.path() / name;
-    std::ofstream(p) << text;
-    return p;
-  }
-  Scratch scratch_;
+  fs::path write(const std::string& name, const std::string& text) { return scratch_.write(name, text); }
+  test::TempDir scratch_{"acceptance"};
 };
 
 TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainstItsHistory) {
-  const Cli r = accept("--seed 3");
+  const CommandResult r = accept("--seed 3");
   ASSERT_EQ(r.code, 0) << r.err << r.out;
   const auto cert = nlohmann::json::parse(r.out);
   EXPECT_EQ(cert["verdict"], "pass");
   EXPECT_EQ(cert["unit"], "EMU-0001");
   EXPECT_EQ(cert["software"]["version"], FPSS_VERSION);
-  EXPECT_EQ(cert["procedure"]["sha256"], sha256_hex(read_text(default_acceptance_procedure_path())));
+  EXPECT_EQ(cert["procedure"]["sha256"], sha256_hex(read_file(default_acceptance_procedure_path())));
   EXPECT_EQ(cert["limits"]["sha256"], limits().sha256);
   EXPECT_NE(cert["stand"]["identity"].get<std::string>().find("emulated bench (seed 3"), std::string::npos);
   EXPECT_EQ(cert["run"]["points_completed"], 163);
@@ -479,12 +423,12 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
     EXPECT_FALSE(c["source"].get<std::string>().empty());
   }
   const fs::path dir = cert["run"]["dir"].get<std::string>();
-  EXPECT_EQ(nlohmann::json::parse(read_text(dir / "acceptance.json")), cert);
-  EXPECT_NE(read_text(dir / "certificate.txt").find("Verdict:    PASS"), std::string::npos);
-  const std::string page = read_text(dir / "report.html");
+  EXPECT_EQ(nlohmann::json::parse(read_file(dir / "acceptance.json")), cert);
+  EXPECT_NE(read_file(dir / "certificate.txt").find("Verdict:    PASS"), std::string::npos);
+  const std::string page = read_file(dir / "report.html");
   EXPECT_NE(page.find("id=\"acceptance\""), std::string::npos);
   EXPECT_NE(page.find("Acceptance: PASS"), std::string::npos);
-  EXPECT_EQ(nlohmann::json::parse(read_text(dir / "run.json"))["acceptance"]["verdict"], "pass");
+  EXPECT_EQ(nlohmann::json::parse(read_file(dir / "run.json"))["acceptance"]["verdict"], "pass");
   {
     Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
     const auto acc = cat.unit_acceptances("EMU-0001");
@@ -499,7 +443,7 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
 
   // The same unit again after its null moved by 4 arcsec in yaw (a bias the null condition of
   // this run alone calibrates out): every criterion of the run passes, the history does not.
-  const Cli moved = accept("--seed 4 --effect bias:pitch_arcsec=0,yaw_arcsec=4");
+  const CommandResult moved = accept("--seed 4 --effect bias:pitch_arcsec=0,yaw_arcsec=4");
   ASSERT_EQ(moved.code, 3) << moved.err << moved.out;
   const auto c2 = nlohmann::json::parse(moved.out);
   EXPECT_EQ(c2["verdict"], "fail");
@@ -519,7 +463,7 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
   }
 
   // Back to the original null: judged against the accepted calibration, not the failed one.
-  const Cli back = accept("--seed 5");
+  const CommandResult back = accept("--seed 5");
   ASSERT_EQ(back.code, 0) << back.err << back.out;
   const auto c3 = nlohmann::json::parse(back.out);
   for (const auto& c : c3["criteria"]) {
@@ -533,7 +477,7 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
 
 TEST_F(AcceptCli, NoisyUnitFailsOnJitter) {
   const fs::path bench = write("noisy.yaml", "count_noise: 10\n");  // 1.1 arcsec per frame, 1 sigma
-  const Cli r = accept("--bench '" + bench.string() + "'");
+  const CommandResult r = accept("--bench '" + bench.string() + "'");
   ASSERT_EQ(r.code, 3) << r.err << r.out;
   const auto cert = nlohmann::json::parse(r.out);
   EXPECT_EQ(failed(cert), (std::set<std::string>{"jitter_3sigma_pitch", "jitter_3sigma_yaw"})) << r.out;
@@ -542,7 +486,7 @@ TEST_F(AcceptCli, NoisyUnitFailsOnJitter) {
 TEST_F(AcceptCli, BadTransferFunctionRegionFailsOnAccuracyOfThatAxis) {
   const fs::path truth = scratch_.path() / "ripple.json";
   save_coefficients(truth, rippled_truth(3.0));
-  const Cli r = accept("--effect 'coefficients:file=" + truth.string() + "'");
+  const CommandResult r = accept("--effect 'coefficients:file=" + truth.string() + "'");
   ASSERT_EQ(r.code, 3) << r.err << r.out;
   const auto f = failed(nlohmann::json::parse(r.out));
   EXPECT_TRUE(f.count("accuracy_3sigma_pitch")) << r.out;
@@ -551,7 +495,7 @@ TEST_F(AcceptCli, BadTransferFunctionRegionFailsOnAccuracyOfThatAxis) {
 }
 
 TEST_F(AcceptCli, RolledUnitFailsOnAccuracy) {
-  const Cli r = accept("--effect boresight_roll:roll_arcsec=1800");
+  const CommandResult r = accept("--effect boresight_roll:roll_arcsec=1800");
   ASSERT_EQ(r.code, 3) << r.err << r.out;
   const auto f = failed(nlohmann::json::parse(r.out));
   EXPECT_TRUE(f.count("accuracy_worst_point_pitch") && f.count("accuracy_worst_point_yaw")) << r.out;
@@ -561,14 +505,16 @@ TEST_F(AcceptCli, RolledUnitFailsOnAccuracy) {
 TEST_F(AcceptCli, UnitBlindNearTheEdgeFailsOnSunPresence) {
   // The Sun is seen only within 0.39 deg: the calibration's 0.42 deg points give no valid frame.
   const fs::path bench = write("narrow.yaml", "sun_half_fov_arcsec: 1400\n");
-  const Cli r = accept("--bench '" + bench.string() + "'");
+  const CommandResult r = accept("--bench '" + bench.string() + "'");
   ASSERT_EQ(r.code, 3) << r.err << r.out;
   const auto cert = nlohmann::json::parse(r.out);
   EXPECT_TRUE(failed(cert).count("sun_present")) << r.out;
   EXPECT_EQ(cert["run"]["outcome"], "failed");
   EXPECT_NE(cert["run"]["reason"].get<std::string>().find("invalid frame"), std::string::npos);
   for (const auto& c : cert["criteria"]) {
-    if (c["id"] == "sun_present") EXPECT_LT(c["measured"].get<double>(), 1.0);
+    if (c["id"] == "sun_present") {
+      EXPECT_LT(c["measured"].get<double>(), 1.0);
+    }
   }
   Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
   ASSERT_EQ(cat.unit_acceptances("EMU-0001").size(), 1u);
@@ -578,7 +524,7 @@ TEST_F(AcceptCli, UnitBlindNearTheEdgeFailsOnSunPresence) {
 TEST_F(AcceptCli, RealBenchPathWithAStandFileAndTheUnitsSerial) {
   // A bench started on its own (as a real one would be), reached through a stand file.
   EmulatorLaunch l;
-  l.exe = stand_binary();
+  l.exe = test::stand_binary();
   l.args = {"--speed", "40", "--seed", "5", "--unit-serial", "SN-0042"};
   EmulatorProcess emu(l);
   emu.start();
@@ -588,10 +534,10 @@ TEST_F(AcceptCli, RealBenchPathWithAStandFileAndTheUnitsSerial) {
                                              "clock:\n  sync: shared\n  time_scale: 40\n");
   const std::string common = "accept --quiet --json --runs-dir '" + runs().string() + "' --stand '" + stand.string() + "'";
   // The wrong unit on the stand: bad input, nothing moved, nothing judged.
-  Cli r = run_cli(common + " --unit SN-0001", scratch_.path());
+  CommandResult r = test::run_stand_shell(common + " --unit SN-0001", scratch_.path());
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("SN-0042"), std::string::npos) << r.err;
-  r = run_cli(common + " --unit SN-0042", scratch_.path());
+  r = test::run_stand_shell(common + " --unit SN-0042", scratch_.path());
   ASSERT_EQ(r.code, 0) << r.err << r.out;
   const auto cert = nlohmann::json::parse(r.out);
   EXPECT_EQ(cert["unit"], "SN-0042");
@@ -600,59 +546,37 @@ TEST_F(AcceptCli, RealBenchPathWithAStandFileAndTheUnitsSerial) {
   emu.stop();
 }
 
-// Starts `fpss-stand args...` with stdout and stderr to files; returns its pid.
-pid_t spawn_stand(const std::vector<std::string>& args, const fs::path& out, const fs::path& err) {
-  std::vector<std::string> all{stand_binary().string()};
-  all.insert(all.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : all) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  pid_t pid = -1;
-  const int rc = ::posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  if (rc != 0) throw std::runtime_error("posix_spawn failed");
-  return pid;
-}
-
-int wait_code(pid_t pid) {
-  int status = 0;
-  if (::waitpid(pid, &status, 0) != pid) return -1;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-}
-
 TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
   auto args = [&](const std::string& unit, const std::string& seed) {
     return std::vector<std::string>{"accept", "--emulate", "--quiet", "--speed", "40", "--json", "--runs-dir",
                                     runs().string(), "--unit", unit, "--seed", seed};
   };
   const fs::path dir = scratch_.path();
-  const pid_t a = spawn_stand(args("UNIT-A", "7"), dir / "a.out", dir / "a.err");
-  const pid_t b = spawn_stand(args("UNIT-B", "8"), dir / "b.out", dir / "b.err");
-  const pid_t c = spawn_stand(args("UNIT-C", "9"), dir / "c.out", dir / "c.err");
+  test::Child a = test::start_stand(args("UNIT-A", "7"), dir, "a");
+  test::Child b = test::start_stand(args("UNIT-B", "8"), dir, "b");
+  test::Child c = test::start_stand(args("UNIT-C", "9"), dir, "c");
   // Kill C once its run is in the catalogue and has recorded points (the catalogue is shared).
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  bool c_running = false;
-  while (!c_running && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    if (!fs::exists(Catalogue::default_path(runs()))) continue;
-    try {
-      Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
-      for (const auto& r : cat.list_runs({.unit = "UNIT-C", .limit = 0})) {
-        c_running = fs::exists(fs::path(r.run_dir) / "points.jsonl") && fs::file_size(fs::path(r.run_dir) / "points.jsonl") > 0;
-      }
-    } catch (const std::exception&) {
-      // the catalogue is being created by another process: look again
-    }
-  }
-  ASSERT_TRUE(c_running) << read_text(dir / "c.err");
-  ASSERT_EQ(::kill(c, SIGKILL), 0);
-  EXPECT_EQ(wait_code(c), 128 + SIGKILL);
-  EXPECT_EQ(wait_code(a), 0) << read_text(dir / "a.err");
-  EXPECT_EQ(wait_code(b), 0) << read_text(dir / "b.err");
+  const bool c_running = test::wait_until(
+      [&] {
+        if (!fs::exists(Catalogue::default_path(runs()))) return false;
+        try {
+          Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+          bool running = false;
+          for (const auto& r : cat.list_runs({.unit = "UNIT-C", .limit = 0})) {
+            const fs::path points = fs::path(r.run_dir) / "points.jsonl";
+            running = fs::exists(points) && fs::file_size(points) > 0;
+          }
+          return running;
+        } catch (const std::exception&) {
+          return false;  // the catalogue is being created by another process: look again
+        }
+      },
+      120, std::chrono::milliseconds(50));
+  ASSERT_TRUE(c_running) << read_file(dir / "c.err");
+  ASSERT_EQ(::kill(c.pid(), SIGKILL), 0);
+  EXPECT_EQ(c.wait(), 128 + SIGKILL);
+  EXPECT_EQ(a.wait(), 0) << read_file(dir / "a.err");
+  EXPECT_EQ(b.wait(), 0) << read_file(dir / "b.err");
 
   Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
   EXPECT_EQ(cat.integrity_check(), "ok");
@@ -672,7 +596,7 @@ TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
   EXPECT_TRUE(killed[0].stale());
   EXPECT_TRUE(cat.unit_acceptances("UNIT-C").empty());
   // And the catalogue takes the next acceptance as usual.
-  const Cli again = accept("--unit UNIT-C --seed 10");
+  const CommandResult again = accept("--unit UNIT-C --seed 10");
   EXPECT_EQ(again.code, 0) << again.err;
   Catalogue after(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
   EXPECT_EQ(after.unit_acceptances("UNIT-C").size(), 1u);
@@ -680,10 +604,10 @@ TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
 }
 
 TEST_F(AcceptCli, BadInputExitsTwoBeforeAnythingMoves) {
-  std::string text = read_text(default_limits_path());
+  std::string text = read_file(default_limits_path());
   text.replace(text.find("value: 3.0"), 10, "value: -3");
   const fs::path bad_limits = write("limits.yaml", text);
-  Cli r = accept("--limits '" + bad_limits.string() + "'");
+  CommandResult r = accept("--limits '" + bad_limits.string() + "'");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("limits.yaml:"), std::string::npos) << r.err;
   r = accept("--procedure '" + (kProcedures / "discrete_grid.yaml").string() + "'");
@@ -692,10 +616,11 @@ TEST_F(AcceptCli, BadInputExitsTwoBeforeAnythingMoves) {
   r = accept("--effect wobble:amount=3");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("wobble"), std::string::npos) << r.err;
-  r = run_cli("accept --stand '" + write("s.yaml", "stand: x\n").string() + "'", scratch_.path());
+  r = test::run_stand_shell("accept --stand '" + write("s.yaml", "stand: x\n").string() + "'", scratch_.path());
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--unit"), std::string::npos) << r.err;
-  r = run_cli("accept --stand '" + (scratch_.path() / "s.yaml").string() + "' --unit U --seed 3", scratch_.path());
+  r = test::run_stand_shell("accept --stand '" + (scratch_.path() / "s.yaml").string() + "' --unit U --seed 3",
+                            scratch_.path());
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--emulate"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(runs()) && !fs::is_empty(runs())) << "a run folder was made";

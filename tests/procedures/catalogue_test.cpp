@@ -18,28 +18,14 @@
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
 
-// A fresh folder per test, removed afterwards (names carry the pid: ctest -j runs tests at once).
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            fmt::format("fpss-catalogue-{}-{}-{}", info->test_suite_name(), info->name(), ::getpid());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
+using test::TempDir;
 
 RunStart make_run(const std::string& id, const std::string& unit, const std::string& started = "") {
   RunStart r;
@@ -87,14 +73,6 @@ pid_t fork_child(const std::function<void()>& body) {
     ::_exit(code);
   }
   return pid;
-}
-
-int wait_exit_code(pid_t pid) {
-  int status = 0;
-  if (::waitpid(pid, &status, 0) != pid) return -1;
-  if (WIFEXITED(status)) return WEXITSTATUS(status);
-  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
-  return -1;
 }
 
 void write_all(int fd, const std::string& s) {
@@ -360,7 +338,7 @@ TEST(Catalogue, ConcurrentWritersLoseNothing) {
   ::close(go[0]);
   const auto t0 = std::chrono::steady_clock::now();
   ::close(go[1]);  // release them all at once
-  for (pid_t k : kids) EXPECT_EQ(wait_exit_code(k), 0);
+  for (pid_t k : kids) EXPECT_EQ(test::wait_exit_code(k), 0);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("%d writers x %d runs (3 transactions each): %.2f s, %.0f commits/s\n", kWriters, kRunsEach,
               seconds, kWriters * kRunsEach * 3 / seconds);
@@ -427,7 +405,7 @@ TEST(Catalogue, ConcurrentImportsOfOneFileRecordItOnce) {
   ::close(go[1]);
   int inserted = 0;
   for (size_t i = 0; i < kids.size(); ++i) inserted += std::stoi(read_line(done[0]));
-  for (pid_t k : kids) EXPECT_EQ(wait_exit_code(k), 0);
+  for (pid_t k : kids) EXPECT_EQ(test::wait_exit_code(k), 0);
   ::close(done[0]);
   EXPECT_EQ(inserted, 3);
   EXPECT_EQ(count_rows(db, "calibrations"), 3);
@@ -480,7 +458,7 @@ TEST(Catalogue, WriterKilledMidTransactionLeavesASoundFile) {
   ::close(ready[1]);
   ASSERT_EQ(read_line(ready[0]), "in-transaction");
   ASSERT_EQ(::kill(kid, SIGKILL), 0);
-  EXPECT_EQ(wait_exit_code(kid), 128 + SIGKILL);
+  EXPECT_EQ(test::wait_exit_code(kid), 128 + SIGKILL);
   ::close(ready[0]);
 
   Catalogue cat(db);  // a writer again, straight away: the dead process's lock is gone
@@ -520,7 +498,7 @@ TEST(Catalogue, WriterKilledWhileWritingKeepsEveryReportedCommit) {
   int last = -1;
   while (last < 60) last = std::stoi(read_line(pipe_fd[0]));
   ASSERT_EQ(::kill(kid, SIGKILL), 0);
-  EXPECT_EQ(wait_exit_code(kid), 128 + SIGKILL);
+  EXPECT_EQ(test::wait_exit_code(kid), 128 + SIGKILL);
   ::close(pipe_fd[0]);
 
   Catalogue cat(db, Catalogue::Mode::read_only);
@@ -538,29 +516,6 @@ TEST(Catalogue, WriterKilledWhileWritingKeepsEveryReportedCommit) {
 }
 
 // ---- the command line: fpss-stand runs / history over a real catalogue ----
-
-struct Cli {
-  int code = -1;
-  std::string out, err;
-};
-
-Cli run_cli(const std::string& args, const fs::path& scratch) {
-  const std::string bin = std::string(FPSS_BINARY_DIR) + "/stand/fpss-stand";
-  if (!fs::exists(bin)) throw std::runtime_error(bin + " is not built (build the fpss-stand target)");
-  const auto err_file = scratch / "stderr.txt";
-  const std::string cmd = fmt::format("'{}' {} 2>'{}'", bin, args, err_file.string());
-  Cli r;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) throw std::runtime_error("popen failed");
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream e(err_file);
-  r.err.assign(std::istreambuf_iterator<char>(e), {});
-  return r;
-}
 
 class CatalogueCli : public ::testing::Test {
  protected:
@@ -590,7 +545,7 @@ class CatalogueCli : public ::testing::Test {
 };
 
 TEST_F(CatalogueCli, RunsListsEveryRunMostRecentFirst) {
-  const auto r = run_cli(fmt::format("runs --runs-dir '{}'", runs_dir_.string()), dir_.path());
+  const auto r = test::run_stand_shell(fmt::format("runs --runs-dir '{}'", runs_dir_.string()), dir_.path());
   ASSERT_EQ(r.code, 0) << r.err;
   const auto first = r.out.find("20240502T090000Z-SN-7-full_grid");
   const auto second = r.out.find("20240501T120000Z-FPSS1-discrete_grid");
@@ -601,8 +556,8 @@ TEST_F(CatalogueCli, RunsListsEveryRunMostRecentFirst) {
   EXPECT_NE(r.out.find("completed"), std::string::npos);
   EXPECT_NE(r.out.find("OUTCOME"), std::string::npos);
 
-  const auto j = run_cli(fmt::format("runs --db '{}' --json --unit FPSS1",
-                                     Catalogue::default_path(runs_dir_).string()), dir_.path());
+  const auto j = test::run_stand_shell(fmt::format("runs --db '{}' --json --unit FPSS1",
+                                                   Catalogue::default_path(runs_dir_).string()), dir_.path());
   ASSERT_EQ(j.code, 0) << j.err;
   const auto arr = nlohmann::json::parse(j.out);
   ASSERT_EQ(arr.size(), 1u);
@@ -612,7 +567,7 @@ TEST_F(CatalogueCli, RunsListsEveryRunMostRecentFirst) {
 }
 
 TEST_F(CatalogueCli, HistoryListsTheUnitsCalibrationsOldestFirst) {
-  const auto r = run_cli(fmt::format("history FPSS1 --runs-dir '{}'", runs_dir_.string()), dir_.path());
+  const auto r = test::run_stand_shell(fmt::format("history FPSS1 --runs-dir '{}'", runs_dir_.string()), dir_.path());
   ASSERT_EQ(r.code, 0) << r.err;
   const auto imported = r.out.find("import a-7-fpss1.json");
   const auto from_run = r.out.find("run 20240501T120000Z-FPSS1-discrete_grid");
@@ -622,8 +577,8 @@ TEST_F(CatalogueCli, HistoryListsTheUnitsCalibrationsOldestFirst) {
   EXPECT_NE(r.out.find("0.26 +- 0.20"), std::string::npos) << r.out;  // pitch mean +- sd
   EXPECT_NE(r.out.find("-0.41..+0.41"), std::string::npos) << r.out;  // yaw range
 
-  const auto j = run_cli(fmt::format("history FPSS1 --db '{}' --json",
-                                     Catalogue::default_path(runs_dir_).string()), dir_.path());
+  const auto j = test::run_stand_shell(fmt::format("history FPSS1 --db '{}' --json",
+                                                   Catalogue::default_path(runs_dir_).string()), dir_.path());
   ASSERT_EQ(j.code, 0) << j.err;
   const auto h = nlohmann::json::parse(j.out);
   EXPECT_EQ(h["unit"], "FPSS1");
@@ -639,27 +594,28 @@ TEST_F(CatalogueCli, HistoryListsTheUnitsCalibrationsOldestFirst) {
 
 TEST_F(CatalogueCli, UnknownUnitOrMissingCatalogueIsExit2NamingWhat) {
   const auto db = Catalogue::default_path(runs_dir_).string();
-  auto r = run_cli(fmt::format("history FPSS9 --db '{}'", db), dir_.path());
+  auto r = test::run_stand_shell(fmt::format("history FPSS9 --db '{}'", db), dir_.path());
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("FPSS9"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(db), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("FPSS1, SN-7"), std::string::npos) << r.err;  // what is there instead
   EXPECT_TRUE(r.out.empty());
 
-  r = run_cli(fmt::format("history SN-7 --db '{}'", db), dir_.path());  // a unit with runs, no calibration
+  // A unit with runs, no calibration.
+  r = test::run_stand_shell(fmt::format("history SN-7 --db '{}'", db), dir_.path());
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("SN-7"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("no calibration"), std::string::npos) << r.err;
 
   const auto none = (dir_.path() / "elsewhere").string();
   for (const auto& args : {fmt::format("runs --runs-dir '{}'", none), fmt::format("history FPSS1 --runs-dir '{}'", none)}) {
-    r = run_cli(args, dir_.path());
+    r = test::run_stand_shell(args, dir_.path());
     EXPECT_EQ(r.code, 2) << args;
     EXPECT_NE(r.err.find(none), std::string::npos) << r.err;
   }
   EXPECT_FALSE(fs::exists(none));  // listing never creates a catalogue
 
-  r = run_cli(fmt::format("runs --runs-dir a --db '{}'", db), dir_.path());
+  r = test::run_stand_shell(fmt::format("runs --runs-dir a --db '{}'", db), dir_.path());
   EXPECT_EQ(r.code, 2);
 }
 

@@ -3,13 +3,11 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <fstream>
 #include <random>
 #include <regex>
 #include <set>
-#include <sstream>
 
 #include "calib/calibrator.h"
 #include "calib/coefficients.h"
@@ -17,34 +15,15 @@
 #include "calib/samples.h"
 #include "calib/units.h"
 #include "procedures/report_plot.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
 
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            fmt::format("fpss-report-{}-{}-{}", info->test_suite_name(), info->name(), ::getpid());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using test::read_file;
+using test::TempDir;
 
 size_t count(const std::string& text, const std::string& what) {
   size_t n = 0;
@@ -232,7 +211,7 @@ TEST(Report, PageHasTheSummaryAndInlineSvgPlots) {
   const fs::path out = write_report(run);
   EXPECT_EQ(out, run / "report.html");
   EXPECT_FALSE(fs::exists(run / "report.html.tmp"));
-  const std::string html = slurp(out);
+  const std::string html = read_file(out);
 
   // The Table 1 figures, as computed independently.
   for (bool pitch : {true, false}) {
@@ -310,7 +289,7 @@ TEST(Report, WithoutGnuplotTheTablesStillRender) {
   make_run_folder(dir.path());
   ReportOptions opts;
   opts.gnuplot = (dir.path() / "no-such-gnuplot").string();
-  const std::string html = slurp(write_report(dir.path(), opts));
+  const std::string html = read_file(write_report(dir.path(), opts));
   EXPECT_EQ(count(html, "<svg"), 0u);
   EXPECT_NE(html.find("The plots are missing"), std::string::npos);
   EXPECT_NE(html.find("no-such-gnuplot"), std::string::npos);

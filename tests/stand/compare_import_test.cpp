@@ -1,19 +1,17 @@
 // fpss-stand import / compare / history over a real catalogue file: the paper's seven calibrations
 // of FPSS1 and FPSS2 as two units' histories, and V against VI checked against eq. 1 computed here.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <random>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "procedures/catalogue.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
@@ -21,45 +19,8 @@ namespace fs = std::filesystem;
 
 const fs::path kPublished = fs::path(FPSS_SOURCE_DIR) / "calib/data/published";
 
-struct Cli {
-  int code = -1;
-  std::string out, err;
-};
-
-class Scratch {
- public:
-  Scratch() {
-    std::random_device rd;
-    path_ = fs::temp_directory_path() / ("fpss-compare-import-" + std::to_string(rd()) + std::to_string(::getpid()));
-    fs::create_directories(path_);
-  }
-  ~Scratch() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
-
-Cli run_cli(const std::string& args, const fs::path& scratch) {
-  const std::string bin = std::string(FPSS_BINARY_DIR) + "/stand/fpss-stand";
-  if (!fs::exists(bin)) throw std::runtime_error(bin + " is not built (build the fpss-stand target)");
-  const fs::path err_file = scratch / "stderr.txt";
-  const std::string cmd = "'" + bin + "' " + args + " 2>'" + err_file.string() + "'";
-  Cli r;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) throw std::runtime_error("popen failed");
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream e(err_file);
-  r.err.assign(std::istreambuf_iterator<char>(e), {});
-  return r;
-}
+using test::CommandResult;
+using test::run_stand_shell;
 
 // The paper's calibrations in order, with the dates they were determined (Tables A-2..A-7).
 // The prelaunch set carries no date in the paper: SMM's launch day stands in for it.
@@ -127,7 +88,7 @@ class PaperHistories : public ::testing::Test {
     for (const char* unit : {"fpss1", "fpss2"}) {
       const std::string serial = unit == std::string("fpss1") ? "SMM-FPSS1" : "SMM-FPSS2";
       for (const auto& p : kPaper) {
-        const Cli r = run_cli(
+        const CommandResult r = run_stand_shell(
             "import '" + published(p.table, unit).string() + "' --unit " + serial + " --date " + p.date + " --db '" +
                 db_.string() + "'",
             scratch_.path());
@@ -135,9 +96,11 @@ class PaperHistories : public ::testing::Test {
       }
     }
   }
-  Cli cli(const std::string& args) { return run_cli(args + " --db '" + db_.string() + "'", scratch_.path()); }
+  CommandResult cli(const std::string& args) {
+    return run_stand_shell(args + " --db '" + db_.string() + "'", scratch_.path());
+  }
 
-  Scratch scratch_;
+  test::TempDir scratch_{"compare-import"};
   fs::path db_;
 };
 
@@ -166,7 +129,7 @@ TEST_F(PaperHistories, CompareVWithViForFpss1MatchesEq1Independently) {
   const auto h = cat.unit_history("SMM-FPSS1");
   ASSERT_EQ(h[5].label, "V");
   ASSERT_EQ(h[6].label, "VI");
-  const Cli r = cli("compare cal:" + std::to_string(h[5].id) + " cal:" + std::to_string(h[6].id) + " --json");
+  const CommandResult r = cli("compare cal:" + std::to_string(h[5].id) + " cal:" + std::to_string(h[6].id) + " --json");
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j.size(), 2u);
@@ -184,12 +147,12 @@ TEST_F(PaperHistories, CompareVWithViForFpss1MatchesEq1Independently) {
   EXPECT_LT(alpha.mean, -40.0);
 
   // The same figures from the files themselves, and from the published names.
-  const Cli files = run_cli("compare '" + published("a-6", "fpss1").string() + "' '" +
+  const CommandResult files = run_stand_shell("compare '" + published("a-6", "fpss1").string() + "' '" +
                                 published("a-7", "fpss1").string() + "' --json --range-deg 0.35",
                             scratch_.path());
   ASSERT_EQ(files.code, 0) << files.err;
   EXPECT_EQ(nlohmann::json::parse(files.out), j);
-  const Cli named = run_cli("compare a-6-fpss1 a-7-fpss1 --json", scratch_.path());
+  const CommandResult named = run_stand_shell("compare a-6-fpss1 a-7-fpss1 --json", scratch_.path());
   ASSERT_EQ(named.code, 0) << named.err;
   EXPECT_EQ(nlohmann::json::parse(named.out), j);
 }
@@ -205,7 +168,7 @@ TEST_F(PaperHistories, ViBetaIsComparedAsPrintedNotWithB7Corrected) {
   const Figures fixed = figures(v["beta"].get<std::vector<double>>(), vi_fixed, 0.35);
   ASSERT_GT(std::fabs(printed.max_abs_offset_removed - fixed.max_abs_offset_removed), 0.3);
   ASSERT_GT(std::fabs(printed.mean - fixed.mean), 1.0);
-  const Cli r = run_cli("compare a-6-fpss1 a-7-fpss1 --json", scratch_.path());
+  const CommandResult r = run_stand_shell("compare a-6-fpss1 a-7-fpss1 --json", scratch_.path());
   ASSERT_EQ(r.code, 0) << r.err;
   expect_matches(nlohmann::json::parse(r.out).at("beta"), printed);
 }
@@ -213,7 +176,8 @@ TEST_F(PaperHistories, ViBetaIsComparedAsPrintedNotWithB7Corrected) {
 TEST_F(PaperHistories, FpssTwoVWithViAndRangeOption) {
   const auto v = read_json(published("a-6", "fpss2")), vi = read_json(published("a-7", "fpss2"));
   for (double range : {0.2, 0.35, 0.42}) {
-    const Cli r = run_cli("compare a-6-fpss2 a-7-fpss2 --json --range-deg " + std::to_string(range), scratch_.path());
+    const auto r =
+        run_stand_shell("compare a-6-fpss2 a-7-fpss2 --json --range-deg " + std::to_string(range), scratch_.path());
     ASSERT_EQ(r.code, 0) << r.err;
     const auto j = nlohmann::json::parse(r.out);
     for (const char* axis : {"alpha", "beta"}) {
@@ -225,7 +189,7 @@ TEST_F(PaperHistories, FpssTwoVWithViAndRangeOption) {
 
 TEST_F(PaperHistories, TableAndPlot) {
   const fs::path svg = scratch_.path() / "plots" / "v-vi.svg";
-  const Cli r = run_cli("compare a-6-fpss1 a-7-fpss1 --plot '" + svg.string() + "'", scratch_.path());
+  const CommandResult r = run_stand_shell("compare a-6-fpss1 a-7-fpss1 --plot '" + svg.string() + "'", scratch_.path());
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("alpha"), std::string::npos);
   EXPECT_NE(r.out.find("beta"), std::string::npos);
@@ -239,7 +203,7 @@ TEST_F(PaperHistories, TableAndPlot) {
 }
 
 TEST_F(PaperHistories, ReimportIsANoOpAndReportsTheChange) {
-  const Cli r = cli("import '" + published("a-7", "fpss1").string() + "' --unit SMM-FPSS1 --date 1980-09-04 --json");
+  const auto r = cli("import '" + published("a-7", "fpss1").string() + "' --unit SMM-FPSS1 --date 1980-09-04 --json");
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_TRUE(j["already_present"].get<bool>());
@@ -251,7 +215,7 @@ TEST_F(PaperHistories, ReimportIsANoOpAndReportsTheChange) {
 
 TEST_F(PaperHistories, HistoryFlagsTheLatestChangeBeyondTheLimit) {
   // V -> VI moved FPSS1 by 50 arcsec (alpha, incl. the slew's null shift): flagged at the default 1 arcsec.
-  Cli r = cli("history SMM-FPSS1 --json");
+  CommandResult r = cli("history SMM-FPSS1 --json");
   ASSERT_EQ(r.code, 0) << r.err;
   auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["limit_arcsec"].get<double>(), 1.0);
@@ -311,15 +275,15 @@ TEST_F(PaperHistories, BadInputIsExitTwoAndRecordsNothing) {
       {"import '" + good + "' --unit X", "--date"},
   };
   for (const auto& c : cases) {
-    const Cli r = cli(c.args);
+    const CommandResult r = cli(c.args);
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
     EXPECT_NE(r.err.find(c.needle), std::string::npos) << c.args << "\n" << r.err;
   }
   Catalogue cat(db_, Catalogue::Mode::read_only);
   EXPECT_FALSE(cat.has_unit("X"));
 
-  EXPECT_EQ(run_cli("compare a-6-fpss1 a-7-fpss1 --range-deg -1", scratch_.path()).code, 2);
-  EXPECT_EQ(run_cli("compare a-6-fpss1 nonsense.json", scratch_.path()).code, 2);
+  EXPECT_EQ(run_stand_shell("compare a-6-fpss1 a-7-fpss1 --range-deg -1", scratch_.path()).code, 2);
+  EXPECT_EQ(run_stand_shell("compare a-6-fpss1 nonsense.json", scratch_.path()).code, 2);
   EXPECT_EQ(cli("compare cal:999 cal:1").code, 2);
   EXPECT_EQ(cli("compare cal:x cal:1").code, 2);
 }
