@@ -9,6 +9,7 @@
 #include "calib/errors.h"
 #include "calib/report.h"
 #include "fixtures/recording.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
@@ -31,12 +32,7 @@ double max_error(const AxisFit& f, const AxisCoeffs& truth) {
 }
 
 std::string data_error_of(const SampleTable& t, CalibrationOptions o = one_thread()) {
-  try {
-    calibrate(t, o);
-  } catch (const DataError& e) {
-    return e.what();
-  }
-  return "<no DataError>";
+  return test::error_of<DataError>([&] { calibrate(t, o); });
 }
 
 SampleTable without(const SampleTable& t, Phase phase) {

@@ -5,47 +5,17 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <functional>
 #include <limits>
 
-#include <unistd.h>
-
 #include "calib/errors.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
 
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("fpss-coeff-" + std::to_string(::getpid()) + "-" +
-             ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  fs::path file(const std::string& name, const std::string& text) const {
-    const auto p = path_ / name;
-    std::ofstream(p) << text;
-    return p;
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "<no InputError>";
-}
+using test::TempDir;
 
 TEST(Coefficients, FourteenPublishedSetsThreeFlagged) {
   const auto names = published_names();
@@ -81,8 +51,8 @@ TEST(Coefficients, BadFilesNameTheFileAndKey) {
   TempDir d;
   const std::string good8 = "[1,2,3,4,5,6,7,8]";
   auto msg = [&](const std::string& name, const std::string& text) {
-    const auto p = d.file(name, text);
-    return error_of([&] { load_coefficients(p); });
+    const auto p = d.write(name, text);
+    return test::error_of<InputError>([&] { load_coefficients(p); });
   };
   std::string m = msg("missing.json", R"({"unit": "X", "alpha": )" + good8 + "}");
   EXPECT_NE(m.find("missing.json"), std::string::npos) << m;
@@ -110,17 +80,17 @@ TEST(Coefficients, BadFilesNameTheFileAndKey) {
   m = msg("unit.json", R"({"unit": 3, "alpha": )" + good8 + R"(, "beta": )" + good8 + "}");
   EXPECT_NE(m.find("\"unit\" must be a string"), std::string::npos) << m;
 
-  m = error_of([&] { load_coefficients(d.path() / "nonexistent.json"); });
+  m = test::error_of<InputError>([&] { load_coefficients(d.path() / "nonexistent.json"); });
   EXPECT_NE(m.find("cannot open"), std::string::npos) << m;
 
-  m = error_of([] { load_published("a-9-fpss3"); });
+  m = test::error_of<InputError>([] { load_published("a-9-fpss3"); });
   EXPECT_NE(m.find("no published coefficient set \"a-9-fpss3\""), std::string::npos) << m;
 }
 
 TEST(Coefficients, NonFiniteValuesInAJsonObjectAreRefused) {
   nlohmann::json j = {{"alpha", {1, 2, 3, 4, 5, 6, 7, 8}}, {"beta", {1, 2, 3, 4, 5, 6, 7, 8}}};
   j["beta"][4] = std::numeric_limits<double>::quiet_NaN();
-  const std::string m = error_of([&] { parse_coefficients(j, "mem"); });
+  const std::string m = test::error_of<InputError>([&] { parse_coefficients(j, "mem"); });
   EXPECT_NE(m.find("mem: \"beta\"[4] (C5) must be a finite number"), std::string::npos) << m;
 }
 

@@ -1,62 +1,27 @@
 // fpss-stand calibrate end to end: the contract's command line, its files and exit codes.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <array>
-#include <cstdio>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 #include <nlohmann/json.hpp>
 
 #include "calib/coefficients.h"
 #include "calib/samples.h"
 #include "fixtures/recording.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Result {
-  int code = -1;
-  std::string out, err;
-};
+using Result = test::CommandResult;
 
 class Command : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fpss-cmd-calibrate-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  Result run(const std::string& args) const {
-    const std::string out = (dir_ / "stdout").string(), err = (dir_ / "stderr").string();
-    const std::string cmd = std::string(FPSS_BINARY_DIR) + "/stand/fpss-stand calibrate " + args + " >" + out +
-                            " 2>" + err;
-    const int status = std::system(cmd.c_str());
-    Result r;
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = slurp(out);
-    r.err = slurp(err);
-    return r;
-  }
-  static std::string slurp(const fs::path& p) {
-    std::ifstream in(p);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-  }
+  Result run(const std::string& args) const { return test::run_stand_shell("calibrate " + args, dir_.path()); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  std::string write(const std::string& name, const std::string& text) const {
-    std::ofstream(dir_ / name) << text;
-    return path(name);
-  }
+  std::string write(const std::string& name, const std::string& text) const { return dir_.write(name, text).string(); }
   std::string recording(const std::string& name, GridPlan plan = {}) const {
     BenchConfig cfg = default_bench_config();
     cfg.truth = load_published("a-5-fpss1");
@@ -64,7 +29,7 @@ class Command : public ::testing::Test {
     return path(name);
   }
 
-  fs::path dir_;
+  test::TempDir dir_{"cmd-calibrate"};
 };
 
 const std::string kTruth = std::string(FPSS_SOURCE_DIR) + "/calib/data/published/a-5-fpss1.json";

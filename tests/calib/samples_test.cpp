@@ -2,14 +2,12 @@
 #include "calib/samples.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <functional>
 
 #include "calib/errors.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
@@ -19,19 +17,10 @@ namespace fs = std::filesystem;
 const char* kHeader = "time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha,counts_beta\n";
 
 std::string error_of(const std::string& text) {
-  try {
-    parse_samples_csv(text, "rec.csv");
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "<no InputError>";
+  return test::error_of<InputError>([&] { parse_samples_csv(text, "rec.csv"); });
 }
 
-fs::path temp_path(const std::string& name) {
-  const auto dir = fs::temp_directory_path() / ("fpss-samples-" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return dir / (::testing::UnitTest::GetInstance()->current_test_info()->name() + name);
-}
+using test::TempDir;
 
 TEST(Samples, ColumnsInAnyOrderExtrasKept) {
   const std::string text =
@@ -94,8 +83,9 @@ TEST(Samples, MalformedRowsNameLineAndColumn) {
   m = error_of("");
   EXPECT_NE(m.find("empty file"), std::string::npos) << m;
 
+  TempDir dir("samples");
   try {
-    read_samples_csv(temp_path("absent.csv"));
+    read_samples_csv(dir / "absent.csv");
     FAIL();
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("cannot open samples file"), std::string::npos);
@@ -108,7 +98,8 @@ TEST(Samples, WriteReadRoundTripIsExact) {
   t.push_back({0.1, Phase::null, 1, 0.1 + 0.2, -1e-7, 3, -4}, {"20.25"});
   t.push_back({0.3, Phase::offset, 2, 1512.0000001, 0.0, 13777.5, -1}, {""});
   t.push_back({0.4, Phase::slew, 3, 1.0 / 3.0, 2.0 / 3.0, -16000, 16000}, {"x,y"});
-  const auto p = temp_path(".csv");
+  TempDir dir("samples");
+  const auto p = dir / "rec.csv";
   write_samples_csv(p, t);
   const SampleTable r = read_samples_csv(p);
   EXPECT_EQ(r.time_s, t.time_s);
@@ -120,12 +111,11 @@ TEST(Samples, WriteReadRoundTripIsExact) {
   EXPECT_EQ(r.counts_beta, t.counts_beta);
   EXPECT_EQ(r.extra_column("temperature_c"), t.extra_column("temperature_c"));
   EXPECT_EQ(r.origin, p.string());
-  fs::remove(p);
 }
 
 TEST(Samples, WriterAppendsAfterAMatchingHeaderOnly) {
-  const auto p = temp_path(".csv");
-  fs::remove(p);
+  TempDir dir("samples");
+  const auto p = dir / "rec.csv";
   {
     SamplesCsvWriter w(p, {"temperature_c"});
     w.append({0, Phase::null, 1, 0, 0, 1, 2}, {"20"});
@@ -142,7 +132,6 @@ TEST(Samples, WriterAppendsAfterAMatchingHeaderOnly) {
   EXPECT_EQ(t.phase[1], Phase::offset);
   EXPECT_EQ(t.extra_column("temperature_c")[1], "21");
   EXPECT_THROW(SamplesCsvWriter(p, {}), InputError);  // different header: refuse to append
-  fs::remove(p);
 }
 
 TEST(Samples, PhaseNamesRoundTrip) {
