@@ -13,20 +13,12 @@ using testing::HasSubstr;
 namespace fpss {
 namespace {
 
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
+using test::error_of;
 
 std::vector<uint8_t> read_exactly(ByteStream& s, std::size_t n) {
   std::vector<uint8_t> out;
   uint8_t buf[1024];
-  test::eventually([&] {
+  test::wait_until([&] {
     out.insert(out.end(), buf, buf + s.read(buf, std::min(sizeof buf, n - out.size()), 0.05));
     return out.size() >= n;
   });
@@ -36,7 +28,7 @@ std::vector<uint8_t> read_exactly(ByteStream& s, std::size_t n) {
 std::vector<uint8_t> read_fd_exactly(int fd, std::size_t n) {
   std::vector<uint8_t> out(n);
   std::size_t got = 0;
-  test::eventually([&] {
+  test::wait_until([&] {
     pollfd p{fd, POLLIN, 0};
     if (::poll(&p, 1, 50) > 0) {
       ssize_t r = ::read(fd, out.data() + got, n - got);
@@ -81,7 +73,7 @@ TEST(PtyStream, ReadTimesOutWithZeroAndHangupIsAnError) {
   EXPECT_EQ(s->read(buf, sizeof buf, 0.01), 0u);
   pty.close_master();
   std::string msg;
-  EXPECT_TRUE(test::eventually([&] {
+  EXPECT_TRUE(test::wait_until([&] {
     try {
       s->read(buf, sizeof buf, 0.05);
     } catch (const DeviceError& e) {
@@ -126,7 +118,7 @@ TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
   ::close(peer);
   uint8_t buf[8];
   std::string msg;
-  EXPECT_TRUE(test::eventually([&] {
+  EXPECT_TRUE(test::wait_until([&] {
     try {
       s->read(buf, sizeof buf, 0.05);
     } catch (const DeviceError& e) {
@@ -138,7 +130,7 @@ TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
   EXPECT_THAT(msg, HasSubstr("hung up"));
   // Writing into a dead socket is an error, not a SIGPIPE (the first write may still be accepted
   // by the kernel; the reset shows on a later one).
-  EXPECT_TRUE(test::eventually([&] {
+  EXPECT_TRUE(test::wait_until([&] {
     try {
       s->write(back.data(), back.size());
     } catch (const DeviceError&) {

@@ -1,14 +1,10 @@
 // Shared set-up of the driver-against-emulator tests: an in-process emulated bench on ephemeral ports, driver options.
 #pragma once
 #include <gtest/gtest.h>
-#include <stdlib.h>
 
-#include <chrono>
 #include <cmath>
-#include <filesystem>
 #include <memory>
 #include <string>
-#include <thread>
 
 #include "calib/coefficients.h"
 #include "drivers/endpoints.h"
@@ -18,36 +14,6 @@
 #include "test_util.h"
 
 namespace fpss::e2e {
-
-using test::eventually;
-
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
-
-// A per-test folder under the system temp dir, removed with everything in it.
-class TempDir {
- public:
-  TempDir() {
-    std::string tmpl = (std::filesystem::temp_directory_path() / "fpss-e2e-XXXXXX").string();
-    if (!::mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp");
-    path_ = tmpl;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
 
 // Emulator options for a test: ephemeral Modbus port, a bench clock fast enough that moves of
 // a few hundred arcsec take a few wall milliseconds.

@@ -11,9 +11,9 @@ namespace {
 
 using e2e::bench_gimbal;
 using e2e::bench_targets;
-using e2e::error_of;
-using e2e::eventually;
 using e2e::gimbal_options;
+using test::error_of;
+using test::wait_until;
 
 struct GimbalOnEmulator : testing::Test {
   std::unique_ptr<Emulator> emu;
@@ -211,7 +211,7 @@ TEST_F(GimbalOnEmulator, FollowingErrorStopsTheGimbalAndClearFaultRecovers) {
   start(e2e::emulator_options(5.0));
   gimbal->set_max_rate(100);
   gimbal->move_to(1200, -1200);
-  ASSERT_TRUE(eventually([&] { return gimbal->read_state().has(kMoving); }));
+  ASSERT_TRUE(wait_until([&] { return gimbal->read_state().has(kMoving); }));
   emu->inject("following_error");
 
   const std::string e = error_of([&] { gimbal->wait_in_position(60.0); });
@@ -228,7 +228,7 @@ TEST_F(GimbalOnEmulator, FollowingErrorStopsTheGimbalAndClearFaultRecovers) {
   EXPECT_LT(std::abs(s.pitch_arcsec), 1200 - 1);  // short of the target
   const GimbalReadout frozen = bench_gimbal(*emu);
   const double t_frozen = emu->bench_time_s();
-  ASSERT_TRUE(eventually([&] { return emu->bench_time_s() > t_frozen + 2.0; }));
+  ASSERT_TRUE(wait_until([&] { return emu->bench_time_s() > t_frozen + 2.0; }));
   EXPECT_EQ(bench_gimbal(*emu).pitch_arcsec, frozen.pitch_arcsec);  // 2 bench s later: not a mas further
   EXPECT_EQ(bench_gimbal(*emu).yaw_arcsec, frozen.yaw_arcsec);
 
@@ -315,7 +315,7 @@ TEST_F(GimbalOnEmulator, WatchdogFiresOnTheRealClockWhenNobodyPolls) {
   gimbal->set_watchdog(1.0);  // one bench second: 50 wall ms at speed 20
   gimbal->move_to(-2500, 0);
   // No request from the host: only the emulator's own clock runs.
-  ASSERT_TRUE(eventually([&] { return bench_gimbal(*emu).fault_code == 4; }, 30.0));
+  ASSERT_TRUE(wait_until([&] { return bench_gimbal(*emu).fault_code == 4; }, 30.0));
   GimbalState s = gimbal->read_state();
   EXPECT_EQ(s.fault, GimbalFault::watchdog);
   EXPECT_FALSE(s.has(kMoving));
@@ -375,7 +375,7 @@ TEST(GimbalOverRtu, AReplyDelayedPastTheTimeoutIsNeverTakenForALaterOne) {
   // Half a bench second between calls makes a reply left over from the previous call stand out.
   auto fresh_read = [&] {
     const double t_prev_s = emu.bench_time_s();
-    EXPECT_TRUE(eventually([&] { return emu.bench_time_s() > t_prev_s + 0.5; }));
+    EXPECT_TRUE(wait_until([&] { return emu.bench_time_s() > t_prev_s + 0.5; }));
     const double t_before_s = emu.bench_time_s();
     GimbalState s = gimbal.read_state();
     EXPECT_GE(static_cast<double>(s.sample_time_us) * 1e-6, t_before_s - 1e-3);

@@ -1,11 +1,6 @@
 // SerialSensor against the emulated sensor on a real pty: the stream, garbage, bad CRCs, a silent or stopped
 // sensor; the sensor sees the Sun where ModbusGimbal points it (in process and through `fpss-stand emulate`).
-#include <fcntl.h>
-#include <poll.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -15,15 +10,13 @@
 
 #include "emulator_fixture.h"
 
-extern char** environ;
-
 using testing::HasSubstr;
 namespace fpss {
 namespace {
 
-using e2e::error_of;
-using e2e::eventually;
 using e2e::sensor_options;
+using test::error_of;
+using test::wait_until;
 
 // The published set used as the emulator's truth here: not the emulator's default (a-6-fpss1),
 // so the coupling tests show that the truth file given is the one the sensor follows.
@@ -244,7 +237,7 @@ void expect_sensor_sees_the_gimbal(Gimbal& gimbal, Sensor& sensor, const Coeffic
 }
 
 TEST(SensorAndGimbalOnEmulator, TheSensorSeesTheSunWhereTheGimbalPointsIt) {
-  e2e::TempDir dir;
+  test::TempDir dir("e2e");
   const auto truth_file = dir.path() / "truth.json";
   save_coefficients(truth_file, load_published(kTruthSet));
   EmulatorOptions o = e2e::emulator_options(20.0);
@@ -283,82 +276,13 @@ TEST(SensorAndGimbalOnEmulator, TheSensorSeesTheSunWhereTheGimbalPointsIt) {
 
 // ------------------------------------------------------------ `fpss-stand emulate` as a child process
 
-const std::string kBinary = FPSS_BINARY_DIR "/stand/fpss-stand";
-
-// The emulator command as a child: stdout on a pipe (the ready lines), stderr into a file.
-class EmulateChild {
- public:
-  EmulateChild(std::vector<std::string> args, const std::filesystem::path& err_file) {
-    int fds[2];
-    if (::pipe2(fds, O_CLOEXEC) != 0) throw std::runtime_error("pipe");
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_adddup2(&fa, fds[1], 1);
-    posix_spawn_file_actions_addopen(&fa, 2, err_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    args.insert(args.begin(), {kBinary, "emulate"});
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    const int rc = ::posix_spawn(&pid_, kBinary.c_str(), &fa, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    ::close(fds[1]);
-    out_ = fds[0];
-    if (rc != 0) throw std::runtime_error("posix_spawn " + kBinary);
-  }
-  ~EmulateChild() {
-    if (pid_ > 0) {
-      ::kill(pid_, SIGKILL);
-      ::waitpid(pid_, nullptr, 0);
-    }
-    ::close(out_);
-  }
-  // The next stdout line, or nullopt at EOF or after 30 s.
-  std::optional<std::string> line() {
-    for (int waited_ms = 0; waited_ms < 30000;) {
-      if (auto nl = buf_.find('\n'); nl != std::string::npos) {
-        std::string l = buf_.substr(0, nl);
-        buf_.erase(0, nl + 1);
-        return l;
-      }
-      pollfd p{out_, POLLIN, 0};
-      if (::poll(&p, 1, 100) <= 0) {
-        waited_ms += 100;
-        continue;
-      }
-      char b[1024];
-      const ssize_t n = ::read(out_, b, sizeof b);
-      if (n <= 0) return std::nullopt;
-      buf_.append(b, static_cast<std::size_t>(n));
-    }
-    return std::nullopt;
-  }
-  // Sends SIGTERM and returns the exit code (128 + signal if killed), -1 if it did not end in 30 s.
-  int terminate() {
-    ::kill(pid_, SIGTERM);
-    int status = 0;
-    for (int i = 0; i < 3000; ++i) {
-      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return -1;
-  }
-
- private:
-  pid_t pid_ = -1;
-  int out_ = -1;
-  std::string buf_;
-};
-
 TEST(EmulateCommand, TheDriversWorkAgainstTheCommandsEndpoints) {
-  e2e::TempDir dir;
+  test::TempDir dir("e2e");
   const auto truth_file = dir.path() / "truth.json";
   save_coefficients(truth_file, load_published(kTruthSet));
-  EmulateChild child({"--modbus-port", "0", "--modbus-rtu", "--speed", "20", "--seed", "11", "--truth",
-                      truth_file.string(), "--unit-serial", "E2E-CHILD"},
-                     dir.path() / "stderr.txt");
+  test::Child child = test::start_emulate({"--modbus-port", "0", "--modbus-rtu", "--speed", "20", "--seed", "11",
+                                          "--truth", truth_file.string(), "--unit-serial", "E2E-CHILD"},
+                                         dir.path() / "stderr.txt");
   // The ready lines, in their documented order; the endpoints are taken as printed.
   std::map<std::string, std::string> ep;
   for (const char* key : {"gimbal", "gimbal-rtu", "sensor"}) {
@@ -395,7 +319,8 @@ TEST(EmulateCommand, TheDriversWorkAgainstTheCommandsEndpoints) {
   sensor->stop();
   sensor->disconnect();
   gimbal->disconnect();
-  EXPECT_EQ(child.terminate(), 0);
+  child.signal(SIGTERM);
+  EXPECT_EQ(child.wait(30), 0);
 }
 
 }  // namespace

@@ -15,6 +15,8 @@ using Action = ModbusTestServer::Action;
 namespace fpss {
 namespace {
 
+using test::error_of;
+
 // A generous response timeout so that a loaded machine never causes a retry the test does not
 // expect; tests that provoke timeouts on purpose pass a shorter one.
 GimbalOptions fast_options(const std::string& endpoint, double response_timeout_s = 5.0) {
@@ -25,16 +27,6 @@ GimbalOptions fast_options(const std::string& endpoint, double response_timeout_
   o.backoff_s = 0.01;
   o.poll_interval_s = 0.005;
   return o;
-}
-
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
 }
 
 int count_function(const std::vector<ModbusTestServer::Request>& rs, int fc) {

@@ -13,21 +13,12 @@ using testing::HasSubstr;
 namespace fpss {
 namespace {
 
-using test::eventually;
+using test::error_of;
 using test::FakeElectronics;
+using test::wait_until;
 
 double steady_now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
 }
 
 std::optional<std::string> standard_answers(const std::string& line) {
@@ -124,7 +115,7 @@ TEST(SerialSensor, SilentSensorEndsInAClearErrorAfterRetries) {
   std::string msg = error_of([&] { sensor.identify(); });
   EXPECT_THAT(msg, HasSubstr("no reply to 'ID?'"));
   EXPECT_THAT(msg, HasSubstr("after 2 attempts"));
-  EXPECT_TRUE(eventually([&] { return fake.lines().size() == 2u; }));
+  EXPECT_TRUE(wait_until([&] { return fake.lines().size() == 2u; }));
 }
 
 TEST_F(SensorOnPty, SamplesCarrySensorAndHostTimeInOrder) {
@@ -233,7 +224,7 @@ TEST_F(SensorOnPty, FlushDropsQueuedSamples) {
   std::vector<uint8_t> b;
   for (uint16_t i = 0; i < 10; ++i) frame::append_sample(b, sample(i, i * 5000u));
   fake.write_bytes(b);
-  ASSERT_TRUE(eventually([&] { return sensor->stats().frames == 10; }));
+  ASSERT_TRUE(wait_until([&] { return sensor->stats().frames == 10; }));
   sensor->flush();
   EXPECT_FALSE(sensor->next_sample(0.05));
   fake.write_frame(sample(10, 50000));
@@ -246,7 +237,7 @@ TEST_F(SensorOnPty, HangupWithNoWayBackEndsInDeviceError) {
   fake.stop();
   pty.close_master();
   std::string msg;
-  EXPECT_TRUE(eventually([&] {
+  EXPECT_TRUE(wait_until([&] {
     try {
       sensor->next_sample(0.05);
     } catch (const DeviceError& e) {
@@ -271,7 +262,7 @@ TEST(SerialSensor, QueueIsBoundedAndDropsAreCounted) {
   std::vector<uint8_t> b;
   for (uint16_t i = 0; i < 12; ++i) frame::append_sample(b, sample(i, i * 5000u));
   fake.write_bytes(b);
-  ASSERT_TRUE(eventually([&] { return sensor.stats().frames == 12; }));
+  ASSERT_TRUE(wait_until([&] { return sensor.stats().frames == 12; }));
   EXPECT_EQ(sensor.stats().samples_dropped, 7u);
   EXPECT_EQ(sensor.next_sample(1.0)->seq, 7);  // the newest five are kept
 }

@@ -10,7 +10,6 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <chrono>
 #include <functional>
 #include <mutex>
 #include <optional>
@@ -20,18 +19,9 @@
 #include <vector>
 
 #include "drivers/fpss_frame.h"
+#include "tests/support/test_support.h"
 
 namespace fpss::test {
-
-// Polls a condition with a generous deadline; never asserts how long it took.
-inline bool eventually(const std::function<bool()>& cond, double timeout_s = 10.0) {
-  auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  while (std::chrono::steady_clock::now() < end) {
-    if (cond()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  return cond();
-}
 
 inline void write_all(int fd, const uint8_t* d, std::size_t n) {
   while (n > 0) {
