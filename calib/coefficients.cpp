@@ -1,7 +1,6 @@
 #include "calib/coefficients.h"
 
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -9,6 +8,7 @@
 #include <fstream>
 
 #include "calib/errors.h"
+#include "calib/text_file.h"
 
 namespace fpss {
 namespace {
@@ -74,19 +74,7 @@ nlohmann::json to_json(const CoefficientSet& s) {
 }
 
 void save_coefficients(const std::filesystem::path& path, const CoefficientSet& s) {
-  const auto tmp = path.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    if (!out) throw std::runtime_error(fmt::format("{}: cannot write", tmp));
-    out << to_json(s).dump(1) << '\n';
-    out.flush();
-    if (!out) throw std::runtime_error(fmt::format("{}: write failed", tmp));
-  }
-  if (FILE* f = std::fopen(tmp.c_str(), "r")) {
-    ::fsync(fileno(f));
-    std::fclose(f);
-  }
-  std::filesystem::rename(tmp, path);
+  write_text_atomic(path, to_json(s).dump(1) + "\n");
 }
 
 std::filesystem::path published_dir() {

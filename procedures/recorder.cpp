@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "calib/errors.h"
+#include "calib/text_file.h"
 
 namespace fpss {
 
@@ -90,26 +91,7 @@ fs::path make_run_dir(const fs::path& runs_dir, const std::string& utc_iso, cons
   throw std::runtime_error(fmt::format("{}: cannot create a run folder {}", runs_dir.string(), base));
 }
 
-void write_json_atomic(const fs::path& path, const nlohmann::json& j) {
-  const fs::path tmp = path.string() + ".tmp";
-  const std::string text = j.dump(2) + "\n";
-  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  if (fd < 0) throw std::runtime_error(fmt::format("{}: cannot write ({})", tmp.string(), std::strerror(errno)));
-  size_t off = 0;
-  while (off < text.size()) {
-    ssize_t n = ::write(fd, text.data() + off, text.size() - off);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      ::close(fd);
-      throw std::runtime_error(fmt::format("{}: write failed ({})", tmp.string(), std::strerror(errno)));
-    }
-    off += static_cast<size_t>(n);
-  }
-  ::fsync(fd);
-  ::close(fd);
-  fs::rename(tmp, path);
-  fsync_dir(path.parent_path().empty() ? fs::path(".") : path.parent_path());
-}
+void write_json_atomic(const fs::path& path, const nlohmann::json& j) { write_text_atomic(path, j.dump(2) + "\n"); }
 
 nlohmann::json read_json_file(const fs::path& path) {
   std::ifstream in(path);

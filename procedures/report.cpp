@@ -1,13 +1,9 @@
 #include "procedures/report.h"
 
-#include <fcntl.h>
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
-#include <cstring>
 #include <map>
 #include <tuple>
 
@@ -51,26 +47,6 @@ AxisResidualStats axis_stats(const fit::AxisData& d, const AxisCoeffs& c) {
     st.range_hi_deg = d.ref_hi_arcsec / kArcsecPerDeg;
   }
   return st;
-}
-
-void write_atomic(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.string() + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw std::runtime_error(fmt::format("{}: cannot write: {}", tmp.string(), std::strerror(errno)));
-  size_t off = 0;
-  while (off < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + off, text.size() - off);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      const int e = errno;
-      ::close(fd);
-      throw std::runtime_error(fmt::format("{}: write failed: {}", tmp.string(), std::strerror(e)));
-    }
-    off += static_cast<size_t>(n);
-  }
-  ::fsync(fd);
-  ::close(fd);
-  fs::rename(tmp, path);
 }
 
 std::string num(double v, int decimals) {
@@ -533,7 +509,7 @@ std::string render_report(const ReportInput& in, const ReportOptions& opts) {
 fs::path write_report(const fs::path& run_dir, const ReportOptions& opts) {
   const ReportInput in = load_report_input(run_dir);
   const fs::path out = run_dir / "report.html";
-  write_atomic(out, render_report(in, opts));
+  write_text_atomic(out, render_report(in, opts));
   return out;
 }
 

@@ -1,5 +1,4 @@
 // fpss-stand accept / compare / import: acceptance of a unit, comparison of calibrations, imports into the catalogue.
-#include <fcntl.h>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <spawn.h>
@@ -12,8 +11,6 @@
 #include <fstream>
 #include <memory>
 #include <optional>
-#include <cerrno>
-#include <cstring>
 #include <regex>
 #include <set>
 #include <string>
@@ -277,27 +274,6 @@ struct AcceptArgs {
   std::vector<CLI::Option*> emu_only;
 };
 
-// Temporary file, fsync, rename: a crash leaves the old file or the new one, never half of one.
-void write_atomic(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.string() + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw std::runtime_error(fmt::format("{}: cannot write: {}", tmp.string(), std::strerror(errno)));
-  size_t done = 0;
-  while (done < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      ::close(fd);
-      throw std::runtime_error(fmt::format("{}: write failed: {}", tmp.string(), std::strerror(errno)));
-    }
-    done += static_cast<size_t>(n);
-  }
-  if (::fsync(fd) != 0 || ::close(fd) != 0) {
-    throw std::runtime_error(fmt::format("{}: cannot sync: {}", tmp.string(), std::strerror(errno)));
-  }
-  fs::rename(tmp, path);
-}
-
 // The page when the run's own report cannot be drawn (no calibration): the certificate alone.
 std::string standalone_page(const std::string& title, const std::string& section_html, const std::string& why) {
   return fmt::format(
@@ -445,9 +421,9 @@ int accept_command(const AcceptArgs& a) {
   info.calibration_file = r.calibration ? r.calibration->filename().string() : "";
   const nlohmann::ordered_json cert = certificate_json(j, limits, info);
 
-  write_atomic(run_dir / "acceptance.json", cert.dump(1) + "\n");
+  write_text_atomic(run_dir / "acceptance.json", cert.dump(1) + "\n");
   const std::string text = certificate_text(cert);
-  write_atomic(run_dir / "certificate.txt", text);
+  write_text_atomic(run_dir / "certificate.txt", text);
   // The page: the run's report with the certificate as a section, or the certificate alone.
   const std::string section = certificate_html(cert);
   try {
@@ -455,7 +431,7 @@ int accept_command(const AcceptArgs& a) {
     ro.extra_sections.push_back({"acceptance", "Acceptance", section});
     write_report(run_dir, ro);
   } catch (const std::exception& e) {
-    write_atomic(run_dir / "report.html",
+    write_text_atomic(run_dir / "report.html",
                  standalone_page(fmt::format("Acceptance of {} ({})", unit, run_id), section,
                                  fmt::format("The run's report could not be drawn: {}", e.what())));
   }
