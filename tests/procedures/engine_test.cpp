@@ -13,7 +13,7 @@
 #include "procedures/engine.h"
 #include "procedures/plan.h"
 #include "procedures/recorder.h"
-#include "tests/procedures/run_util.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {

@@ -7,11 +7,13 @@
 #include "calib/errors.h"
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
-#include "tests/procedures/run_util.h"
+#include "tests/procedures/diag_util.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
 
+using test::has_error;
 using test::TempDir;
 
 Procedure parse_ok(const std::string& text, const std::string& origin = "p.yaml") {
@@ -25,13 +27,6 @@ Diagnostics parse_bad(const std::string& text, const std::string& origin = "bad.
   Diagnostics d(origin);
   parse_procedure(text, origin, d);
   return d;
-}
-
-bool has_error(const Diagnostics& d, int line, int col, const std::string& part) {
-  for (const auto& e : d.all()) {
-    if (e.mark.line == line && e.mark.column == col && e.message.find(part) != std::string::npos) return true;
-  }
-  return false;
 }
 
 BenchSettings bench() {

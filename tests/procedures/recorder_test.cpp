@@ -7,7 +7,7 @@
 #include "calib/samples.h"
 #include "procedures/align.h"
 #include "procedures/recorder.h"
-#include "tests/procedures/run_util.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {

@@ -3,17 +3,13 @@
 
 #include "calib/errors.h"
 #include "stand/stand_config.h"
-#include "tests/procedures/run_util.h"
+#include "tests/procedures/diag_util.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
 
-bool has_error(const Diagnostics& d, int line, int col, const std::string& part) {
-  for (const auto& e : d.all()) {
-    if (e.mark.line == line && e.mark.column == col && e.message.find(part) != std::string::npos) return true;
-  }
-  return false;
-}
+using test::has_error;
 
 TEST(StandConfig, ExampleStandFile) {
   const StandConfig c = load_stand_file(test::source_dir() / "procedures" / "example_stand.yaml");
