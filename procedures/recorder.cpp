@@ -4,14 +4,13 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <cmath>
-#include <ctime>
 #include <fstream>
 #include <sstream>
 
 #include "calib/errors.h"
 #include "calib/text_file.h"
+#include "procedures/catalogue.h"
 
 namespace fpss {
 
@@ -39,15 +38,6 @@ std::vector<std::string> RecordedRow::extras() const {
           std::isfinite(temperature_c) ? format_number(temperature_c) : std::string(),
           std::to_string(attempt),
           std::to_string(session)};
-}
-
-std::string utc_iso_now() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
 }
 
 std::string utc_compact(const std::string& iso) {
@@ -224,7 +214,7 @@ void RunRecorder::append_point(int64_t point, const std::vector<RecordedRow>& ro
   je.rows = rows.size();
   je.bytes = fs::file_size(samples_path());
   je.last_time_s = last_time_s_;
-  je.utc = utc_iso_now();
+  je.utc = utc_now_iso();
   je.session = session;
   je.attempts = attempts;
   const std::string line = nlohmann::json{{"point", je.point},     {"step", je.step},

@@ -43,8 +43,7 @@ struct JournalEntry {
   int attempts = 1;
 };
 
-// UTC now as ISO 8601 (2024-05-01T12:00:00Z) and compact for folder names (20240501T120000Z).
-std::string utc_iso_now();
+// An ISO 8601 UTC time (utc_now_iso(), 2024-05-01T12:00:00Z) compact for folder names (20240501T120000Z).
 std::string utc_compact(const std::string& iso);
 
 // A fresh folder <runs_dir>/<UTC time>-<unit>-<procedure>/ (a suffix -2, -3, ... if taken).

@@ -270,7 +270,7 @@ SessionResult run_session(const SessionRequest& req) {
   }
 
   // The run folder.
-  const std::string now_utc = utc_iso_now();
+  const std::string now_utc = utc_now_iso();
   nlohmann::json doc;
   int session = 1;
   if (resuming) {
@@ -429,7 +429,7 @@ SessionResult run_session(const SessionRequest& req) {
       cr.source = "run";
       cr.run_id = run_id;
       cr.source_ref = run_id;
-      cr.date_utc = utc_iso_now();
+      cr.date_utc = utc_now_iso();
       cat.record_calibration(cr);
     });
   };
@@ -463,7 +463,7 @@ SessionResult run_session(const SessionRequest& req) {
   res.outcome = er.outcome;
   res.reason = er.reason;
   res.points_done = er.points_done;
-  const std::string end_utc = utc_iso_now();
+  const std::string end_utc = utc_now_iso();
   doc["outcome"] = to_string(er.outcome);
   if (!er.reason.empty()) doc["reason"] = er.reason;
   doc["ended_utc"] = end_utc;

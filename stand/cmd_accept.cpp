@@ -417,7 +417,7 @@ int accept_command(const AcceptArgs& a) {
   info.run_reason = r.reason;
   info.points_planned = static_cast<int64_t>(plan.points);
   info.points_completed = r.points_done;
-  info.date_utc = utc_iso_now();
+  info.date_utc = utc_now_iso();
   info.calibration_file = r.calibration ? r.calibration->filename().string() : "";
   const nlohmann::ordered_json cert = certificate_json(j, limits, info);
 

@@ -1,9 +1,7 @@
 // fpss-stand calibrate: fit both transfer functions to a samples recording and write a coefficient file.
 #include <fmt/format.h>
 
-#include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <memory>
 #include <optional>
 
@@ -11,21 +9,10 @@
 #include "calib/coefficients.h"
 #include "calib/report.h"
 #include "calib/samples.h"
+#include "procedures/catalogue.h"
 #include "stand/commands.h"
 
 namespace fpss::cli {
-namespace {
-
-std::string utc_now_iso() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
-}  // namespace
 
 void add_calibrate(CLI::App& app, Runner& run) {
   struct Opts {
