@@ -5,18 +5,15 @@
 
 #include <random>
 
+#include "tests/support/crc_reference.h"
+
 using namespace fpss::frame;
 
 namespace {
 
-// Independent bitwise CRC-16/CCITT-FALSE, straight from the definition.
+// Independent bitwise CRC-16/CCITT-FALSE, straight from the definition, over d[from, to).
 uint16_t crc_bitwise(const std::vector<uint8_t>& d, std::size_t from, std::size_t to) {
-  uint16_t crc = 0xFFFF;
-  for (std::size_t i = from; i < to; ++i) {
-    crc ^= static_cast<uint16_t>(d[i] << 8);
-    for (int b = 0; b < 8; ++b) crc = (crc & 0x8000) ? static_cast<uint16_t>((crc << 1) ^ 0x1021) : static_cast<uint16_t>(crc << 1);
-  }
-  return crc;
+  return fpss::test::crc_ccitt_false(d.data() + from, to - from);
 }
 
 std::vector<Frame> parse_all(const std::vector<uint8_t>& bytes, Parser& p, std::size_t chunk = 0) {
