@@ -31,4 +31,10 @@ inline size_t count_lines(const fs::path& p) {
   return n;
 }
 
+// Points journaled so far by the first run folder under runs (0 before there is one).
+inline size_t journaled_points(const fs::path& runs) {
+  const auto d = run_dirs(runs);
+  return d.empty() ? 0 : count_lines(d.front() / "points.jsonl");
+}
+
 }  // namespace fpss::test

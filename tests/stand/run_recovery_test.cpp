@@ -10,6 +10,7 @@ namespace fpss {
 namespace {
 
 using namespace runtest;
+using test::run_stand;
 using test::TempDir;
 
 TEST(Run, SigkillThenResumeGivesTheSamePoints) {
@@ -23,19 +24,15 @@ TEST(Run, SigkillThenResumeGivesTheSamePoints) {
   const auto runs_a = tmp / "a";
   std::vector<std::string> args_a{"run", (tmp / "grid.yaml").string(), "--runs-dir", runs_a.string()};
   args_a.insert(args_a.end(), common.begin(), common.end());
-  ASSERT_EQ(test::run_stand(args_a, tmp.path(), "a").code, 0);
+  ASSERT_EQ(run_stand(args_a, tmp.path(), "a").code, 0);
   // Killed mid-procedure, no chance to clean up.
   const auto runs_b = tmp / "b";
   std::vector<std::string> args_b{"run", (tmp / "grid.yaml").string(), "--runs-dir", runs_b.string()};
   args_b.insert(args_b.end(), common.begin(), common.end());
   {
     test::Child c = test::start_stand(args_b, tmp.path(), "b");
-    ASSERT_TRUE(test::wait_until(
-        [&] {
-          const auto d = test::run_dirs(runs_b);
-          return !d.empty() && test::count_lines(d.front() / "points.jsonl") >= 9;
-        },
-        60, std::chrono::milliseconds(20)));
+    ASSERT_TRUE(
+        test::wait_until([&] { return test::journaled_points(runs_b) >= 9; }, 60, std::chrono::milliseconds(20)));
     c.signal(SIGKILL);
     EXPECT_EQ(c.wait(180), 128 + SIGKILL);
   }
@@ -45,7 +42,7 @@ TEST(Run, SigkillThenResumeGivesTheSamePoints) {
   ASSERT_GE(done_before, 9u);
   ASSERT_LT(done_before, 49u);
   // The bench the killed run started dies with it (PDEATHSIG); resume starts a new one.
-  const auto rr = test::run_stand({"run", "--resume", run_b.string(), "--quiet"}, tmp.path(), "resume");
+  const auto rr = run_stand({"run", "--resume", run_b.string(), "--quiet"}, tmp.path(), "resume");
   ASSERT_EQ(rr.code, 0) << rr.out << rr.err;
 
   const SampleTable a = read_samples_csv(only_run(runs_a) / "samples.csv");
@@ -73,7 +70,7 @@ TEST(Run, SigkillThenResumeGivesTheSamePoints) {
   EXPECT_EQ(doc["sessions"][1]["first_point"], done_before);
   EXPECT_TRUE(fs::exists(run_b / "calibration.json"));
   // A completed run cannot be resumed again.
-  EXPECT_EQ(test::run_stand({"run", "--resume", run_b.string(), "--quiet"}, tmp.path(), "again").code, 2);
+  EXPECT_EQ(run_stand({"run", "--resume", run_b.string(), "--quiet"}, tmp.path(), "again").code, 2);
 }
 
 TEST(Run, SigtermAndSigintStopSafelyAndMarkTheRunInterrupted) {
@@ -81,14 +78,10 @@ TEST(Run, SigtermAndSigintStopSafelyAndMarkTheRunInterrupted) {
     SCOPED_TRACE(strsignal(sig));
     TempDir tmp("run-signal");
     const auto runs = tmp / "runs";
-    test::Child c =
-        test::start_stand({"run", proc("discrete_grid.yaml"), "--emulate", "--runs-dir", runs.string(), "--quiet"}, tmp.path());
-    ASSERT_TRUE(test::wait_until(
-        [&] {
-          const auto d = test::run_dirs(runs);
-          return !d.empty() && test::count_lines(d.front() / "points.jsonl") >= 5;
-        },
-        60, std::chrono::milliseconds(20)));
+    test::Child c = test::start_stand(
+        {"run", proc("discrete_grid.yaml"), "--emulate", "--runs-dir", runs.string(), "--quiet"}, tmp.path());
+    ASSERT_TRUE(
+        test::wait_until([&] { return test::journaled_points(runs) >= 5; }, 60, std::chrono::milliseconds(20)));
     c.signal(sig);
     EXPECT_EQ(c.wait(60), 1);
     const fs::path run = only_run(runs);
@@ -115,12 +108,12 @@ TEST(Run, DeviceFaultsAreRecovered) {
   const auto runs = tmp / "runs";
   // Dropped Modbus connection, a reply past the timeout, garbage and bad CRCs on the line, a
   // following error, a sensor that stops streaming and one that goes silent.
-  const auto r = test::run_stand({"run", (tmp / "grid.yaml").string(), "--emulate", "--runs-dir", runs.string(), "--quiet",
-                                  "--fault", "modbus_drop:count=1,at_s=3", "--fault", "sensor_garbage:bytes=300,at_s=6",
-                                  "--fault", "sensor_bad_crc:frames=10,at_s=9", "--fault", "following_error:at_s=12",
-                                  "--fault", "sensor_stop:at_s=16", "--fault", "sensor_silence:duration_s=2,at_s=22",
-                                  "--fault", "modbus_delay:delay_s=2,count=1,at_s=28"},
-                                 tmp.path());
+  const auto r = run_stand({"run", (tmp / "grid.yaml").string(), "--emulate", "--runs-dir", runs.string(), "--quiet",
+                            "--fault", "modbus_drop:count=1,at_s=3", "--fault", "sensor_garbage:bytes=300,at_s=6",
+                            "--fault", "sensor_bad_crc:frames=10,at_s=9", "--fault", "following_error:at_s=12",
+                            "--fault", "sensor_stop:at_s=16", "--fault", "sensor_silence:duration_s=2,at_s=22",
+                            "--fault", "modbus_delay:delay_s=2,count=1,at_s=28"},
+                           tmp.path());
   ASSERT_EQ(r.code, 0) << r.out << r.err;
   const fs::path run = only_run(runs);
   const auto doc = run_json(run);
@@ -148,9 +141,9 @@ TEST(Run, AnUnrecoverableFaultStopsSafelyWithTheReason) {
                    "command_retries: 0}\n"
                    "points: {max_remeasure: 1}\n");
   const auto runs = tmp / "runs";
-  const auto r = test::run_stand({"run", (tmp / "grid.yaml").string(), "--emulate", "--stand", (tmp / "stand.yaml").string(),
-                                  "--runs-dir", runs.string(), "--fault", "sensor_silence:duration_s=100000,at_s=6"},
-                                 tmp.path());
+  const auto r = run_stand({"run", (tmp / "grid.yaml").string(), "--emulate", "--stand", (tmp / "stand.yaml").string(),
+                            "--runs-dir", runs.string(), "--fault", "sensor_silence:duration_s=100000,at_s=6"},
+                           tmp.path());
   EXPECT_EQ(r.code, 1) << r.out << r.err;
   const fs::path run = only_run(runs);
   const auto doc = run_json(run);
@@ -179,7 +172,7 @@ TEST(Run, BadProceduresAndStandFilesExit2AndMoveNothing) {
                    "  - move: {pitch_deg: 1.5}\n"              // 5 out of limits (+-0.75 deg)
                    "  - sample: {frames: many}\n");            // 6 wrong type
   // Unknown step, missing field, wrong type: found by parsing.
-  auto r = test::run_stand({"run", (tmp / "bad.yaml").string(), "--emulate", "--runs-dir", runs.string()}, tmp.path());
+  auto r = run_stand({"run", (tmp / "bad.yaml").string(), "--emulate", "--runs-dir", runs.string()}, tmp.path());
   EXPECT_EQ(r.code, 2) << r.err;
   const std::string f = (tmp / "bad.yaml").string();
   EXPECT_NE(r.err.find(f + ":3:5: step 2: unknown step \"spin\""), std::string::npos) << r.err;
@@ -193,7 +186,7 @@ TEST(Run, BadProceduresAndStandFilesExit2AndMoveNothing) {
   EXPECT_NE(r.err.find("4 errors:"), std::string::npos) << r.err;
   // Out of limits: found by expanding against the stand once the file parses.
   test::write_file(tmp / "far.yaml", "steps:\n  - home\n  - move: {pitch_deg: 1.5}\n  - sample: {frames: 2}\n");
-  r = test::run_stand({"run", (tmp / "far.yaml").string(), "--emulate", "--runs-dir", runs.string()}, tmp.path());
+  r = run_stand({"run", (tmp / "far.yaml").string(), "--emulate", "--runs-dir", runs.string()}, tmp.path());
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find((tmp / "far.yaml").string() + ":3:5: step 2 (move): target out of soft limits: pitch +1.5000 deg"),
             std::string::npos)
@@ -201,9 +194,9 @@ TEST(Run, BadProceduresAndStandFilesExit2AndMoveNothing) {
   // A bad stand file, reported together with the procedure's errors.
   test::write_file(tmp / "stand.yaml", "gimbal: {endpoint: 'modbus-tcp:localhost'}\nsensor: {endpoint: 'pty:/x'}\n"
                                        "axes: {pitch: alpha, yaw: alpha}\n");
-  r = test::run_stand({"run", (tmp / "bad.yaml").string(), "--stand", (tmp / "stand.yaml").string(), "--runs-dir",
-                       runs.string()},
-                      tmp.path());
+  r = run_stand({"run", (tmp / "bad.yaml").string(), "--stand", (tmp / "stand.yaml").string(), "--runs-dir",
+                 runs.string()},
+                tmp.path());
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find((tmp / "stand.yaml").string() + ":1:20: gimbal: field endpoint:"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find((tmp / "stand.yaml").string() + ":3:7: axes: pitch and yaw both map to alpha"), std::string::npos)
@@ -212,18 +205,18 @@ TEST(Run, BadProceduresAndStandFilesExit2AndMoveNothing) {
   // A sensor that is not the unit the stand file names: stopped before anything moves.
   test::write_file(tmp / "unit.yaml", "unit: FPSS2-SN007\ngimbal: {endpoint: 'modbus-tcp:127.0.0.1:1'}\n"
                                       "sensor: {endpoint: 'pty:/dev/null'}\n");
-  r = test::run_stand({"run", proc("discrete_grid.yaml"), "--emulate", "--stand", (tmp / "unit.yaml").string(),
-                       "--runs-dir", runs.string()},
-                      tmp.path());
+  r = run_stand({"run", proc("discrete_grid.yaml"), "--emulate", "--stand", (tmp / "unit.yaml").string(),
+                 "--runs-dir", runs.string()},
+                tmp.path());
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("the sensor reports serial \"EMU-0001\""), std::string::npos) << r.err;
   // Usage errors.
-  EXPECT_EQ(test::run_stand({"run", proc("discrete_grid.yaml"), "--runs-dir", runs.string()}, tmp.path()).code, 2);
-  EXPECT_EQ(test::run_stand({"run", proc("discrete_grid.yaml"), "--stand", (tmp / "stand.yaml").string(), "--seed", "3"},
-                            tmp.path())
+  EXPECT_EQ(run_stand({"run", proc("discrete_grid.yaml"), "--runs-dir", runs.string()}, tmp.path()).code, 2);
+  EXPECT_EQ(run_stand({"run", proc("discrete_grid.yaml"), "--stand", (tmp / "stand.yaml").string(), "--seed", "3"},
+                      tmp.path())
                 .code,
             2);
-  EXPECT_EQ(test::run_stand({"run", "--resume", tmp.path().string()}, tmp.path()).code, 2);
+  EXPECT_EQ(run_stand({"run", "--resume", tmp.path().string()}, tmp.path()).code, 2);
   // Nothing was recorded, so nothing moved: every error came before the bench was touched.
   EXPECT_TRUE(test::run_dirs(runs).empty());
 }
@@ -231,8 +224,8 @@ TEST(Run, BadProceduresAndStandFilesExit2AndMoveNothing) {
 TEST(Run, DryRunPrintsThePlanAndMovesNothing) {
   TempDir tmp("run-dry");
   const auto runs = tmp / "runs";
-  const auto r = test::run_stand({"run", proc("discrete_grid.yaml"), "--emulate", "--dry-run", "--runs-dir", runs.string()},
-                                 tmp.path());
+  const auto r = run_stand({"run", proc("discrete_grid.yaml"), "--emulate", "--dry-run", "--runs-dir", runs.string()},
+                           tmp.path());
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("points: 113 (57 null, 56 offset, 0 slew segments)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("estimated duration:"), std::string::npos);
@@ -242,8 +235,8 @@ TEST(Run, DryRunPrintsThePlanAndMovesNothing) {
   // A stand with tighter limits: the same procedure no longer fits.
   test::write_file(tmp / "stand.yaml", "gimbal: {endpoint: 'modbus-tcp:10.0.0.1:502'}\nsensor: {endpoint: 'serial:/dev/ttyS9'}\n"
                                        "soft_limits: {pitch_deg: [-0.3, 0.3], yaw_deg: [-0.5, 0.5]}\n");
-  const auto r2 = test::run_stand({"run", proc("discrete_grid.yaml"), "--stand", (tmp / "stand.yaml").string(), "--dry-run"},
-                                  tmp.path());
+  const auto r2 = run_stand({"run", proc("discrete_grid.yaml"), "--stand", (tmp / "stand.yaml").string(), "--dry-run"},
+                            tmp.path());
   EXPECT_EQ(r2.code, 2);
   EXPECT_NE(r2.err.find("discrete_grid.yaml:9:5: step 2 (null_offset_grid): target out of soft limits: pitch +0.3300 deg"),
             std::string::npos)

@@ -6,14 +6,15 @@ namespace fpss {
 namespace {
 
 using namespace runtest;
+using test::run_stand;
 using test::TempDir;
 
 TEST(Run, DiscreteGridCalibratesWithinATenthOfAnArcsecondOfTheTruth) {
   TempDir tmp("run-discrete");
   const auto runs = tmp / "runs";
-  const auto r = test::run_stand({"run", proc("discrete_grid.yaml"), "--emulate", "--runs-dir", runs.string(), "--seed",
-                                  "3", "--quiet"},
-                                 tmp.path());
+  const auto r = run_stand({"run", proc("discrete_grid.yaml"), "--emulate", "--runs-dir", runs.string(), "--seed",
+                            "3", "--quiet"},
+                           tmp.path());
   ASSERT_EQ(r.code, 0) << r.out << r.err;
   const fs::path run = only_run(runs);
   EXPECT_NE(r.out.find("run completed: 113/113 points"), std::string::npos) << r.out;
@@ -67,10 +68,10 @@ TEST(Run, Table2AxisMappingOverTheWire) {
                    "sensor: {endpoint: 'pty:/dev/null'}\n"
                    "axes: {pitch: beta, yaw: -alpha}\n");
   const auto runs = tmp / "runs";
-  const auto r = test::run_stand({"run", proc("discrete_grid.yaml"), "--emulate", "--stand", (tmp / "stand.yaml").string(),
-                                  "--bench", (tmp / "bench.yaml").string(), "--speed", "40", "--runs-dir", runs.string(),
-                                  "--quiet"},
-                                 tmp.path());
+  const auto r = run_stand({"run", proc("discrete_grid.yaml"), "--emulate", "--stand", (tmp / "stand.yaml").string(),
+                            "--bench", (tmp / "bench.yaml").string(), "--speed", "40", "--runs-dir", runs.string(),
+                            "--quiet"},
+                           tmp.path());
   ASSERT_EQ(r.code, 0) << r.out << r.err;
   const fs::path run = only_run(runs);
   const SampleTable t = read_samples_csv(run / "samples.csv");
@@ -87,7 +88,7 @@ TEST(Run, Table2AxisMappingOverTheWire) {
 TEST(Run, FullGridCompletes) {
   TempDir tmp("run-full");
   const auto runs = tmp / "runs";
-  const auto r = test::run_stand(
+  const auto r = run_stand(
       {"run", proc("full_grid.yaml"), "--emulate", "--speed", "40", "--runs-dir", runs.string(), "--quiet"}, tmp.path());
   ASSERT_EQ(r.code, 0) << r.out << r.err;
   const fs::path run = only_run(runs);
@@ -106,8 +107,8 @@ TEST(Run, FullGridCompletes) {
 TEST(Run, ContinuousSlewAlignsTheTwoClocks) {
   TempDir tmp("run-slew");
   const auto runs = tmp / "runs";
-  const auto r = test::run_stand({"run", proc("continuous_slew.yaml"), "--emulate", "--runs-dir", runs.string(), "--quiet"},
-                                 tmp.path());
+  const auto r = run_stand({"run", proc("continuous_slew.yaml"), "--emulate", "--runs-dir", runs.string(), "--quiet"},
+                           tmp.path());
   ASSERT_EQ(r.code, 0) << r.out << r.err;
   const fs::path run = only_run(runs);
   const SampleTable t = read_samples_csv(run / "samples.csv");  // also checks time_s never goes back
@@ -160,9 +161,9 @@ TEST(Run, SlewAlignedThroughTheHostClock) {
                    "  - continuous_slew: {axis: pitch, amplitude_deg: 0.1, rate_arcsec_s: 300, sample_period_s: 0.04, "
                    "settle_s: 0.2}\n");
   const auto runs = tmp / "runs";
-  const auto r = test::run_stand({"run", (tmp / "slew.yaml").string(), "--emulate", "--stand", (tmp / "stand.yaml").string(),
-                                  "--speed", "2", "--runs-dir", runs.string(), "--quiet"},
-                                 tmp.path());
+  const auto r = run_stand({"run", (tmp / "slew.yaml").string(), "--emulate", "--stand", (tmp / "stand.yaml").string(),
+                            "--speed", "2", "--runs-dir", runs.string(), "--quiet"},
+                           tmp.path());
   ASSERT_EQ(r.code, 0) << r.out << r.err;
   const fs::path run = only_run(runs);
   EXPECT_EQ(run_json(run)["stand"]["settings"]["bench"]["clock"], "host");
