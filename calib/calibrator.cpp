@@ -191,11 +191,18 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
   out.covariance_pseudo_inverse = u.pseudo_inverse;
   out.covariance_note = u.note;
 
-  ResidualStats& st = out.residuals;
+  out.residuals = residual_stats(d, out.coeffs);
+  out.counts_range = {d.counts_lo, d.counts_hi};
+  return out;
+}
+
+ResidualStats residual_stats(const AxisData& d, const AxisCoeffs& c) {
+  ResidualStats st;
   st.points = d.rows();
+  if (st.points == 0) return st;
   double sum = 0, sum_sq = 0;
   for (size_t i = 0; i < d.rows(); ++i) {
-    const double a = std::abs(residual_arcsec(d, out.coeffs, i));
+    const double a = std::abs(residual_arcsec(d, c, i));
     sum += a;
     sum_sq += a * a;
     st.max_abs_arcsec = std::max(st.max_abs_arcsec, a);
@@ -205,8 +212,29 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
   st.rms_arcsec = std::sqrt(sum_sq / m);
   st.sd_arcsec = st.points > 1 ? std::sqrt(std::max(0.0, (sum_sq - m * st.mean_abs_arcsec * st.mean_abs_arcsec) / (m - 1))) : 0.0;
   st.range_deg = {d.ref_lo_arcsec / kArcsecPerDeg, d.ref_hi_arcsec / kArcsecPerDeg};
-  out.counts_range = {d.counts_lo, d.counts_hi};
-  return out;
+  return st;
+}
+
+std::vector<DwellPair> add_dwell_rows(AxisData& alpha, AxisData& beta, const std::vector<Dwell>& dwells) {
+  std::vector<DwellPair> pairs;
+  if (alpha.differences) {
+    pairs = pair_dwells(dwells);
+    for (const auto& p : pairs) {
+      add_pair_rows(alpha, Axis::alpha, dwells[p.null_index], dwells[p.offset_index]);
+      add_pair_rows(beta, Axis::beta, dwells[p.null_index], dwells[p.offset_index]);
+    }
+    for (const auto& d : dwells) {
+      if (d.phase != Phase::null) continue;
+      add_null(alpha, Axis::alpha, d);
+      add_null(beta, Axis::beta, d);
+    }
+  } else {
+    for (const auto& d : dwells) {
+      add_absolute_row(alpha, Axis::alpha, d);
+      add_absolute_row(beta, Axis::beta, d);
+    }
+  }
+  return pairs;
 }
 
 }  // namespace fit
@@ -230,31 +258,14 @@ CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const Calib
   const bool diff = opts.method == Method::differences;
   fit::AxisData a, b;
   a.differences = b.differences = diff;
-  if (diff) {
-    if (rep.null_dwells == 0) {
-      throw DataError(fmt::format(
-          "{}: no null dwells: the differences method measures every offset against a neighbouring null "
-          "dwell and fixes C1 by the null condition (record null dwells between offsets, or use "
-          "--method absolute)",
-          src));
-    }
-    const auto pairs = pair_dwells(dwells);
-    rep.pairs = pairs.size();
-    for (const auto& p : pairs) {
-      fit::add_pair_rows(a, fit::Axis::alpha, dwells[p.null_index], dwells[p.offset_index]);
-      fit::add_pair_rows(b, fit::Axis::beta, dwells[p.null_index], dwells[p.offset_index]);
-    }
-    for (const auto& d : dwells) {
-      if (d.phase != Phase::null) continue;
-      fit::add_null(a, fit::Axis::alpha, d);
-      fit::add_null(b, fit::Axis::beta, d);
-    }
-  } else {
-    for (const auto& d : dwells) {
-      fit::add_absolute_row(a, fit::Axis::alpha, d);
-      fit::add_absolute_row(b, fit::Axis::beta, d);
-    }
+  if (diff && rep.null_dwells == 0) {
+    throw DataError(fmt::format(
+        "{}: no null dwells: the differences method measures every offset against a neighbouring null "
+        "dwell and fixes C1 by the null condition (record null dwells between offsets, or use "
+        "--method absolute)",
+        src));
   }
+  rep.pairs = fit::add_dwell_rows(a, b, dwells).size();
   fit::check_axis(a, fit::Axis::alpha, source);
   fit::check_axis(b, fit::Axis::beta, source);
 

@@ -102,6 +102,12 @@ enum class Axis { alpha, beta };
 void add_pair_rows(AxisData& d, Axis axis, const Dwell& null_dwell, const Dwell& offset_dwell);
 void add_null(AxisData& d, Axis axis, const Dwell& null_dwell);
 void add_absolute_row(AxisData& d, Axis axis, const Dwell& dwell);
+// Both axes' rows from the dwells, by the method set in `alpha.differences` (and beta's): one
+// row per null-offset pair, in the order of the pairs returned, then every null dwell's null
+// condition; or (absolute) one row per dwell, in order, and no pairs.
+std::vector<DwellPair> add_dwell_rows(AxisData& alpha, AxisData& beta, const std::vector<Dwell>& dwells);
+// Table 1's figures of the rows' residuals under `c` (all zero without rows).
+ResidualStats residual_stats(const AxisData& d, const AxisCoeffs& c);
 // DataError when the rows cannot tell this axis's coefficients apart.
 void check_axis(const AxisData& d, Axis axis, const std::string& origin);
 // Best grid nodes (+ the start set) -> screened refinement -> full refinement -> covariance.

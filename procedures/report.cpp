@@ -23,28 +23,19 @@ namespace fs = std::filesystem;
 // A reference change below this is an axis standing still (the other axis's offset).
 constexpr double kMovedArcsec = 1.0;
 
-// Table 1's figures of one axis's rows, computed as the calibrator computes them.
+// Table 1's figures of one axis's rows, computed by the calibrator's own code (none without rows).
 AxisResidualStats axis_stats(const fit::AxisData& d, const AxisCoeffs& c) {
   AxisResidualStats st;
-  const size_t n = d.rows();
-  st.points = static_cast<int64_t>(n);
-  if (n == 0) return st;
-  double sum = 0, sum_sq = 0, mx = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const double a = std::abs(fit::residual_arcsec(d, c, i));
-    sum += a;
-    sum_sq += a * a;
-    mx = std::max(mx, a);
-  }
-  const double m = static_cast<double>(n);
-  const double mean = sum / m;
-  st.mean_abs_arcsec = mean;
-  st.max_abs_arcsec = mx;
-  st.rms_arcsec = std::sqrt(sum_sq / m);
-  st.sd_arcsec = n > 1 ? std::sqrt(std::max(0.0, (sum_sq - m * mean * mean) / (m - 1))) : 0.0;
+  st.points = static_cast<int64_t>(d.rows());
+  if (d.rows() == 0) return st;
+  const ResidualStats r = fit::residual_stats(d, c);
+  st.mean_abs_arcsec = r.mean_abs_arcsec;
+  st.max_abs_arcsec = r.max_abs_arcsec;
+  st.rms_arcsec = r.rms_arcsec;
+  st.sd_arcsec = r.sd_arcsec;
   if (d.covered) {
-    st.range_lo_deg = d.ref_lo_arcsec / kArcsecPerDeg;
-    st.range_hi_deg = d.ref_hi_arcsec / kArcsecPerDeg;
+    st.range_lo_deg = r.range_deg[0];
+    st.range_hi_deg = r.range_deg[1];
   }
   return st;
 }
@@ -378,12 +369,11 @@ RunResiduals compute_residuals(const SampleTable& samples, const CoefficientSet&
   for (const auto& d : dwells) (d.phase == Phase::null ? out.null_dwells : out.offset_dwells)++;
   fit::AxisData a, b;
   a.differences = b.differences = method == "differences";
+  const std::vector<DwellPair> pairs = fit::add_dwell_rows(a, b, dwells);
   if (a.differences) {
-    for (const auto& p : pair_dwells(dwells)) {
+    for (const auto& p : pairs) {
       const Dwell& null_dwell = dwells[p.null_index];
       const Dwell& off = dwells[p.offset_index];
-      fit::add_pair_rows(a, fit::Axis::alpha, null_dwell, off);
-      fit::add_pair_rows(b, fit::Axis::beta, null_dwell, off);
       ResidualPoint pt;
       pt.step = off.step;
       pt.null_first = p.null_first;
@@ -393,15 +383,8 @@ RunResiduals compute_residuals(const SampleTable& samples, const CoefficientSet&
       pt.yaw_moved = std::abs(off.ref_yaw_arcsec - null_dwell.ref_yaw_arcsec) > kMovedArcsec;
       out.points.push_back(pt);
     }
-    for (const auto& d : dwells) {
-      if (d.phase != Phase::null) continue;
-      fit::add_null(a, fit::Axis::alpha, d);
-      fit::add_null(b, fit::Axis::beta, d);
-    }
   } else {
     for (const auto& d : dwells) {
-      fit::add_absolute_row(a, fit::Axis::alpha, d);
-      fit::add_absolute_row(b, fit::Axis::beta, d);
       ResidualPoint pt;
       pt.step = d.step;
       pt.absolute = true;
