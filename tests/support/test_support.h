@@ -137,11 +137,12 @@ class Child {
     const int rc = ::posix_spawn(&pid_, args[0], &fa, nullptr, args.data(), environ);
     posix_spawn_file_actions_destroy(&fa);
     if (fds[1] >= 0) ::close(fds[1]);
-    pipe_ = fds[0];
     if (rc != 0) {
+      if (fds[0] >= 0) ::close(fds[0]);
       pid_ = -1;
       throw std::runtime_error("posix_spawn " + argv[0] + " failed");
     }
+    pipe_ = fds[0];
   }
   ~Child() {
     if (pid_ > 0 && !done_) {
@@ -154,7 +155,9 @@ class Child {
   Child& operator=(const Child&) = delete;
 
   pid_t pid() const { return pid_; }
-  void signal(int sig) { ::kill(pid_, sig); }
+  void signal(int sig) {
+    if (pid_ > 0 && !done_) ::kill(pid_, sig);  // never a reaped (perhaps reused) pid
+  }
 
   // Exit code, 128 + signal when killed; -1 if it has not ended within timeout_s (it is then killed).
   int wait(double timeout_s = kForever) {
