@@ -81,6 +81,16 @@ GimbalState Engine::read_gimbal() {
   return st;
 }
 
+double Engine::read_temperature_c(const Action& a) {
+  try {
+    Timed t(stats_.device_s);
+    return s_.temperature_c();
+  } catch (const DeviceError& e) {
+    log_.warn("point {}: no temperature ({})", a.point + 1, e.what());
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+}
+
 void Engine::sleep_physical(double physical_s) {
   const double wall = b_.wall(physical_s);
   if (wall <= 0) return;
@@ -322,13 +332,7 @@ void Engine::measure_dwell(const Action& a, int session) {
       }
       check_still(refs.back(), "while");
     }
-    double temp = std::numeric_limits<double>::quiet_NaN();
-    try {
-      Timed t(stats_.device_s);
-      temp = s_.temperature_c();
-    } catch (const DeviceError& e) {
-      log_.warn("point {}: no temperature ({})", a.point + 1, e.what());
-    }
+    const double temp = read_temperature_c(a);
     std::vector<RecordedRow> rows;
     rows.reserve(frames.size());
     for (size_t i = 0; i < frames.size(); ++i) {
@@ -466,13 +470,7 @@ void Engine::measure_slew(const Action& a, int session) {
         g_times[i] = s_times[i] + cs - cg;
       }
     }
-    double temp = std::numeric_limits<double>::quiet_NaN();
-    try {
-      Timed t(stats_.device_s);
-      temp = s_.temperature_c();
-    } catch (const DeviceError& e) {
-      log_.warn("point {}: no temperature ({})", a.point + 1, e.what());
-    }
+    const double temp = read_temperature_c(a);
     std::vector<RecordedRow> rows;
     int invalid = 0, gapped = 0;
     double next_keep = -std::numeric_limits<double>::infinity();

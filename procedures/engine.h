@@ -92,6 +92,8 @@ class Engine {
   double host_now_s() const;
   double session_host_s(double host_s) const { return host_s - host_t0_; }
   GimbalState read_gimbal();
+  // The sensor's temperature for point `a`'s rows; NaN (and a warning) when it does not answer.
+  double read_temperature_c(const Action& a);
 
   Gimbal& g_;
   Sensor& s_;
