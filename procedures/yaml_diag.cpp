@@ -96,6 +96,12 @@ void MapReader::missing(const std::string& what) {
   d_.error(map_, fmt::format("{}: missing field {}", where_, what));
 }
 
+YAML::Node MapReader::field(const std::string& key, bool required) {
+  YAML::Node n = node(key);
+  if (!n.IsDefined() && required && ok_) missing(key);
+  return n;
+}
+
 std::optional<double> MapReader::as_number(const YAML::Node& n, const std::string& what, Diagnostics& d) {
   // A quoted "5" is text: numbers are written plain, so a typo'd quote is caught rather than guessed.
   if (n.IsScalar() && n.Tag() != "!") {
@@ -110,11 +116,8 @@ std::optional<double> MapReader::as_number(const YAML::Node& n, const std::strin
 }
 
 std::optional<double> MapReader::number(const std::string& key, bool required) {
-  YAML::Node n = node(key);
-  if (!n.IsDefined()) {
-    if (required && ok_) missing(key);
-    return std::nullopt;
-  }
+  YAML::Node n = field(key, required);
+  if (!n.IsDefined()) return std::nullopt;
   return as_number(n, fmt::format("{}: field {}", where_, key), d_);
 }
 
@@ -137,11 +140,8 @@ std::optional<double> MapReader::non_negative(const std::string& key, bool requi
 }
 
 std::optional<int64_t> MapReader::integer(const std::string& key, bool required, int64_t min, int64_t max) {
-  YAML::Node n = node(key);
-  if (!n.IsDefined()) {
-    if (required && ok_) missing(key);
-    return std::nullopt;
-  }
+  YAML::Node n = field(key, required);
+  if (!n.IsDefined()) return std::nullopt;
   if (n.IsScalar() && n.Tag() != "!") {
     try {
       const auto v = n.as<int64_t>();
@@ -161,11 +161,8 @@ std::optional<int64_t> MapReader::integer(const std::string& key, bool required,
 }
 
 std::optional<bool> MapReader::boolean(const std::string& key, bool required) {
-  YAML::Node n = node(key);
-  if (!n.IsDefined()) {
-    if (required && ok_) missing(key);
-    return std::nullopt;
-  }
+  YAML::Node n = field(key, required);
+  if (!n.IsDefined()) return std::nullopt;
   if (n.IsScalar() && n.Tag() != "!") {
     try {
       return n.as<bool>();
@@ -177,11 +174,8 @@ std::optional<bool> MapReader::boolean(const std::string& key, bool required) {
 }
 
 std::optional<std::string> MapReader::string(const std::string& key, bool required) {
-  YAML::Node n = node(key);
-  if (!n.IsDefined()) {
-    if (required && ok_) missing(key);
-    return std::nullopt;
-  }
+  YAML::Node n = field(key, required);
+  if (!n.IsDefined()) return std::nullopt;
   if (!n.IsScalar()) {
     d_.error(n, fmt::format("{}: field {}: expected text, got {}", where_, key, describe_node(n)));
     return std::nullopt;

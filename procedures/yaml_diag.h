@@ -96,6 +96,8 @@ class MapReader {
 
  private:
   void missing(const std::string& what);
+  // node(key), having reported it missing when required and absent.
+  YAML::Node field(const std::string& key, bool required);
   std::optional<std::pair<std::string, double>> pick_unit(const std::string& base,
                                                           std::initializer_list<std::pair<const char*, double>> units,
                                                           bool required);
