@@ -262,20 +262,20 @@ GimbalState ModbusGimbal::read_state() {
   return s;
 }
 
-std::vector<uint16_t> ModbusGimbal::read_input_registers(int addr, int count) {
+std::vector<uint16_t> ModbusGimbal::read_registers(Op op, int addr, int count) {
   if (count < 1 || count > MODBUS_MAX_READ_REGISTERS)
     throw LimitError(fmt::format("register count {} outside 1..{}", count, MODBUS_MAX_READ_REGISTERS));
   std::vector<uint16_t> r(static_cast<std::size_t>(count));
-  transact(Op::read_input, addr, count, r.data());
+  transact(op, addr, count, r.data());
   return r;
 }
 
+std::vector<uint16_t> ModbusGimbal::read_input_registers(int addr, int count) {
+  return read_registers(Op::read_input, addr, count);
+}
+
 std::vector<uint16_t> ModbusGimbal::read_holding_registers(int addr, int count) {
-  if (count < 1 || count > MODBUS_MAX_READ_REGISTERS)
-    throw LimitError(fmt::format("register count {} outside 1..{}", count, MODBUS_MAX_READ_REGISTERS));
-  std::vector<uint16_t> r(static_cast<std::size_t>(count));
-  transact(Op::read_holding, addr, count, r.data());
-  return r;
+  return read_registers(Op::read_holding, addr, count);
 }
 
 void ModbusGimbal::write_holding_registers(int addr, const std::vector<uint16_t>& values) {

@@ -89,6 +89,7 @@ class ModbusGimbal : public Gimbal {
   enum class Op { read_input, read_holding, write_single, write_multiple };
   // One request with the retry policy; returns the libmodbus result or throws DeviceError.
   int transact(Op op, int addr, int count, uint16_t* regs);
+  std::vector<uint16_t> read_registers(Op op, int addr, int count);  // count checked, then transact
   void open_link();   // new context + modbus_connect, one attempt; throws with errno
   void close_link();
   void discard_stale_rtu_input(bool until_quiet);
