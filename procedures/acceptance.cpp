@@ -10,6 +10,7 @@
 #include "calib/errors.h"
 #include "calib/text_file.h"
 #include "calib/units.h"
+#include "procedures/report.h"
 #include "procedures/yaml_diag.h"
 
 namespace fpss {
@@ -632,20 +633,6 @@ std::string limit_text(const nlohmann::ordered_json& k) {
   return fmt::format("{} {:.{}f}", k["relation"].get<std::string>(), k["limit"].get<double>(), dec);
 }
 
-std::string html_text(const std::string& s) {
-  std::string o;
-  for (char ch : s) {
-    switch (ch) {
-      case '&': o += "&amp;"; break;
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += ch;
-    }
-  }
-  return o;
-}
-
 }  // namespace
 
 std::string certificate_text(const nlohmann::ordered_json& c) {
@@ -686,7 +673,7 @@ std::string certificate_html(const nlohmann::ordered_json& c) {
                    pass ? "#1a7f37" : "#b42318", pass ? "PASS" : "FAIL");
   h += "<table>\n";
   auto row = [&](const char* k, const std::string& v) {
-    h += fmt::format("<tr><th style=\"text-align:left\">{}</th><td>{}</td></tr>\n", k, html_text(v));
+    h += fmt::format("<tr><th style=\"text-align:left\">{}</th><td>{}</td></tr>\n", k, html_escape(v));
   };
   row("Unit", c["unit"].get<std::string>());
   row("Stand", c["stand"]["identity"].get<std::string>());
@@ -708,9 +695,9 @@ std::string certificate_html(const nlohmann::ordered_json& c) {
     h += fmt::format(
         "<tr><td title=\"{}\">{}</td><td>{}</td><td>{}</td><td>{}</td><td style=\"font-weight:bold;color:{}\">{}</td>"
         "<td>{}</td><td>{}</td></tr>\n",
-        html_text(k["title"].get<std::string>()), html_text(k["id"].get<std::string>()), html_text(value_text(k)),
-        html_text(limit_text(k)), html_text(k["unit"].get<std::string>()), ok ? "#1a7f37" : "#b42318",
-        ok ? "pass" : "FAIL", html_text(k["detail"].get<std::string>()), html_text(k["source"].get<std::string>()));
+        html_escape(k["title"].get<std::string>()), html_escape(k["id"].get<std::string>()), html_escape(value_text(k)),
+        html_escape(limit_text(k)), html_escape(k["unit"].get<std::string>()), ok ? "#1a7f37" : "#b42318",
+        ok ? "pass" : "FAIL", html_escape(k["detail"].get<std::string>()), html_escape(k["source"].get<std::string>()));
   }
   h += "</table>\n<h3>Verification and rest points</h3>\n<table class=\"points\">\n";
   h += "<tr><th>step</th><th>role</th><th>pitch (deg)</th><th>yaw (deg)</th><th>frames</th>"
