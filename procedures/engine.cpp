@@ -91,6 +91,28 @@ double Engine::read_temperature_c(const Action& a) {
   }
 }
 
+RecordedRow Engine::make_row(const Action& a, Phase phase, const SensorSample& f, double sensor_time_s,
+                             const GimbalRef& g, double temperature_c, int attempt, int session) {
+  const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(g.pitch_arcsec, g.yaw_arcsec);
+  RecordedRow r;
+  r.sensor_time_s = sensor_time_s;
+  r.sample = Sample{stand_time(sensor_time_s), phase, a.point + 1, ref_a, ref_b,
+                    static_cast<double>(f.counts_alpha), static_cast<double>(f.counts_beta)};
+  r.frame_seq = f.seq;
+  r.sensor_status = f.status;
+  r.host_time_s = session_host_s(f.host_time_s);
+  r.gimbal_time_s = g.time_s;
+  r.gimbal_pitch_arcsec = g.pitch_arcsec;
+  r.gimbal_yaw_arcsec = g.yaw_arcsec;
+  r.gimbal_status = g.status;
+  r.target_pitch_arcsec = a.pitch_arcsec;
+  r.target_yaw_arcsec = a.yaw_arcsec;
+  r.temperature_c = temperature_c;
+  r.attempt = attempt;
+  r.session = session;
+  return r;
+}
+
 void Engine::sleep_physical(double physical_s) {
   const double wall = b_.wall(physical_s);
   if (wall <= 0) return;
@@ -336,26 +358,9 @@ void Engine::measure_dwell(const Action& a, int session) {
     std::vector<RecordedRow> rows;
     rows.reserve(frames.size());
     for (size_t i = 0; i < frames.size(); ++i) {
-      const auto& f = frames[i];
       const GimbalState& g = refs[i];
-      const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(g.pitch_arcsec, g.yaw_arcsec);
-      RecordedRow r;
-      r.sensor_time_s = sensor_clock_s(f);
-      r.sample = Sample{stand_time(r.sensor_time_s), a.phase, a.point + 1, ref_a, ref_b,
-                        static_cast<double>(f.counts_alpha), static_cast<double>(f.counts_beta)};
-      r.frame_seq = f.seq;
-      r.sensor_status = f.status;
-      r.host_time_s = session_host_s(f.host_time_s);
-      r.gimbal_time_s = static_cast<double>(g.sample_time_us) / 1e6;
-      r.gimbal_pitch_arcsec = g.pitch_arcsec;
-      r.gimbal_yaw_arcsec = g.yaw_arcsec;
-      r.gimbal_status = g.status;
-      r.target_pitch_arcsec = a.pitch_arcsec;
-      r.target_yaw_arcsec = a.yaw_arcsec;
-      r.temperature_c = temp;
-      r.attempt = attempt;
-      r.session = session;
-      rows.push_back(r);
+      const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
+      rows.push_back(make_row(a, a.phase, frames[i], sensor_clock_s(frames[i]), ref, temp, attempt, session));
     }
     {
       Timed t(stats_.storage_s);
@@ -490,24 +495,8 @@ void Engine::measure_slew(const Action& a, int session) {
       // last one kept (a microsecond of slack for float rounding).
       if (s_times[i] + 1e-6 < next_keep) continue;
       next_keep = s_times[i] + a.sample_period_s;
-      const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(at->pitch_arcsec, at->yaw_arcsec);
-      RecordedRow r;
-      r.sensor_time_s = s_times[i];
-      r.sample = Sample{stand_time(s_times[i]), Phase::slew, a.point + 1, ref_a, ref_b,
-                        static_cast<double>(f.counts_alpha), static_cast<double>(f.counts_beta)};
-      r.frame_seq = f.seq;
-      r.sensor_status = f.status;
-      r.host_time_s = session_host_s(f.host_time_s);
-      r.gimbal_time_s = g_times[i];
-      r.gimbal_pitch_arcsec = at->pitch_arcsec;
-      r.gimbal_yaw_arcsec = at->yaw_arcsec;
-      r.gimbal_status = at->status;
-      r.target_pitch_arcsec = a.pitch_arcsec;
-      r.target_yaw_arcsec = a.yaw_arcsec;
-      r.temperature_c = temp;
-      r.attempt = attempt;
-      r.session = session;
-      rows.push_back(r);
+      const GimbalRef ref{g_times[i], at->pitch_arcsec, at->yaw_arcsec, at->status};
+      rows.push_back(make_row(a, Phase::slew, f, s_times[i], ref, temp, attempt, session));
     }
     if (rows.empty()) {
       throw SensorFailure(fmt::format("no valid frame aligned with the gimbal during the slew ({} frames, {} invalid)",

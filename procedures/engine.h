@@ -94,6 +94,14 @@ class Engine {
   GimbalState read_gimbal();
   // The sensor's temperature for point `a`'s rows; NaN (and a warning) when it does not answer.
   double read_temperature_c(const Action& a);
+  // The gimbal reading a row is referenced to (stand frame) and the gimbal-clock time it stands for.
+  struct GimbalRef {
+    double time_s = 0, pitch_arcsec = 0, yaw_arcsec = 0;
+    uint16_t status = 0;
+  };
+  // One row of point `a`: frame `f` at `sensor_time_s` (sensor clock) with its reference `g`.
+  RecordedRow make_row(const Action& a, Phase phase, const SensorSample& f, double sensor_time_s, const GimbalRef& g,
+                       double temperature_c, int attempt, int session);
 
   Gimbal& g_;
   Sensor& s_;
