@@ -307,12 +307,7 @@ int accept_command(const AcceptArgs& a) {
   Diagnostics dp(proc_path.string());
   req.procedure = parse_procedure(read_text_file(proc_path, "procedure file"), proc_path.string(), dp);
   Diagnostics ds(a.stand_file);
-  if (!a.stand_file.empty()) {
-    req.stand = parse_stand(read_text_file(a.stand_file, "stand file"), a.stand_file, ds);
-    if (a.emulate) adapt_to_emulator(req.stand, a.speed);
-  } else {
-    req.stand = emulated_stand(a.speed);
-  }
+  req.stand = run_stand(a.stand_file, a.emulate, a.speed, ds);
   if (!a.unit.empty() && !a.emulate) req.stand.unit_serial = a.unit;
   Plan plan;
   if (dp.empty() && ds.empty()) plan = expand(req.procedure, req.stand.bench, dp);

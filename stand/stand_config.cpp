@@ -171,6 +171,13 @@ StandConfig load_stand_file(const std::filesystem::path& path) {
   return c;
 }
 
+StandConfig run_stand(const std::string& stand_file, bool emulate, double speed, Diagnostics& d) {
+  if (stand_file.empty()) return emulated_stand(speed);
+  StandConfig c = parse_stand(read_text_file(stand_file, "stand file"), stand_file, d);
+  if (emulate) adapt_to_emulator(c, speed);
+  return c;
+}
+
 void adapt_to_emulator(StandConfig& c, double speed) {
   // The emulator's devices both report the bench clock; a stand file may still ask for the host
   // alignment (to exercise it against the emulator).

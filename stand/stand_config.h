@@ -21,5 +21,8 @@ StandConfig emulated_stand(double speed);
 // Makes a stand (from a file or not) drive an emulator: the speed-up as time scale, and the shared
 // bench clock unless the file chose clock.sync itself.
 void adapt_to_emulator(StandConfig& stand, double speed);
+// The stand of `run` and `accept`: the stand file (InputError when it cannot be read, its errors
+// into `d`), adapted to the emulator when `emulate`; without a file, emulated_stand(speed).
+StandConfig run_stand(const std::string& stand_file, bool emulate, double speed, Diagnostics& d);
 
 }  // namespace fpss
