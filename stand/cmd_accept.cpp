@@ -307,7 +307,7 @@ int accept_command(const AcceptArgs& a) {
   Diagnostics dp(proc_path.string());
   req.procedure = parse_procedure(read_text_file(proc_path, "procedure file"), proc_path.string(), dp);
   Diagnostics ds(a.stand_file);
-  req.stand = run_stand(a.stand_file, a.emulate, a.speed, ds);
+  req.stand = stand_for_run(a.stand_file, a.emulate, a.speed, ds);
   if (!a.unit.empty() && !a.emulate) req.stand.unit_serial = a.unit;
   Plan plan;
   if (dp.empty() && ds.empty()) plan = expand(req.procedure, req.stand.bench, dp);

@@ -82,7 +82,7 @@ int run_command(const RunArgs& a) {
     Diagnostics dp(a.procedure);
     req.procedure = parse_procedure(ptext, a.procedure, dp);
     Diagnostics ds(a.stand_file);
-    req.stand = run_stand(a.stand_file, a.emulate, a.speed, ds);
+    req.stand = stand_for_run(a.stand_file, a.emulate, a.speed, ds);
     // The plan is checked against the stand even when some steps are broken (those are skipped),
     // but not against a broken stand file, whose limits would be guesses.
     if (ds.empty()) expand(req.procedure, req.stand.bench, dp);

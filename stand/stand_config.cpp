@@ -171,7 +171,7 @@ StandConfig load_stand_file(const std::filesystem::path& path) {
   return c;
 }
 
-StandConfig run_stand(const std::string& stand_file, bool emulate, double speed, Diagnostics& d) {
+StandConfig stand_for_run(const std::string& stand_file, bool emulate, double speed, Diagnostics& d) {
   if (stand_file.empty()) return emulated_stand(speed);
   StandConfig c = parse_stand(read_text_file(stand_file, "stand file"), stand_file, d);
   if (emulate) adapt_to_emulator(c, speed);

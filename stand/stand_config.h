@@ -23,6 +23,6 @@ StandConfig emulated_stand(double speed);
 void adapt_to_emulator(StandConfig& stand, double speed);
 // The stand of `run` and `accept`: the stand file (InputError when it cannot be read, its errors
 // into `d`), adapted to the emulator when `emulate`; without a file, emulated_stand(speed).
-StandConfig run_stand(const std::string& stand_file, bool emulate, double speed, Diagnostics& d);
+StandConfig stand_for_run(const std::string& stand_file, bool emulate, double speed, Diagnostics& d);
 
 }  // namespace fpss
