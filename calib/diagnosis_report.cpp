@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "calib/text_file.h"
 #include "calib/diagnosis.h"
 #include "calib/diagnosis_model.h"
 #include "calib/errors.h"
@@ -261,14 +262,7 @@ void write_diagnosis_report(const std::string& html_path, const SampleTable& dat
   }
   h << "</body></html>\n";
 
-  const std::string tmp = html_path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    if (!out) throw std::runtime_error(fmt::format("{}: cannot write", html_path));
-    out << h.str();
-    if (!out) throw std::runtime_error(fmt::format("{}: write failed", html_path));
-  }
-  fs::rename(tmp, html_path);
+  write_text_atomic(html_path, h.str());
 }
 
 }  // namespace fpss

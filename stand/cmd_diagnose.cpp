@@ -9,6 +9,7 @@
 #include "calib/diagnosis.h"
 #include "calib/errors.h"
 #include "calib/samples.h"
+#include "calib/text_file.h"
 #include "stand/blindtest.h"
 #include "stand/commands.h"
 
@@ -17,14 +18,7 @@ namespace fpss::cli {
 namespace {
 
 void write_json_file(const std::string& path, const nlohmann::ordered_json& j) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    if (!out) throw std::runtime_error(fmt::format("{}: cannot write", path));
-    out << j.dump(1) << '\n';
-    if (!out) throw std::runtime_error(fmt::format("{}: write failed", path));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error(fmt::format("{}: cannot rename", path));
+  write_text_atomic(path, j.dump(1) + '\n');
 }
 
 void add_diagnose_command(CLI::App& app, Runner& run) {
