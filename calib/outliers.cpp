@@ -1,0 +1,57 @@
+#include "calib/outliers.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+
+namespace fpss {
+namespace {
+
+double median_of(std::vector<double>& v) {
+  const size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + mid, v.end());
+  double m = v[mid];
+  if (v.size() % 2 == 0) m = 0.5 * (m + *std::max_element(v.begin(), v.begin() + mid));
+  return m;
+}
+
+}  // namespace
+
+OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vector<int64_t>& step,
+                           const OutlierRule& rule) {
+  if (residual.size() != step.size()) throw std::invalid_argument("flag_outliers: residual and step differ in size");
+  OutlierFlags out;
+  out.outlier.assign(residual.size(), false);
+  std::map<int64_t, std::vector<size_t>> rows_of;
+  for (size_t i = 0; i < step.size(); ++i)
+    if (std::isfinite(residual[i])) rows_of[step[i]].push_back(i);
+
+  std::vector<double> centre(residual.size(), NAN), deviations, tmp;
+  deviations.reserve(residual.size());
+  for (const auto& [id, rows] : rows_of) {
+    if (static_cast<int>(rows.size()) < rule.min_step_frames) continue;
+    tmp.clear();
+    for (size_t i : rows) tmp.push_back(residual[i]);
+    const double m = median_of(tmp);
+    for (size_t i : rows) {
+      centre[i] = m;
+      deviations.push_back(std::fabs(residual[i] - m));
+    }
+  }
+  if (deviations.empty()) return out;
+  out.robust_sigma = std::max(1.4826 * median_of(deviations), rule.min_sigma);
+  if (!(out.robust_sigma > 0)) return out;
+  const double limit = rule.threshold_sigma * out.robust_sigma;
+  for (size_t i = 0; i < residual.size(); ++i) {
+    if (std::isnan(centre[i]) || std::fabs(residual[i] - centre[i]) <= limit) continue;
+    out.outlier[i] = true;
+    ++out.count;
+    if (out.steps.empty() || out.steps.back() != step[i]) out.steps.push_back(step[i]);
+  }
+  std::sort(out.steps.begin(), out.steps.end());
+  out.steps.erase(std::unique(out.steps.begin(), out.steps.end()), out.steps.end());
+  return out;
+}
+
+}  // namespace fpss
