@@ -56,7 +56,7 @@ struct GimbalFailure : std::runtime_error {
 
 }  // namespace
 
-Engine::Engine(Gimbal& gimbal, Sensor& sensor, const BenchSettings& bench, const Plan& plan, RunRecorder& recorder,
+Engine::Engine(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, const Plan& plan, RunRecorder& recorder,
                spdlog::logger& log, RunControl& control, EngineHooks hooks)
     : g_(gimbal), s_(sensor), b_(bench), plan_(plan), rec_(recorder), log_(log), ctl_(control),
       hooks_(std::move(hooks)) {}

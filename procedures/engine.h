@@ -11,7 +11,7 @@
 
 #include "drivers/gimbal.h"
 #include "drivers/sensor.h"
-#include "procedures/bench.h"
+#include "procedures/settings.h"
 #include "procedures/plan.h"
 #include "procedures/recorder.h"
 
@@ -60,7 +60,7 @@ struct EngineHooks {
 
 class Engine {
  public:
-  Engine(Gimbal& gimbal, Sensor& sensor, const BenchSettings& bench, const Plan& plan, RunRecorder& recorder,
+  Engine(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, const Plan& plan, RunRecorder& recorder,
          spdlog::logger& log, RunControl& control, EngineHooks hooks = {});
 
   // Runs the plan from the first point the recorder has not completed (0 for a new run).
@@ -105,7 +105,7 @@ class Engine {
 
   Gimbal& g_;
   Sensor& s_;
-  const BenchSettings& b_;
+  const EngineSettings& b_;
   const Plan& plan_;
   RunRecorder& rec_;
   spdlog::logger& log_;

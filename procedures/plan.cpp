@@ -29,7 +29,7 @@ double axis_move_s(double d, double v, double a) {
 
 class Expander {
  public:
-  Expander(const Procedure& proc, const BenchSettings& bench, Diagnostics& d) : proc_(proc), b_(bench), d_(d) {}
+  Expander(const Procedure& proc, const EngineSettings& bench, Diagnostics& d) : proc_(proc), b_(bench), d_(d) {}
 
   Plan run() {
     for (const auto& st : proc_.steps) {
@@ -230,7 +230,7 @@ class Expander {
   }
 
   const Procedure& proc_;
-  const BenchSettings& b_;
+  const EngineSettings& b_;
   Diagnostics& d_;
   const Step* step_ = nullptr;
   Plan plan_;
@@ -246,7 +246,7 @@ double move_duration_s(double from_pitch, double from_yaw, double to_pitch, doub
                   axis_move_s(to_yaw - from_yaw, rate_arcsec_s, accel_arcsec_s2));
 }
 
-Plan expand(const Procedure& proc, const BenchSettings& bench, Diagnostics& d) {
+Plan expand(const Procedure& proc, const EngineSettings& bench, Diagnostics& d) {
   return Expander(proc, bench, d).run();
 }
 
@@ -271,7 +271,7 @@ std::string Action::describe() const {
   return "?";
 }
 
-std::string format_plan(const Procedure& proc, const Plan& plan, const BenchSettings& b) {
+std::string format_plan(const Procedure& proc, const Plan& plan, const EngineSettings& b) {
   std::string s = fmt::format("procedure {} ({}): {} steps\n", proc.name, proc.origin, proc.steps.size());
   s += fmt::format("stand: {}; soft limits pitch {} .. {}, yaw {} .. {}, rate <= {} arcsec/s\n", b.axes.describe(),
                    deg(b.limits.pitch_min_arcsec), deg(b.limits.pitch_max_arcsec), deg(b.limits.yaw_min_arcsec),

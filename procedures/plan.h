@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "procedures/bench.h"
+#include "procedures/settings.h"
 #include "procedures/procedure.h"
 
 namespace fpss {
@@ -50,13 +50,13 @@ struct Plan {
 // Expands the procedure for the stand; errors (a target outside the soft limits, a rate above
 // the limit, a sample period shorter than the sensor's) go to `d` with the step's file:line:col.
 // Steps that failed to parse are skipped, so a procedure with errors can still be checked.
-Plan expand(const Procedure& proc, const BenchSettings& bench, Diagnostics& d);
+Plan expand(const Procedure& proc, const EngineSettings& bench, Diagnostics& d);
 
 // Physical seconds for a point-to-point move with a trapezoidal profile on both axes at once.
 double move_duration_s(double from_pitch, double from_yaw, double to_pitch, double to_yaw, double rate_arcsec_s,
                        double accel_arcsec_s2);
 
 // The --dry-run text: every action, the number of points, the estimated duration.
-std::string format_plan(const Procedure& proc, const Plan& plan, const BenchSettings& bench);
+std::string format_plan(const Procedure& proc, const Plan& plan, const EngineSettings& bench);
 
 }  // namespace fpss

@@ -43,6 +43,9 @@ struct JournalEntry {
   int attempts = 1;
 };
 
+// Now as ISO 8601 UTC, 2024-05-01T12:00:00Z.
+std::string utc_now_iso();
+
 // An ISO 8601 UTC time (utc_now_iso(), 2024-05-01T12:00:00Z) compact for folder names (20240501T120000Z).
 std::string utc_compact(const std::string& iso);
 

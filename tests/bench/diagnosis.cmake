@@ -4,4 +4,4 @@
 # diagnose on 25k..200k-row recordings (target: 100k rows < 10 s, cost linear in rows).
 # Run: build/tests/bench/fpss_bench_diagnosis  (--benchmark_filter=Rows for the timing only)
 add_executable(fpss_bench_diagnosis ${CMAKE_CURRENT_SOURCE_DIR}/diagnosis_bench.cpp)
-target_link_libraries(fpss_bench_diagnosis PRIVATE fpss_stand benchmark::benchmark_main)
+target_link_libraries(fpss_bench_diagnosis PRIVATE fpss_stand_blindtest benchmark::benchmark_main)

@@ -8,7 +8,7 @@
 
 #include "calib/diagnosis.h"
 #include "calib/samples.h"
-#include "stand/blindtest.h"
+#include "stand/blindtest/blindtest.h"
 
 namespace fpss {
 namespace {

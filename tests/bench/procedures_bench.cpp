@@ -117,7 +117,7 @@ void BM_EngineControllerPerPoint(benchmark::State& state) {
   fpss::test::TempDir tmp("bench-engine");
   const fpss::Procedure proc =
       fpss::load_procedure(fpss::test::source_dir() / "procedures" / "discrete_grid.yaml");
-  fpss::BenchSettings b;
+  fpss::EngineSettings b;
   b.time_scale = 1e12;  // settle times become nothing: only the controller is left
   b.clock = fpss::ClockSync::shared;
   fpss::Diagnostics d("bench");
@@ -154,7 +154,7 @@ BENCHMARK(BM_EngineControllerPerPoint)->Iterations(5)->Unit(benchmark::kMillisec
 void BM_ParseAndExpandDiscreteGrid(benchmark::State& state) {
   const std::string text =
       fpss::test::read_file(fpss::test::source_dir() / "procedures" / "discrete_grid.yaml");
-  fpss::BenchSettings b;
+  fpss::EngineSettings b;
   for (auto _ : state) {
     fpss::Diagnostics d("discrete_grid.yaml");
     const fpss::Procedure p = fpss::parse_procedure(text, "discrete_grid.yaml", d);

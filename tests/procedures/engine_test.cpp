@@ -9,7 +9,7 @@
 
 #include "calib/samples.h"
 #include "drivers/endpoints.h"
-#include "procedures/emulator_process.h"
+#include "stand/session/emulator_process.h"
 #include "procedures/engine.h"
 #include "procedures/plan.h"
 #include "procedures/recorder.h"
@@ -46,13 +46,13 @@ struct Bench {
     sensor->disconnect();
     gimbal->disconnect();
   }
-  BenchSettings settings;
+  EngineSettings settings;
   std::unique_ptr<EmulatorProcess> emu;
   std::unique_ptr<Gimbal> gimbal;
   std::unique_ptr<Sensor> sensor;
 };
 
-Plan plan_of(const Procedure& p, const BenchSettings& b) {
+Plan plan_of(const Procedure& p, const EngineSettings& b) {
   Diagnostics d(p.origin);
   Plan plan = expand(p, b, d);
   EXPECT_TRUE(d.empty()) << d.text();

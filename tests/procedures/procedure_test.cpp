@@ -29,8 +29,8 @@ Diagnostics parse_bad(const std::string& text, const std::string& origin = "bad.
   return d;
 }
 
-BenchSettings bench() {
-  BenchSettings b;
+EngineSettings bench() {
+  EngineSettings b;
   b.sample_rate_hz = 50;
   return b;
 }
@@ -250,7 +250,7 @@ TEST(Plan, TargetsOutsideSoftLimitsAreErrorsAtTheStep) {
       "  - move: {yaw_deg: -0.6}\n"
       "  - continuous_slew: {axis: pitch, amplitude_deg: 0.2, rate_arcsec_s: 5000, sample_period_s: 0.01}\n",
       "limits.yaml");
-  BenchSettings b = bench();
+  EngineSettings b = bench();
   b.limits.pitch_min_arcsec = -0.3 * 3600;
   b.limits.pitch_max_arcsec = 0.3 * 3600;
   b.limits.yaw_min_arcsec = -0.5 * 3600;
@@ -279,7 +279,7 @@ TEST(Plan, EstimateAddsMovesSettlesAndFrames) {
       "  - move: {pitch_arcsec: 900}\n"
       "  - settle: {duration_s: 2}\n"
       "  - sample: {frames: 50}\n");
-  BenchSettings b = bench();
+  EngineSettings b = bench();
   b.profile_rate_arcsec_s = 1800;
   b.acceleration_arcsec_s2 = 3600;
   Diagnostics d("p.yaml");
@@ -305,7 +305,7 @@ TEST(Plan, SamePlanEveryTime) {
 
 TEST(Plan, DryRunText) {
   Procedure p = load_procedure(test::source_dir() / "procedures" / "discrete_grid.yaml");
-  BenchSettings b = bench();
+  EngineSettings b = bench();
   b.time_scale = 20;
   Diagnostics d("x");
   Plan plan = expand(p, b, d);

@@ -1,6 +1,6 @@
 // The blind check on a small seeded set covering every effect and none, and `fpss-stand diagnose`
 // / `fpss-stand blindtest` end to end: files, exit codes, what cannot be told apart.
-#include "stand/blindtest.h"
+#include "stand/blindtest/blindtest.h"
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>

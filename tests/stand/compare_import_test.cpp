@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "procedures/catalogue.h"
+#include "stand/catalogue/catalogue.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {

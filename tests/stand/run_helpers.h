@@ -12,7 +12,7 @@
 #include "calib/calibrator.h"
 #include "calib/coefficients.h"
 #include "calib/samples.h"
-#include "procedures/catalogue.h"
+#include "stand/catalogue/catalogue.h"
 #include "procedures/procedure.h"
 #include "procedures/recorder.h"
 #include "tests/procedures/run_util.h"

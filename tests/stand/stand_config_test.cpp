@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "calib/errors.h"
-#include "stand/stand_config.h"
+#include "stand/config/stand_config.h"
 #include "tests/procedures/diag_util.h"
 #include "tests/support/test_support.h"
 

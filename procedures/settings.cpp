@@ -1,0 +1,50 @@
+#include "procedures/settings.h"
+
+#include <fmt/format.h>
+
+namespace fpss {
+
+std::pair<double, double> AxisMapping::sensor_from_stand(double pitch_arcsec, double yaw_arcsec) const {
+  double s[2] = {0, 0};
+  s[pitch_axis] = pitch_sign * pitch_arcsec;
+  s[yaw_axis] = yaw_sign * yaw_arcsec;
+  return {s[alpha], s[beta]};
+}
+
+std::pair<double, double> AxisMapping::stand_from_sensor(double alpha_arcsec, double beta_arcsec) const {
+  const double s[2] = {alpha_arcsec, beta_arcsec};
+  return {pitch_sign * s[pitch_axis], yaw_sign * s[yaw_axis]};
+}
+
+std::string AxisMapping::describe() const {
+  auto one = [](double sign, SensorAxis a) { return fmt::format("{}{}", sign < 0 ? "-" : "+", a == alpha ? "alpha" : "beta"); };
+  return fmt::format("pitch = {}, yaw = {}", one(pitch_sign, pitch_axis), one(yaw_sign, yaw_axis));
+}
+
+nlohmann::json to_json(const EngineSettings& b) {
+  auto axis = [](double sign, AxisMapping::SensorAxis a) {
+    return fmt::format("{}{}", sign < 0 ? "-" : "", a == AxisMapping::alpha ? "alpha" : "beta");
+  };
+  return {
+      {"soft_limits",
+       {{"pitch_arcsec", {b.limits.pitch_min_arcsec, b.limits.pitch_max_arcsec}},
+        {"yaw_arcsec", {b.limits.yaw_min_arcsec, b.limits.yaw_max_arcsec}},
+        {"max_rate_arcsec_s", b.limits.max_rate_arcsec_s}}},
+      {"axes", {{"pitch", axis(b.axes.pitch_sign, b.axes.pitch_axis)}, {"yaw", axis(b.axes.yaw_sign, b.axes.yaw_axis)}}},
+      {"profile_rate_arcsec_s", b.profile_rate_arcsec_s},
+      {"acceleration_arcsec_s2", b.acceleration_arcsec_s2},
+      {"in_position_tolerance_arcsec", b.in_position_tolerance_arcsec},
+      {"move_timeout_s", b.move_timeout_s},
+      {"home_timeout_s", b.home_timeout_s},
+      {"frame_timeout_s", b.frame_timeout_s},
+      {"sample_rate_hz", b.sample_rate_hz},
+      {"max_remeasure", b.max_remeasure},
+      {"watchdog_s", b.watchdog_s},
+      {"clock", b.clock == ClockSync::shared ? "shared" : "host"},
+      {"sensor_time_offset_s", b.sensor_time_offset_s},
+      {"max_reference_gap_s", b.max_reference_gap_s},
+      {"time_scale", b.time_scale},
+  };
+}
+
+}  // namespace fpss

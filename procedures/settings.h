@@ -1,0 +1,57 @@
+// What the engine needs to know about a stand: limits, axis mapping, timing and recovery policy.
+#pragma once
+#include <string>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "drivers/gimbal.h"
+
+namespace fpss {
+
+// How the sensor is mounted on the gimbal: each stand axis as a signed sensor axis.
+// Default pitch = +alpha, yaw = +beta; the paper's Table 2 needs pitch = +beta, yaw = -alpha.
+struct AxisMapping {
+  enum SensorAxis { alpha = 0, beta = 1 };
+  SensorAxis pitch_axis = alpha, yaw_axis = beta;
+  double pitch_sign = 1, yaw_sign = 1;
+
+  // Reference angles of the Sun in the sensor frame (what alpha and beta measure) from gimbal
+  // angles: the samples contract's ref_pitch_arcsec (alpha) and ref_yaw_arcsec (beta).
+  std::pair<double, double> sensor_from_stand(double pitch_arcsec, double yaw_arcsec) const;
+  std::pair<double, double> stand_from_sensor(double alpha_arcsec, double beta_arcsec) const;
+  std::string describe() const;  // "pitch = +beta, yaw = -alpha"
+  bool valid() const { return pitch_axis != yaw_axis && (pitch_sign == 1 || pitch_sign == -1) &&
+                              (yaw_sign == 1 || yaw_sign == -1); }
+};
+
+// How sensor time and gimbal time relate. `host`: separate clocks, related through the host's
+// receive times (lower envelope of the latency). `shared`: both report one clock (a bench with a
+// common timebase, or the emulator's bench clock).
+enum class ClockSync { host, shared };
+
+struct EngineSettings {
+  SoftLimits limits;
+  AxisMapping axes;
+  double profile_rate_arcsec_s = 1800;   // gimbal profile speed for moves
+  double acceleration_arcsec_s2 = 3600;  // for duration estimates only
+  double in_position_tolerance_arcsec = 1.0;  // the engine's own arrival check on the encoders
+  double move_timeout_s = 30;            // physical seconds for one move
+  double home_timeout_s = 60;
+  double frame_timeout_s = 1.0;          // wall seconds a frame may be late beyond its period
+  double sample_rate_hz = 50;            // sensor stream rate (RATE)
+  int max_remeasure = 3;                 // re-measurements of one point before a safe stop
+  double watchdog_s = 0;                 // gimbal watchdog during the run (0: off)
+  ClockSync clock = ClockSync::host;
+  double sensor_time_offset_s = 0;       // added to sensor time before aligning (known latency)
+  double max_reference_gap_s = 0.05;     // slews: a frame between gimbal readings further apart is skipped
+  double time_scale = 1;                 // bench seconds per wall second (an emulator's speed-up)
+  double poll_interval_s = 0.002;        // wall seconds between gimbal polls while waiting
+
+  // Physical seconds -> wall seconds to wait.
+  double wall(double physical_s) const { return physical_s / time_scale; }
+};
+
+nlohmann::json to_json(const EngineSettings& b);
+
+}  // namespace fpss

@@ -1,0 +1,681 @@
+#include "stand/catalogue/catalogue.h"
+
+#include "procedures/recorder.h"
+
+#include <fmt/format.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <SQLiteCpp/SQLiteCpp.h>
+#include <sqlite3.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <functional>
+#include <stdexcept>
+#include <thread>
+
+#include "calib/coefficients.h"
+#include "calib/errors.h"
+
+namespace fpss {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Schema migrations: kMigrations[v] takes a catalogue from user_version v to v + 1. Each runs
+// inside the IMMEDIATE transaction that also sets user_version, so two processes opening a
+// fresh file at once cannot both create it, and a crash leaves either v or v + 1.
+// A later version appends a step here (and bumps Catalogue::kSchemaVersion).
+const char* const kMigrations[] = {
+    // 0 -> 1
+    R"sql(
+CREATE TABLE IF NOT EXISTS units (
+  serial          TEXT PRIMARY KEY NOT NULL CHECK (serial <> ''),
+  first_seen_utc  TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS runs (
+  run_id            TEXT PRIMARY KEY NOT NULL CHECK (run_id <> ''),
+  unit              TEXT NOT NULL REFERENCES units(serial),
+  procedure         TEXT NOT NULL,
+  procedure_hash    TEXT NOT NULL,
+  started_utc       TEXT NOT NULL,
+  ended_utc         TEXT,
+  outcome           TEXT NOT NULL,
+  run_dir           TEXT NOT NULL,
+  emulated          INTEGER NOT NULL CHECK (emulated IN (0, 1)),
+  stand             TEXT NOT NULL DEFAULT '',
+  software_version  TEXT NOT NULL,
+  resumes           INTEGER NOT NULL DEFAULT 0,
+  pid               INTEGER NOT NULL DEFAULT 0,
+  host              TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX IF NOT EXISTS runs_by_unit ON runs(unit, started_utc);
+CREATE TABLE IF NOT EXISTS calibrations (
+  id                     INTEGER PRIMARY KEY AUTOINCREMENT,
+  unit                   TEXT NOT NULL REFERENCES units(serial),
+  source                 TEXT NOT NULL CHECK (source IN ('run', 'import')),
+  run_id                 TEXT REFERENCES runs(run_id),
+  source_ref             TEXT NOT NULL,
+  label                  TEXT NOT NULL DEFAULT '',
+  date_utc               TEXT NOT NULL,
+  recorded_utc           TEXT NOT NULL,
+  method                 TEXT NOT NULL,
+  coefficients_json      TEXT NOT NULL CHECK (json_valid(coefficients_json)),
+  pitch_mean_abs_arcsec  REAL,
+  pitch_sd_arcsec        REAL,
+  pitch_max_abs_arcsec   REAL,
+  pitch_rms_arcsec       REAL,
+  pitch_points           INTEGER,
+  pitch_range_lo_deg     REAL,
+  pitch_range_hi_deg     REAL,
+  yaw_mean_abs_arcsec    REAL,
+  yaw_sd_arcsec          REAL,
+  yaw_max_abs_arcsec     REAL,
+  yaw_rms_arcsec         REAL,
+  yaw_points             INTEGER,
+  yaw_range_lo_deg       REAL,
+  yaw_range_hi_deg       REAL,
+  CHECK ((source = 'run') = (run_id IS NOT NULL))
+);
+CREATE INDEX IF NOT EXISTS calibrations_by_unit ON calibrations(unit, date_utc, id);
+CREATE TABLE IF NOT EXISTS acceptances (
+  id                INTEGER PRIMARY KEY AUTOINCREMENT,
+  unit              TEXT NOT NULL REFERENCES units(serial),
+  run_id            TEXT REFERENCES runs(run_id),
+  passed            INTEGER NOT NULL CHECK (passed IN (0, 1)),
+  date_utc          TEXT NOT NULL,
+  recorded_utc      TEXT NOT NULL,
+  certificate_json  TEXT NOT NULL CHECK (json_valid(certificate_json))
+);
+CREATE INDEX IF NOT EXISTS acceptances_by_unit ON acceptances(unit, date_utc, id);
+)sql",
+};
+static_assert(std::size(kMigrations) == Catalogue::kSchemaVersion);
+
+std::string host_name() {
+  char buf[256] = {};
+  if (::gethostname(buf, sizeof buf - 1) != 0) return "";
+  return buf;
+}
+
+[[noreturn]] void fail(const fs::path& path, const std::string& what, const SQLite::Exception& e) {
+  // SQLITE_NOTADB (26) and SQLITE_CORRUPT (11) are about the file the user named.
+  const int code = e.getErrorCode();
+  if (code == SQLITE_NOTADB || code == SQLITE_CORRUPT || code == SQLITE_CANTOPEN) {
+    throw InputError(fmt::format("{}: {}: {}", path.string(), what, e.what()));
+  }
+  throw std::runtime_error(fmt::format("{}: {}: {}", path.string(), what, e.what()));
+}
+
+// Runs `body` in a BEGIN IMMEDIATE transaction: the write lock is taken up front, so the busy
+// timeout applies (a deferred transaction upgrading to a writer gets SQLITE_BUSY at once).
+template <typename F>
+auto write_txn(SQLite::Database& db, F&& body) {
+  SQLite::Transaction txn(db, SQLite::TransactionBehavior::IMMEDIATE);
+  if constexpr (std::is_void_v<decltype(body())>) {
+    body();
+    txn.commit();
+  } else {
+    auto r = body();
+    txn.commit();
+    return r;
+  }
+}
+
+// The residual columns of one axis, in one place for the insert and the select.
+constexpr const char* kStatColumns[] = {"mean_abs_arcsec", "sd_arcsec",    "max_abs_arcsec", "rms_arcsec",
+                                        "points",          "range_lo_deg", "range_hi_deg"};
+
+template <typename T>
+void bind_opt(SQLite::Statement& st, const std::string& name, const std::optional<T>& v) {
+  if (v) st.bind(name, *v);
+  else st.bind(name);
+}
+
+void bind_stats(SQLite::Statement& st, const std::string& axis, const std::optional<AxisResidualStats>& s) {
+  const auto p = ":" + axis + "_";
+  const AxisResidualStats none;
+  const AxisResidualStats& v = s ? *s : none;
+  bind_opt(st, p + "mean_abs_arcsec", v.mean_abs_arcsec);
+  bind_opt(st, p + "sd_arcsec", v.sd_arcsec);
+  bind_opt(st, p + "max_abs_arcsec", v.max_abs_arcsec);
+  bind_opt(st, p + "rms_arcsec", v.rms_arcsec);
+  bind_opt(st, p + "points", v.points);
+  bind_opt(st, p + "range_lo_deg", v.range_lo_deg);
+  bind_opt(st, p + "range_hi_deg", v.range_hi_deg);
+}
+
+std::optional<std::string> opt_text(const SQLite::Column& c) {
+  if (c.isNull()) return std::nullopt;
+  return c.getString();
+}
+
+std::optional<double> opt_double(const SQLite::Column& c) {
+  if (c.isNull()) return std::nullopt;
+  return c.getDouble();
+}
+
+std::optional<AxisResidualStats> read_stats(SQLite::Statement& st, const std::string& axis) {
+  auto col = [&](const char* k) { return st.getColumn((axis + "_" + k).c_str()); };
+  AxisResidualStats s;
+  s.mean_abs_arcsec = opt_double(col("mean_abs_arcsec"));
+  s.sd_arcsec = opt_double(col("sd_arcsec"));
+  s.max_abs_arcsec = opt_double(col("max_abs_arcsec"));
+  s.rms_arcsec = opt_double(col("rms_arcsec"));
+  if (!col("points").isNull()) s.points = col("points").getInt64();
+  s.range_lo_deg = opt_double(col("range_lo_deg"));
+  s.range_hi_deg = opt_double(col("range_hi_deg"));
+  if (s.empty()) return std::nullopt;
+  return s;
+}
+
+std::string stat_columns(const char* prefix_fmt) {
+  std::string out;
+  for (const char* axis : {"pitch", "yaw"}) {
+    for (const char* k : kStatColumns) {
+      if (!out.empty()) out += ", ";
+      out += fmt::format(fmt::runtime(prefix_fmt), axis, k);
+    }
+  }
+  return out;
+}
+
+const char* const kRunColumns =
+    "run_id, unit, procedure, procedure_hash, started_utc, ended_utc, outcome, run_dir, emulated, "
+    "stand, software_version, resumes, pid, host";
+
+RunRecord read_run(SQLite::Statement& st) {
+  RunRecord r;
+  r.run_id = st.getColumn("run_id").getString();
+  r.unit = st.getColumn("unit").getString();
+  r.procedure = st.getColumn("procedure").getString();
+  r.procedure_hash = st.getColumn("procedure_hash").getString();
+  r.started_utc = st.getColumn("started_utc").getString();
+  r.ended_utc = opt_text(st.getColumn("ended_utc"));
+  r.outcome = st.getColumn("outcome").getString();
+  r.run_dir = st.getColumn("run_dir").getString();
+  r.emulated = st.getColumn("emulated").getInt() != 0;
+  r.stand = st.getColumn("stand").getString();
+  r.software_version = st.getColumn("software_version").getString();
+  r.resumes = st.getColumn("resumes").getInt64();
+  r.pid = st.getColumn("pid").getInt64();
+  r.host = st.getColumn("host").getString();
+  return r;
+}
+
+const std::string kCalibrationColumns =
+    "id, unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, coefficients_json, " +
+    stat_columns("{}_{}");
+
+CalibrationRecord read_calibration(SQLite::Statement& st) {
+  CalibrationRecord c;
+  c.id = st.getColumn("id").getInt64();
+  c.unit = st.getColumn("unit").getString();
+  c.source = st.getColumn("source").getString();
+  c.run_id = opt_text(st.getColumn("run_id"));
+  c.source_ref = st.getColumn("source_ref").getString();
+  c.label = st.getColumn("label").getString();
+  c.date_utc = st.getColumn("date_utc").getString();
+  c.recorded_utc = st.getColumn("recorded_utc").getString();
+  c.method = st.getColumn("method").getString();
+  c.coefficients = nlohmann::json::parse(st.getColumn("coefficients_json").getString());
+  c.pitch = read_stats(st, "pitch");
+  c.yaw = read_stats(st, "yaw");
+  return c;
+}
+
+const char* const kAcceptanceColumns =
+    "id, unit, run_id, passed, date_utc, recorded_utc, certificate_json";
+
+AcceptanceRecord read_acceptance(SQLite::Statement& st) {
+  AcceptanceRecord a;
+  a.id = st.getColumn("id").getInt64();
+  a.unit = st.getColumn("unit").getString();
+  a.run_id = opt_text(st.getColumn("run_id"));
+  a.passed = st.getColumn("passed").getInt() != 0;
+  a.date_utc = st.getColumn("date_utc").getString();
+  a.recorded_utc = st.getColumn("recorded_utc").getString();
+  a.certificate = nlohmann::json::parse(st.getColumn("certificate_json").getString());
+  return a;
+}
+
+void require_unit(const std::string& serial) {
+  if (serial.empty()) throw InputError("unit serial must not be empty");
+}
+
+bool insert_unit(SQLite::Database& db, const std::string& serial) {
+  SQLite::Statement st(db, "INSERT OR IGNORE INTO units(serial, first_seen_utc) VALUES(?, ?)");
+  st.bind(1, serial);
+  st.bind(2, utc_now_iso());
+  return st.exec() == 1;
+}
+
+bool run_exists(SQLite::Database& db, const std::string& run_id) {
+  SQLite::Statement st(db, "SELECT 1 FROM runs WHERE run_id = ?");
+  st.bind(1, run_id);
+  return st.executeStep();
+}
+
+}  // namespace
+
+bool AxisResidualStats::empty() const {
+  return !mean_abs_arcsec && !sd_arcsec && !max_abs_arcsec && !rms_arcsec && !points && !range_lo_deg &&
+         !range_hi_deg;
+}
+
+AxisResidualStats AxisResidualStats::from_json(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_object()) throw InputError(fmt::format("{}: expected an object of residual statistics", where));
+  AxisResidualStats s;
+  auto num = [&](const char* key) -> std::optional<double> {
+    if (!j.contains(key) || j[key].is_null()) return std::nullopt;
+    if (!j[key].is_number() || !std::isfinite(j[key].get<double>())) {
+      throw InputError(fmt::format("{}: \"{}\" must be a finite number, got {}", where, key, j[key].dump()));
+    }
+    return j[key].get<double>();
+  };
+  s.mean_abs_arcsec = num("mean_abs_arcsec");
+  s.sd_arcsec = num("sd_arcsec");
+  s.max_abs_arcsec = num("max_abs_arcsec");
+  s.rms_arcsec = num("rms_arcsec");
+  if (const auto pts = num("points")) {
+    if (*pts < 0 || *pts != std::floor(*pts)) {
+      throw InputError(fmt::format("{}: \"points\" must be a whole number >= 0, got {}", where, *pts));
+    }
+    s.points = static_cast<int64_t>(*pts);
+  }
+  if (j.contains("range_deg") && !j["range_deg"].is_null()) {
+    const auto& r = j["range_deg"];
+    if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
+        !std::isfinite(r[0].get<double>()) || !std::isfinite(r[1].get<double>()) ||
+        r[0].get<double>() > r[1].get<double>()) {
+      throw InputError(fmt::format("{}: \"range_deg\" must be [lo, hi] in degrees, lo <= hi, got {}", where,
+                                   r.dump()));
+    }
+    s.range_lo_deg = r[0].get<double>();
+    s.range_hi_deg = r[1].get<double>();
+  }
+  return s;
+}
+
+nlohmann::json AxisResidualStats::to_json() const {
+  nlohmann::json j = nlohmann::json::object();
+  if (mean_abs_arcsec) j["mean_abs_arcsec"] = *mean_abs_arcsec;
+  if (sd_arcsec) j["sd_arcsec"] = *sd_arcsec;
+  if (max_abs_arcsec) j["max_abs_arcsec"] = *max_abs_arcsec;
+  if (rms_arcsec) j["rms_arcsec"] = *rms_arcsec;
+  if (points) j["points"] = *points;
+  if (range_lo_deg && range_hi_deg) j["range_deg"] = {*range_lo_deg, *range_hi_deg};
+  return j;
+}
+
+bool RunRecord::stale() const {
+  if (outcome != outcome::running || pid <= 0 || host.empty() || host != host_name()) return false;
+  return ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH;
+}
+
+CalibrationRecord CalibrationRecord::from_calibration_json(const nlohmann::json& cal,
+                                                           const std::string& origin) {
+  const CoefficientSet set = parse_coefficients(cal, origin);  // validates C1..C8 of both axes
+  CalibrationRecord c;
+  c.unit = set.unit;
+  c.coefficients = cal;
+  if (cal.contains("method") && cal["method"].is_string()) c.method = cal["method"].get<std::string>();
+  if (cal.contains("date") && cal["date"].is_string()) c.date_utc = cal["date"].get<std::string>();
+  if (cal.contains("residuals")) {
+    const auto& r = cal["residuals"];
+    if (!r.is_object()) throw InputError(fmt::format("{}: \"residuals\" must be an object", origin));
+    for (const char* axis : {"pitch", "yaw"}) {
+      if (!r.contains(axis) || r[axis].is_null()) continue;
+      auto stats = AxisResidualStats::from_json(r[axis], fmt::format("{}: residuals.{}", origin, axis));
+      if (!stats.empty()) (axis[0] == 'p' ? c.pitch : c.yaw) = stats;
+    }
+  }
+  return c;
+}
+
+fs::path Catalogue::default_path(const fs::path& runs_dir) { return runs_dir / "stand.db"; }
+
+Catalogue::Catalogue(const fs::path& path, Mode mode, int busy_timeout_ms) : path_(path) {
+  const bool ro = mode == Mode::read_only;
+  if (ro && !fs::exists(path_)) {
+    throw InputError(fmt::format("{}: no catalogue there (no run has been recorded with it)", path_.string()));
+  }
+  if (!ro && path_.has_parent_path()) fs::create_directories(path_.parent_path());
+  try {
+    db_ = std::make_unique<SQLite::Database>(
+        path_, ro ? SQLite::OPEN_READONLY : (SQLite::OPEN_READWRITE | SQLite::OPEN_CREATE), busy_timeout_ms);
+    db_->exec("PRAGMA foreign_keys = ON");
+    if (!ro) {
+      // Switching to WAL takes an exclusive lock that the busy handler does not always wait for
+      // when another process is creating the file at the same moment: retry within the timeout.
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(busy_timeout_ms);
+      for (;;) {
+        try {
+          const std::string jm = db_->execAndGet("PRAGMA journal_mode = WAL").getString();
+          if (jm != "wal") throw std::runtime_error(fmt::format("{}: journal mode stays \"{}\"", path_.string(), jm));
+          break;
+        } catch (const SQLite::Exception& e) {
+          if ((e.getErrorCode() & 0xff) != SQLITE_BUSY && (e.getErrorCode() & 0xff) != SQLITE_LOCKED) throw;
+          if (std::chrono::steady_clock::now() > deadline) throw;
+          std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        }
+      }
+      // FULL: a committed catalogue row survives a power cut too, not only a killed process.
+      db_->exec("PRAGMA synchronous = FULL");
+      init_schema();
+    } else {
+      const int v = schema_version();
+      if (v == 0) {
+        throw InputError(fmt::format("{}: not a stand catalogue (no schema)", path_.string()));
+      }
+      if (v != kSchemaVersion) {
+        throw InputError(fmt::format(
+            "{}: catalogue schema version {} but this fpss-stand reads version {}{}", path_.string(), v,
+            kSchemaVersion, v < kSchemaVersion ? " (a run with this version upgrades it)" : ""));
+      }
+    }
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot open the catalogue", e);
+  }
+}
+
+Catalogue::~Catalogue() = default;
+
+int Catalogue::schema_version() const { return db_->execAndGet("PRAGMA user_version").getInt(); }
+
+void Catalogue::init_schema() {
+  if (schema_version() == kSchemaVersion) return;  // the common case: no write lock needed
+  write_txn(*db_, [&] {
+    const int v = schema_version();  // again, under the lock: another process may have done it
+    if (v > kSchemaVersion) {
+      throw InputError(fmt::format("{}: catalogue schema version {} is newer than this fpss-stand ({})",
+                                   path_.string(), v, kSchemaVersion));
+    }
+    for (int step = v; step < kSchemaVersion; ++step) db_->exec(kMigrations[step]);
+    db_->exec(fmt::format("PRAGMA user_version = {}", kSchemaVersion));
+  });
+}
+
+bool Catalogue::add_unit(const std::string& serial) {
+  require_unit(serial);
+  try {
+    return write_txn(*db_, [&] { return insert_unit(*db_, serial); });
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot add unit " + serial, e);
+  }
+}
+
+void Catalogue::record_run_start(const RunStart& run) {
+  if (run.run_id.empty()) throw std::invalid_argument("record_run_start: empty run id");
+  require_unit(run.unit);
+  try {
+    write_txn(*db_, [&] {
+      {
+        SQLite::Statement q(*db_, "SELECT unit FROM runs WHERE run_id = ?");
+        q.bind(1, run.run_id);
+        if (q.executeStep() && q.getColumn(0).getString() != run.unit) {
+          throw std::invalid_argument(fmt::format("run {} belongs to unit {}, not {}", run.run_id,
+                                                  q.getColumn(0).getString(), run.unit));
+        }
+      }
+      insert_unit(*db_, run.unit);
+      SQLite::Statement st(*db_, R"sql(
+        INSERT INTO runs(run_id, unit, procedure, procedure_hash, started_utc, outcome, run_dir,
+                         emulated, stand, software_version, pid, host)
+        VALUES(:run_id, :unit, :procedure, :hash, :started, 'running', :dir, :emulated, :stand,
+               :version, :pid, :host)
+        ON CONFLICT(run_id) DO UPDATE SET
+          outcome = 'running', ended_utc = NULL, resumes = resumes + 1,
+          pid = excluded.pid, host = excluded.host, software_version = excluded.software_version)sql");
+      st.bind(":run_id", run.run_id);
+      st.bind(":unit", run.unit);
+      st.bind(":procedure", run.procedure);
+      st.bind(":hash", run.procedure_hash);
+      st.bind(":started", run.started_utc.empty() ? utc_now_iso() : run.started_utc);
+      st.bind(":dir", run.run_dir.empty() ? std::string() : fs::absolute(run.run_dir).lexically_normal().string());
+      st.bind(":emulated", run.emulated ? 1 : 0);
+      st.bind(":stand", run.stand);
+      st.bind(":version", run.software_version);
+      st.bind(":pid", static_cast<int64_t>(::getpid()));
+      st.bind(":host", host_name());
+      st.exec();
+    });
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot record the start of run " + run.run_id, e);
+  }
+}
+
+void Catalogue::record_run_end(const std::string& run_id, const std::string& outcome,
+                               const std::string& ended_utc) {
+  if (outcome.empty() || outcome == outcome::running) {
+    throw std::invalid_argument("record_run_end: the outcome must be a final one");
+  }
+  try {
+    write_txn(*db_, [&] {
+      SQLite::Statement st(*db_, "UPDATE runs SET ended_utc = ?, outcome = ? WHERE run_id = ?");
+      st.bind(1, ended_utc.empty() ? utc_now_iso() : ended_utc);
+      st.bind(2, outcome);
+      st.bind(3, run_id);
+      if (st.exec() != 1) throw std::invalid_argument(fmt::format("record_run_end: no run {}", run_id));
+    });
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot record the end of run " + run_id, e);
+  }
+}
+
+namespace {
+
+void check_calibration(const CalibrationRecord& cal) {
+  require_unit(cal.unit);
+  if (cal.source != "run" && cal.source != "import") {
+    throw std::invalid_argument(fmt::format("calibration source must be run or import, not \"{}\"", cal.source));
+  }
+  if ((cal.source == "run") != cal.run_id.has_value()) {
+    throw std::invalid_argument("a calibration from a run names its run id, an import none");
+  }
+  if (!cal.coefficients.is_object()) throw std::invalid_argument("calibration coefficients must be a JSON object");
+}
+
+// The insert itself, inside the caller's transaction.
+int64_t insert_calibration(SQLite::Database& db, const CalibrationRecord& cal) {
+  if (cal.run_id && !run_exists(db, *cal.run_id)) {
+    throw std::invalid_argument(fmt::format("record_calibration: no run {}", *cal.run_id));
+  }
+  insert_unit(db, cal.unit);
+  const std::string now = utc_now_iso();
+  static const std::string sql = fmt::format(
+      "INSERT INTO calibrations(unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, "
+      "coefficients_json, {}) VALUES(:unit, :source, :run_id, :source_ref, :label, :date, :recorded, "
+      ":method, :coefficients, {})",
+      stat_columns("{}_{}"), stat_columns(":{}_{}"));
+  SQLite::Statement st(db, sql);
+  st.bind(":unit", cal.unit);
+  st.bind(":source", cal.source);
+  bind_opt(st, ":run_id", cal.run_id);
+  st.bind(":source_ref", cal.source_ref.empty() && cal.run_id ? *cal.run_id : cal.source_ref);
+  st.bind(":label", cal.label);
+  st.bind(":date", cal.date_utc.empty() ? now : cal.date_utc);
+  st.bind(":recorded", now);
+  st.bind(":method", cal.method);
+  st.bind(":coefficients", cal.coefficients.dump());
+  bind_stats(st, "pitch", cal.pitch);
+  bind_stats(st, "yaw", cal.yaw);
+  st.exec();
+  return db.getLastInsertRowid();
+}
+
+}  // namespace
+
+int64_t Catalogue::record_calibration(const CalibrationRecord& cal) {
+  check_calibration(cal);
+  try {
+    return write_txn(*db_, [&] { return insert_calibration(*db_, cal); });
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot record a calibration of " + cal.unit, e);
+  }
+}
+
+std::pair<int64_t, bool> Catalogue::record_import_once(const CalibrationRecord& cal) {
+  check_calibration(cal);
+  if (cal.source != "import") throw std::invalid_argument("record_import_once: the calibration is not an import");
+  if (cal.date_utc.empty()) throw std::invalid_argument("record_import_once: an import needs its date");
+  try {
+    return write_txn(*db_, [&]() -> std::pair<int64_t, bool> {
+      SQLite::Statement q(*db_,
+                          "SELECT id FROM calibrations WHERE unit = ? AND source = 'import' AND date_utc = ? "
+                          "AND coefficients_json = ? ORDER BY id LIMIT 1");
+      q.bind(1, cal.unit);
+      q.bind(2, cal.date_utc);
+      q.bind(3, cal.coefficients.dump());
+      if (q.executeStep()) return {q.getColumn(0).getInt64(), false};
+      return {insert_calibration(*db_, cal), true};
+    });
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot import a calibration of " + cal.unit, e);
+  }
+}
+
+int64_t Catalogue::record_acceptance(const AcceptanceRecord& acc) {
+  require_unit(acc.unit);
+  try {
+    return write_txn(*db_, [&]() -> int64_t {
+      if (acc.run_id && !run_exists(*db_, *acc.run_id)) {
+        throw std::invalid_argument(fmt::format("record_acceptance: no run {}", *acc.run_id));
+      }
+      insert_unit(*db_, acc.unit);
+      const std::string now = utc_now_iso();
+      SQLite::Statement st(*db_, R"sql(
+        INSERT INTO acceptances(unit, run_id, passed, date_utc, recorded_utc, certificate_json)
+        VALUES(?, ?, ?, ?, ?, ?))sql");
+      st.bind(1, acc.unit);
+      if (acc.run_id) st.bind(2, *acc.run_id);
+      else st.bind(2);
+      st.bind(3, acc.passed ? 1 : 0);
+      st.bind(4, acc.date_utc.empty() ? now : acc.date_utc);
+      st.bind(5, now);
+      st.bind(6, acc.certificate.dump());
+      st.exec();
+      return db_->getLastInsertRowid();
+    });
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot record an acceptance of " + acc.unit, e);
+  }
+}
+
+std::vector<std::string> Catalogue::units() const {
+  try {
+    std::vector<std::string> out;
+    SQLite::Statement st(*db_, "SELECT serial FROM units ORDER BY serial");
+    while (st.executeStep()) out.push_back(st.getColumn(0).getString());
+    return out;
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot list units", e);
+  }
+}
+
+bool Catalogue::has_unit(const std::string& serial) const {
+  try {
+    SQLite::Statement st(*db_, "SELECT 1 FROM units WHERE serial = ?");
+    st.bind(1, serial);
+    return st.executeStep();
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot look up unit " + serial, e);
+  }
+}
+
+std::vector<RunRecord> Catalogue::list_runs(const RunFilter& filter) const {
+  try {
+    std::string sql = fmt::format("SELECT {} FROM runs", kRunColumns);
+    if (filter.unit) sql += " WHERE unit = :unit";
+    sql += " ORDER BY started_utc DESC, rowid DESC";
+    if (filter.limit) sql += " LIMIT :limit";
+    SQLite::Statement st(*db_, sql);
+    if (filter.unit) st.bind(":unit", *filter.unit);
+    if (filter.limit) st.bind(":limit", static_cast<int64_t>(filter.limit));
+    std::vector<RunRecord> out;
+    while (st.executeStep()) out.push_back(read_run(st));
+    return out;
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot list runs", e);
+  }
+}
+
+std::optional<RunRecord> Catalogue::find_run(const std::string& run_id) const {
+  try {
+    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM runs WHERE run_id = ?", kRunColumns));
+    st.bind(1, run_id);
+    if (!st.executeStep()) return std::nullopt;
+    return read_run(st);
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot look up run " + run_id, e);
+  }
+}
+
+std::vector<CalibrationRecord> Catalogue::unit_history(const std::string& serial) const {
+  try {
+    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE unit = ? ORDER BY date_utc, id",
+                                           kCalibrationColumns));
+    st.bind(1, serial);
+    std::vector<CalibrationRecord> out;
+    while (st.executeStep()) out.push_back(read_calibration(st));
+    return out;
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot read the history of " + serial, e);
+  }
+}
+
+std::optional<CalibrationRecord> Catalogue::find_calibration(int64_t id) const {
+  try {
+    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE id = ?", kCalibrationColumns));
+    st.bind(1, id);
+    if (!st.executeStep()) return std::nullopt;
+    return read_calibration(st);
+  } catch (const SQLite::Exception& e) {
+    fail(path_, fmt::format("cannot look up calibration {}", id), e);
+  }
+}
+
+std::vector<CalibrationRecord> Catalogue::run_calibrations(const std::string& run_id) const {
+  try {
+    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE run_id = ? ORDER BY id",
+                                           kCalibrationColumns));
+    st.bind(1, run_id);
+    std::vector<CalibrationRecord> out;
+    while (st.executeStep()) out.push_back(read_calibration(st));
+    return out;
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot read the calibrations of run " + run_id, e);
+  }
+}
+
+std::vector<AcceptanceRecord> Catalogue::unit_acceptances(const std::string& serial) const {
+  try {
+    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM acceptances WHERE unit = ? ORDER BY date_utc, id",
+                                           kAcceptanceColumns));
+    st.bind(1, serial);
+    std::vector<AcceptanceRecord> out;
+    while (st.executeStep()) out.push_back(read_acceptance(st));
+    return out;
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot read the acceptances of " + serial, e);
+  }
+}
+
+std::string Catalogue::integrity_check() const {
+  try {
+    std::string out;
+    SQLite::Statement st(*db_, "PRAGMA integrity_check");
+    while (st.executeStep()) {
+      if (!out.empty()) out += "\n";
+      out += st.getColumn(0).getString();
+    }
+    return out;
+  } catch (const SQLite::Exception& e) {
+    return fmt::format("integrity_check failed: {}", e.what());
+  }
+}
+
+}  // namespace fpss

@@ -1,0 +1,500 @@
+// fpss-stand accept / compare / import: acceptance of a unit, comparison of calibrations, imports into the catalogue.
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <optional>
+#include <regex>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/coefficients.h"
+#include "calib/compare.h"
+#include "calib/errors.h"
+#include "calib/text_file.h"
+#include "fixtures/bench.h"
+#include "stand/acceptance/acceptance.h"
+#include "stand/catalogue/catalogue.h"
+#include "procedures/plan.h"
+#include "procedures/recorder.h"
+#include "stand/report/report.h"
+#include "stand/session/session.h"
+#include "stand/cli/commands.h"
+#include "stand/config/stand_config.h"
+
+extern char** environ;
+
+namespace fpss::cli {
+namespace fs = std::filesystem;
+namespace {
+
+fs::path catalogue_path(const std::string& db, const std::string& runs_dir) {
+  return db.empty() ? Catalogue::default_path(runs_dir) : fs::path(db);
+}
+
+// A calibration named on the command line: a coefficient file (calibration.json is one), a
+// published set ("a-6-fpss1"), or "cal:ID" for a calibration in the catalogue.
+struct NamedSet {
+  CoefficientSet set;
+  std::string name;
+};
+
+NamedSet resolve_calibration(const std::string& arg, const fs::path& db) {
+  if (arg.rfind("cal:", 0) == 0) {
+    int64_t id = 0;
+    try {
+      size_t used = 0;
+      id = std::stoll(arg.substr(4), &used);
+      if (used != arg.size() - 4) throw std::invalid_argument("trailing");
+    } catch (const std::exception&) {
+      throw InputError(fmt::format("{}: expected cal:ID with a numeric catalogue id", arg));
+    }
+    const Catalogue cat(db, Catalogue::Mode::read_only);
+    const auto rec = cat.find_calibration(id);
+    if (!rec) throw InputError(fmt::format("{}: no calibration {} in {}", arg, id, db.string()));
+    NamedSet n{parse_coefficients(rec->coefficients, fmt::format("{} calibration {}", db.string(), id)), {}};
+    n.name = fmt::format("{} calibration {} of {} ({}{})", db.string(), id, rec->unit, rec->date_utc,
+                         rec->label.empty() ? "" : ", " + rec->label);
+    return n;
+  }
+  if (fs::exists(arg)) return {load_coefficients(arg), arg};
+  for (const auto& name : published_names()) {
+    if (name == arg) return {load_published(name), fmt::format("published {}", name)};
+  }
+  throw InputError(fmt::format("{}: no such coefficient file, published set (a-1-fpss1 .. a-7-fpss2) or cal:ID", arg));
+}
+
+// Runs gnuplot on `script` without a shell; returns its exit status (-1 when it cannot start).
+int run_gnuplot(const fs::path& script) {
+  const std::string prog = "gnuplot", arg = script.string();
+  char* argv[] = {const_cast<char*>(prog.c_str()), const_cast<char*>(arg.c_str()), nullptr};
+  pid_t pid = 0;
+  if (::posix_spawnp(&pid, prog.c_str(), nullptr, nullptr, argv, environ) != 0) return -1;
+  int status = 0;
+  if (::waitpid(pid, &status, 0) < 0) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+void write_text(const fs::path& path, const std::string& text) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  f << text;
+  f.close();
+  if (!f) throw std::runtime_error(fmt::format("{}: cannot write", path.string()));
+}
+
+// The SVG at `svg`, with its data (.dat) and gnuplot script (.gp) next to it to redraw it.
+void write_plot(const CalibrationComparison& c, const fs::path& svg, const std::string& title) {
+  if (svg.has_parent_path()) fs::create_directories(svg.parent_path());
+  fs::path data = svg, script = svg;
+  data.replace_extension(".dat");
+  script.replace_extension(".gp");
+  write_text(data, comparison_plot_data(c));
+  write_text(script, comparison_plot_script(c, data.string(), svg.string(), title));
+  const int rc = run_gnuplot(script);
+  if (rc != 0) {
+    throw std::runtime_error(fmt::format("gnuplot {} failed ({}); the data and script are at {} and {}",
+                                         script.string(), rc < 0 ? "not found" : fmt::format("exit {}", rc),
+                                         data.string(), script.string()));
+  }
+}
+
+// YYYY-MM-DD, optionally followed by THH:MM[:SS][Z]; the date must exist in the calendar.
+std::string checked_date(const std::string& s) {
+  static const std::regex re(R"((\d{4})-(\d{2})-(\d{2})(T(\d{2}):(\d{2})(:(\d{2}))?Z?)?)");
+  std::smatch m;
+  if (!std::regex_match(s, m, re)) {
+    throw InputError(fmt::format("--date {}: expected an ISO 8601 date, YYYY-MM-DD or YYYY-MM-DDTHH:MM:SSZ", s));
+  }
+  const std::chrono::year_month_day ymd{std::chrono::year{std::stoi(m[1])},
+                                        std::chrono::month{static_cast<unsigned>(std::stoi(m[2]))},
+                                        std::chrono::day{static_cast<unsigned>(std::stoi(m[3]))}};
+  if (!ymd.ok()) throw InputError(fmt::format("--date {}: no such day", s));
+  if (m[4].matched && (std::stoi(m[5]) > 23 || std::stoi(m[6]) > 59 || (m[8].matched && std::stoi(m[8]) > 60))) {
+    throw InputError(fmt::format("--date {}: no such time of day", s));
+  }
+  return s;
+}
+
+nlohmann::ordered_json drift_json(const DriftCheck& d, const CalibrationRecord& prev) {
+  nlohmann::ordered_json j;
+  j["previous_id"] = prev.id;
+  j["previous_date"] = prev.date_utc;
+  j["max_abs_arcsec"] = d.worst_arcsec;
+  j["max_abs_offset_removed_arcsec"] = d.worst_shape_arcsec;
+  j["axis"] = d.worst_axis;
+  j["limit_arcsec"] = d.limit_arcsec;
+  j["flagged"] = d.flagged;
+  j["comparison"] = d.comparison.summary_json();
+  return j;
+}
+
+void add_compare(CLI::App& app, Runner& run) {
+  struct Opts {
+    std::string a, b, plot, db, runs_dir = "runs";
+    double range_deg = kDefaultCompareRangeDeg;
+    bool json = false;
+  };
+  auto o = std::make_shared<Opts>();
+  auto* sub = app.add_subcommand(
+      "compare", "Difference B - A of two calibrations' transfer functions at equal counts, per axis (the paper's Figures 1-2)");
+  sub->add_option("CAL_A", o->a, "coefficient file, published set (a-6-fpss1) or cal:ID from the catalogue")->required();
+  sub->add_option("CAL_B", o->b, "the same for B")->required();
+  sub->add_option("--range-deg", o->range_deg, "compare over the counts A maps into +-R deg")->capture_default_str();
+  sub->add_flag("--json", o->json, "print {\"alpha\": {max_abs_arcsec, rms_arcsec, max_abs_offset_removed_arcsec}, \"beta\": {...}}");
+  sub->add_option("--plot", o->plot, "write an SVG plot there (its .dat and .gp next to it)");
+  sub->add_option("--db", o->db, "catalogue for cal:ID (default RUNS_DIR/stand.db)");
+  sub->add_option("--runs-dir", o->runs_dir, "runs folder")->capture_default_str();
+  sub->callback([o, &run] {
+    run = [o] {
+      const fs::path db = catalogue_path(o->db, o->runs_dir);
+      const NamedSet a = resolve_calibration(o->a, db), b = resolve_calibration(o->b, db);
+      const CalibrationComparison c = compare_calibrations(a.set, b.set, o->range_deg);
+      if (!o->plot.empty()) {
+        write_plot(c, o->plot, fmt::format("B - A: {} minus {}", b.name, a.name));
+        std::fprintf(stderr, "plot: %s\n", o->plot.c_str());
+      }
+      if (o->json) {
+        std::printf("%s\n", c.summary_json().dump().c_str());
+      } else {
+        std::printf("%s", comparison_table(c, a.name, b.name).c_str());
+      }
+      return 0;
+    };
+  });
+}
+
+void add_import(CLI::App& app, Runner& run) {
+  struct Opts {
+    std::string file, unit, date, label, db, runs_dir = "runs";
+    double limit_arcsec = kDefaultDriftLimitArcsec;
+    bool json = false;
+  };
+  auto o = std::make_shared<Opts>();
+  auto* sub = app.add_subcommand("import", "Bring a calibration done elsewhere (a coefficient file) into the catalogue");
+  sub->add_option("COEFFS", o->file, "coefficient file (JSON)")->required();
+  sub->add_option("--unit", o->unit, "sensor unit serial")->required();
+  sub->add_option("--date", o->date, "when the calibration was made (YYYY-MM-DD or ISO 8601 time)")->required();
+  sub->add_option("--label", o->label, "a name for it (default: the file's \"calibration\" key, e.g. VI)");
+  sub->add_option("--db", o->db, "catalogue file (default RUNS_DIR/stand.db)");
+  sub->add_option("--runs-dir", o->runs_dir, "runs folder")->capture_default_str();
+  sub->add_option("--limit-arcsec", o->limit_arcsec, "flag a change from the previous calibration beyond this")
+      ->capture_default_str();
+  sub->add_flag("--json", o->json, "print what was recorded as JSON");
+  sub->callback([o, &run] {
+    run = [o] {
+      if (o->unit.empty()) throw InputError("--unit: the serial must not be empty");
+      const std::string date = checked_date(o->date);
+      std::ifstream in(o->file, std::ios::binary);
+      if (!in) throw InputError(fmt::format("{}: cannot open", o->file));
+      nlohmann::json j;
+      try {
+        j = nlohmann::json::parse(in);
+      } catch (const nlohmann::json::parse_error& e) {
+        throw InputError(fmt::format("{}: not JSON: {}", o->file, e.what()));
+      }
+      CalibrationRecord rec = CalibrationRecord::from_calibration_json(j, o->file);  // validates C1..C8
+      if (!rec.unit.empty() && rec.unit != o->unit) {
+        std::fprintf(stderr, "note: %s names unit \"%s\"; recorded against --unit %s\n", o->file.c_str(),
+                     rec.unit.c_str(), o->unit.c_str());
+      }
+      rec.unit = o->unit;
+      rec.source = "import";
+      rec.run_id.reset();
+      rec.source_ref = fs::absolute(o->file).lexically_normal().string();
+      rec.date_utc = date;
+      rec.method = "imported";
+      rec.label = o->label;
+      if (rec.label.empty() && j.contains("calibration") && j["calibration"].is_string()) {
+        rec.label = j["calibration"].get<std::string>();
+      }
+
+      Catalogue cat(catalogue_path(o->db, o->runs_dir));
+      // Importing the same file for the same date again is a no-op, so a script may repeat it;
+      // check and insert are one transaction, so two imports at once record it once.
+      const auto [id, inserted] = cat.record_import_once(rec);
+      const std::optional<int64_t> existing = inserted ? std::nullopt : std::optional<int64_t>(id);
+
+      // The change against the calibration just before it in the unit's history.
+      const auto history = cat.unit_history(o->unit);
+      std::optional<CalibrationRecord> prev;
+      for (const auto& h : history) {
+        if (h.id == id) break;
+        prev = h;
+      }
+      std::optional<DriftCheck> drift;
+      if (prev) {
+        drift = check_drift(parse_coefficients(prev->coefficients, fmt::format("calibration {}", prev->id)),
+                            parse_coefficients(j, o->file), o->limit_arcsec);
+      }
+      if (o->json) {
+        nlohmann::ordered_json out;
+        out["id"] = id;
+        out["unit"] = o->unit;
+        out["date"] = date;
+        out["label"] = rec.label;
+        out["already_present"] = existing.has_value();
+        out["catalogue"] = cat.path().string();
+        out["change"] = drift ? nlohmann::ordered_json(drift_json(*drift, *prev)) : nlohmann::ordered_json(nullptr);
+        std::printf("%s\n", out.dump(1).c_str());
+      } else {
+        std::printf("%s calibration %lld of %s (%s%s) in %s\n", existing ? "already present as" : "imported as",
+                    static_cast<long long>(id), o->unit.c_str(), date.c_str(),
+                    rec.label.empty() ? "" : (", " + rec.label).c_str(), cat.path().c_str());
+        if (drift) {
+          std::printf("change from calibration %lld (%s): max %.2f arcsec (%s), %.2f arcsec with the null shift removed%s\n",
+                      static_cast<long long>(prev->id), prev->date_utc.c_str(), drift->worst_arcsec,
+                      drift->worst_axis.c_str(), drift->worst_shape_arcsec,
+                      drift->flagged ? fmt::format("  ** beyond {} arcsec **", drift->limit_arcsec).c_str() : "");
+        }
+      }
+      return 0;
+    };
+  });
+}
+
+// ---- accept ----
+
+struct AcceptArgs {
+  std::string stand_file, unit, procedure, limits, runs_dir = "runs", catalogue;
+  bool emulate = false, json = false, quiet = false, no_progress = false;
+  double speed = 20;
+  uint64_t seed = 1;
+  std::string bench, truth;
+  std::vector<std::string> effects, faults;
+  std::vector<CLI::Option*> emu_only;
+};
+
+// The page when the run's own report cannot be drawn (no calibration): the certificate alone.
+std::string standalone_page(const std::string& title, const std::string& section_html, const std::string& why) {
+  return fmt::format(
+      "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{0}</title>"
+      "<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;"
+      "padding:3px 6px;vertical-align:top}}</style></head>\n<body>\n<h1>{0}</h1>\n<p>{1}</p>\n"
+      "<section id=\"acceptance\"><h2>Acceptance</h2>\n{2}</section>\n</body></html>\n",
+      html_escape(title), html_escape(why), section_html);
+}
+
+int accept_command(const AcceptArgs& a) {
+  // Everything is read and checked before anything moves: limits, procedure and its roles, stand, bench.
+  if (a.stand_file.empty() && !a.emulate) {
+    throw InputError("accept: give --stand STAND.yaml --unit SERIAL for a real bench, or --emulate");
+  }
+  if (!a.emulate) {
+    if (a.unit.empty()) throw InputError("accept --stand: give --unit SERIAL, the unit being accepted");
+    for (auto* o : a.emu_only) {
+      if (o->count() > 0) throw InputError(fmt::format("accept: {} needs --emulate", o->get_name()));
+    }
+  }
+  const fs::path limits_path = a.limits.empty() ? default_limits_path() : fs::path(a.limits);
+  const AcceptanceLimits limits = load_acceptance_limits(limits_path);
+  const fs::path proc_path = a.procedure.empty() ? default_acceptance_procedure_path() : fs::path(a.procedure);
+
+  SessionRequest req;
+  req.runs_dir = a.runs_dir;
+  req.catalogue = a.catalogue;
+  req.quiet = a.quiet;
+  req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
+  Diagnostics dp(proc_path.string());
+  req.procedure = parse_procedure(read_text_file(proc_path, "procedure file"), proc_path.string(), dp);
+  Diagnostics ds(a.stand_file);
+  req.stand = stand_for_run(a.stand_file, a.emulate, a.speed, ds);
+  if (!a.unit.empty() && !a.emulate) req.stand.unit_serial = a.unit;
+  Plan plan;
+  if (dp.empty() && ds.empty()) plan = expand(req.procedure, req.stand.bench, dp);
+  Diagnostics all(proc_path.string());
+  all.merge(ds);
+  all.merge(dp);
+  all.throw_if_any();
+  const auto roles = acceptance_roles(req.procedure, plan);
+  if (a.emulate) {
+    EmulatorSpec e;
+    e.speed = a.speed;
+    e.seed = a.seed;
+    e.bench_file = a.bench.empty() ? "" : fs::absolute(a.bench).string();
+    e.truth_file = a.truth.empty() ? "" : fs::absolute(a.truth).string();
+    e.unit_serial = a.unit;
+    for (const auto& spec : a.effects) {
+      const Effect eff = parse_effect(spec);  // InputError now rather than a bench that will not start
+      e.effects.push_back(eff.name == "coefficients" ? spec : format_effect(eff));
+    }
+    // Relative files named inside effects are the caller's: make them absolute for the child.
+    for (auto& spec : e.effects) {
+      const auto at = spec.find("file=");
+      if (at != std::string::npos) {
+        const auto end = spec.find(',', at);
+        const std::string file = spec.substr(at + 5, end == std::string::npos ? std::string::npos : end - at - 5);
+        spec.replace(at + 5, file.size(), fs::absolute(file).string());
+      }
+    }
+    if (!e.bench_file.empty()) (void)load_bench_file(e.bench_file);
+    if (!e.truth_file.empty()) (void)load_coefficients(e.truth_file);
+    e.faults = a.faults;
+    std::error_code ec;
+    const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+    e.exe = ec ? fs::path("/proc/self/exe") : self;
+    req.emulator = e;
+  }
+
+  const SessionResult r = run_session(req);
+  const fs::path run_dir = r.run_dir;
+  const bool completed = r.outcome == RunOutcome::completed;
+  // A unit that gives invalid frames (no Sun, an axis invalid, saturated) stops the run: that is
+  // the unit failing, judged below. Any other stop is the stand's: no verdict.
+  const bool unit_stopped = r.outcome == RunOutcome::failed && r.reason.find("invalid frame") != std::string::npos;
+  if (!completed && !unit_stopped) {
+    std::fprintf(stderr, "fpss-stand accept: the run %s: %s\nno verdict; the run folder is %s\n",
+                 to_string(r.outcome), r.reason.c_str(), run_dir.c_str());
+    return 1;
+  }
+
+  const nlohmann::json run_doc = read_json_file(run_dir / "run.json");
+  const std::string unit = run_doc.value("unit", a.unit);
+  AcceptanceData data;
+  data.roles = roles;
+  data.points_planned = plan.points;
+  data.run_completed = completed;
+  data.run_reason = r.reason;
+  if (fs::exists(run_dir / "samples.csv")) data.samples = read_samples_csv(run_dir / "samples.csv");
+  if (r.calibration && fs::exists(*r.calibration)) data.calibration = load_coefficients(*r.calibration);
+
+  const fs::path cat_path = a.catalogue.empty() ? Catalogue::default_path(a.runs_dir) : fs::path(a.catalogue);
+  const std::string run_id = run_dir.filename().string();
+  {
+    // The unit's reference calibration: the latest one that passed an acceptance here, or was
+    // imported (a calibration done elsewhere); a failed acceptance's fit is no reference.
+    Catalogue cat(cat_path);
+    std::set<std::string> accepted_runs;
+    for (const auto& acc : cat.unit_acceptances(unit)) {
+      if (acc.passed && acc.run_id) accepted_runs.insert(*acc.run_id);
+    }
+    for (const auto& h : cat.unit_history(unit)) {
+      if (h.run_id && *h.run_id == run_id) continue;
+      if (h.source != "import" && !(h.run_id && accepted_runs.count(*h.run_id))) continue;
+      try {
+        data.previous = parse_coefficients(h.coefficients, fmt::format("{} calibration {}", cat_path.string(), h.id));
+        data.previous_name = fmt::format("calibration {} of {} ({} {}{})", h.id, h.date_utc, h.source, h.source_ref,
+                                         h.source == "import" ? "" : ", accepted");
+      } catch (const InputError&) {
+        // a record that does not parse cannot be compared; keep the one before
+      }
+    }
+  }
+
+  const Judgement j = judge(data, limits);
+  CertificateInfo info;
+  info.unit = unit;
+  if (req.emulator) {
+    info.stand = fmt::format("emulated bench (seed {}{}{}{})", req.emulator->seed,
+                             req.emulator->bench_file.empty() ? "" : ", bench " + req.emulator->bench_file,
+                             req.emulator->truth_file.empty() ? "" : ", truth " + req.emulator->truth_file,
+                             req.emulator->effects.empty() ? "" : ", effects " + fmt::format("{}", fmt::join(req.emulator->effects, " ")));
+    info.stand_detail = req.emulator->to_json();
+  } else {
+    info.stand = !req.stand.stand_id.empty() ? req.stand.stand_id : req.stand.origin;
+    info.stand_detail = {{"file", req.stand.origin}, {"settings", to_json(req.stand)}};
+  }
+  info.procedure_name = req.procedure.name;
+  info.procedure_file = fs::absolute(proc_path).lexically_normal().string();
+  info.procedure_sha256 = run_doc["procedure"].value("sha256", sha256_hex(req.procedure.text));
+  info.run_id = run_id;
+  info.run_dir = fs::absolute(run_dir).string();
+  info.run_outcome = to_string(r.outcome);
+  info.run_reason = r.reason;
+  info.points_planned = static_cast<int64_t>(plan.points);
+  info.points_completed = r.points_done;
+  info.date_utc = utc_now_iso();
+  info.calibration_file = r.calibration ? r.calibration->filename().string() : "";
+  const nlohmann::ordered_json cert = certificate_json(j, limits, info);
+
+  write_text_atomic(run_dir / "acceptance.json", cert.dump(1) + "\n");
+  const std::string text = certificate_text(cert);
+  write_text_atomic(run_dir / "certificate.txt", text);
+  // The page: the run's report with the certificate as a section, or the certificate alone.
+  const std::string section = certificate_html(cert);
+  try {
+    ReportOptions ro;
+    ro.extra_sections.push_back({"acceptance", "Acceptance", section});
+    write_report(run_dir, ro);
+  } catch (const std::exception& e) {
+    write_text_atomic(run_dir / "report.html",
+                 standalone_page(fmt::format("Acceptance of {} ({})", unit, run_id), section,
+                                 fmt::format("The run's report could not be drawn: {}", e.what())));
+  }
+  nlohmann::json doc = run_doc;
+  doc["acceptance"] = {{"file", "acceptance.json"}, {"certificate", "certificate.txt"},
+                       {"verdict", j.passed ? "pass" : "fail"}, {"failed", j.failed()},
+                       {"limits", {{"file", limits.origin}, {"sha256", limits.sha256}}}};
+  write_json_atomic(run_dir / "run.json", doc);
+
+  int64_t acc_id = 0;
+  try {
+    Catalogue cat(cat_path);
+    AcceptanceRecord rec;
+    rec.unit = unit;
+    rec.run_id = run_id;
+    rec.passed = j.passed;
+    rec.date_utc = info.date_utc;
+    rec.certificate = nlohmann::json::parse(cert.dump());
+    acc_id = cat.record_acceptance(rec);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fpss-stand accept: verdict %s written to %s, but the catalogue %s could not record it: %s\n",
+                 j.passed ? "pass" : "fail", (run_dir / "acceptance.json").c_str(), cat_path.c_str(), e.what());
+    return 1;
+  }
+
+  if (a.json) {
+    std::printf("%s\n", cert.dump(1).c_str());
+  } else {
+    std::printf("%s\n", text.c_str());
+    std::printf("acceptance %s: %s\ncertificate: %s\nreport: %s\ncatalogue: %s (acceptance %lld)\n",
+                j.passed ? "PASSED" : "FAILED", (run_dir / "acceptance.json").c_str(),
+                (run_dir / "certificate.txt").c_str(), (run_dir / "report.html").c_str(), cat_path.c_str(),
+                static_cast<long long>(acc_id));
+  }
+  std::fflush(stdout);
+  return j.passed ? 0 : 3;
+}
+
+void add_accept_command(CLI::App& app, Runner& run) {
+  auto a = std::make_shared<AcceptArgs>();
+  auto* sub = app.add_subcommand(
+      "accept", "Acceptance of a sensor unit: calibrate, verify on unseen points, measure jitter, judge, certify "
+                "(exit 0 pass, 3 fail)");
+  sub->add_option("--stand", a->stand_file, "Stand file (YAML) of a real bench");
+  sub->add_option("--unit", a->unit, "Serial of the unit (required with --stand; with --emulate, the serial it reports)");
+  sub->add_flag("--emulate", a->emulate, "Run on the emulated bench (a child process over the real wire)");
+  sub->add_option("--procedure", a->procedure, "Acceptance procedure (default procedures/acceptance.yaml)");
+  sub->add_option("--limits", a->limits, "Acceptance limits (default procedures/acceptance_limits.yaml)");
+  sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made")->capture_default_str();
+  sub->add_option("--catalogue", a->catalogue, "SQLite catalogue (default <runs-dir>/stand.db)");
+  sub->add_flag("--json", a->json, "Print acceptance.json instead of the certificate text");
+  sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
+  sub->add_flag("--no-progress", a->no_progress, "No live progress line");
+  a->emu_only.push_back(sub->add_option("--speed", a->speed, "Emulator: bench clock speed-up (default 20)"));
+  a->emu_only.push_back(sub->add_option("--seed", a->seed, "Emulator: seed of all bench noise (default 1)"));
+  a->emu_only.push_back(sub->add_option("--bench", a->bench, "Emulator: bench file (YAML)"));
+  a->emu_only.push_back(sub->add_option("--effect", a->effects, "Emulator: injected effect NAME:key=value,..."));
+  a->emu_only.push_back(sub->add_option("--fault", a->faults, "Emulator: fault NAME[:key=value,...]"));
+  a->emu_only.push_back(sub->add_option("--truth", a->truth, "Emulator: coefficient file of the sensor's truth"));
+  sub->callback([&run, a] { run = [a] { return accept_command(*a); }; });
+}
+
+}  // namespace
+
+void add_accept(CLI::App& app, Runner& run) {
+  add_accept_command(app, run);
+  add_compare(app, run);
+  add_import(app, run);
+}
+
+}  // namespace fpss::cli

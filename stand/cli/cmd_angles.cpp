@@ -1,0 +1,30 @@
+// fpss-stand angles: the two transfer functions of a coefficient file at given counts.
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/coefficients.h"
+#include "stand/cli/commands.h"
+
+namespace fpss::cli {
+
+void add_angles(CLI::App& app, Runner& run) {
+  struct Opts { std::string model; double alpha = 0, beta = 0; };
+  auto o = std::make_shared<Opts>();
+  auto* sub = app.add_subcommand("angles", "Pitch (alpha) and yaw (beta) angles, arcsec, at given counts");
+  sub->add_option("--model", o->model, "coefficient file (JSON)")->required();
+  sub->add_option("--alpha", o->alpha, "counts_alpha")->required();
+  sub->add_option("--beta", o->beta, "counts_beta")->required();
+  sub->callback([o, &run] {
+    run = [o] {
+      const CoefficientSet set = load_coefficients(o->model);
+      nlohmann::ordered_json j;
+      j["alpha_arcsec"] = set.alpha_model().angle_arcsec(o->alpha);
+      j["beta_arcsec"] = set.beta_model().angle_arcsec(o->beta);
+      std::printf("%s\n", j.dump().c_str());
+      return 0;
+    };
+  });
+}
+
+}  // namespace fpss::cli

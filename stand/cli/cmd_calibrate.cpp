@@ -1,0 +1,73 @@
+// fpss-stand calibrate: fit both transfer functions to a samples recording and write a coefficient file.
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <memory>
+#include <optional>
+
+#include "calib/calibrator.h"
+#include "calib/coefficients.h"
+#include "calib/report.h"
+#include "calib/samples.h"
+#include "procedures/recorder.h"
+#include "stand/cli/commands.h"
+
+namespace fpss::cli {
+
+void add_calibrate(CLI::App& app, Runner& run) {
+  struct Opts {
+    std::string data, out, init, method = "differences", truth, unit;
+  };
+  auto o = std::make_shared<Opts>();
+  auto* sub = app.add_subcommand(
+      "calibrate",
+      "Fit the pitch (alpha) and yaw (beta) transfer functions to a null-to-offset recording; "
+      "prints the Table-1-style summary and writes the coefficient file");
+  sub->add_option("--data", o->data, "samples file (CSV, the stand's recording format)")->required();
+  sub->add_option("--out", o->out, "coefficient file to write (JSON), with a residuals block")->required();
+  sub->add_option("--init", o->init, "a coefficient file tried as a start besides the global search");
+  sub->add_option("--method", o->method,
+                  "differences: C2..C8 on changes null <-> offset, C1 from the null condition (the paper's); "
+                  "absolute: C1..C8 on absolute reference angles")
+      ->check(CLI::IsMember({"differences", "absolute"}))
+      ->capture_default_str();
+  sub->add_option("--truth", o->truth,
+                  "a coefficient file with the known truth (simulations): prints how far the fit is from it");
+  sub->add_option("--unit", o->unit, "unit name written to the coefficient file (default: from --init or --truth)");
+  sub->callback([o, &run] {
+    run = [o] {
+      CalibrationOptions opts;
+      opts.method = *parse_method(o->method);
+      std::optional<CoefficientSet> truth;
+      if (!o->init.empty()) opts.init = load_coefficients(o->init);
+      if (!o->truth.empty()) truth = load_coefficients(o->truth);
+      opts.unit = !o->unit.empty() ? o->unit
+                  : opts.init       ? opts.init->unit
+                  : truth           ? truth->unit
+                                    : std::string();
+      const SampleTable samples = read_samples_csv(o->data);
+      const CalibrationReport rep = calibrate(samples, opts);
+
+      CoefficientSet set = rep.coefficients();
+      set.extra["calibrated_at"] = utc_now_iso();
+      if (!o->init.empty()) set.extra["init"] = o->init;
+      std::optional<TruthComparison> cmp;
+      if (truth) {
+        cmp = compare_to_truth(rep, *truth);
+        set.extra["truth_comparison"] = {
+            {"truth", o->truth},
+            {"pitch", {{"max_abs_arcsec", cmp->pitch.max_abs_arcsec}, {"rms_arcsec", cmp->pitch.rms_arcsec}}},
+            {"yaw", {{"max_abs_arcsec", cmp->yaw.max_abs_arcsec}, {"rms_arcsec", cmp->yaw.rms_arcsec}}}};
+      }
+      save_coefficients(o->out, set);
+
+      std::string text = summary_text(rep);
+      if (cmp) text += truth_text(*cmp, o->truth);
+      text += fmt::format("\nwrote {}\n", o->out);
+      std::fputs(text.c_str(), stdout);
+      return 0;
+    };
+  });
+}
+
+}  // namespace fpss::cli

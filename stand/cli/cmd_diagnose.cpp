@@ -1,0 +1,112 @@
+// fpss-stand diagnose (sim-to-real gap: which unmodelled effect, where, how far it shrinks) and
+// fpss-stand blindtest (the diagnosis against random effects on the simulated bench).
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <fstream>
+
+#include "calib/coefficients.h"
+#include "calib/diagnosis.h"
+#include "calib/errors.h"
+#include "calib/samples.h"
+#include "calib/text_file.h"
+#include "stand/blindtest/blindtest.h"
+#include "stand/cli/commands.h"
+
+namespace fpss::cli {
+
+namespace {
+
+void write_json_file(const std::string& path, const nlohmann::ordered_json& j) {
+  write_text_atomic(path, j.dump(1) + '\n');
+}
+
+void add_diagnose_command(CLI::App& app, Runner& run) {
+  struct Opts {
+    std::string model, data, out, report;
+    DiagnosisOptions d;
+    bool partial = false;
+  };
+  auto o = std::make_shared<Opts>();
+  auto* sub = app.add_subcommand("diagnose", "Which unmodelled effect explains model(counts) - reference, checked on held-out steps");
+  sub->add_option("--model", o->model, "the sim model: a coefficient file (JSON)")->required();
+  sub->add_option("--data", o->data, "the real recording: a samples CSV (all phases; temperature_c used when present)")->required();
+  sub->add_option("--out", o->out, "GAP.json to write")->required();
+  sub->add_option("--report", o->report, "GAP.html: residuals against every factor before/after, residual map");
+  sub->add_option("--settle-s", o->d.settle_s,
+                  "time from a dwell's arrival to its first sample, when no time_since_move_s column says it")
+      ->default_val(0.0);
+  sub->add_option("--max-skew-s", o->d.max_skew_s, "largest sampling-time shift searched (and slew-end margin)")->default_val(0.25);
+  sub->add_flag("--partial", o->partial,
+                "accept a recording that cannot reveal every effect (no slews or no offsets): exit 0 instead of 2");
+  sub->callback([o, &run] {
+    run = [o] {
+      const CoefficientSet model = load_coefficients(o->model);
+      const SampleTable data = read_samples_csv(o->data);
+      Diagnosis d = diagnose(data, model, o->d);
+      nlohmann::ordered_json j = d.to_json();
+      j["model"] = o->model;
+      write_json_file(o->out, j);
+      if (!o->report.empty()) write_diagnosis_report(o->report, data, model, d, o->d);
+      std::printf("cause: %s", d.cause.c_str());
+      for (size_t k = 1; k < d.causes.size(); ++k) std::printf(", then %s", d.causes[k].name.c_str());
+      std::printf("\ngap: %.4f arcsec before, %.4f after (noise floor %.4f), held-out rows %zu\n", d.gap_before_arcsec,
+                  d.gap_after_all_arcsec, d.noise_floor_arcsec, j["split"]["heldout_rows"].get<size_t>());
+      if (!d.causes.empty()) std::printf("params: %s\n", d.causes.front().params.dump().c_str());
+      if (!d.where.empty()) {
+        std::printf("where: %s (%s), %.0f %% of the gap\n", d.where.front().factor.c_str(), d.where.front().axis.c_str(),
+                    100 * d.where.front().share);
+      }
+      if (d.incomplete_recording()) {
+        std::fprintf(stderr, "fpss-stand diagnose: %s: this recording cannot tell every effect apart:\n", o->data.c_str());
+        for (const auto& n : d.not_observable) {
+          if (n.incomplete_recording) std::fprintf(stderr, "  %s: %s\n", n.name.c_str(), n.reason.c_str());
+        }
+        std::fprintf(stderr, "  (%s lists them under not_observable; --partial accepts such a recording)\n", o->out.c_str());
+        return o->partial ? 0 : 2;
+      }
+      return 0;
+    };
+  });
+}
+
+void add_blindtest_command(CLI::App& app, Runner& run) {
+  struct Opts {
+    BlindTestOptions b;
+    bool json = false, quiet = false;
+  };
+  auto o = std::make_shared<Opts>();
+  auto* sub = app.add_subcommand("blindtest", "Blind check of the diagnosis: random effects on the simulated bench");
+  sub->add_option("--cases", o->b.cases, "number of cases (classes drawn in shuffled blocks of all eleven)")->default_val(22);
+  sub->add_option("--seed", o->b.seed, "seed of the draws and of the bench noise")->default_val(1);
+  sub->add_flag("--json", o->json, "print the results as JSON");
+  sub->add_option("--save", o->b.save_dir,
+                  "folder for every case's recording, model, truth and GAP.json (to re-run `diagnose` on them)");
+  sub->add_flag("--quiet", o->quiet, "no progress lines on stderr");
+  sub->add_flag("--pairs", o->b.pairs, "two different effects per case (correct when both are reported)");
+  sub->callback([o, &run] {
+    run = [o] {
+      if (o->b.cases < 1) throw InputError("--cases must be at least 1");
+      const BlindTestReport rep = run_blindtest(o->b, [&](const BlindCase& c) {
+        if (o->quiet) return;
+        std::string got = c.cause;
+        for (size_t k = 1; k < c.causes.size(); ++k) got += "+" + c.causes[k];
+        std::fprintf(stderr, "case %3d  %-22s -> %-22s %s  gap %.3f -> %.3f (noise %.3f)\n", c.index, c.truth.c_str(),
+                     got.c_str(), c.correct ? "ok  " : "MISS", c.gap_before_arcsec, c.gap_after_all_arcsec,
+                     c.noise_floor_arcsec);
+      });
+      if (o->json) std::printf("%s\n", rep.to_json().dump(1).c_str());
+      else std::printf("%s", rep.to_text().c_str());
+      return 0;
+    };
+  });
+}
+
+}  // namespace
+
+void add_diagnose(CLI::App& app, Runner& run) {
+  add_diagnose_command(app, run);
+  add_blindtest_command(app, run);
+}
+
+}  // namespace fpss::cli

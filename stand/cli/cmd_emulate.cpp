@@ -1,0 +1,144 @@
+// fpss-stand emulate: the emulated bench (gimbal over Modbus, sensor on a pty) until SIGINT/SIGTERM.
+#include <pthread.h>
+#include <signal.h>
+
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "calib/coefficients.h"
+#include "calib/errors.h"
+#include "fixtures/emulator.h"
+#include "stand/cli/emulator_contract.h"
+#include "stand/cli/commands.h"
+
+namespace fpss::cli {
+
+namespace {
+
+struct EmulateArgs {
+  std::string bench_file, serial_link, truth_file, unit_serial, fault_file;
+  std::string modbus_host = "127.0.0.1";
+  int modbus_port = 1502;
+  bool modbus_rtu = false;
+  double speed = 20.0;
+  uint64_t seed = 1;
+  std::vector<std::string> effects, faults;
+};
+
+// Reads the fault file (one NAME:key=value,... per line, # comments) and arms each fault. A bad
+// line is reported and skipped: the emulator keeps running for the other clients.
+void inject_from_file(Emulator& emu, const std::string& path) {
+  std::ifstream in(path);
+  if (!in) {
+    fmt::print(stderr, "emulate: SIGUSR1: cannot read fault file {}\n", path);
+    return;
+  }
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n) {
+    const auto b = line.find_first_not_of(" \t\r");
+    if (b == std::string::npos || line[b] == '#') continue;
+    const auto e = line.find_last_not_of(" \t\r");
+    const std::string spec = line.substr(b, e - b + 1);
+    try {
+      emu.inject(spec);
+      fmt::print(stderr, "emulate: fault {} armed (bench t={:.3f} s)\n", spec, emu.bench_time_s());
+    } catch (const InputError& err) {
+      fmt::print(stderr, "emulate: {}:{}: {}\n", path, n, err.what());
+    }
+  }
+}
+
+int run_emulate(const EmulateArgs& a, bool seed_given) {
+  EmulatorOptions o;
+  o.bench = a.bench_file.empty() ? default_bench_config() : load_bench_file(a.bench_file);
+  if (!a.truth_file.empty()) o.bench.truth = load_coefficients(a.truth_file);
+  if (!a.unit_serial.empty()) o.bench.serial = a.unit_serial;
+  if (seed_given || a.bench_file.empty()) o.bench.seed = a.seed;
+  for (const auto& e : a.effects) o.bench.effects.push_back(parse_effect(e));
+  for (const auto& f : a.faults) o.faults.push_back(parse_fault(f));
+  o.modbus_host = a.modbus_host;
+  o.modbus_port = a.modbus_port;
+  o.modbus_rtu = a.modbus_rtu;
+  o.serial_link = a.serial_link;
+  o.speed = a.speed;
+  auto emu = std::make_unique<Emulator>(std::move(o));  // checks the options: InputError -> 2
+
+  // Signals are taken by sigwait below, so every thread started from here on blocks them.
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGUSR1);
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  signal(SIGPIPE, SIG_IGN);  // a client hanging up must not kill the bench
+
+  emu->start();
+  const auto& ep = emu->endpoints();
+  // The lines other programs wait for (procedure engine, tests): exactly these, then flush.
+  namespace r = emulator_ready;
+  std::printf("%.*s%s\n", int(r::gimbal.size()), r::gimbal.data(), ep.gimbal().c_str());
+  if (a.modbus_rtu) std::printf("%.*s%s\n", int(r::gimbal_rtu.size()), r::gimbal_rtu.data(), ep.gimbal_rtu().c_str());
+  std::printf("%.*s%s\n", int(r::sensor.size()), r::sensor.data(), ep.sensor().c_str());
+  std::printf("%.*s\n", int(r::ready.size()), r::ready.data());
+  std::fflush(stdout);
+  fmt::print(stderr, "emulate: bench clock x{} wall, seed {}, unit {}{}\n", a.speed, emu->options().bench.seed,
+             emu->options().bench.serial, a.serial_link.empty() ? "" : ", sensor linked at " + a.serial_link);
+
+  for (;;) {
+    int sig = 0;
+    if (sigwait(&set, &sig) != 0) continue;
+    if (sig == SIGUSR1) {
+      if (a.fault_file.empty()) fmt::print(stderr, "emulate: SIGUSR1 ignored (no --fault-file)\n");
+      else inject_from_file(*emu, a.fault_file);
+      continue;
+    }
+    break;  // SIGINT or SIGTERM
+  }
+  const EmulatorStats s = emu->stats();
+  emu->stop();
+  fmt::print(stderr,
+             "emulate: stopped at bench t={:.3f} s; modbus {} requests ({} exceptions, {} connections); sensor {} "
+             "frames written, {} dropped unread, {} commands; {} faults fired\n",
+             s.bench_time_s, s.modbus_tcp.requests + s.modbus_rtu.requests,
+             s.modbus_tcp.exceptions + s.modbus_rtu.exceptions, s.modbus_tcp.connections, s.sensor.frames_written,
+             s.sensor.frames_dropped, s.sensor.commands, s.faults_fired);
+  return 0;
+}
+
+}  // namespace
+
+void add_emulate(CLI::App& app, Runner& run) {
+  auto args = std::make_shared<EmulateArgs>();
+  auto* sub = app.add_subcommand(
+      "emulate", "Emulated bench: the gimbal over Modbus TCP (and RTU) and the sensor on a pty, one simulated bench");
+  sub->add_option("--bench", args->bench_file, "Bench file (YAML): dynamics, noise, truth, effects")
+      ->check(CLI::ExistingFile);
+  sub->add_option("--modbus-port", args->modbus_port, "Modbus TCP port (0 picks a free one)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 65535));
+  sub->add_option("--modbus-host", args->modbus_host, "Address the Modbus TCP server binds (an IPv4 address)")
+      ->capture_default_str();
+  sub->add_flag("--modbus-rtu", args->modbus_rtu, "Also serve Modbus RTU (unit 1) on a pty; prints gimbal-rtu:");
+  sub->add_option("--serial-link", args->serial_link, "Symlink to the sensor pty at this path (removed at exit)");
+  sub->add_option("--speed", args->speed, "Bench clock runs this many times faster than the wall clock")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 1000.0));
+  auto* seed = sub->add_option("--seed", args->seed, "Seed of all bench noise")->capture_default_str();
+  sub->add_option("--effect", args->effects, "Injected effect NAME:key=value,... (repeatable)");
+  sub->add_option("--truth", args->truth_file, "Coefficient file: the sensor's true transfer function")
+      ->check(CLI::ExistingFile);
+  sub->add_option("--unit-serial", args->unit_serial, "Serial number the sensor reports (ID?)");
+  sub->add_option("--fault", args->faults,
+                  "Fault NAME[:key=value,...] with optional trigger at_s= or at_request= (repeatable, docs/emulator.md)");
+  sub->add_option("--fault-file", args->fault_file, "On SIGUSR1, arm the faults listed in this file (one per line)");
+  sub->callback([args, seed, &run] {
+    run = [args, seed] { return run_emulate(*args, seed->count() > 0); };
+  });
+}
+
+}  // namespace fpss::cli

@@ -1,0 +1,164 @@
+// fpss-stand run: validate a procedure and a stand, then run it on the bench (real or an emulator child), or --resume a run.
+#include <unistd.h>
+
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "calib/errors.h"
+#include "calib/text_file.h"
+#include "procedures/plan.h"
+#include "procedures/procedure.h"
+#include "stand/session/session.h"
+#include "stand/cli/commands.h"
+#include "stand/config/stand_config.h"
+
+namespace fpss::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RunArgs {
+  std::string procedure, stand_file, runs_dir = "runs", resume, catalogue;
+  bool emulate = false, dry_run = false, no_progress = false, quiet = false;
+  double speed = 20;
+  uint64_t seed = 1;
+  std::string bench, truth, unit_serial;
+  std::vector<std::string> effects, faults;
+  CLI::Option* speed_opt = nullptr;
+  std::vector<CLI::Option*> emu_only;
+};
+
+int run_command(const RunArgs& a) {
+  SessionRequest req;
+  req.runs_dir = a.runs_dir;
+  req.catalogue = a.catalogue;
+  req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
+  req.quiet = a.quiet;
+
+  if (!a.resume.empty()) {
+    if (!a.procedure.empty() || !a.stand_file.empty() || a.emulate || a.dry_run) {
+      throw InputError("run --resume RUN_DIR takes the procedure, stand and bench from RUN_DIR/run.json: give no "
+                       "procedure, --stand, --emulate or --dry-run with it");
+    }
+    req.resume_dir = a.resume;
+    const RunInfo info = read_run_info(req.resume_dir);
+    Diagnostics dp(info.procedure_origin + " (as recorded in run.json)");
+    req.procedure = parse_procedure(info.procedure_text, info.procedure_origin, dp);
+    req.procedure.text = info.procedure_text;
+    dp.throw_if_any();
+    if (info.emulator) {
+      req.emulator = *info.emulator;
+      if (!info.stand_text.empty()) {
+        Diagnostics ds(info.stand_origin);
+        req.stand = parse_stand(info.stand_text, info.stand_origin, ds);
+        ds.throw_if_any();
+        adapt_to_emulator(req.stand, info.emulator->speed);
+      } else {
+        req.stand = emulated_stand(info.emulator->speed);
+      }
+    } else {
+      Diagnostics ds(info.stand_origin);
+      req.stand = parse_stand(info.stand_text, info.stand_origin, ds);
+      ds.throw_if_any();
+    }
+  } else {
+    if (a.procedure.empty()) throw InputError("run: give a procedure file (or --resume RUN_DIR)");
+    if (a.stand_file.empty() && !a.emulate) {
+      throw InputError("run: give --stand STAND.yaml for a real bench or --emulate for the emulated one");
+    }
+    if (!a.emulate) {
+      for (auto* o : a.emu_only) {
+        if (o->count() > 0) throw InputError(fmt::format("run: {} needs --emulate", o->get_name()));
+      }
+    }
+    // Validate everything before anything moves, and report every error of both files at once.
+    const std::string ptext = read_text_file(a.procedure, "procedure file");
+    Diagnostics dp(a.procedure);
+    req.procedure = parse_procedure(ptext, a.procedure, dp);
+    Diagnostics ds(a.stand_file);
+    req.stand = stand_for_run(a.stand_file, a.emulate, a.speed, ds);
+    // The plan is checked against the stand even when some steps are broken (those are skipped),
+    // but not against a broken stand file, whose limits would be guesses.
+    if (ds.empty()) expand(req.procedure, req.stand.bench, dp);
+    Diagnostics all(a.procedure);
+    all.merge(ds);
+    all.merge(dp);
+    all.throw_if_any();
+    if (a.dry_run) {
+      Diagnostics unused(a.procedure);
+      const Plan plan = expand(req.procedure, req.stand.bench, unused);
+      std::fputs(format_plan(req.procedure, plan, req.stand.bench).c_str(), stdout);
+      return 0;
+    }
+    if (a.emulate) {
+      EmulatorSpec e;
+      e.speed = a.speed;
+      e.seed = a.seed;
+      e.bench_file = a.bench.empty() ? "" : fs::absolute(a.bench).string();
+      e.truth_file = a.truth.empty() ? "" : fs::absolute(a.truth).string();
+      e.unit_serial = a.unit_serial;
+      e.effects = a.effects;
+      e.faults = a.faults;
+      req.emulator = e;
+    }
+  }
+  if (req.emulator) {
+    // Our own binary serves the bench; the path is resolved now so run.json names it.
+    std::error_code ec;
+    const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+    req.emulator->exe = ec ? fs::path("/proc/self/exe") : self;
+  }
+
+  const SessionResult r = run_session(req);
+  const std::string dir = r.run_dir.string();
+  if (r.outcome == RunOutcome::completed) {
+    std::printf("run completed: %lld/%lld points in %.1f s -> %s\n", static_cast<long long>(r.points_done),
+                static_cast<long long>(r.points_total), r.wall_s, dir.c_str());
+  } else {
+    if (a.quiet) std::fprintf(stderr, "fpss-stand run: %s: %s\n", to_string(r.outcome), r.reason.c_str());
+    std::printf("run %s: %lld/%lld points -> %s\n", to_string(r.outcome), static_cast<long long>(r.points_done),
+                static_cast<long long>(r.points_total), dir.c_str());
+    std::printf("resume with: fpss-stand run --resume %s\n", dir.c_str());
+  }
+  if (r.calibration) std::printf("calibration: %s\n", r.calibration->string().c_str());
+  if (r.report) std::printf("report: %s\n", r.report->string().c_str());
+  std::fflush(stdout);
+  return r.exit_code;
+}
+
+}  // namespace
+
+void add_run(CLI::App& app, Runner& run) {
+  auto a = std::make_shared<RunArgs>();
+  auto* sub = app.add_subcommand("run", "Run a calibration procedure on a stand (or the emulated bench) and record it");
+  sub->add_option("procedure", a->procedure, "Procedure file (YAML, docs/procedures.md)");
+  sub->add_option("--stand", a->stand_file, "Stand file (YAML): endpoints, unit, limits, axes, timing");
+  sub->add_flag("--emulate", a->emulate, "Start the emulated bench as a child process and run on it");
+  sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made (default runs/)");
+  sub->add_option("--resume", a->resume, "Continue an interrupted run from its folder");
+  sub->add_flag("--dry-run", a->dry_run, "Validate, print the expanded steps, points and duration; move nothing");
+  sub->add_option("--catalogue", a->catalogue, "SQLite catalogue (default <runs-dir>/stand.db)");
+  sub->add_flag("--no-progress", a->no_progress, "No live progress line, even on a terminal");
+  sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
+  a->speed_opt = sub->add_option("--speed", a->speed, "Emulator: bench clock speed-up (default 20)");
+  a->emu_only.push_back(sub->add_option("--seed", a->seed, "Emulator: seed of all bench noise (default 1)"));
+  a->emu_only.push_back(sub->add_option("--bench", a->bench, "Emulator: bench file (YAML)"));
+  // One value per occurrence (--effect A --effect B), so a procedure after them stays positional.
+  a->emu_only.push_back(sub->add_option("--effect", a->effects, "Emulator: injected effect NAME:key=value,... (repeatable)")
+                            ->allow_extra_args(false));
+  a->emu_only.push_back(
+      sub->add_option("--fault", a->faults, "Emulator: fault NAME[:key=value,...] (repeatable; docs/emulator.md)")
+          ->allow_extra_args(false));
+  a->emu_only.push_back(sub->add_option("--truth", a->truth, "Emulator: coefficient file of the sensor's truth"));
+  a->emu_only.push_back(sub->add_option("--unit-serial", a->unit_serial, "Emulator: serial number the sensor reports"));
+  a->emu_only.push_back(a->speed_opt);
+  sub->callback([&run, a] { run = [a] { return run_command(*a); }; });
+}
+
+}  // namespace fpss::cli

@@ -1,0 +1,219 @@
+#include "stand/config/stand_config.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "calib/errors.h"
+#include "calib/text_file.h"
+#include "drivers/endpoints.h"
+
+namespace fpss {
+
+namespace {
+
+// "+alpha", "alpha", "-beta" -> axis and sign.
+bool parse_signed_axis(const std::string& s, AxisMapping::SensorAxis& axis, double& sign) {
+  std::string_view v = s;
+  sign = 1;
+  if (!v.empty() && (v.front() == '+' || v.front() == '-')) {
+    sign = v.front() == '-' ? -1 : 1;
+    v.remove_prefix(1);
+  }
+  if (v == "alpha") axis = AxisMapping::alpha;
+  else if (v == "beta") axis = AxisMapping::beta;
+  else return false;
+  return true;
+}
+
+void read_endpoint(MapReader& r, std::string& out, bool gimbal) {
+  auto e = r.string("endpoint", true);
+  if (!e) return;
+  const std::string expected = gimbal ? "modbus-tcp:HOST:PORT or modbus-rtu:DEVICE[:BAUD[:FRAMING]]"
+                                      : "serial:DEVICE[:BAUD], pty:PATH or tcp:HOST:PORT";
+  try {
+    const Endpoint ep = parse_endpoint(*e);
+    const bool modbus = ep.kind == Endpoint::Kind::modbus_tcp || ep.kind == Endpoint::Kind::modbus_rtu;
+    if (modbus != gimbal) {
+      r.diagnostics().error(r.node("endpoint"), fmt::format("{}: field endpoint: \"{}\" is a {} endpoint; expected {}",
+                                                            r.where(), *e, to_string(ep.kind), expected));
+      return;
+    }
+  } catch (const EndpointError& ex) {
+    r.diagnostics().error(r.node("endpoint"), fmt::format("{}: field endpoint: {}", r.where(), ex.what()));
+    return;
+  }
+  out = *e;
+}
+
+}  // namespace
+
+StandConfig parse_stand(std::string_view text, const std::string& origin, Diagnostics& d) {
+  StandConfig c;
+  c.origin = origin;
+  c.text = std::string(text);
+  YAML::Node root = parse_yaml(text, d);
+  if (!d.empty()) return c;
+  if (!root.IsMap()) {
+    d.error(root, fmt::format("stand file: expected a map with gimbal, sensor, soft_limits, axes, ..., got {}",
+                              describe_node(root)));
+    return c;
+  }
+  EngineSettings& b = c.bench;
+  MapReader top(root, "stand file", d);
+  if (auto s = top.string("stand")) c.stand_id = *s;
+  if (auto s = top.string("unit")) c.unit_serial = *s;
+
+  // gimbal
+  {
+    YAML::Node n = top.node("gimbal");
+    if (!n.IsDefined()) d.error(root, "stand file: missing field gimbal (with its endpoint)");
+    MapReader r(n, "gimbal", d);
+    read_endpoint(r, c.gimbal.endpoint, true);
+    if (auto v = r.integer("unit_id", false, 0, 247)) c.gimbal.unit_id = static_cast<int>(*v);
+    if (auto v = r.positive("response_timeout_s")) c.gimbal.response_timeout_s = *v;
+    if (auto v = r.integer("retries", false, 0, 100)) c.gimbal.retries = static_cast<int>(*v);
+    if (auto v = r.rate_arcsec_s("profile_rate")) b.profile_rate_arcsec_s = *v;
+    if (auto v = r.positive("acceleration_arcsec_s2")) b.acceleration_arcsec_s2 = *v;
+    if (auto v = r.positive("in_position_tolerance_arcsec")) b.in_position_tolerance_arcsec = *v;
+    if (auto v = r.positive("move_timeout_s")) b.move_timeout_s = *v;
+    if (auto v = r.positive("home_timeout_s")) b.home_timeout_s = *v;
+    if (auto v = r.non_negative("watchdog_s")) b.watchdog_s = *v;
+    r.finish();
+  }
+  // sensor
+  {
+    YAML::Node n = top.node("sensor");
+    if (!n.IsDefined()) d.error(root, "stand file: missing field sensor (with its endpoint)");
+    MapReader r(n, "sensor", d);
+    read_endpoint(r, c.sensor.endpoint, false);
+    if (auto v = r.integer("sample_rate_hz", false, 1, 200)) b.sample_rate_hz = static_cast<double>(*v);
+    if (auto v = r.positive("frame_timeout_s")) b.frame_timeout_s = *v;
+    if (auto v = r.positive("command_timeout_s")) c.sensor.command_timeout_s = *v;
+    if (auto v = r.integer("command_retries", false, 0, 100)) c.sensor.command_retries = static_cast<int>(*v);
+    if (auto v = r.integer("reconnects", false, 0, 100)) c.sensor.reconnects = static_cast<int>(*v);
+    if (auto v = r.string("serial")) c.unit_serial = *v;
+    r.finish();
+  }
+  // soft limits
+  {
+    YAML::Node n = top.node("soft_limits");
+    MapReader r(n, "soft_limits", d);
+    if (auto v = r.angle_range_arcsec("pitch")) {
+      b.limits.pitch_min_arcsec = v->first;
+      b.limits.pitch_max_arcsec = v->second;
+    }
+    if (auto v = r.angle_range_arcsec("yaw")) {
+      b.limits.yaw_min_arcsec = v->first;
+      b.limits.yaw_max_arcsec = v->second;
+    }
+    if (auto v = r.rate_arcsec_s("max_rate")) b.limits.max_rate_arcsec_s = *v;
+    r.finish();
+    for (auto [lo, hi, name] : {std::tuple{b.limits.pitch_min_arcsec, b.limits.pitch_max_arcsec, "pitch"},
+                                std::tuple{b.limits.yaw_min_arcsec, b.limits.yaw_max_arcsec, "yaw"}}) {
+      if (!(lo <= 0 && hi >= 0)) {
+        d.error(n, fmt::format("soft_limits: {} range [{}, {}] arcsec must contain the null (0)", name, lo, hi));
+      }
+    }
+    c.gimbal.limits = b.limits;
+  }
+  if (b.profile_rate_arcsec_s > b.limits.max_rate_arcsec_s) {
+    d.error(top.node("gimbal"), fmt::format("gimbal: profile rate {} arcsec/s is above soft_limits max rate {} arcsec/s",
+                                            b.profile_rate_arcsec_s, b.limits.max_rate_arcsec_s));
+  }
+  // axes
+  {
+    YAML::Node n = top.node("axes");
+    MapReader r(n, "axes", d);
+    for (auto [key, axis, sign] : {std::tuple{"pitch", &b.axes.pitch_axis, &b.axes.pitch_sign},
+                                   std::tuple{"yaw", &b.axes.yaw_axis, &b.axes.yaw_sign}}) {
+      if (auto s = r.string(key)) {
+        if (!parse_signed_axis(*s, *axis, *sign)) {
+          d.error(r.node(key), fmt::format("axes: field {}: expected alpha, beta, +alpha, -alpha, +beta or -beta, "
+                                           "got \"{}\"",
+                                           key, *s));
+        }
+      }
+    }
+    r.finish();
+    if (b.axes.pitch_axis == b.axes.yaw_axis) {
+      d.error(n, fmt::format("axes: pitch and yaw both map to {}; each sensor axis must be used once",
+                             b.axes.pitch_axis == AxisMapping::alpha ? "alpha" : "beta"));
+    }
+  }
+  // clock
+  {
+    MapReader r(top.node("clock"), "clock", d);
+    if (auto s = r.choice("sync", {"host", "shared"})) {
+      b.clock = *s == "shared" ? ClockSync::shared : ClockSync::host;
+      c.clock_sync_given = true;
+    }
+    if (auto v = r.number("sensor_offset_s")) b.sensor_time_offset_s = *v;
+    if (auto v = r.positive("time_scale")) b.time_scale = *v;
+    if (auto v = r.positive("max_reference_gap_s")) b.max_reference_gap_s = *v;
+    r.finish();
+  }
+  // points
+  {
+    MapReader r(top.node("points"), "points", d);
+    if (auto v = r.integer("max_remeasure", false, 0, 100)) b.max_remeasure = static_cast<int>(*v);
+    r.finish();
+  }
+  top.finish();
+  return c;
+}
+
+StandConfig load_stand_file(const std::filesystem::path& path) {
+  const std::string text = read_text_file(path, "stand file");
+  Diagnostics d(path.string());
+  StandConfig c = parse_stand(text, path.string(), d);
+  d.throw_if_any();
+  return c;
+}
+
+StandConfig stand_for_run(const std::string& stand_file, bool emulate, double speed, Diagnostics& d) {
+  if (stand_file.empty()) return emulated_stand(speed);
+  StandConfig c = parse_stand(read_text_file(stand_file, "stand file"), stand_file, d);
+  if (emulate) adapt_to_emulator(c, speed);
+  return c;
+}
+
+void adapt_to_emulator(StandConfig& c, double speed) {
+  // The emulator's devices both report the bench clock; a stand file may still ask for the host
+  // alignment (to exercise it against the emulator).
+  if (!c.clock_sync_given) c.bench.clock = ClockSync::shared;
+  c.bench.time_scale = speed;
+}
+
+StandConfig emulated_stand(double speed) {
+  StandConfig c;
+  c.stand_id = "emulator";
+  c.bench.profile_rate_arcsec_s = 1800;   // the emulated gimbal's defaults (fixtures/bench.h)
+  c.bench.acceleration_arcsec_s2 = 3600;
+  c.bench.in_position_tolerance_arcsec = 1.0;
+  c.bench.sample_rate_hz = 50;
+  c.gimbal.limits = c.bench.limits;
+  adapt_to_emulator(c, speed);
+  return c;
+}
+
+nlohmann::json to_json(const StandConfig& s) {
+  return {
+      {"origin", s.origin},
+      {"stand", s.stand_id},
+      {"unit", s.unit_serial},
+      {"gimbal",
+       {{"endpoint", s.gimbal.endpoint},
+        {"unit_id", s.gimbal.unit_id},
+        {"response_timeout_s", s.gimbal.response_timeout_s},
+        {"retries", s.gimbal.retries}}},
+      {"sensor",
+       {{"endpoint", s.sensor.endpoint},
+        {"command_timeout_s", s.sensor.command_timeout_s},
+        {"command_retries", s.sensor.command_retries},
+        {"reconnects", s.sensor.reconnects}}},
+      {"bench", to_json(s.bench)},
+  };
+}
+
+}  // namespace fpss

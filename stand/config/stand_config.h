@@ -1,0 +1,45 @@
+// Stand files (YAML): endpoints, unit serial, soft limits, timeouts, retries, axis mapping and sample rate of a bench.
+#pragma once
+#include <filesystem>
+#include <string>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+#include "drivers/options.h"
+#include "procedures/settings.h"
+#include "procedures/yaml_diag.h"
+
+namespace fpss {
+
+// A stand as a stand file describes it: the devices' options and what the engine needs.
+struct StandConfig {
+  std::string origin;      // file it came from ("" when built in)
+  std::string text;        // the file's text, as recorded in run.json
+  std::string stand_id;    // identity of the stand, free text
+  std::string unit_serial; // expected sensor serial; "" accepts whatever the sensor reports
+  bool clock_sync_given = false;  // the file chose clock.sync (an emulator then keeps that choice)
+  GimbalOptions gimbal;
+  SensorOptions sensor;
+  EngineSettings bench;
+};
+
+nlohmann::json to_json(const StandConfig& s);  // resolved settings, for run.json
+
+// Parses and validates a stand file; every error goes to `d` with file:line:column. The result
+// is usable only when d is empty.
+StandConfig parse_stand(std::string_view text, const std::string& origin, Diagnostics& d);
+// Reads a file; throws InputError listing every error.
+StandConfig load_stand_file(const std::filesystem::path& path);
+
+// The stand `--emulate` uses when no stand file is given: the emulator's gimbal and sensor
+// (endpoints filled in once it is up), its bench clock shared by both devices, speed-up `speed`.
+StandConfig emulated_stand(double speed);
+// Makes a stand (from a file or not) drive an emulator: the speed-up as time scale, and the shared
+// bench clock unless the file chose clock.sync itself.
+void adapt_to_emulator(StandConfig& stand, double speed);
+// The stand of `run` and `accept`: the stand file (InputError when it cannot be read, its errors
+// into `d`), adapted to the emulator when `emulate`; without a file, emulated_stand(speed).
+StandConfig stand_for_run(const std::string& stand_file, bool emulate, double speed, Diagnostics& d);
+
+}  // namespace fpss

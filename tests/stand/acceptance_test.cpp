@@ -1,0 +1,630 @@
+// Acceptance: the limits file, the roles of an acceptance procedure, the judge on recordings of the
+// simulated bench (good unit and each kind of defect), the certificate; and `fpss-stand accept`
+// end to end over the real wire against the emulator child.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/calibrator.h"
+#include "calib/errors.h"
+#include "calib/units.h"
+#include "fixtures/bench.h"
+#include "fixtures/recording.h"
+#include "stand/acceptance/acceptance.h"
+#include "stand/catalogue/catalogue.h"
+#include "stand/session/emulator_process.h"
+#include "tests/support/test_support.h"
+
+namespace fpss {
+namespace {
+namespace fs = std::filesystem;
+
+const fs::path kProcedures = fs::path(FPSS_SOURCE_DIR) / "procedures";
+
+using test::CommandResult;
+using test::read_file;
+
+const Criterion& criterion(const Judgement& j, const std::string& id) {
+  for (const auto& c : j.criteria) {
+    if (c.id == id) return c;
+  }
+  throw std::runtime_error("no criterion " + id);
+}
+
+std::set<std::string> failed_set(const Judgement& j) {
+  const auto f = j.failed();
+  return {f.begin(), f.end()};
+}
+
+std::string describe(const Judgement& j) {
+  std::string s;
+  for (const auto& c : j.criteria) {
+    s += c.id + " = " + (c.measured ? std::to_string(*c.measured) : "n/a") + (c.passed ? " pass" : " FAIL") + " (" +
+         c.detail + ")\n";
+  }
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The limits file
+
+TEST(AcceptanceLimits, DefaultFileHasEveryLimitWithItsSource) {
+  const AcceptanceLimits L = load_acceptance_limits(default_limits_path());
+  EXPECT_EQ(L.accuracy_3sigma_arcsec.value, 5.0);
+  EXPECT_EQ(L.accuracy_radius_arcmin.value, 30.0);
+  EXPECT_EQ(L.jitter_3sigma_arcsec.value, 3.0);
+  EXPECT_EQ(L.residual_mean_abs_arcsec.value, 0.8);
+  EXPECT_EQ(L.residual_max_abs_arcsec.value, 2.1);
+  EXPECT_EQ(L.sun_present_fraction.value, 1.0);
+  for (const Limit* l : {&L.residual_mean_abs_arcsec, &L.residual_max_abs_arcsec, &L.accuracy_3sigma_arcsec,
+                         &L.accuracy_worst_point_arcsec, &L.accuracy_centre_arcsec, &L.accuracy_radius_arcmin,
+                         &L.jitter_3sigma_arcsec, &L.calibrated_range_deg, &L.verified_extent_deg,
+                         &L.verification_points_min, &L.sun_present_fraction, &L.consistency_arcsec}) {
+    EXPECT_GT(l->source.size(), 30u) << "a limit without a real source";
+  }
+  EXPECT_EQ(L.sha256.size(), 64u);
+}
+
+TEST(AcceptanceLimits, EveryErrorAtOnceWithLineNumbers) {
+  std::string text = read_file(default_limits_path());
+  // Drop one limit, give another a non-number and a third an empty source, add an unknown key.
+  auto replace = [&](const std::string& from, const std::string& to) {
+    const auto at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+  };
+  replace("  jitter_3sigma_arcsec:\n    value: 3.0", "  jitter_3sigma_arcsecs:\n    value: 3.0");
+  replace("value: 0.8", "value: lots");
+  replace("  consistency_arcsec:\n    value: 1.0\n    source: >-", "  consistency_arcsec:\n    value: 1.0\n    source: \"\"\n    note: >-");
+  try {
+    parse_acceptance_limits(text, "bad_limits.yaml");
+    FAIL() << "accepted a broken limits file";
+  } catch (const InputError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("jitter_3sigma_arcsec"), std::string::npos) << m;    // missing
+    EXPECT_NE(m.find("jitter_3sigma_arcsecs"), std::string::npos) << m;   // unknown
+    EXPECT_NE(m.find("residual_mean_abs_arcsec"), std::string::npos) << m;  // not a number
+    EXPECT_NE(m.find("consistency_arcsec: source"), std::string::npos) << m;
+    EXPECT_NE(m.find("bad_limits.yaml:"), std::string::npos) << m;
+  }
+  EXPECT_THROW(parse_acceptance_limits("limits: [1, 2", "x.yaml"), InputError);
+  EXPECT_THROW(load_acceptance_limits("/nonexistent/limits.yaml"), InputError);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Roles of the shipped acceptance procedure
+
+TEST(AcceptanceRoles, ShippedProcedureCalibratesVerifiesAndRests) {
+  const Procedure proc = load_procedure(default_acceptance_procedure_path());
+  Diagnostics d(proc.origin);
+  const Plan plan = expand(proc, EngineSettings{}, d);
+  ASSERT_TRUE(d.empty()) << d.text();
+  const auto roles = acceptance_roles(proc, plan);
+  ASSERT_EQ(roles.size(), plan.points);
+  size_t n[3] = {0, 0, 0};
+  for (const auto& [step, r] : roles) ++n[static_cast<int>(r)];
+  EXPECT_EQ(n[0], 57u);  // 28 offsets along the axes, each between nulls
+  EXPECT_EQ(n[1], 97u);  // 48 lattice points, each between nulls
+  EXPECT_EQ(n[2], 9u);   // centre, 4 edges, 4 corners
+  // The fit never sees a verification position: no lattice point lies on the calibration grid.
+  std::set<std::pair<long, long>> cal_pos;
+  for (const auto& a : plan.actions) {
+    if (a.is_point() && roles.at(a.point + 1) == PointRole::calibration && a.phase == Phase::offset) {
+      cal_pos.insert({std::lround(a.pitch_arcsec), std::lround(a.yaw_arcsec)});
+    }
+  }
+  for (const auto& a : plan.actions) {
+    if (a.is_point() && roles.at(a.point + 1) == PointRole::verification && a.phase == Phase::offset) {
+      EXPECT_EQ(cal_pos.count({std::lround(a.pitch_arcsec), std::lround(a.yaw_arcsec)}), 0u) << a.describe();
+      EXPECT_LE(std::hypot(a.pitch_arcsec, a.yaw_arcsec), 30 * 60.0);  // within 30 arcmin
+    }
+  }
+}
+
+TEST(AcceptanceRoles, ACalibrationProcedureIsNotAnAcceptance) {
+  const Procedure proc = load_procedure(kProcedures / "discrete_grid.yaml");
+  Diagnostics d(proc.origin);
+  const Plan plan = expand(proc, EngineSettings{}, d);
+  try {
+    acceptance_roles(proc, plan);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("verification"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("discrete_grid.yaml"), std::string::npos) << e.what();
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The judge on recordings of the simulated bench
+
+constexpr double kRate = 50.0;
+
+// Drives a Bench through an acceptance like procedures/acceptance.yaml: the calibration grid by
+// fixtures' record_session, then (on the same bench, frame numbers continuing) the verification
+// lattice between null dwells and the rest dwells.
+class AcceptanceRecorder {
+ public:
+  explicit AcceptanceRecorder(BenchConfig cfg) : bench_(std::move(cfg)) {}
+
+  AcceptanceData record(int rest_frames = 100) {
+    AcceptanceData out;
+    GridPlan g;
+    g.extent_deg = 0.42;
+    g.step_deg = 0.06;
+    g.samples_per_dwell = 10;
+    g.sample_rate_hz = kRate;
+    SampleTable t = record_session(bench_, SessionPlan{{g}, {}});
+    step_ = t.step.back();
+    for (int64_t s = 1; s <= step_; ++s) out.roles[s] = PointRole::calibration;
+    const size_t cal_rows = t.size();
+    std::vector<double> lattice{0.0};
+    for (int k = 1; k <= 3; ++k) {
+      lattice.push_back(0.115 * k);
+      lattice.push_back(-0.115 * k);
+    }
+    dwell(t, out, 0, 0, Phase::null, 10, PointRole::verification);
+    for (double p : lattice) {
+      for (double y : lattice) {
+        if (p == 0 && y == 0) continue;
+        dwell(t, out, p, y, Phase::offset, 10, PointRole::verification);
+        dwell(t, out, 0, 0, Phase::null, 10, PointRole::verification);
+      }
+    }
+    for (auto [p, y] : std::vector<std::pair<double, double>>{{0, 0}, {0.45, 0}, {-0.45, 0}, {0, 0.45}, {0, -0.45},
+                                                              {0.45, 0.45}, {-0.45, -0.45}}) {
+      dwell(t, out, p, y, p == 0 && y == 0 ? Phase::null : Phase::offset, rest_frames, PointRole::rest);
+    }
+    out.points_planned = static_cast<size_t>(step_);
+    // The calibrator sees only the calibration grid.
+    SampleTable cal;
+    for (size_t i = 0; i < cal_rows; ++i) cal.push_back(t.row(i));
+    CalibrationOptions o;
+    o.threads = 1;
+    out.calibration = calibrate(cal, o).coefficients();
+    out.samples = std::move(t);
+    return out;
+  }
+
+  Bench& bench() { return bench_; }
+
+ private:
+  void dwell(SampleTable& t, AcceptanceData& out, double p_deg, double y_deg, Phase phase, int frames, PointRole role) {
+    bench_.set_target(deg_to_arcsec(p_deg), deg_to_arcsec(y_deg));
+    bench_.command(1);
+    for (int guard = 0; guard < 1'000'000; ++guard) {
+      const auto g = bench_.gimbal_noiseless();
+      if (!(g.status & 2u) && (g.status & 4u)) break;
+      bench_.advance_to(bench_.time_s() + 0.01);
+    }
+    bench_.advance_to(bench_.time_s() + 0.5);
+    ++step_;
+    out.roles[step_] = role;
+    for (int i = 0; i < frames; ++i) {
+      if (i > 0) bench_.advance_to(bench_.time_s() + 1.0 / kRate);
+      const SensorReading s = bench_.sensor_at(bench_.time_s(), frame_++);
+      if ((s.status & 0x7u) != 0x7u) continue;  // the recorder keeps valid frames only
+      const GimbalReadout g = bench_.gimbal();
+      Sample row{bench_.time_s(), phase, step_, g.pitch_arcsec, g.yaw_arcsec, static_cast<double>(s.counts_alpha),
+                 static_cast<double>(s.counts_beta)};
+      t.push_back(row, {"20"});
+    }
+  }
+
+  Bench bench_;
+  int64_t step_ = 0;
+  uint64_t frame_ = 10'000'000;  // far from record_session's frame numbers: no repeated noise
+};
+
+AcceptanceData record_unit(BenchConfig cfg) { return AcceptanceRecorder(std::move(cfg)).record(); }
+
+const AcceptanceLimits& limits() {
+  static const AcceptanceLimits L = load_acceptance_limits(default_limits_path());
+  return L;
+}
+
+// A sensor whose alpha axis is linear with a fast ripple whose envelope vanishes at the centre
+// and grows toward the field's edges: a bad region the 8-coefficient fit cannot follow.
+CoefficientSet rippled_truth(double amplitude_arcsec) {
+  CoefficientSet s = load_published("a-6-fpss1");
+  const double a = arcsec_to_rad(amplitude_arcsec);
+  const double w1 = 1.6e-3, w2 = w1 + 2 * std::numbers::pi / 30000.0;  // beat period 30000 counts
+  s.alpha = {0.0, 0.5326322e-6, a, w1, 0.0, a, w2, std::numbers::pi};
+  s.unit = "RIPPLE";
+  return s;
+}
+
+TEST(AcceptanceJudge, GoodUnitPassesEveryCriterion) {
+  const AcceptanceData data = record_unit(default_bench_config());
+  const Judgement j = judge(data, limits());
+  EXPECT_TRUE(j.passed) << describe(j);
+  EXPECT_TRUE(j.failed().empty());
+  // The figures a good unit gives (default bench: 0.3 counts noise, 0.05 arcsec encoder noise).
+  EXPECT_LT(*criterion(j, "accuracy_3sigma_pitch").measured, 1.0) << describe(j);
+  EXPECT_LT(*criterion(j, "accuracy_worst_point_yaw").measured, 1.0);
+  EXPECT_LT(*criterion(j, "jitter_3sigma_pitch").measured, 0.5);
+  EXPECT_GT(*criterion(j, "jitter_3sigma_pitch").measured, 0.0);
+  EXPECT_GT(criterion(j, "jitter_3sigma_pitch").uncertainty, 0.0);
+  EXPECT_EQ(*criterion(j, "verification_points").measured, 48.0);
+  EXPECT_NEAR(*criterion(j, "verified_extent_pitch").measured, 0.345, 0.002);
+  EXPECT_NEAR(*criterion(j, "calibrated_range_yaw").measured, 0.42, 0.002);
+  EXPECT_EQ(*criterion(j, "sun_present").measured, 1.0);
+  EXPECT_EQ(j.points.size(), 97u + 7u);
+  // No previous calibration: no consistency criterion.
+  EXPECT_THROW(criterion(j, "consistency"), std::runtime_error);
+}
+
+TEST(AcceptanceJudge, NoisyUnitFailsOnJitter) {
+  BenchConfig cfg = default_bench_config();
+  cfg.count_noise = 12.0;  // 1.3 arcsec 1 sigma per frame
+  const Judgement j = judge(record_unit(cfg), limits());
+  EXPECT_FALSE(j.passed);
+  EXPECT_EQ(failed_set(j), (std::set<std::string>{"jitter_3sigma_pitch", "jitter_3sigma_yaw"})) << describe(j);
+  EXPECT_GT(*criterion(j, "jitter_3sigma_pitch").measured, 3.0);
+}
+
+TEST(AcceptanceJudge, BadTransferFunctionRegionFailsOnAccuracyOfThatAxis) {
+  BenchConfig cfg = default_bench_config();
+  cfg.truth = rippled_truth(3.0);
+  const Judgement j = judge(record_unit(cfg), limits());
+  EXPECT_FALSE(j.passed);
+  const auto f = failed_set(j);
+  EXPECT_TRUE(f.count("accuracy_3sigma_pitch")) << describe(j);
+  for (const auto& id : f) EXPECT_NE(id.find("pitch"), std::string::npos) << id << " failed:\n" << describe(j);
+  EXPECT_FALSE(f.count("jitter_3sigma_pitch"));
+}
+
+TEST(AcceptanceJudge, BoresightRollBeyondLimitsFailsOnAccuracy) {
+  BenchConfig cfg = default_bench_config();
+  cfg.effects.push_back(parse_effect("boresight_roll:roll_arcsec=1800"));  // 0.5 deg
+  const Judgement j = judge(record_unit(cfg), limits());
+  EXPECT_FALSE(j.passed);
+  const auto f = failed_set(j);
+  EXPECT_TRUE(f.count("accuracy_worst_point_pitch") && f.count("accuracy_worst_point_yaw")) << describe(j);
+  EXPECT_FALSE(f.count("jitter_3sigma_pitch") || f.count("sun_present") || f.count("verification_points"));
+  // A small roll (10 arcsec) is within the limits.
+  BenchConfig small = default_bench_config();
+  small.effects.push_back(parse_effect("boresight_roll:roll_arcsec=10"));
+  const Judgement ok = judge(record_unit(small), limits());
+  EXPECT_TRUE(ok.passed) << describe(ok);
+}
+
+TEST(AcceptanceJudge, DriftBeyondLimitsFailsAtTheCentre) {
+  BenchConfig cfg = default_bench_config();
+  cfg.effects.push_back(parse_effect("drift:pitch_arcsec_per_s=0.05,yaw_arcsec_per_s=0"));
+  const Judgement j = judge(record_unit(cfg), limits());
+  EXPECT_FALSE(j.passed);
+  const auto f = failed_set(j);
+  EXPECT_TRUE(f.count("accuracy_centre_pitch")) << describe(j);
+  EXPECT_FALSE(f.count("accuracy_centre_yaw")) << describe(j);
+}
+
+TEST(AcceptanceJudge, ConsistencyWithThePreviousCalibration) {
+  AcceptanceData data = record_unit(default_bench_config());
+  data.previous = data.calibration;
+  data.previous_name = "itself";
+  Judgement j = judge(data, limits());
+  EXPECT_TRUE(j.passed) << describe(j);
+  EXPECT_EQ(*criterion(j, "consistency").measured, 0.0);
+
+  // The unit's previous calibration had its null 3 arcsec elsewhere: a moved boresight (a bias
+  // the null condition calibrates out of this run alone) shows against the history.
+  CoefficientSet prev = *data.calibration;
+  prev.beta[0] += arcsec_to_rad(3.0);
+  data.previous = prev;
+  j = judge(data, limits());
+  EXPECT_EQ(failed_set(j), std::set<std::string>{"consistency"}) << describe(j);
+  EXPECT_NEAR(*criterion(j, "consistency").measured, 3.0, 1e-6);
+}
+
+TEST(AcceptanceJudge, IncompleteRunFailsOnSunPresenceAndUnmeasuredCriteria) {
+  AcceptanceData data = record_unit(default_bench_config());
+  // The run stopped after the calibration: no verification, no rest dwells.
+  SampleTable cut;
+  for (size_t i = 0; i < data.samples.size(); ++i) {
+    if (data.roles.at(data.samples.step[i]) == PointRole::calibration) cut.push_back(data.samples.row(i));
+  }
+  data.samples = cut;
+  data.run_completed = false;
+  data.run_reason = "point 58: 1 invalid frame(s) (status 0x00; 0 tolerated)";
+  Judgement j = judge(data, limits());
+  EXPECT_FALSE(j.passed);
+  const auto f = failed_set(j);
+  EXPECT_TRUE(f.count("sun_present"));
+  EXPECT_FALSE(criterion(j, "jitter_3sigma_pitch").measured.has_value());
+  EXPECT_FALSE(criterion(j, "accuracy_3sigma_yaw").measured.has_value());
+  EXPECT_NE(criterion(j, "sun_present").detail.find("invalid frame"), std::string::npos);
+  // Residual criteria still judged from the calibration that did run.
+  EXPECT_TRUE(criterion(j, "residual_max_pitch").passed);
+
+  data.calibration.reset();
+  j = judge(data, limits());
+  EXPECT_FALSE(criterion(j, "residual_mean_pitch").measured.has_value());
+  EXPECT_FALSE(criterion(j, "residual_mean_pitch").passed);
+}
+
+TEST(AcceptanceJudge, CertificateCarriesEveryCriterionAndTheIdentity) {
+  BenchConfig cfg = default_bench_config();
+  cfg.count_noise = 12.0;
+  const Judgement j = judge(record_unit(cfg), limits());
+  CertificateInfo info;
+  info.unit = "EMU-0001";
+  info.stand = "emulated bench (seed 1)";
+  info.procedure_name = "acceptance";
+  info.procedure_sha256 = std::string(64, 'a');
+  info.run_id = "run-1";
+  info.run_outcome = "completed";
+  info.date_utc = "2024-05-01T12:00:00Z";
+  const auto c = certificate_json(j, limits(), info);
+  EXPECT_EQ(c["verdict"], "fail");
+  EXPECT_EQ(c["unit"], "EMU-0001");
+  EXPECT_EQ(c["software"]["version"], FPSS_VERSION);
+  EXPECT_EQ(c["procedure"]["sha256"], std::string(64, 'a'));
+  EXPECT_EQ(c["limits"]["sha256"], limits().sha256);
+  EXPECT_EQ(c["criteria"].size(), j.criteria.size());
+  for (const auto& k : c["criteria"]) {
+    for (const char* key : {"id", "measured", "uncertainty", "limit", "relation", "unit", "passed", "source"}) {
+      EXPECT_TRUE(k.contains(key)) << key;
+    }
+  }
+  EXPECT_EQ(c["failed"], nlohmann::json({"jitter_3sigma_pitch", "jitter_3sigma_yaw"}));
+  const std::string text = certificate_text(c);
+  EXPECT_NE(text.find("Verdict:    FAIL"), std::string::npos);
+  EXPECT_NE(text.find("jitter_3sigma_pitch"), std::string::npos);
+  const std::string html = certificate_html(c);
+  EXPECT_NE(html.find("Acceptance: FAIL"), std::string::npos);
+  EXPECT_EQ(html.find("<script"), std::string::npos);
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// fpss-stand accept end to end: the emulator child over Modbus TCP and a pty, a real catalogue.
+
+class AcceptCli : public ::testing::Test {
+ protected:
+  fs::path runs() const { return scratch_.path() / "runs"; }
+  // Speed-up 40: the whole acceptance (163 points, 5 min of bench time) in about 8 s.
+  CommandResult accept(const std::string& args) {
+    return test::run_stand_shell(
+        "accept --emulate --quiet --speed 40 --json --runs-dir '" + runs().string() + "' " + args, scratch_.path());
+  }
+  static std::set<std::string> failed(const nlohmann::json& cert) {
+    std::set<std::string> f;
+    for (const auto& id : cert["failed"]) f.insert(id.get<std::string>());
+    return f;
+  }
+  fs::path write(const std::string& name, const std::string& text) { return scratch_.write(name, text); }
+  test::TempDir scratch_{"acceptance"};
+};
+
+TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainstItsHistory) {
+  const CommandResult r = accept("--seed 3");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  const auto cert = nlohmann::json::parse(r.out);
+  EXPECT_EQ(cert["verdict"], "pass");
+  EXPECT_EQ(cert["unit"], "EMU-0001");
+  EXPECT_EQ(cert["software"]["version"], FPSS_VERSION);
+  EXPECT_EQ(cert["procedure"]["sha256"], sha256_hex(read_file(default_acceptance_procedure_path())));
+  EXPECT_EQ(cert["limits"]["sha256"], limits().sha256);
+  EXPECT_NE(cert["stand"]["identity"].get<std::string>().find("emulated bench (seed 3"), std::string::npos);
+  EXPECT_EQ(cert["run"]["points_completed"], 163);
+  ASSERT_EQ(cert["criteria"].size(), 18u);  // no history yet: no consistency criterion
+  for (const auto& c : cert["criteria"]) {
+    EXPECT_TRUE(c["passed"].get<bool>()) << c.dump();
+    EXPECT_TRUE(c["measured"].is_number()) << c.dump();
+    EXPECT_FALSE(c["source"].get<std::string>().empty());
+  }
+  const fs::path dir = cert["run"]["dir"].get<std::string>();
+  EXPECT_EQ(nlohmann::json::parse(read_file(dir / "acceptance.json")), cert);
+  EXPECT_NE(read_file(dir / "certificate.txt").find("Verdict:    PASS"), std::string::npos);
+  const std::string page = read_file(dir / "report.html");
+  EXPECT_NE(page.find("id=\"acceptance\""), std::string::npos);
+  EXPECT_NE(page.find("Acceptance: PASS"), std::string::npos);
+  EXPECT_EQ(nlohmann::json::parse(read_file(dir / "run.json"))["acceptance"]["verdict"], "pass");
+  {
+    Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+    const auto acc = cat.unit_acceptances("EMU-0001");
+    ASSERT_EQ(acc.size(), 1u);
+    EXPECT_TRUE(acc[0].passed);
+    EXPECT_EQ(acc[0].run_id.value_or(""), cert["run"]["id"]);
+    EXPECT_EQ(acc[0].certificate["verdict"], "pass");
+    const auto cals = cat.unit_history("EMU-0001");
+    ASSERT_EQ(cals.size(), 1u);
+    EXPECT_EQ(cals[0].run_id.value_or(""), cert["run"]["id"]);
+  }
+
+  // The same unit again after its null moved by 4 arcsec in yaw (a bias the null condition of
+  // this run alone calibrates out): every criterion of the run passes, the history does not.
+  const CommandResult moved = accept("--seed 4 --effect bias:pitch_arcsec=0,yaw_arcsec=4");
+  ASSERT_EQ(moved.code, 3) << moved.err << moved.out;
+  const auto c2 = nlohmann::json::parse(moved.out);
+  EXPECT_EQ(c2["verdict"], "fail");
+  EXPECT_EQ(failed(c2), std::set<std::string>{"consistency"}) << moved.out;
+  for (const auto& c : c2["criteria"]) {
+    if (c["id"] == "consistency") {
+      EXPECT_NEAR(c["measured"].get<double>(), 4.0, 0.5);
+    }
+  }
+  {
+    Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+    const auto acc = cat.unit_acceptances("EMU-0001");
+    ASSERT_EQ(acc.size(), 2u);
+    EXPECT_FALSE(acc[1].passed);
+    EXPECT_EQ(cat.unit_history("EMU-0001").size(), 2u);
+    EXPECT_EQ(cat.integrity_check(), "ok");
+  }
+
+  // Back to the original null: judged against the accepted calibration, not the failed one.
+  const CommandResult back = accept("--seed 5");
+  ASSERT_EQ(back.code, 0) << back.err << back.out;
+  const auto c3 = nlohmann::json::parse(back.out);
+  for (const auto& c : c3["criteria"]) {
+    if (c["id"] == "consistency") {
+      EXPECT_LT(c["measured"].get<double>(), 0.5) << c.dump();
+      EXPECT_NE(c["detail"].get<std::string>().find(", accepted"), std::string::npos) << c.dump();
+    }
+  }
+  EXPECT_EQ(c3["criteria"].size(), 19u);
+}
+
+TEST_F(AcceptCli, NoisyUnitFailsOnJitter) {
+  const fs::path bench = write("noisy.yaml", "count_noise: 10\n");  // 1.1 arcsec per frame, 1 sigma
+  const CommandResult r = accept("--bench '" + bench.string() + "'");
+  ASSERT_EQ(r.code, 3) << r.err << r.out;
+  const auto cert = nlohmann::json::parse(r.out);
+  EXPECT_EQ(failed(cert), (std::set<std::string>{"jitter_3sigma_pitch", "jitter_3sigma_yaw"})) << r.out;
+}
+
+TEST_F(AcceptCli, BadTransferFunctionRegionFailsOnAccuracyOfThatAxis) {
+  const fs::path truth = scratch_.path() / "ripple.json";
+  save_coefficients(truth, rippled_truth(3.0));
+  const CommandResult r = accept("--effect 'coefficients:file=" + truth.string() + "'");
+  ASSERT_EQ(r.code, 3) << r.err << r.out;
+  const auto f = failed(nlohmann::json::parse(r.out));
+  EXPECT_TRUE(f.count("accuracy_3sigma_pitch")) << r.out;
+  for (const auto& id : f) EXPECT_NE(id.find("pitch"), std::string::npos) << id;
+  EXPECT_FALSE(f.count("jitter_3sigma_pitch"));
+}
+
+TEST_F(AcceptCli, RolledUnitFailsOnAccuracy) {
+  const CommandResult r = accept("--effect boresight_roll:roll_arcsec=1800");
+  ASSERT_EQ(r.code, 3) << r.err << r.out;
+  const auto f = failed(nlohmann::json::parse(r.out));
+  EXPECT_TRUE(f.count("accuracy_worst_point_pitch") && f.count("accuracy_worst_point_yaw")) << r.out;
+  EXPECT_FALSE(f.count("jitter_3sigma_pitch") || f.count("jitter_3sigma_yaw") || f.count("sun_present")) << r.out;
+}
+
+TEST_F(AcceptCli, UnitBlindNearTheEdgeFailsOnSunPresence) {
+  // The Sun is seen only within 0.39 deg: the calibration's 0.42 deg points give no valid frame.
+  const fs::path bench = write("narrow.yaml", "sun_half_fov_arcsec: 1400\n");
+  const CommandResult r = accept("--bench '" + bench.string() + "'");
+  ASSERT_EQ(r.code, 3) << r.err << r.out;
+  const auto cert = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(failed(cert).count("sun_present")) << r.out;
+  EXPECT_EQ(cert["run"]["outcome"], "failed");
+  EXPECT_NE(cert["run"]["reason"].get<std::string>().find("invalid frame"), std::string::npos);
+  for (const auto& c : cert["criteria"]) {
+    if (c["id"] == "sun_present") {
+      EXPECT_LT(c["measured"].get<double>(), 1.0);
+    }
+  }
+  Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  ASSERT_EQ(cat.unit_acceptances("EMU-0001").size(), 1u);
+  EXPECT_FALSE(cat.unit_acceptances("EMU-0001")[0].passed);
+}
+
+TEST_F(AcceptCli, RealBenchPathWithAStandFileAndTheUnitsSerial) {
+  // A bench started on its own (as a real one would be), reached through a stand file.
+  EmulatorLaunch l;
+  l.exe = test::stand_binary();
+  l.args = {"--speed", "40", "--seed", "5", "--unit-serial", "SN-0042"};
+  EmulatorProcess emu(l);
+  emu.start();
+  const fs::path stand = write("stand.yaml", "stand: bench-under-test-7\n"
+                                             "gimbal:\n  endpoint: " + emu.gimbal_endpoint() + "\n"
+                                             "sensor:\n  endpoint: " + emu.sensor_endpoint() + "\n  sample_rate_hz: 50\n"
+                                             "clock:\n  sync: shared\n  time_scale: 40\n");
+  const std::string common = "accept --quiet --json --runs-dir '" + runs().string() + "' --stand '" + stand.string() + "'";
+  // The wrong unit on the stand: bad input, nothing moved, nothing judged.
+  CommandResult r = test::run_stand_shell(common + " --unit SN-0001", scratch_.path());
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("SN-0042"), std::string::npos) << r.err;
+  r = test::run_stand_shell(common + " --unit SN-0042", scratch_.path());
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  const auto cert = nlohmann::json::parse(r.out);
+  EXPECT_EQ(cert["unit"], "SN-0042");
+  EXPECT_EQ(cert["stand"]["identity"], "bench-under-test-7");
+  EXPECT_EQ(cert["verdict"], "pass");
+  emu.stop();
+}
+
+TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
+  auto args = [&](const std::string& unit, const std::string& seed) {
+    return std::vector<std::string>{"accept", "--emulate", "--quiet", "--speed", "40", "--json", "--runs-dir",
+                                    runs().string(), "--unit", unit, "--seed", seed};
+  };
+  const fs::path dir = scratch_.path();
+  test::Child a = test::start_stand(args("UNIT-A", "7"), dir, "a");
+  test::Child b = test::start_stand(args("UNIT-B", "8"), dir, "b");
+  test::Child c = test::start_stand(args("UNIT-C", "9"), dir, "c");
+  // Kill C once its run is in the catalogue and has recorded points (the catalogue is shared).
+  const bool c_running = test::wait_until(
+      [&] {
+        if (!fs::exists(Catalogue::default_path(runs()))) return false;
+        try {
+          Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+          bool running = false;
+          for (const auto& r : cat.list_runs({.unit = "UNIT-C", .limit = 0})) {
+            const fs::path points = fs::path(r.run_dir) / "points.jsonl";
+            running = fs::exists(points) && fs::file_size(points) > 0;
+          }
+          return running;
+        } catch (const std::exception&) {
+          return false;  // the catalogue is being created by another process: look again
+        }
+      },
+      120, std::chrono::milliseconds(50));
+  ASSERT_TRUE(c_running) << read_file(dir / "c.err");
+  ASSERT_EQ(::kill(c.pid(), SIGKILL), 0);
+  EXPECT_EQ(c.wait(), 128 + SIGKILL);
+  EXPECT_EQ(a.wait(), 0) << read_file(dir / "a.err");
+  EXPECT_EQ(b.wait(), 0) << read_file(dir / "b.err");
+
+  Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  EXPECT_EQ(cat.integrity_check(), "ok");
+  for (const char* unit : {"UNIT-A", "UNIT-B"}) {
+    const auto acc = cat.unit_acceptances(unit);
+    ASSERT_EQ(acc.size(), 1u) << unit;
+    EXPECT_TRUE(acc[0].passed);
+    EXPECT_EQ(cat.unit_history(unit).size(), 1u);
+    const auto runs_of = cat.list_runs({.unit = unit, .limit = 0});
+    ASSERT_EQ(runs_of.size(), 1u);
+    EXPECT_EQ(runs_of[0].outcome, "completed");
+  }
+  // The killed one: its run stays "running" and is seen as stale; no verdict was recorded.
+  const auto killed = cat.list_runs({.unit = "UNIT-C", .limit = 0});
+  ASSERT_EQ(killed.size(), 1u);
+  EXPECT_EQ(killed[0].outcome, "running");
+  EXPECT_TRUE(killed[0].stale());
+  EXPECT_TRUE(cat.unit_acceptances("UNIT-C").empty());
+  // And the catalogue takes the next acceptance as usual.
+  const CommandResult again = accept("--unit UNIT-C --seed 10");
+  EXPECT_EQ(again.code, 0) << again.err;
+  Catalogue after(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  EXPECT_EQ(after.unit_acceptances("UNIT-C").size(), 1u);
+  EXPECT_EQ(after.integrity_check(), "ok");
+}
+
+TEST_F(AcceptCli, BadInputExitsTwoBeforeAnythingMoves) {
+  std::string text = read_file(default_limits_path());
+  text.replace(text.find("value: 3.0"), 10, "value: -3");
+  const fs::path bad_limits = write("limits.yaml", text);
+  CommandResult r = accept("--limits '" + bad_limits.string() + "'");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("limits.yaml:"), std::string::npos) << r.err;
+  r = accept("--procedure '" + (kProcedures / "discrete_grid.yaml").string() + "'");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("not an acceptance procedure"), std::string::npos) << r.err;
+  r = accept("--effect wobble:amount=3");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("wobble"), std::string::npos) << r.err;
+  r = test::run_stand_shell("accept --stand '" + write("s.yaml", "stand: x\n").string() + "'", scratch_.path());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--unit"), std::string::npos) << r.err;
+  r = test::run_stand_shell("accept --stand '" + (scratch_.path() / "s.yaml").string() + "' --unit U --seed 3",
+                            scratch_.path());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--emulate"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(runs()) && !fs::is_empty(runs())) << "a run folder was made";
+}
+
+}  // namespace
+}  // namespace fpss
