@@ -32,7 +32,8 @@ void save_coefficients(const std::filesystem::path& path, const CoefficientSet& 
 std::filesystem::path published_dir();
 std::vector<std::string> published_names();  // "a-1-fpss1", ... sorted
 CoefficientSet load_published(const std::string& name);
-// True for the sets whose printed figures the seed README flags as suspect.
+// True for the sets whose printed figures look misprinted (docs/formats.md: Table A-7 FPSS1 B7,
+// Table A-3 FPSS2 B8, Table A-1 FPSS1 A5 in Gambardella and Thompson, 1980).
 bool is_suspect(const CoefficientSet& set);
 
 }  // namespace fpss

@@ -133,40 +133,6 @@ std::string comparison_table(const CalibrationComparison& c, const std::string& 
   return s;
 }
 
-std::string comparison_plot_data(const CalibrationComparison& c) {
-  std::string s = "# angle_a_deg diff_arcsec counts\n";
-  for (const AxisComparison* a : {&c.alpha, &c.beta}) {
-    s += fmt::format("# {}\n", a->axis);
-    for (size_t i = 0; i < a->counts.size(); ++i) {
-      s += fmt::format("{:.6f} {:.6f} {:.0f}\n", a->angle_a_arcsec[i] / kArcsecPerDeg, a->diff_arcsec[i], a->counts[i]);
-    }
-    s += "\n\n";  // gnuplot data block separator (index 0: alpha, 1: beta)
-  }
-  return s;
-}
-
-std::string comparison_plot_script(const CalibrationComparison& c, const std::string& data_path,
-                                   const std::string& svg_path, const std::string& title) {
-  auto quote = [](const std::string& text) {
-    std::string q;
-    for (char ch : text) {
-      if (ch == '"' || ch == '\\') q += '\\';
-      q += ch;
-    }
-    return "\"" + q + "\"";
-  };
-  std::string s;
-  s += "set terminal svg size 900,520 dynamic enhanced font 'sans,12' background rgb 'white'\n";
-  s += fmt::format("set output {}\n", quote(svg_path));
-  s += fmt::format("set title {} noenhanced\n", quote(title));
-  s += fmt::format("set xlabel {}\n", quote(fmt::format("angle under A (deg), +-{} deg", c.range_deg)));
-  s += "set ylabel \"B - A (arcsec)\"\n";
-  s += "set grid\nset key outside right top\n";
-  s += fmt::format("plot {} index 0 using 1:2 with lines lw 2 title 'alpha', \\\n", quote(data_path));
-  s += fmt::format("     {} index 1 using 1:2 with lines lw 2 title 'beta'\n", quote(data_path));
-  return s;
-}
-
 DriftCheck check_drift(const CoefficientSet& previous, const CoefficientSet& latest, double limit_arcsec,
                        double range_deg) {
   if (!std::isfinite(limit_arcsec) || limit_arcsec <= 0) {

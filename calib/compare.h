@@ -48,12 +48,6 @@ CalibrationComparison compare_calibrations(const CoefficientSet& a, const Coeffi
 // A readable table of the comparison: one row per axis, A and B named.
 std::string comparison_table(const CalibrationComparison& c, const std::string& name_a, const std::string& name_b);
 
-// Gnuplot inputs for the Figures-1/2-style plot: the data (angle under A in deg, alpha and beta
-// differences in arcsec, one block per axis) and a script that draws `svg_path` from `data_path`.
-std::string comparison_plot_data(const CalibrationComparison& c);
-std::string comparison_plot_script(const CalibrationComparison& c, const std::string& data_path,
-                                   const std::string& svg_path, const std::string& title);
-
 // Unit history: has the latest calibration moved from the previous one by more than a limit?
 inline constexpr double kDefaultDriftLimitArcsec = 1.0;
 struct DriftCheck {

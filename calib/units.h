@@ -13,7 +13,7 @@ inline constexpr double arcsec_to_rad(double arcsec) { return arcsec * kRadPerAr
 inline constexpr double rad_to_arcsec(double rad) { return rad * kArcsecPerRad; }
 inline constexpr double deg_to_arcsec(double deg) { return deg * kArcsecPerDeg; }
 
-// The sensor's digital output is a signed 15-bit range over the 1 deg field (seed README).
+// The sensor's digital output is a signed 15-bit range over the 1 deg field (Gambardella and Thompson, 1980, Table 2 footnote a: 0.109866 arcsec/count).
 inline constexpr double kCountsMin = -32768.0;
 inline constexpr double kCountsMax = 32767.0;
 

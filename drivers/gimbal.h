@@ -1,6 +1,7 @@
 // The two-axis sun-simulator gimbal as the stand sees it: an interface; ModbusGimbal is the real driver.
 #pragma once
 #include <cstdint>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -46,6 +47,14 @@ struct LimitError : DeviceError {
   using DeviceError::DeviceError;
 };
 
+// What the gimbal was last commanded (its holding registers), whoever commanded it.
+struct GimbalCommand {
+  double target_pitch_arcsec = 0, target_yaw_arcsec = 0;
+  double max_rate_arcsec_s = 0;
+  double watchdog_s = 0;
+  uint16_t command = 0;  // the command register's last value (1 move, 2 stop, 3 home, 4 clear fault, 5 rate)
+};
+
 class Gimbal {
  public:
   virtual ~Gimbal() = default;
@@ -64,6 +73,9 @@ class Gimbal {
   virtual void home() = 0;
   virtual void clear_fault() = 0;
   virtual void set_watchdog(double seconds) = 0;  // 0 turns it off
+  // Reads back what the gimbal was commanded, so a controller notices another client's writes;
+  // nullopt from a gimbal that cannot say.
+  virtual std::optional<GimbalCommand> read_command() { return std::nullopt; }
 };
 
 }  // namespace fpss

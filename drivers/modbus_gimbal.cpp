@@ -350,6 +350,18 @@ void ModbusGimbal::stop() { command(gimbal_reg::kCmdStop); }
 void ModbusGimbal::home() { command(gimbal_reg::kCmdHome); }
 void ModbusGimbal::clear_fault() { command(gimbal_reg::kCmdClearFault); }
 
+std::optional<GimbalCommand> ModbusGimbal::read_command() {
+  using namespace gimbal_reg;
+  const std::vector<uint16_t> r = read_holding_registers(0, kHoldingCount);
+  GimbalCommand c;
+  c.target_pitch_arcsec = get_i32(&r[kPitchTargetMas]) / kMasPerArcsec;
+  c.target_yaw_arcsec = get_i32(&r[kYawTargetMas]) / kMasPerArcsec;
+  c.max_rate_arcsec_s = get_u32(&r[kMaxRateMasS]) / kMasPerArcsec;
+  c.command = r[kCommand];
+  c.watchdog_s = r[kWatchdogMs] / 1000.0;
+  return c;
+}
+
 void ModbusGimbal::set_watchdog(double seconds) {
   if (!(seconds >= 0 && seconds <= 65.535))
     throw LimitError(fmt::format("watchdog {} s outside 0..65.535 s (uint16 of ms); nothing sent", seconds));

@@ -73,6 +73,7 @@ class ModbusGimbal : public Gimbal {
   void home() override;
   void clear_fault() override;
   void set_watchdog(double seconds) override;
+  std::optional<GimbalCommand> read_command() override;  // holding registers 0..12 in one request
 
   // Diagnostics: raw registers, with the same retry and error rules.
   std::vector<uint16_t> read_input_registers(int addr, int count);

@@ -10,56 +10,35 @@
 #include <thread>
 
 #include "procedures/align.h"
+#include "procedures/engine_detail.h"
 
 namespace fpss {
 
-const char* to_string(RunOutcome o) {
-  switch (o) {
-    case RunOutcome::completed: return "completed";
-    case RunOutcome::failed: return "failed";
-    case RunOutcome::interrupted: return "interrupted";
+using namespace engine_detail;
+
+
+Engine::Engine(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, const Plan& plan, EventBus& events,
+               spdlog::logger& log, RunControl& control, EngineHooks hooks, ResumePoint from)
+    : g_(gimbal), s_(sensor), b_(bench), plan_(plan), log_(log), ctl_(control), hooks_(std::move(hooks)),
+      events_(events), from_(std::move(from)), next_point_(from_.next_point) {}
+
+void Engine::warn(const Action* a, const std::string& message) {
+  log_.warn("{}", message);
+  events_.publish(Fault{Fault::Level::warning, a && a->is_point() ? a->point : -1, message});
+}
+
+void Engine::publish_point(const Action& a, const std::vector<RecordedRow>& rows, int attempt, int session,
+                           int invalid) {
+  try {
+    Timed t(stats_.storage_s);
+    events_.publish(Samples{&a, &rows, attempt, session});
+  } catch (const std::exception& e) {
+    throw StorageFailure(e.what());
   }
-  return "?";
+  next_point_ = a.point + 1;
+  ++stats_.points;
+  events_.publish(PointDone{&a, &rows, PointStats::of(rows), attempt, invalid});
 }
-
-namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-// Adds the time spent in a scope to a counter.
-struct Timed {
-  explicit Timed(double& acc) : acc_(acc), t0_(Clock::now()) {}
-  ~Timed() { acc_ += seconds_since(t0_); }
-  double& acc_;
-  Clock::time_point t0_;
-};
-
-std::string fault_name(const GimbalState& st) {
-  return st.fault != GimbalFault::none ? to_string(st.fault) : "fault bit set";
-}
-
-std::string deg(double arcsec) { return fmt::format("{:+.4f} deg", arcsec / 3600.0); }
-
-std::string label(const Action& a) {
-  return a.is_point() ? fmt::format("point {}", a.point + 1) : fmt::format("step {}", a.step_index);
-}
-
-// Failures of one measurement attempt, by the device that caused them, so recovery knows what to reset.
-struct SensorFailure : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-struct GimbalFailure : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-}  // namespace
-
-Engine::Engine(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, const Plan& plan, RunRecorder& recorder,
-               spdlog::logger& log, RunControl& control, EngineHooks hooks)
-    : g_(gimbal), s_(sensor), b_(bench), plan_(plan), rec_(recorder), log_(log), ctl_(control),
-      hooks_(std::move(hooks)) {}
 
 double Engine::host_now_s() const {
   // The drivers stamp receipts with the same steady clock (SensorSample/GimbalState::host_time_s).
@@ -113,6 +92,45 @@ RecordedRow Engine::make_row(const Action& a, Phase phase, const SensorSample& f
   return r;
 }
 
+void Engine::command_rate(double arcsec_s) {
+  g_.set_max_rate(arcsec_s);
+  commanded_.max_rate_arcsec_s = arcsec_s;
+}
+
+void Engine::command_move(double pitch_arcsec, double yaw_arcsec) {
+  g_.move_to(pitch_arcsec, yaw_arcsec);
+  commanded_.target_pitch_arcsec = pitch_arcsec;
+  commanded_.target_yaw_arcsec = yaw_arcsec;
+  target_known_ = true;
+}
+
+void Engine::verify_command() {
+  std::optional<GimbalCommand> c;
+  try {
+    Timed t(stats_.device_s);
+    c = g_.read_command();
+  } catch (const DeviceError& e) {
+    throw GimbalFailure(e.what());
+  }
+  if (!c) return;
+  // The registers hold whole milliarcseconds (and ms for the watchdog): allow their rounding.
+  const double mas = 1e-3 * 1.01;
+  std::string what;
+  auto differs = [&](const char* name, double read, double wrote, double tol, const char* unit) {
+    if (std::fabs(read - wrote) > tol) what += fmt::format("{}{} {} {} (this run wrote {})", what.empty() ? "" : ", ", name, read, unit, wrote);
+  };
+  if (target_known_) {
+    differs("pitch target", c->target_pitch_arcsec, commanded_.target_pitch_arcsec, mas, "arcsec");
+    differs("yaw target", c->target_yaw_arcsec, commanded_.target_yaw_arcsec, mas, "arcsec");
+  }
+  if (commanded_.max_rate_arcsec_s > 0) differs("max rate", c->max_rate_arcsec_s, commanded_.max_rate_arcsec_s, mas, "arcsec/s");
+  differs("watchdog", c->watchdog_s, commanded_.watchdog_s, 1.01e-3, "s");
+  if (c->command == 5) what += fmt::format("{}rate mode commanded", what.empty() ? "" : ", ");
+  if (!what.empty()) {
+    throw GimbalFailure(fmt::format("gimbal commanded by another client: {}", what), StopCause::commanded_elsewhere);
+  }
+}
+
 void Engine::sleep_physical(double physical_s) {
   const double wall = b_.wall(physical_s);
   if (wall <= 0) return;
@@ -128,6 +146,7 @@ void Engine::sleep_physical(double physical_s) {
 void Engine::wait_while_paused() {
   if (!ctl_.pause.load()) return;
   log_.info("paused at the last point; the gimbal holds (send SIGUSR1 again to continue)");
+  events_.publish(Paused{next_point_});
   while (ctl_.pause.load()) {
     check_abort();
     read_gimbal();  // keeps the link (and a watchdog) alive
@@ -135,14 +154,19 @@ void Engine::wait_while_paused() {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   log_.info("continuing");
+  events_.publish(Resumed{next_point_});
 }
 
 GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing) {
   {
     Timed t(stats_.device_s);
     moved_ = true;
-    if (homing) g_.home();
-    else g_.move_to(pitch, yaw);
+    if (homing) {
+      g_.home();
+      commanded_.target_pitch_arcsec = commanded_.target_yaw_arcsec = 0;
+      target_known_ = false;  // a home need not write the target registers
+    }
+    else command_move(pitch, yaw);
   }
   // Communication slack on top of the physical time: a slow link must not look like a stuck axis.
   const double timeout_wall = b_.wall(timeout_physical_s) + 2.0;
@@ -203,10 +227,10 @@ double seconds_since_utc(const std::string& iso) {
 
 void Engine::prepare() {
   host_t0_ = host_now_s();
-  time_base_ = last_time_ = rec_.last_time_s();
-  if (!rec_.journal().empty()) {
+  time_base_ = last_time_ = from_.last_time_s;
+  if (!from_.last_utc.empty()) {
     // A resume: the stand's time went on while the run was down (at the bench's pace).
-    time_base_ += seconds_since_utc(rec_.journal().back().utc) * b_.time_scale;
+    time_base_ += seconds_since_utc(from_.last_utc) * b_.time_scale;
   }
   GimbalState st = read_gimbal();
   Timed t(stats_.device_s);
@@ -214,8 +238,9 @@ void Engine::prepare() {
     log_.warn("gimbal reports a fault ({}) at the start: clearing it", fault_name(st));
     g_.clear_fault();
   }
-  g_.set_max_rate(b_.profile_rate_arcsec_s);
+  command_rate(b_.profile_rate_arcsec_s);
   g_.set_watchdog(b_.watchdog_s);
+  commanded_.watchdog_s = b_.watchdog_s;
   s_.set_rate(static_cast<int>(std::lround(b_.sample_rate_hz)));
   s_.start();
 }
@@ -231,8 +256,11 @@ void Engine::recover(const std::string& reason, bool sensor_side) {
   try {
     GimbalState st = read_gimbal();
     Timed t(stats_.device_s);
+    // Whoever changed them, the stand's settings are written back.
+    if (commanded_.max_rate_arcsec_s > 0) command_rate(commanded_.max_rate_arcsec_s);
+    g_.set_watchdog(commanded_.watchdog_s);
     if (st.has(kFault) || st.fault != GimbalFault::none) {
-      log_.warn("clearing gimbal fault ({})", fault_name(st));
+      warn(nullptr, fmt::format("clearing gimbal fault ({})", fault_name(st)));
       g_.clear_fault();
     } else if (st.has(kMoving)) {
       g_.stop();
@@ -253,30 +281,35 @@ void Engine::recover(const std::string& reason, bool sensor_side) {
   }
 }
 
-template <typename F>
-void Engine::with_remeasure(const Action& a, F&& attempt_fn) {
+void Engine::with_remeasure(const Action& a, const std::function<void(int)>& attempt_fn) {
   std::string reason;
+  StopCause cause = StopCause::other;
   const int attempts = 1 + std::max(0, b_.max_remeasure);
   for (int attempt = 1; attempt <= attempts; ++attempt) {
     bool sensor_side = false;
     try {
+      if (a.is_point()) events_.publish(PointStarted{&a, attempt});
       attempt_fn(attempt);
       if (attempt > 1) log_.info("{} done on attempt {}", label(a), attempt);
       return;
     } catch (const SensorFailure& e) {
       reason = e.what();
+      cause = e.cause;
       sensor_side = true;
     } catch (const GimbalFailure& e) {
       reason = e.what();
+      cause = e.cause;
     } catch (const PointFailure& e) {
       reason = e.what();
+      cause = e.cause;
     } catch (const LimitError&) {
       throw;  // refused before the wire: retrying cannot help
     } catch (const DeviceError& e) {
       reason = e.what();
+      cause = StopCause::other;
       sensor_side = true;  // not knowing which device failed, reset both
     }
-    log_.warn("{} attempt {}/{} not counted: {}", label(a), attempt, attempts, reason);
+    warn(&a, fmt::format("{} attempt {}/{} not counted: {}", label(a), attempt, attempts, reason));
     check_abort();
     if (attempt < attempts) {
       ++stats_.remeasured;
@@ -285,239 +318,8 @@ void Engine::with_remeasure(const Action& a, F&& attempt_fn) {
   }
   throw PointFailure(fmt::format("{} failed after {} attempts: {}",
                                  a.is_point() ? a.describe() : fmt::format("{} ({})", label(a), a.describe()), attempts,
-                                 reason));
-}
-
-void Engine::measure_dwell(const Action& a, int session) {
-  with_remeasure(a, [&](int attempt) {
-    move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
-    sleep_physical(a.settle_s);
-    const double settled_host = host_now_s();
-    GimbalState before;
-    try {
-      {
-        Timed t(stats_.device_s);
-        s_.flush();
-      }
-      before = read_gimbal();
-    } catch (const DeviceError& e) {
-      throw PointFailure(e.what());
-    }
-    auto check_still = [&](const GimbalState& st, const char* when) {
-      if (st.has(kFault) || st.fault != GimbalFault::none) {
-        throw GimbalFailure(fmt::format("gimbal fault ({}) {} sampling", fault_name(st), when));
-      }
-      const double tol = b_.in_position_tolerance_arcsec;
-      if (st.has(kMoving) || std::fabs(st.pitch_arcsec - a.pitch_arcsec) > tol ||
-          std::fabs(st.yaw_arcsec - a.yaw_arcsec) > tol) {
-        throw GimbalFailure(fmt::format("gimbal left the point {} sampling (pitch {}, yaw {}, status 0x{:02x})", when,
-                                        deg(st.pitch_arcsec), deg(st.yaw_arcsec), st.status));
-      }
-    };
-    check_still(before, "before");
-    const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
-    std::vector<SensorSample> frames;
-    std::vector<GimbalState> refs;
-    frames.reserve(static_cast<size_t>(a.frames));
-    refs.reserve(static_cast<size_t>(a.frames));
-    int invalid = 0;
-    uint8_t last_bad_status = 0;
-    while (static_cast<int>(frames.size()) < a.frames) {
-      check_abort();
-      std::optional<SensorSample> f;
-      try {
-        Timed t(stats_.device_s);
-        f = s_.next_sample(frame_wait);
-      } catch (const DeviceError& e) {
-        throw SensorFailure(e.what());
-      }
-      if (!f) throw SensorFailure(fmt::format("the sensor sent no frame within {:.2f} s", frame_wait));
-      if (f->host_time_s < settled_host) continue;  // on its way before the settle ended
-      // One clock for both devices: a frame stamped before the settled gimbal reading was taken
-      // during the move, however late it arrives (a sensor stream catching up after a stall).
-      if (b_.clock == ClockSync::shared && sensor_clock_s(*f) + 1e-6 < before.sample_time_us * 1e-6) continue;
-      if (!f->valid()) {
-        last_bad_status = f->status;
-        if (++invalid > a.max_invalid) {
-          throw SensorFailure(fmt::format("{} invalid frame(s) (status 0x{:02x}; {} tolerated)", invalid,
-                                          last_bad_status, a.max_invalid));
-        }
-        continue;
-      }
-      frames.push_back(*f);
-      // Each frame gets its own encoder reading: the dwell's reference is then the mean of as many
-      // readings as frames, not of two (the encoders' noise dominates a dwell's error otherwise).
-      try {
-        refs.push_back(read_gimbal());
-      } catch (const DeviceError& e) {
-        throw GimbalFailure(e.what());
-      }
-      check_still(refs.back(), "while");
-    }
-    const double temp = read_temperature_c(a);
-    std::vector<RecordedRow> rows;
-    rows.reserve(frames.size());
-    for (size_t i = 0; i < frames.size(); ++i) {
-      const GimbalState& g = refs[i];
-      const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
-      rows.push_back(make_row(a, a.phase, frames[i], sensor_clock_s(frames[i]), ref, temp, attempt, session));
-    }
-    {
-      Timed t(stats_.storage_s);
-      rec_.append_point(a.point, rows, attempt, session);
-    }
-    ++stats_.points;
-    if (hooks_.point_done) hooks_.point_done(a, rows);
-  });
-}
-
-void Engine::measure_slew(const Action& a, int session) {
-  with_remeasure(a, [&](int attempt) {
-    move_and_wait(a.start_pitch_arcsec, a.start_yaw_arcsec, b_.move_timeout_s);
-    sleep_physical(a.settle_s);
-    struct RateGuard {
-      Engine& e;
-      ~RateGuard() {
-        try {
-          Timed t(e.stats_.device_s);
-          e.g_.set_max_rate(e.b_.profile_rate_arcsec_s);
-        } catch (const DeviceError& ex) {
-          e.log_.warn("could not restore the profile rate: {}", ex.what());
-        }
-      }
-    };
-    std::vector<GimbalFix> fixes;
-    std::vector<SensorSample> frames;
-    auto fix = [&](const GimbalState& st) {
-      fixes.push_back(GimbalFix{static_cast<double>(st.sample_time_us) / 1e6, st.host_time_s, st.pitch_arcsec,
-                                st.yaw_arcsec, st.pitch_rate_arcsec_s, st.yaw_rate_arcsec_s, st.status});
-    };
-    auto drain = [&] {
-      Timed t(stats_.device_s);
-      while (auto f = s_.next_sample(0.0)) frames.push_back(*f);
-    };
-    try {
-      {
-        Timed t(stats_.device_s);
-        g_.set_max_rate(a.rate_arcsec_s);
-      }
-      RateGuard guard{*this};
-      {
-        Timed t(stats_.device_s);
-        s_.flush();
-      }
-      fix(read_gimbal());
-      {
-        Timed t(stats_.device_s);
-        g_.move_to(a.pitch_arcsec, a.yaw_arcsec);
-      }
-      const double span = std::fabs(a.axis == StandAxis::pitch ? a.pitch_arcsec - a.start_pitch_arcsec
-                                                               : a.yaw_arcsec - a.start_yaw_arcsec);
-      const double timeout_wall = b_.wall(span / a.rate_arcsec_s * 2 + b_.move_timeout_s) + 2.0;
-      const auto start = Clock::now();
-      const double tol = b_.in_position_tolerance_arcsec;
-      for (;;) {
-        check_abort();
-        GimbalState st = read_gimbal();
-        fix(st);
-        if (st.has(kFault) || st.fault != GimbalFault::none) {
-          throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
-        }
-        drain();
-        if (st.has(kInPosition) && !st.has(kMoving) && std::fabs(st.pitch_arcsec - a.pitch_arcsec) <= tol &&
-            std::fabs(st.yaw_arcsec - a.yaw_arcsec) <= tol) {
-          break;
-        }
-        if (seconds_since(start) > timeout_wall) {
-          throw GimbalFailure(fmt::format("slew did not reach its end within {:.1f} s (at pitch {}, yaw {})",
-                                          timeout_wall, deg(st.pitch_arcsec), deg(st.yaw_arcsec)));
-        }
-        Timed t(stats_.sleep_s);
-        std::this_thread::sleep_for(std::chrono::microseconds(500));
-      }
-      // Frames sampled before the arrival may still be on the line: wait one frame period more.
-      {
-        const double frame_wait = b_.wall(2.0 / b_.sample_rate_hz) + 0.05;
-        Timed t(stats_.device_s);
-        if (auto f = s_.next_sample(frame_wait)) frames.push_back(*f);
-      }
-      drain();
-    } catch (const DeviceError& e) {
-      throw PointFailure(e.what());
-    }
-    if (frames.empty()) throw SensorFailure("the sensor sent no frame during the slew");
-
-    // Sensor time -> gimbal time.
-    std::vector<double> g_times(frames.size());
-    std::vector<double> s_times(frames.size());
-    if (b_.clock == ClockSync::shared) {
-      for (size_t i = 0; i < frames.size(); ++i) {
-        // Unwrap against the gimbal time nearest in host time (both on one clock).
-        auto it = std::lower_bound(fixes.begin(), fixes.end(), frames[i].host_time_s,
-                                   [](const GimbalFix& f, double h) { return f.host_time_s < h; });
-        const double ref = (it == fixes.end() ? fixes.back() : *it).gimbal_time_s;
-        s_times[i] = std::round((unwrap_near(frames[i].sensor_time_us, ref) + b_.sensor_time_offset_s) * 1e6) / 1e6;
-        g_times[i] = s_times[i];
-      }
-    } else {
-      std::vector<double> hs, ds, hg, dg;
-      for (const auto& f : frames) {
-        hs.push_back(f.host_time_s);
-        ds.push_back(f.sensor_time_s);
-      }
-      for (const auto& f : fixes) {
-        hg.push_back(f.host_time_s);
-        dg.push_back(f.gimbal_time_s);
-      }
-      const double cs = clock_offset(hs, ds, b_.time_scale), cg = clock_offset(hg, dg, b_.time_scale);
-      for (size_t i = 0; i < frames.size(); ++i) {
-        s_times[i] = frames[i].sensor_time_s + b_.sensor_time_offset_s;
-        g_times[i] = s_times[i] + cs - cg;
-      }
-    }
-    const double temp = read_temperature_c(a);
-    std::vector<RecordedRow> rows;
-    int invalid = 0, gapped = 0;
-    double next_keep = -std::numeric_limits<double>::infinity();
-    for (size_t i = 0; i < frames.size(); ++i) {
-      const auto& f = frames[i];
-      auto at = interpolate_at(fixes, g_times[i]);
-      if (!at) continue;  // before the first or after the last gimbal reading: no reference
-      if (at->gap_s > b_.max_reference_gap_s) {
-        ++gapped;  // the gimbal was not read often enough around this frame to trust its reference
-        continue;
-      }
-      if (!f.valid()) {
-        ++invalid;
-        continue;
-      }
-      // One sample per period on the sensor's clock: the first frame at least a period after the
-      // last one kept (a microsecond of slack for float rounding).
-      if (s_times[i] + 1e-6 < next_keep) continue;
-      next_keep = s_times[i] + a.sample_period_s;
-      const GimbalRef ref{g_times[i], at->pitch_arcsec, at->yaw_arcsec, at->status};
-      rows.push_back(make_row(a, Phase::slew, f, s_times[i], ref, temp, attempt, session));
-    }
-    if (rows.empty()) {
-      throw SensorFailure(fmt::format("no valid frame aligned with the gimbal during the slew ({} frames, {} invalid)",
-                                      frames.size(), invalid));
-    }
-    if (invalid > 0) log_.warn("point {}: {} invalid frame(s) during the slew skipped", a.point + 1, invalid);
-    if (gapped > 0) {
-      log_.info("point {}: {} frame(s) skipped: gimbal readings around them more than {} s apart", a.point + 1, gapped,
-                b_.max_reference_gap_s);
-    }
-    double max_gap = 0;
-    for (size_t i = 1; i < fixes.size(); ++i) max_gap = std::max(max_gap, fixes[i].gimbal_time_s - fixes[i - 1].gimbal_time_s);
-    log_.debug("point {}: slew of {} frames, {} kept, {} gimbal readings (largest gap {:.1f} ms of bench time)",
-               a.point + 1, frames.size(), rows.size(), fixes.size(), max_gap * 1e3);
-    {
-      Timed t(stats_.storage_s);
-      rec_.append_point(a.point, rows, attempt, session);
-    }
-    ++stats_.points;
-    if (hooks_.point_done) hooks_.point_done(a, rows);
-  });
+                                 reason),
+                     cause);
 }
 
 void Engine::do_home(const Action& a) {
@@ -529,14 +331,14 @@ void Engine::do_move(const Action& a) {
   auto go = [&](int) {
     if (a.rate_arcsec_s > 0) {
       Timed t(stats_.device_s);
-      g_.set_max_rate(a.rate_arcsec_s);
+      command_rate(a.rate_arcsec_s);
     }
     try {
       move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
     } catch (...) {
       if (a.rate_arcsec_s > 0) {
         try {
-          g_.set_max_rate(b_.profile_rate_arcsec_s);
+          command_rate(b_.profile_rate_arcsec_s);
         } catch (const DeviceError&) {
         }
       }
@@ -544,7 +346,7 @@ void Engine::do_move(const Action& a) {
     }
     if (a.rate_arcsec_s > 0) {
       Timed t(stats_.device_s);
-      g_.set_max_rate(b_.profile_rate_arcsec_s);
+      command_rate(b_.profile_rate_arcsec_s);
     }
   };
   with_remeasure(a, go);
@@ -571,7 +373,7 @@ bool Engine::safe_stop() {
         }
         {
           Timed t(stats_.device_s);
-          g_.set_max_rate(b_.profile_rate_arcsec_s);
+          command_rate(b_.profile_rate_arcsec_s);
         }
         move_and_wait(0, 0, b_.move_timeout_s);
         log_.info("gimbal back at null");
@@ -594,78 +396,104 @@ bool Engine::safe_stop() {
   return ok;
 }
 
+void Engine::do_action(size_t i) {
+  const Action& a = plan_.actions[i];
+  const bool done_before = cursor_.resuming && i < cursor_.resume_at;
+  switch (a.kind) {
+    case Action::Kind::home:
+      if (done_before) {
+        // After a restart the axes may need homing again; once is enough.
+        if (!cursor_.homed_again && cursor_.resume_at < plan_.actions.size()) {
+          do_home(a);
+          cursor_.homed_again = true;
+        }
+        break;
+      }
+      log_.info("step {}: home", a.step_index);
+      do_home(a);
+      break;
+    case Action::Kind::move:
+      if (done_before) break;
+      log_.info("step {}: {}", a.step_index, a.describe());
+      do_move(a);
+      break;
+    case Action::Kind::settle:
+      if (done_before) break;
+      sleep_physical(a.settle_s);
+      break;
+    case Action::Kind::dwell:
+      if (a.point < cursor_.first) break;
+      log_.debug("step {}: {}", a.step_index, a.describe());
+      measure_dwell(a, cursor_.session);
+      break;
+    case Action::Kind::slew:
+      if (a.point < cursor_.first) break;
+      log_.info("step {}: {}", a.step_index, a.describe());
+      measure_slew(a, cursor_.session);
+      break;
+    case Action::Kind::calibrate:
+      log_.info("step {}: calibrate", a.step_index);
+      if (hooks_.calibrate) {
+        Timed t(stats_.calibrate_s);
+        try {
+          hooks_.calibrate(a);
+        } catch (const std::exception& e) {
+          throw PointFailure(e.what(), StopCause::calibration_failed);
+        }
+      }
+      break;
+    case Action::Kind::check: {
+      log_.info("step {}: check", a.step_index);
+      const std::string broken = hooks_.check ? hooks_.check(a) : std::string();
+      if (!broken.empty()) {
+        throw PointFailure(fmt::format("step {} (check): {}", a.step_index, broken), StopCause::check_failed);
+      }
+      break;
+    }
+  }
+}
+
 EngineResult Engine::run(int session) {
   const auto t0 = Clock::now();
   EngineResult r;
-  const int64_t first = rec_.next_point();
-  const bool resuming = first > 0;
+  cursor_ = Cursor{};
+  cursor_.session = session;
+  cursor_.first = from_.next_point;
+  cursor_.resuming = cursor_.first > 0;
   // Actions before the first point still to measure were done in an earlier session (except
   // calibrate and check, which are computations and run again on the same data).
-  const size_t resume_at = first < static_cast<int64_t>(plan_.points) ? plan_.point_action[first]
-                                                                      : plan_.actions.size();
+  cursor_.resume_at = cursor_.first < static_cast<int64_t>(plan_.points) ? plan_.point_action[cursor_.first]
+                                                                         : plan_.actions.size();
   try {
     prepare();
-    if (resuming) log_.info("resuming at point {} of {}", first + 1, plan_.points);
-    bool homed_again = false;
+    events_.publish(RunStarted{session, cursor_.first, &plan_});
+    if (cursor_.resuming) log_.info("resuming at point {} of {}", cursor_.first + 1, plan_.points);
     for (size_t i = 0; i < plan_.actions.size(); ++i) {
-      const Action& a = plan_.actions[i];
       check_abort();
       wait_while_paused();
-      const bool done_before = resuming && i < resume_at;
-      switch (a.kind) {
-        case Action::Kind::home:
-          if (done_before) {
-            // After a restart the axes may need homing again; once is enough.
-            if (!homed_again && resume_at < plan_.actions.size()) {
-              do_home(a);
-              homed_again = true;
-            }
-            break;
-          }
-          log_.info("step {}: home", a.step_index);
-          do_home(a);
-          break;
-        case Action::Kind::move:
-          if (done_before) break;
-          log_.info("step {}: {}", a.step_index, a.describe());
-          do_move(a);
-          break;
-        case Action::Kind::settle:
-          if (done_before) break;
-          sleep_physical(a.settle_s);
-          break;
-        case Action::Kind::dwell:
-          if (a.point < first) break;
-          log_.debug("step {}: {}", a.step_index, a.describe());
-          measure_dwell(a, session);
-          break;
-        case Action::Kind::slew:
-          if (a.point < first) break;
-          log_.info("step {}: {}", a.step_index, a.describe());
-          measure_slew(a, session);
-          break;
-        case Action::Kind::calibrate:
-          log_.info("step {}: calibrate", a.step_index);
-          if (hooks_.calibrate) {
-            Timed t(stats_.calibrate_s);
-            hooks_.calibrate(a);
-          }
-          break;
-        case Action::Kind::check: {
-          log_.info("step {}: check", a.step_index);
-          const std::string broken = hooks_.check ? hooks_.check(a) : std::string();
-          if (!broken.empty()) throw PointFailure(fmt::format("step {} (check): {}", a.step_index, broken));
-          break;
-        }
-      }
+      do_action(i);
     }
     r.outcome = RunOutcome::completed;
   } catch (const Aborted&) {
     r.outcome = RunOutcome::interrupted;
     const int sig = ctl_.signal.load();
-    r.reason = sig ? fmt::format("interrupted by signal {} ({})", sig, strsignal(sig)) : "interrupted";
+    r.cause = sig ? StopCause::interrupted : StopCause::aborted;
+    r.reason = sig ? fmt::format("interrupted by signal {} ({})", sig, strsignal(sig)) : "aborted by the operator";
+  } catch (const PointFailure& e) {
+    r.outcome = RunOutcome::failed;
+    r.cause = e.cause;
+    r.reason = e.what();
+  } catch (const LimitError& e) {
+    r.outcome = RunOutcome::failed;
+    r.cause = StopCause::limit;
+    r.reason = e.what();
+  } catch (const StorageFailure& e) {
+    r.outcome = RunOutcome::failed;
+    r.cause = StopCause::storage;
+    r.reason = e.what();
   } catch (const std::exception& e) {
     r.outcome = RunOutcome::failed;
+    r.cause = StopCause::other;
     r.reason = e.what();
   }
   if (r.outcome != RunOutcome::completed) log_.error("run {}: {}", to_string(r.outcome), r.reason);
@@ -674,10 +502,12 @@ EngineResult Engine::run(int session) {
     log_.error("the gimbal could not be returned to null: check the stand");
     if (r.outcome == RunOutcome::completed) {
       r.outcome = RunOutcome::failed;
+      r.cause = StopCause::unsafe;
       r.reason = "the gimbal could not be returned to null at the end";
     }
   }
-  r.points_done = rec_.next_point();
+  r.points_done = next_point_;
+  events_.publish(RunStopped{r.outcome, r.cause, r.reason, r.points_done, r.safe_state});
   stats_.wall_s += seconds_since(t0);
   return r;
 }

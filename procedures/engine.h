@@ -13,6 +13,7 @@
 #include "drivers/sensor.h"
 #include "procedures/settings.h"
 #include "procedures/plan.h"
+#include "procedures/events.h"
 #include "procedures/recorder.h"
 
 namespace fpss {
@@ -24,12 +25,10 @@ struct RunControl {
   std::atomic<int> signal{0};       // the signal that asked for the abort, for the log
 };
 
-enum class RunOutcome { completed, failed, interrupted };
-const char* to_string(RunOutcome o);
-
 struct EngineResult {
   RunOutcome outcome = RunOutcome::completed;
-  std::string reason;         // why it failed or stopped
+  StopCause cause = StopCause::none;
+  std::string reason;         // why it failed or stopped, for people
   int64_t points_done = 0;    // completed points in the recording (all sessions)
   bool safe_state = true;     // the gimbal was stopped and returned to null (or was never moved)
 };
@@ -54,38 +53,50 @@ struct EngineHooks {
   std::function<void(const Action&)> calibrate;
   // A check action: returns an empty string when the limits hold, else what broke them.
   std::function<std::string(const Action&)> check;
-  // After each point is durable: the rows just written.
-  std::function<void(const Action&, const std::vector<RecordedRow>&)> point_done;
 };
 
 class Engine {
  public:
-  Engine(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, const Plan& plan, RunRecorder& recorder,
-         spdlog::logger& log, RunControl& control, EngineHooks hooks = {});
+  // Every point's rows are published as a Samples event: subscribe a RunRecorder (record_with)
+  // before run(), or nothing is kept. `from` says where a resumed run continues.
+  Engine(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, const Plan& plan, EventBus& events,
+         spdlog::logger& log, RunControl& control, EngineHooks hooks = {}, ResumePoint from = {});
 
-  // Runs the plan from the first point the recorder has not completed (0 for a new run).
+  // Runs the plan from `from.next_point` (0 for a new run).
   // `session` is 1 + the number of resumes, written in each row.
   EngineResult run(int session = 1);
   const EngineStats& stats() const { return stats_; }
 
  private:
   struct PointFailure : std::runtime_error {
-    using std::runtime_error::runtime_error;
+    explicit PointFailure(const std::string& what, StopCause c = StopCause::other)
+        : std::runtime_error(what), cause(c) {}
+    StopCause cause;
   };
   struct Aborted {};
 
   void prepare();
+  void do_action(size_t index);  // plan_.actions[index], skipping what a resumed run did before
   void do_home(const Action& a);
   void do_move(const Action& a);
   void measure_dwell(const Action& a, int session);
   void measure_slew(const Action& a, int session);
-  template <typename F>
-  void with_remeasure(const Action& a, F&& attempt);
+  // Runs attempt(1), attempt(2), ... until one succeeds or the stand's re-measurements run out.
+  void with_remeasure(const Action& a, const std::function<void(int)>& attempt);
   GimbalState move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing = false);
   void sleep_physical(double physical_s);
   void wait_while_paused();
   void check_abort();
   void recover(const std::string& reason, bool sensor_side);
+  // Publishes the rows (the recorder makes them durable), then PointDone.
+  void publish_point(const Action& a, const std::vector<RecordedRow>& rows, int attempt, int session, int invalid);
+  void warn(const Action* a, const std::string& message);
+  // Every command the engine sends goes through these, so it knows what the gimbal should hold.
+  void command_rate(double arcsec_s);
+  void command_move(double pitch_arcsec, double yaw_arcsec);
+  // Reads the gimbal's commanded state back; GimbalFailure (commanded_elsewhere) when another
+  // client changed a target, the rate, the watchdog, or put it in rate mode.
+  void verify_command();
   bool safe_stop();
   double stand_time(double sensor_time_s);
   double sensor_clock_s(const SensorSample& f) const;
@@ -107,12 +118,24 @@ class Engine {
   Sensor& s_;
   const EngineSettings& b_;
   const Plan& plan_;
-  RunRecorder& rec_;
+  EventBus& events_;
+  ResumePoint from_;
+  int64_t next_point_ = 0;  // points durable so far (all sessions)
   spdlog::logger& log_;
   RunControl& ctl_;
   EngineHooks hooks_;
   EngineStats stats_;
+  // Where this run() is in the plan.
+  struct Cursor {
+    int session = 1;
+    int64_t first = 0;      // first point still to measure
+    bool resuming = false;
+    size_t resume_at = 0;   // index of that point's action
+    bool homed_again = false;
+  } cursor_;
   bool moved_ = false;
+  GimbalCommand commanded_;
+  bool target_known_ = false;
   bool stopping_ = false;  // during the safe stop an abort request no longer interrupts
   double host_t0_ = 0;
   // Stand time: base + (sensor time - sensor t0), kept non-decreasing across sensor restarts.

@@ -57,6 +57,13 @@ std::filesystem::path make_run_dir(const std::filesystem::path& runs_dir, const 
 void write_json_atomic(const std::filesystem::path& path, const nlohmann::json& j);
 nlohmann::json read_json_file(const std::filesystem::path& path);  // InputError naming the file
 
+// Where a run continues: the first point not yet durable, the last row's time and when it was journalled.
+struct ResumePoint {
+  int64_t next_point = 0;
+  double last_time_s = 0;
+  std::string last_utc;  // "" for a new run
+};
+
 // Appends points to samples.csv and records each in points.jsonl once it is durable, so a crash
 // loses at most the point in progress. Opening an existing folder (a resume) cuts samples.csv
 // back to the end of the last journalled point: no half point survives, none is repeated.
@@ -72,6 +79,9 @@ class RunRecorder {
   const std::vector<JournalEntry>& journal() const { return journal_; }
   int64_t next_point() const { return journal_.empty() ? 0 : journal_.back().point + 1; }
   double last_time_s() const { return last_time_s_; }
+  ResumePoint resume_point() const {
+    return {next_point(), last_time_s_, journal_.empty() ? std::string() : journal_.back().utc};
+  }
   bool has_rows() const { return has_rows_; }
   size_t rows() const { return writer_->rows_written(); }
   // Bytes of a torn point cut away when the folder was opened (0 on a clean open).

@@ -299,27 +299,48 @@ std::vector<std::string> Judgement::failed() const {
   return f;
 }
 
-Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
+namespace {
+
+// One judgement in the making: the data, the limits, the dwells by role; one method per group
+// of criteria, in the certificate's order.
+struct Judging {
+  Judging(const AcceptanceData& d, const AcceptanceLimits& limits);
+  void residual_criteria();
+  void accuracy_criteria();
+  void jitter_criteria();
+  void coverage_criteria();
+  void sun_criterion();
+  void consistency_criterion();
+  void judged_points();
+
+  const AcceptanceData& data;
+  const AcceptanceLimits& L;
+  const CoefficientSet* cal;
+  std::vector<DwellStats> dwells;
+  std::string no_cal;
+  double radius_arcsec;
+  std::vector<const DwellStats*> ver_off, ver_null, rest, calib, ver_in;
+  nlohmann::json residuals;
   Judgement J;
-  const CoefficientSet* cal = data.calibration ? &*data.calibration : nullptr;
-  const std::vector<DwellStats> dwells = dwell_stats(data, cal);
-  const std::string no_cal = "not measured: the run has no calibration" +
-                             (data.run_reason.empty() ? std::string() : " (" + data.run_reason + ")");
-  const double radius_arcsec = L.accuracy_radius_arcmin.value * 60.0;
+};
 
-  std::vector<const DwellStats*> ver_off, ver_null, rest, calib;
-  for (const auto& d : dwells) {
-    if (d.role == PointRole::calibration) calib.push_back(&d);
-    if (d.role == PointRole::rest) rest.push_back(&d);
-    if (d.role == PointRole::verification) (d.phase == Phase::null ? ver_null : ver_off).push_back(&d);
+Judging::Judging(const AcceptanceData& d, const AcceptanceLimits& limits)
+    : data(d), L(limits), cal(d.calibration ? &*d.calibration : nullptr), dwells(dwell_stats(d, cal)),
+      no_cal("not measured: the run has no calibration" + (d.run_reason.empty() ? std::string() : " (" + d.run_reason + ")")),
+      radius_arcsec(limits.accuracy_radius_arcmin.value * 60.0),
+      residuals(cal && cal->extra.contains("residuals") ? cal->extra["residuals"] : nlohmann::json()) {
+  for (const auto& w : dwells) {
+    if (w.role == PointRole::calibration) calib.push_back(&w);
+    if (w.role == PointRole::rest) rest.push_back(&w);
+    if (w.role == PointRole::verification) (w.phase == Phase::null ? ver_null : ver_off).push_back(&w);
   }
-  std::vector<const DwellStats*> ver_in;
-  for (const auto* d : ver_off) {
-    if (std::hypot(d->ref[0], d->ref[1]) <= radius_arcsec + 1e-6) ver_in.push_back(d);
+  for (const auto* w : ver_off) {
+    if (std::hypot(w->ref[0], w->ref[1]) <= radius_arcsec + 1e-6) ver_in.push_back(w);
   }
+}
 
+void Judging::residual_criteria() {
   // 1. Calibration residuals, Table 1 form (from the calibrator's own summary in calibration.json).
-  const nlohmann::json residuals = cal && cal->extra.contains("residuals") ? cal->extra["residuals"] : nlohmann::json();
   for (int ax = 0; ax < 2; ++ax) {
     const std::string a = axis_name(ax);
     Criterion mean = make("residual_mean_" + a, fmt::format("Calibration residuals, mean |r|, {}", axis_label(ax)), a,
@@ -346,7 +367,9 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
     J.criteria.push_back(mean);
     J.criteria.push_back(max);
   }
+}
 
+void Judging::accuracy_criteria() {
   // 2. Accuracy on the verification points the fit never saw, within the radius.
   for (int ax = 0; ax < 2; ++ax) {
     const std::string a = axis_name(ax);
@@ -407,7 +430,9 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
     J.criteria.push_back(worst);
     J.criteria.push_back(centre);
   }
+}
 
+void Judging::jitter_criteria() {
   // 3. Jitter at rest.
   for (int ax = 0; ax < 2; ++ax) {
     const std::string a = axis_name(ax);
@@ -434,7 +459,9 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
     }
     J.criteria.push_back(jit);
   }
+}
 
+void Judging::coverage_criteria() {
   // 4. Field coverage: the calibration's range and the verification's reach, per axis.
   for (int ax = 0; ax < 2; ++ax) {
     const std::string a = axis_name(ax);
@@ -474,7 +501,9 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
                        ver_in.size(), L.accuracy_radius_arcmin.value, ver_off.size()));
     J.criteria.push_back(n);
   }
+}
 
+void Judging::sun_criterion() {
   // 5. Sun present over the field: every planned point measured, every frame valid.
   {
     Criterion sun = make("sun_present", "Sun present with valid frames over the field", "", L.sun_present_fraction,
@@ -499,7 +528,9 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
     settle(sun, std::min(frac, 1.0), 0.0, detail);
     J.criteria.push_back(sun);
   }
+}
 
+void Judging::consistency_criterion() {
   // 6. Consistency with the unit's last accepted or imported calibration (only when it has one).
   if (data.previous) {
     Criterion con = make("consistency", "Change since the unit's last accepted or imported calibration (max |B - A|, +-0.35 deg)", "",
@@ -528,7 +559,9 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
     }
     J.criteria.push_back(con);
   }
+}
 
+void Judging::judged_points() {
   for (const auto& d : dwells) {
     if (d.role == PointRole::calibration) continue;
     JudgedPoint p;
@@ -548,173 +581,21 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
     }
     J.points.push_back(p);
   }
-  J.passed = std::all_of(J.criteria.begin(), J.criteria.end(), [](const Criterion& c) { return c.passed; });
-  return J;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Certificate
-
-nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimits& limits, const CertificateInfo& info) {
-  nlohmann::ordered_json c;
-  c["format"] = "fpss-stand acceptance/1";
-  c["verdict"] = j.passed ? "pass" : "fail";
-  c["passed"] = j.passed;
-  c["unit"] = info.unit;
-  c["stand"] = {{"identity", info.stand}, {"detail", info.stand_detail}};
-  c["software"] = {{"name", "fpss-stand"}, {"version", info.software_version}};
-  c["procedure"] = {{"name", info.procedure_name}, {"file", info.procedure_file}, {"sha256", info.procedure_sha256}};
-  c["limits"] = {{"name", limits.name}, {"file", limits.origin}, {"sha256", limits.sha256}};
-  c["run"] = {{"id", info.run_id},
-              {"dir", info.run_dir},
-              {"outcome", info.run_outcome},
-              {"reason", info.run_reason},
-              {"points_planned", info.points_planned},
-              {"points_completed", info.points_completed}};
-  c["date_utc"] = info.date_utc;
-  c["calibration"] = info.calibration_file.empty() ? nlohmann::ordered_json(nullptr)
-                                                   : nlohmann::ordered_json(info.calibration_file);
-  nlohmann::ordered_json crit = nlohmann::ordered_json::array();
-  for (const auto& k : j.criteria) {
-    nlohmann::ordered_json e;
-    e["id"] = k.id;
-    e["title"] = k.title;
-    e["axis"] = k.axis;
-    e["measured"] = k.measured ? nlohmann::ordered_json(*k.measured) : nlohmann::ordered_json(nullptr);
-    e["uncertainty"] = k.uncertainty;
-    e["limit"] = k.limit;
-    e["relation"] = k.relation;
-    e["unit"] = k.unit;
-    e["passed"] = k.passed;
-    e["limit_key"] = k.limit_key;
-    e["source"] = k.source;
-    e["detail"] = k.detail;
-    crit.push_back(std::move(e));
-  }
-  c["criteria"] = crit;
-  c["failed"] = j.failed();
-  nlohmann::ordered_json pts = nlohmann::ordered_json::array();
-  for (const auto& p : j.points) {
-    nlohmann::ordered_json e;
-    e["step"] = p.step;
-    e["role"] = to_string(p.role);
-    e["phase"] = std::string(to_string(p.phase));
-    e["ref_pitch_arcsec"] = p.ref_pitch_arcsec;
-    e["ref_yaw_arcsec"] = p.ref_yaw_arcsec;
-    e["frames"] = p.frames;
-    e["error_pitch_arcsec"] = p.error_pitch_arcsec;
-    e["error_yaw_arcsec"] = p.error_yaw_arcsec;
-    e["se_pitch_arcsec"] = p.se_pitch_arcsec;
-    e["se_yaw_arcsec"] = p.se_yaw_arcsec;
-    if (p.role == PointRole::rest) {
-      e["jitter_3sigma_pitch_arcsec"] = p.jitter3_pitch_arcsec;
-      e["jitter_3sigma_yaw_arcsec"] = p.jitter3_yaw_arcsec;
-    }
-    pts.push_back(std::move(e));
-  }
-  c["points"] = pts;
-  return c;
-}
-
-namespace {
-
-std::string value_text(const nlohmann::ordered_json& k) {
-  if (k["measured"].is_null()) return "not measured";
-  const std::string unit = k["unit"].get<std::string>();
-  const double v = k["measured"].get<double>(), u = k["uncertainty"].get<double>();
-  const int dec = unit == "points" ? 0 : unit == "deg" ? 4 : 3;
-  if (u > 0) return fmt::format("{:.{}f} +- {:.{}f}", v, dec, u, dec);
-  return fmt::format("{:.{}f}", v, dec);
-}
-
-std::string limit_text(const nlohmann::ordered_json& k) {
-  const std::string unit = k["unit"].get<std::string>();
-  const int dec = unit == "points" ? 0 : unit == "deg" ? 2 : unit == "fraction" ? 2 : 1;
-  return fmt::format("{} {:.{}f}", k["relation"].get<std::string>(), k["limit"].get<double>(), dec);
 }
 
 }  // namespace
 
-std::string certificate_text(const nlohmann::ordered_json& c) {
-  std::string s;
-  s += "FPSS UNIT ACCEPTANCE CERTIFICATE\n\n";
-  s += fmt::format("Verdict:    {}\n", c["passed"].get<bool>() ? "PASS" : "FAIL");
-  s += fmt::format("Unit:       {}\n", c["unit"].get<std::string>());
-  s += fmt::format("Stand:      {}\n", c["stand"]["identity"].get<std::string>());
-  s += fmt::format("Software:   fpss-stand {}\n", c["software"]["version"].get<std::string>());
-  s += fmt::format("Procedure:  {} ({}), sha256 {}\n", c["procedure"]["name"].get<std::string>(),
-                   c["procedure"]["file"].get<std::string>(), c["procedure"]["sha256"].get<std::string>());
-  s += fmt::format("Limits:     {} ({}), sha256 {}\n", c["limits"]["name"].get<std::string>(),
-                   c["limits"]["file"].get<std::string>(), c["limits"]["sha256"].get<std::string>());
-  s += fmt::format("Run:        {} ({}, {}/{} points)\n", c["run"]["id"].get<std::string>(),
-                   c["run"]["outcome"].get<std::string>(), c["run"]["points_completed"].get<int64_t>(),
-                   c["run"]["points_planned"].get<int64_t>());
-  if (!c["run"]["reason"].get<std::string>().empty()) {
-    s += fmt::format("            stopped: {}\n", c["run"]["reason"].get<std::string>());
-  }
-  s += fmt::format("Date (UTC): {}\n\n", c["date_utc"].get<std::string>());
-  s += fmt::format("{:<28} {:>22} {:>10} {:<8} {}\n", "criterion", "measured (+- 1 sigma)", "limit", "unit", "result");
-  for (const auto& k : c["criteria"]) {
-    s += fmt::format("{:<28} {:>22} {:>10} {:<8} {}\n", k["id"].get<std::string>(), value_text(k), limit_text(k),
-                     k["unit"].get<std::string>(), k["passed"].get<bool>() ? "pass" : "FAIL");
-  }
-  s += "\nHow each was measured and where its limit comes from:\n";
-  for (const auto& k : c["criteria"]) {
-    s += fmt::format("- {}: {}\n    limit: {}\n", k["id"].get<std::string>(), k["detail"].get<std::string>(),
-                     k["source"].get<std::string>());
-  }
-  return s;
-}
-
-std::string certificate_html(const nlohmann::ordered_json& c) {
-  const bool pass = c["passed"].get<bool>();
-  std::string h;
-  h += fmt::format("<p class=\"verdict\" style=\"font-size:1.3em;font-weight:bold;color:{}\">Acceptance: {}</p>\n",
-                   pass ? "#1a7f37" : "#b42318", pass ? "PASS" : "FAIL");
-  h += "<table>\n";
-  auto row = [&](const char* k, const std::string& v) {
-    h += fmt::format("<tr><th style=\"text-align:left\">{}</th><td>{}</td></tr>\n", k, html_escape(v));
-  };
-  row("Unit", c["unit"].get<std::string>());
-  row("Stand", c["stand"]["identity"].get<std::string>());
-  row("Software", "fpss-stand " + c["software"]["version"].get<std::string>());
-  row("Procedure", fmt::format("{} ({}), sha256 {}", c["procedure"]["name"].get<std::string>(),
-                               c["procedure"]["file"].get<std::string>(), c["procedure"]["sha256"].get<std::string>()));
-  row("Limits", fmt::format("{} ({}), sha256 {}", c["limits"]["name"].get<std::string>(),
-                            c["limits"]["file"].get<std::string>(), c["limits"]["sha256"].get<std::string>()));
-  row("Run", fmt::format("{} ({}, {}/{} points){}", c["run"]["id"].get<std::string>(),
-                         c["run"]["outcome"].get<std::string>(), c["run"]["points_completed"].get<int64_t>(),
-                         c["run"]["points_planned"].get<int64_t>(),
-                         c["run"]["reason"].get<std::string>().empty() ? "" : ": " + c["run"]["reason"].get<std::string>()));
-  row("Date (UTC)", c["date_utc"].get<std::string>());
-  h += "</table>\n<h3>Criteria</h3>\n<table class=\"criteria\">\n";
-  h += "<tr><th>criterion</th><th>measured (&plusmn; 1&sigma;)</th><th>limit</th><th>unit</th><th>result</th>"
-       "<th>how measured</th><th>source of the limit</th></tr>\n";
-  for (const auto& k : c["criteria"]) {
-    const bool ok = k["passed"].get<bool>();
-    h += fmt::format(
-        "<tr><td title=\"{}\">{}</td><td>{}</td><td>{}</td><td>{}</td><td style=\"font-weight:bold;color:{}\">{}</td>"
-        "<td>{}</td><td>{}</td></tr>\n",
-        html_escape(k["title"].get<std::string>()), html_escape(k["id"].get<std::string>()), html_escape(value_text(k)),
-        html_escape(limit_text(k)), html_escape(k["unit"].get<std::string>()), ok ? "#1a7f37" : "#b42318",
-        ok ? "pass" : "FAIL", html_escape(k["detail"].get<std::string>()), html_escape(k["source"].get<std::string>()));
-  }
-  h += "</table>\n<h3>Verification and rest points</h3>\n<table class=\"points\">\n";
-  h += "<tr><th>step</th><th>role</th><th>pitch (deg)</th><th>yaw (deg)</th><th>frames</th>"
-       "<th>error pitch (arcsec)</th><th>error yaw (arcsec)</th><th>jitter 3&sigma; pitch</th><th>jitter 3&sigma; yaw</th></tr>\n";
-  for (const auto& p : c["points"]) {
-    const bool rest = p["role"] == "rest";
-    h += fmt::format("<tr><td>{}</td><td>{}{}</td><td>{:+.4f}</td><td>{:+.4f}</td><td>{}</td><td>{:+.3f}</td><td>{:+.3f}</td>"
-                     "<td>{}</td><td>{}</td></tr>\n",
-                     p["step"].get<int64_t>(), p["role"].get<std::string>(),
-                     p["phase"] == "null" && !rest ? " (null)" : "", p["ref_pitch_arcsec"].get<double>() / 3600.0,
-                     p["ref_yaw_arcsec"].get<double>() / 3600.0, p["frames"].get<int64_t>(),
-                     p["error_pitch_arcsec"].get<double>(), p["error_yaw_arcsec"].get<double>(),
-                     rest ? fmt::format("{:.3f}", p["jitter_3sigma_pitch_arcsec"].get<double>()) : "",
-                     rest ? fmt::format("{:.3f}", p["jitter_3sigma_yaw_arcsec"].get<double>()) : "");
-  }
-  h += "</table>\n";
-  return h;
+Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
+  Judging g(data, L);
+  g.residual_criteria();
+  g.accuracy_criteria();
+  g.jitter_criteria();
+  g.coverage_criteria();
+  g.sun_criterion();
+  g.consistency_criterion();
+  g.judged_points();
+  g.J.passed = std::all_of(g.J.criteria.begin(), g.J.criteria.end(), [](const Criterion& c) { return c.passed; });
+  return g.J;
 }
 
 }  // namespace fpss

@@ -19,81 +19,14 @@
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
+#include "stand/catalogue/schema.h"
 
 namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
 
-// Schema migrations: kMigrations[v] takes a catalogue from user_version v to v + 1. Each runs
-// inside the IMMEDIATE transaction that also sets user_version, so two processes opening a
-// fresh file at once cannot both create it, and a crash leaves either v or v + 1.
-// A later version appends a step here (and bumps Catalogue::kSchemaVersion).
-const char* const kMigrations[] = {
-    // 0 -> 1
-    R"sql(
-CREATE TABLE IF NOT EXISTS units (
-  serial          TEXT PRIMARY KEY NOT NULL CHECK (serial <> ''),
-  first_seen_utc  TEXT NOT NULL
-);
-CREATE TABLE IF NOT EXISTS runs (
-  run_id            TEXT PRIMARY KEY NOT NULL CHECK (run_id <> ''),
-  unit              TEXT NOT NULL REFERENCES units(serial),
-  procedure         TEXT NOT NULL,
-  procedure_hash    TEXT NOT NULL,
-  started_utc       TEXT NOT NULL,
-  ended_utc         TEXT,
-  outcome           TEXT NOT NULL,
-  run_dir           TEXT NOT NULL,
-  emulated          INTEGER NOT NULL CHECK (emulated IN (0, 1)),
-  stand             TEXT NOT NULL DEFAULT '',
-  software_version  TEXT NOT NULL,
-  resumes           INTEGER NOT NULL DEFAULT 0,
-  pid               INTEGER NOT NULL DEFAULT 0,
-  host              TEXT NOT NULL DEFAULT ''
-);
-CREATE INDEX IF NOT EXISTS runs_by_unit ON runs(unit, started_utc);
-CREATE TABLE IF NOT EXISTS calibrations (
-  id                     INTEGER PRIMARY KEY AUTOINCREMENT,
-  unit                   TEXT NOT NULL REFERENCES units(serial),
-  source                 TEXT NOT NULL CHECK (source IN ('run', 'import')),
-  run_id                 TEXT REFERENCES runs(run_id),
-  source_ref             TEXT NOT NULL,
-  label                  TEXT NOT NULL DEFAULT '',
-  date_utc               TEXT NOT NULL,
-  recorded_utc           TEXT NOT NULL,
-  method                 TEXT NOT NULL,
-  coefficients_json      TEXT NOT NULL CHECK (json_valid(coefficients_json)),
-  pitch_mean_abs_arcsec  REAL,
-  pitch_sd_arcsec        REAL,
-  pitch_max_abs_arcsec   REAL,
-  pitch_rms_arcsec       REAL,
-  pitch_points           INTEGER,
-  pitch_range_lo_deg     REAL,
-  pitch_range_hi_deg     REAL,
-  yaw_mean_abs_arcsec    REAL,
-  yaw_sd_arcsec          REAL,
-  yaw_max_abs_arcsec     REAL,
-  yaw_rms_arcsec         REAL,
-  yaw_points             INTEGER,
-  yaw_range_lo_deg       REAL,
-  yaw_range_hi_deg       REAL,
-  CHECK ((source = 'run') = (run_id IS NOT NULL))
-);
-CREATE INDEX IF NOT EXISTS calibrations_by_unit ON calibrations(unit, date_utc, id);
-CREATE TABLE IF NOT EXISTS acceptances (
-  id                INTEGER PRIMARY KEY AUTOINCREMENT,
-  unit              TEXT NOT NULL REFERENCES units(serial),
-  run_id            TEXT REFERENCES runs(run_id),
-  passed            INTEGER NOT NULL CHECK (passed IN (0, 1)),
-  date_utc          TEXT NOT NULL,
-  recorded_utc      TEXT NOT NULL,
-  certificate_json  TEXT NOT NULL CHECK (json_valid(certificate_json))
-);
-CREATE INDEX IF NOT EXISTS acceptances_by_unit ON acceptances(unit, date_utc, id);
-)sql",
-};
-static_assert(std::size(kMigrations) == Catalogue::kSchemaVersion);
+static_assert(std::size(catalogue_schema::kMigrations) == Catalogue::kSchemaVersion);
 
 std::string host_name() {
   char buf[256] = {};
@@ -261,79 +194,9 @@ bool run_exists(SQLite::Database& db, const std::string& run_id) {
 
 }  // namespace
 
-bool AxisResidualStats::empty() const {
-  return !mean_abs_arcsec && !sd_arcsec && !max_abs_arcsec && !rms_arcsec && !points && !range_lo_deg &&
-         !range_hi_deg;
-}
-
-AxisResidualStats AxisResidualStats::from_json(const nlohmann::json& j, const std::string& where) {
-  if (!j.is_object()) throw InputError(fmt::format("{}: expected an object of residual statistics", where));
-  AxisResidualStats s;
-  auto num = [&](const char* key) -> std::optional<double> {
-    if (!j.contains(key) || j[key].is_null()) return std::nullopt;
-    if (!j[key].is_number() || !std::isfinite(j[key].get<double>())) {
-      throw InputError(fmt::format("{}: \"{}\" must be a finite number, got {}", where, key, j[key].dump()));
-    }
-    return j[key].get<double>();
-  };
-  s.mean_abs_arcsec = num("mean_abs_arcsec");
-  s.sd_arcsec = num("sd_arcsec");
-  s.max_abs_arcsec = num("max_abs_arcsec");
-  s.rms_arcsec = num("rms_arcsec");
-  if (const auto pts = num("points")) {
-    if (*pts < 0 || *pts != std::floor(*pts)) {
-      throw InputError(fmt::format("{}: \"points\" must be a whole number >= 0, got {}", where, *pts));
-    }
-    s.points = static_cast<int64_t>(*pts);
-  }
-  if (j.contains("range_deg") && !j["range_deg"].is_null()) {
-    const auto& r = j["range_deg"];
-    if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
-        !std::isfinite(r[0].get<double>()) || !std::isfinite(r[1].get<double>()) ||
-        r[0].get<double>() > r[1].get<double>()) {
-      throw InputError(fmt::format("{}: \"range_deg\" must be [lo, hi] in degrees, lo <= hi, got {}", where,
-                                   r.dump()));
-    }
-    s.range_lo_deg = r[0].get<double>();
-    s.range_hi_deg = r[1].get<double>();
-  }
-  return s;
-}
-
-nlohmann::json AxisResidualStats::to_json() const {
-  nlohmann::json j = nlohmann::json::object();
-  if (mean_abs_arcsec) j["mean_abs_arcsec"] = *mean_abs_arcsec;
-  if (sd_arcsec) j["sd_arcsec"] = *sd_arcsec;
-  if (max_abs_arcsec) j["max_abs_arcsec"] = *max_abs_arcsec;
-  if (rms_arcsec) j["rms_arcsec"] = *rms_arcsec;
-  if (points) j["points"] = *points;
-  if (range_lo_deg && range_hi_deg) j["range_deg"] = {*range_lo_deg, *range_hi_deg};
-  return j;
-}
-
 bool RunRecord::stale() const {
   if (outcome != outcome::running || pid <= 0 || host.empty() || host != host_name()) return false;
   return ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH;
-}
-
-CalibrationRecord CalibrationRecord::from_calibration_json(const nlohmann::json& cal,
-                                                           const std::string& origin) {
-  const CoefficientSet set = parse_coefficients(cal, origin);  // validates C1..C8 of both axes
-  CalibrationRecord c;
-  c.unit = set.unit;
-  c.coefficients = cal;
-  if (cal.contains("method") && cal["method"].is_string()) c.method = cal["method"].get<std::string>();
-  if (cal.contains("date") && cal["date"].is_string()) c.date_utc = cal["date"].get<std::string>();
-  if (cal.contains("residuals")) {
-    const auto& r = cal["residuals"];
-    if (!r.is_object()) throw InputError(fmt::format("{}: \"residuals\" must be an object", origin));
-    for (const char* axis : {"pitch", "yaw"}) {
-      if (!r.contains(axis) || r[axis].is_null()) continue;
-      auto stats = AxisResidualStats::from_json(r[axis], fmt::format("{}: residuals.{}", origin, axis));
-      if (!stats.empty()) (axis[0] == 'p' ? c.pitch : c.yaw) = stats;
-    }
-  }
-  return c;
 }
 
 fs::path Catalogue::default_path(const fs::path& runs_dir) { return runs_dir / "stand.db"; }
@@ -394,7 +257,7 @@ void Catalogue::init_schema() {
       throw InputError(fmt::format("{}: catalogue schema version {} is newer than this fpss-stand ({})",
                                    path_.string(), v, kSchemaVersion));
     }
-    for (int step = v; step < kSchemaVersion; ++step) db_->exec(kMigrations[step]);
+    for (int step = v; step < kSchemaVersion; ++step) db_->exec(catalogue_schema::kMigrations[step]);
     db_->exec(fmt::format("PRAGMA user_version = {}", kSchemaVersion));
   });
 }

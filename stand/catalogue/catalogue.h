@@ -93,7 +93,7 @@ struct CalibrationRecord {
   static CalibrationRecord from_calibration_json(const nlohmann::json& cal, const std::string& origin);
 };
 
-// An acceptance verdict with its certificate (issue 6 writes the certificate).
+// An acceptance verdict with its certificate (accept writes the certificate).
 struct AcceptanceRecord {
   int64_t id = 0;
   std::string unit;

@@ -1,8 +1,6 @@
 // fpss-stand accept / compare / import: acceptance of a unit, comparison of calibrations, imports into the catalogue.
 #include <fmt/format.h>
 #include <fmt/ranges.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -27,9 +25,11 @@
 #include "stand/catalogue/catalogue.h"
 #include "procedures/plan.h"
 #include "procedures/recorder.h"
+#include "stand/report/compare_plot.h"
 #include "stand/report/report.h"
 #include "stand/session/session.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/emulated_bench.h"
 #include "stand/config/stand_config.h"
 
 extern char** environ;
@@ -72,40 +72,6 @@ NamedSet resolve_calibration(const std::string& arg, const fs::path& db) {
     if (name == arg) return {load_published(name), fmt::format("published {}", name)};
   }
   throw InputError(fmt::format("{}: no such coefficient file, published set (a-1-fpss1 .. a-7-fpss2) or cal:ID", arg));
-}
-
-// Runs gnuplot on `script` without a shell; returns its exit status (-1 when it cannot start).
-int run_gnuplot(const fs::path& script) {
-  const std::string prog = "gnuplot", arg = script.string();
-  char* argv[] = {const_cast<char*>(prog.c_str()), const_cast<char*>(arg.c_str()), nullptr};
-  pid_t pid = 0;
-  if (::posix_spawnp(&pid, prog.c_str(), nullptr, nullptr, argv, environ) != 0) return -1;
-  int status = 0;
-  if (::waitpid(pid, &status, 0) < 0) return -1;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  f << text;
-  f.close();
-  if (!f) throw std::runtime_error(fmt::format("{}: cannot write", path.string()));
-}
-
-// The SVG at `svg`, with its data (.dat) and gnuplot script (.gp) next to it to redraw it.
-void write_plot(const CalibrationComparison& c, const fs::path& svg, const std::string& title) {
-  if (svg.has_parent_path()) fs::create_directories(svg.parent_path());
-  fs::path data = svg, script = svg;
-  data.replace_extension(".dat");
-  script.replace_extension(".gp");
-  write_text(data, comparison_plot_data(c));
-  write_text(script, comparison_plot_script(c, data.string(), svg.string(), title));
-  const int rc = run_gnuplot(script);
-  if (rc != 0) {
-    throw std::runtime_error(fmt::format("gnuplot {} failed ({}); the data and script are at {} and {}",
-                                         script.string(), rc < 0 ? "not found" : fmt::format("exit {}", rc),
-                                         data.string(), script.string()));
-  }
 }
 
 // YYYY-MM-DD, optionally followed by THH:MM[:SS][Z]; the date must exist in the calendar.
@@ -160,7 +126,7 @@ void add_compare(CLI::App& app, Runner& run) {
       const NamedSet a = resolve_calibration(o->a, db), b = resolve_calibration(o->b, db);
       const CalibrationComparison c = compare_calibrations(a.set, b.set, o->range_deg);
       if (!o->plot.empty()) {
-        write_plot(c, o->plot, fmt::format("B - A: {} minus {}", b.name, a.name));
+        write_comparison_plot(c, o->plot, fmt::format("B - A: {} minus {}", b.name, a.name));
         std::fprintf(stderr, "plot: %s\n", o->plot.c_str());
       }
       if (o->json) {
@@ -267,11 +233,7 @@ void add_import(CLI::App& app, Runner& run) {
 struct AcceptArgs {
   std::string stand_file, unit, procedure, limits, runs_dir = "runs", catalogue;
   bool emulate = false, json = false, quiet = false, no_progress = false;
-  double speed = 20;
-  uint64_t seed = 1;
-  std::string bench, truth;
-  std::vector<std::string> effects, faults;
-  std::vector<CLI::Option*> emu_only;
+  EmulatedBenchArgs emu;
 };
 
 // The page when the run's own report cannot be drawn (no calibration): the certificate alone.
@@ -284,113 +246,71 @@ std::string standalone_page(const std::string& title, const std::string& section
       html_escape(title), html_escape(why), section_html);
 }
 
-int accept_command(const AcceptArgs& a) {
-  // Everything is read and checked before anything moves: limits, procedure and its roles, stand, bench.
+// What an acceptance runs, checked before anything moves: limits, procedure and its roles, stand, bench.
+struct AcceptancePlan {
+  AcceptanceLimits limits;
+  fs::path procedure_path;
+  SessionRequest req;
+  Plan plan;
+  std::map<int64_t, PointRole> roles;
+};
+
+AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   if (a.stand_file.empty() && !a.emulate) {
     throw InputError("accept: give --stand STAND.yaml --unit SERIAL for a real bench, or --emulate");
   }
   if (!a.emulate) {
     if (a.unit.empty()) throw InputError("accept --stand: give --unit SERIAL, the unit being accepted");
-    for (auto* o : a.emu_only) {
-      if (o->count() > 0) throw InputError(fmt::format("accept: {} needs --emulate", o->get_name()));
-    }
+    require_emulate_for_options(a.emu, "accept");
   }
-  const fs::path limits_path = a.limits.empty() ? default_limits_path() : fs::path(a.limits);
-  const AcceptanceLimits limits = load_acceptance_limits(limits_path);
-  const fs::path proc_path = a.procedure.empty() ? default_acceptance_procedure_path() : fs::path(a.procedure);
-
-  SessionRequest req;
+  AcceptancePlan p;
+  p.limits = load_acceptance_limits(a.limits.empty() ? default_limits_path() : fs::path(a.limits));
+  p.procedure_path = a.procedure.empty() ? default_acceptance_procedure_path() : fs::path(a.procedure);
+  SessionRequest& req = p.req;
   req.runs_dir = a.runs_dir;
   req.catalogue = a.catalogue;
   req.quiet = a.quiet;
   req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
-  Diagnostics dp(proc_path.string());
-  req.procedure = parse_procedure(read_text_file(proc_path, "procedure file"), proc_path.string(), dp);
+  const std::string proc = p.procedure_path.string();
+  Diagnostics dp(proc);
+  req.procedure = parse_procedure(read_text_file(p.procedure_path, "procedure file"), proc, dp);
   Diagnostics ds(a.stand_file);
-  req.stand = stand_for_run(a.stand_file, a.emulate, a.speed, ds);
+  req.stand = stand_for_run(a.stand_file, a.emulate, a.emu.speed, ds);
   if (!a.unit.empty() && !a.emulate) req.stand.unit_serial = a.unit;
-  Plan plan;
-  if (dp.empty() && ds.empty()) plan = expand(req.procedure, req.stand.bench, dp);
-  Diagnostics all(proc_path.string());
+  if (dp.empty() && ds.empty()) p.plan = expand(req.procedure, req.stand.bench, dp);
+  Diagnostics all(proc);
   all.merge(ds);
   all.merge(dp);
   all.throw_if_any();
-  const auto roles = acceptance_roles(req.procedure, plan);
-  if (a.emulate) {
-    EmulatorSpec e;
-    e.speed = a.speed;
-    e.seed = a.seed;
-    e.bench_file = a.bench.empty() ? "" : fs::absolute(a.bench).string();
-    e.truth_file = a.truth.empty() ? "" : fs::absolute(a.truth).string();
-    e.unit_serial = a.unit;
-    for (const auto& spec : a.effects) {
-      const Effect eff = parse_effect(spec);  // InputError now rather than a bench that will not start
-      e.effects.push_back(eff.name == "coefficients" ? spec : format_effect(eff));
-    }
-    // Relative files named inside effects are the caller's: make them absolute for the child.
-    for (auto& spec : e.effects) {
-      const auto at = spec.find("file=");
-      if (at != std::string::npos) {
-        const auto end = spec.find(',', at);
-        const std::string file = spec.substr(at + 5, end == std::string::npos ? std::string::npos : end - at - 5);
-        spec.replace(at + 5, file.size(), fs::absolute(file).string());
-      }
-    }
-    if (!e.bench_file.empty()) (void)load_bench_file(e.bench_file);
-    if (!e.truth_file.empty()) (void)load_coefficients(e.truth_file);
-    e.faults = a.faults;
-    std::error_code ec;
-    const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-    e.exe = ec ? fs::path("/proc/self/exe") : self;
-    req.emulator = e;
+  p.roles = acceptance_roles(req.procedure, p.plan);
+  if (a.emulate) req.emulator = emulator_spec(a.emu, a.unit);
+  return p;
+}
+
+// The unit's reference calibration: the latest one that passed an acceptance here, or was
+// imported (a calibration done elsewhere); a failed acceptance's fit is no reference.
+void find_reference(AcceptanceData& data, const fs::path& cat_path, const std::string& unit, const std::string& run_id) {
+  Catalogue cat(cat_path);
+  std::set<std::string> accepted_runs;
+  for (const auto& acc : cat.unit_acceptances(unit)) {
+    if (acc.passed && acc.run_id) accepted_runs.insert(*acc.run_id);
   }
-
-  const SessionResult r = run_session(req);
-  const fs::path run_dir = r.run_dir;
-  const bool completed = r.outcome == RunOutcome::completed;
-  // A unit that gives invalid frames (no Sun, an axis invalid, saturated) stops the run: that is
-  // the unit failing, judged below. Any other stop is the stand's: no verdict.
-  const bool unit_stopped = r.outcome == RunOutcome::failed && r.reason.find("invalid frame") != std::string::npos;
-  if (!completed && !unit_stopped) {
-    std::fprintf(stderr, "fpss-stand accept: the run %s: %s\nno verdict; the run folder is %s\n",
-                 to_string(r.outcome), r.reason.c_str(), run_dir.c_str());
-    return 1;
-  }
-
-  const nlohmann::json run_doc = read_json_file(run_dir / "run.json");
-  const std::string unit = run_doc.value("unit", a.unit);
-  AcceptanceData data;
-  data.roles = roles;
-  data.points_planned = plan.points;
-  data.run_completed = completed;
-  data.run_reason = r.reason;
-  if (fs::exists(run_dir / "samples.csv")) data.samples = read_samples_csv(run_dir / "samples.csv");
-  if (r.calibration && fs::exists(*r.calibration)) data.calibration = load_coefficients(*r.calibration);
-
-  const fs::path cat_path = a.catalogue.empty() ? Catalogue::default_path(a.runs_dir) : fs::path(a.catalogue);
-  const std::string run_id = run_dir.filename().string();
-  {
-    // The unit's reference calibration: the latest one that passed an acceptance here, or was
-    // imported (a calibration done elsewhere); a failed acceptance's fit is no reference.
-    Catalogue cat(cat_path);
-    std::set<std::string> accepted_runs;
-    for (const auto& acc : cat.unit_acceptances(unit)) {
-      if (acc.passed && acc.run_id) accepted_runs.insert(*acc.run_id);
-    }
-    for (const auto& h : cat.unit_history(unit)) {
-      if (h.run_id && *h.run_id == run_id) continue;
-      if (h.source != "import" && !(h.run_id && accepted_runs.count(*h.run_id))) continue;
-      try {
-        data.previous = parse_coefficients(h.coefficients, fmt::format("{} calibration {}", cat_path.string(), h.id));
-        data.previous_name = fmt::format("calibration {} of {} ({} {}{})", h.id, h.date_utc, h.source, h.source_ref,
-                                         h.source == "import" ? "" : ", accepted");
-      } catch (const InputError&) {
-        // a record that does not parse cannot be compared; keep the one before
-      }
+  for (const auto& h : cat.unit_history(unit)) {
+    if (h.run_id && *h.run_id == run_id) continue;
+    if (h.source != "import" && !(h.run_id && accepted_runs.count(*h.run_id))) continue;
+    try {
+      data.previous = parse_coefficients(h.coefficients, fmt::format("{} calibration {}", cat_path.string(), h.id));
+      data.previous_name = fmt::format("calibration {} of {} ({} {}{})", h.id, h.date_utc, h.source, h.source_ref,
+                                       h.source == "import" ? "" : ", accepted");
+    } catch (const InputError&) {
+      // a record that does not parse cannot be compared; keep the one before
     }
   }
+}
 
-  const Judgement j = judge(data, limits);
+CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r, const nlohmann::json& run_doc,
+                                 const std::string& unit) {
+  const SessionRequest& req = p.req;
   CertificateInfo info;
   info.unit = unit;
   if (req.emulator) {
@@ -404,18 +324,22 @@ int accept_command(const AcceptArgs& a) {
     info.stand_detail = {{"file", req.stand.origin}, {"settings", to_json(req.stand)}};
   }
   info.procedure_name = req.procedure.name;
-  info.procedure_file = fs::absolute(proc_path).lexically_normal().string();
+  info.procedure_file = fs::absolute(p.procedure_path).lexically_normal().string();
   info.procedure_sha256 = run_doc["procedure"].value("sha256", sha256_hex(req.procedure.text));
-  info.run_id = run_id;
-  info.run_dir = fs::absolute(run_dir).string();
+  info.run_id = r.run_dir.filename().string();
+  info.run_dir = fs::absolute(r.run_dir).string();
   info.run_outcome = to_string(r.outcome);
   info.run_reason = r.reason;
-  info.points_planned = static_cast<int64_t>(plan.points);
+  info.points_planned = static_cast<int64_t>(p.plan.points);
   info.points_completed = r.points_done;
   info.date_utc = utc_now_iso();
   info.calibration_file = r.calibration ? r.calibration->filename().string() : "";
-  const nlohmann::ordered_json cert = certificate_json(j, limits, info);
+  return info;
+}
 
+// acceptance.json, certificate.txt, the report page with the certificate, and run.json's verdict.
+std::string write_acceptance_files(const fs::path& run_dir, const nlohmann::ordered_json& cert, const Judgement& j,
+                                   const AcceptanceLimits& limits, nlohmann::json run_doc, const std::string& title) {
   write_text_atomic(run_dir / "acceptance.json", cert.dump(1) + "\n");
   const std::string text = certificate_text(cert);
   write_text_atomic(run_dir / "certificate.txt", text);
@@ -427,15 +351,47 @@ int accept_command(const AcceptArgs& a) {
     write_report(run_dir, ro);
   } catch (const std::exception& e) {
     write_text_atomic(run_dir / "report.html",
-                 standalone_page(fmt::format("Acceptance of {} ({})", unit, run_id), section,
-                                 fmt::format("The run's report could not be drawn: {}", e.what())));
+                      standalone_page(title, section, fmt::format("The run's report could not be drawn: {}", e.what())));
   }
-  nlohmann::json doc = run_doc;
-  doc["acceptance"] = {{"file", "acceptance.json"}, {"certificate", "certificate.txt"},
-                       {"verdict", j.passed ? "pass" : "fail"}, {"failed", j.failed()},
-                       {"limits", {{"file", limits.origin}, {"sha256", limits.sha256}}}};
-  write_json_atomic(run_dir / "run.json", doc);
+  run_doc["acceptance"] = {{"file", "acceptance.json"}, {"certificate", "certificate.txt"},
+                           {"verdict", j.passed ? "pass" : "fail"}, {"failed", j.failed()},
+                           {"limits", {{"file", limits.origin}, {"sha256", limits.sha256}}}};
+  write_json_atomic(run_dir / "run.json", run_doc);
+  return text;
+}
 
+int accept_command(const AcceptArgs& a) {
+  const AcceptancePlan p = plan_acceptance(a);
+  const SessionResult r = run_session(p.req);
+  const fs::path run_dir = r.run_dir;
+  const bool completed = r.outcome == RunOutcome::completed;
+  // A unit that gives invalid frames (no Sun, an axis invalid, saturated) stops the run: that is
+  // the unit failing, judged below. Any other stop is the stand's: no verdict.
+  const bool unit_stopped = r.outcome == RunOutcome::failed && r.cause == StopCause::sensor_invalid;
+  if (!completed && !unit_stopped) {
+    std::fprintf(stderr, "fpss-stand accept: the run %s: %s\nno verdict; the run folder is %s\n",
+                 to_string(r.outcome), r.reason.c_str(), run_dir.c_str());
+    return 1;
+  }
+
+  const nlohmann::json run_doc = read_json_file(run_dir / "run.json");
+  const std::string unit = run_doc.value("unit", a.unit);
+  AcceptanceData data;
+  data.roles = p.roles;
+  data.points_planned = p.plan.points;
+  data.run_completed = completed;
+  data.run_reason = r.reason;
+  if (fs::exists(run_dir / "samples.csv")) data.samples = read_samples_csv(run_dir / "samples.csv");
+  if (r.calibration && fs::exists(*r.calibration)) data.calibration = load_coefficients(*r.calibration);
+  const fs::path cat_path = a.catalogue.empty() ? Catalogue::default_path(a.runs_dir) : fs::path(a.catalogue);
+  const std::string run_id = run_dir.filename().string();
+  find_reference(data, cat_path, unit, run_id);
+
+  const Judgement j = judge(data, p.limits);
+  const CertificateInfo info = certificate_info(p, r, run_doc, unit);
+  const nlohmann::ordered_json cert = certificate_json(j, p.limits, info);
+  const std::string text = write_acceptance_files(run_dir, cert, j, p.limits, run_doc,
+                                                  fmt::format("Acceptance of {} ({})", unit, run_id));
   int64_t acc_id = 0;
   try {
     Catalogue cat(cat_path);
@@ -480,12 +436,7 @@ void add_accept_command(CLI::App& app, Runner& run) {
   sub->add_flag("--json", a->json, "Print acceptance.json instead of the certificate text");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
   sub->add_flag("--no-progress", a->no_progress, "No live progress line");
-  a->emu_only.push_back(sub->add_option("--speed", a->speed, "Emulator: bench clock speed-up (default 20)"));
-  a->emu_only.push_back(sub->add_option("--seed", a->seed, "Emulator: seed of all bench noise (default 1)"));
-  a->emu_only.push_back(sub->add_option("--bench", a->bench, "Emulator: bench file (YAML)"));
-  a->emu_only.push_back(sub->add_option("--effect", a->effects, "Emulator: injected effect NAME:key=value,..."));
-  a->emu_only.push_back(sub->add_option("--fault", a->faults, "Emulator: fault NAME[:key=value,...]"));
-  a->emu_only.push_back(sub->add_option("--truth", a->truth, "Emulator: coefficient file of the sensor's truth"));
+  add_emulated_bench_options(sub, a->emu);
   sub->callback([&run, a] { run = [a] { return accept_command(*a); }; });
 }
 

@@ -1,4 +1,4 @@
-// fpss-stand runs / history: read the run catalogue (runs/stand.db) as a table or as JSON.
+// fpss-stand runs / history / catalogue rebuild: read the run catalogue (runs/stand.db) as a table or as JSON, and re-index run folders into it.
 #include <fmt/format.h>
 
 #include <cstdio>
@@ -12,6 +12,7 @@
 #include "calib/compare.h"
 #include "calib/errors.h"
 #include "stand/catalogue/catalogue.h"
+#include "stand/catalogue/rebuild.h"
 #include "stand/cli/commands.h"
 
 namespace fpss::cli {
@@ -30,7 +31,7 @@ struct DbOpts {
 void add_db_options(CLI::App* sub, DbOpts& o) {
   auto* dir = sub->add_option("--runs-dir", o.runs_dir, "runs folder; the catalogue is its stand.db")
                   ->capture_default_str();
-  auto* db = sub->add_option("--db", o.db, "catalogue file (instead of RUNS_DIR/stand.db)");
+  auto* db = sub->add_option("--catalogue,--db", o.db, "catalogue file (instead of RUNS_DIR/stand.db)");
   dir->excludes(db);
   sub->add_flag("--json", o.json, "print JSON instead of a table");
 }
@@ -101,7 +102,7 @@ int list_runs(const DbOpts& o, const std::string& unit, size_t limit) {
   return 0;
 }
 
-// One line of a unit's history. Issue 6 adds the change against the previous calibration
+// One line of a unit's history, with the change against the previous calibration
 // (transfer functions compared at equal counts) and the flag when it exceeds the limit; the
 // table and JSON below print those fields once they are filled.
 struct HistoryEntry {
@@ -249,9 +250,43 @@ int show_history(const DbOpts& o, const std::string& serial, double limit_arcsec
   return 0;
 }
 
+int rebuild(const DbOpts& o) {
+  if (!std::filesystem::is_directory(o.runs_dir)) {
+    throw InputError(fmt::format("--runs-dir {}: not a folder", o.runs_dir));
+  }
+  Catalogue cat(o.path());
+  const RebuildReport r = rebuild_catalogue(cat, o.runs_dir);
+  for (const auto& s : r.skipped) std::fprintf(stderr, "fpss-stand catalogue rebuild: skipped %s\n", s.c_str());
+  if (o.json) {
+    std::printf("%s\n", nlohmann::json{{"catalogue", cat.path().string()},
+                                        {"folders", r.folders},
+                                        {"runs_added", r.runs_added},
+                                        {"runs_updated", r.runs_updated},
+                                        {"calibrations_added", r.calibrations_added},
+                                        {"acceptances_added", r.acceptances_added},
+                                        {"skipped", r.skipped}}
+                             .dump(1)
+                             .c_str());
+  } else {
+    std::printf("%s: %d run folders; added %d runs, %d calibrations, %d acceptances; updated %d runs; skipped %zu\n",
+                cat.path().c_str(), r.folders, r.runs_added, r.calibrations_added, r.acceptances_added,
+                r.runs_updated, r.skipped.size());
+  }
+  return r.skipped.empty() ? 0 : 1;
+}
+
 }  // namespace
 
 void add_catalogue(CLI::App& app, Runner& run) {
+  {
+    auto o = std::make_shared<DbOpts>();
+    auto* cat = app.add_subcommand("catalogue", "Maintain the catalogue");
+    cat->require_subcommand(1);
+    auto* sub = cat->add_subcommand("rebuild", "Re-index every run folder (run.json, calibrations, acceptance) "
+                                               "into the catalogue; idempotent");
+    add_db_options(sub, *o);
+    sub->callback([o, &run] { run = [o] { return rebuild(*o); }; });
+  }
   {
     struct Opts {
       DbOpts db;

@@ -15,6 +15,7 @@
 #include "procedures/procedure.h"
 #include "stand/session/session.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/emulated_bench.h"
 #include "stand/config/stand_config.h"
 
 namespace fpss::cli {
@@ -26,12 +27,8 @@ namespace fs = std::filesystem;
 struct RunArgs {
   std::string procedure, stand_file, runs_dir = "runs", resume, catalogue;
   bool emulate = false, dry_run = false, no_progress = false, quiet = false;
-  double speed = 20;
-  uint64_t seed = 1;
-  std::string bench, truth, unit_serial;
-  std::vector<std::string> effects, faults;
-  CLI::Option* speed_opt = nullptr;
-  std::vector<CLI::Option*> emu_only;
+  std::string unit_serial;
+  EmulatedBenchArgs emu;
 };
 
 int run_command(const RunArgs& a) {
@@ -46,7 +43,7 @@ int run_command(const RunArgs& a) {
       throw InputError("run --resume RUN_DIR takes the procedure, stand and bench from RUN_DIR/run.json: give no "
                        "procedure, --stand, --emulate or --dry-run with it");
     }
-    req.resume_dir = a.resume;
+    req.resume_dir = canonical_run_dir(a.resume);
     const RunInfo info = read_run_info(req.resume_dir);
     Diagnostics dp(info.procedure_origin + " (as recorded in run.json)");
     req.procedure = parse_procedure(info.procedure_text, info.procedure_origin, dp);
@@ -72,17 +69,13 @@ int run_command(const RunArgs& a) {
     if (a.stand_file.empty() && !a.emulate) {
       throw InputError("run: give --stand STAND.yaml for a real bench or --emulate for the emulated one");
     }
-    if (!a.emulate) {
-      for (auto* o : a.emu_only) {
-        if (o->count() > 0) throw InputError(fmt::format("run: {} needs --emulate", o->get_name()));
-      }
-    }
+    if (!a.emulate) require_emulate_for_options(a.emu, "run");
     // Validate everything before anything moves, and report every error of both files at once.
     const std::string ptext = read_text_file(a.procedure, "procedure file");
     Diagnostics dp(a.procedure);
     req.procedure = parse_procedure(ptext, a.procedure, dp);
     Diagnostics ds(a.stand_file);
-    req.stand = stand_for_run(a.stand_file, a.emulate, a.speed, ds);
+    req.stand = stand_for_run(a.stand_file, a.emulate, a.emu.speed, ds);
     // The plan is checked against the stand even when some steps are broken (those are skipped),
     // but not against a broken stand file, whose limits would be guesses.
     if (ds.empty()) expand(req.procedure, req.stand.bench, dp);
@@ -96,24 +89,10 @@ int run_command(const RunArgs& a) {
       std::fputs(format_plan(req.procedure, plan, req.stand.bench).c_str(), stdout);
       return 0;
     }
-    if (a.emulate) {
-      EmulatorSpec e;
-      e.speed = a.speed;
-      e.seed = a.seed;
-      e.bench_file = a.bench.empty() ? "" : fs::absolute(a.bench).string();
-      e.truth_file = a.truth.empty() ? "" : fs::absolute(a.truth).string();
-      e.unit_serial = a.unit_serial;
-      e.effects = a.effects;
-      e.faults = a.faults;
-      req.emulator = e;
-    }
+    if (a.emulate) req.emulator = emulator_spec(a.emu, a.unit_serial);
   }
-  if (req.emulator) {
-    // Our own binary serves the bench; the path is resolved now so run.json names it.
-    std::error_code ec;
-    const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-    req.emulator->exe = ec ? fs::path("/proc/self/exe") : self;
-  }
+  // A resumed run's bench is served by the binary running now, not the one recorded.
+  if (req.emulator) req.emulator->exe = this_binary();
 
   const SessionResult r = run_session(req);
   const std::string dir = r.run_dir.string();
@@ -124,7 +103,13 @@ int run_command(const RunArgs& a) {
     if (a.quiet) std::fprintf(stderr, "fpss-stand run: %s: %s\n", to_string(r.outcome), r.reason.c_str());
     std::printf("run %s: %lld/%lld points -> %s\n", to_string(r.outcome), static_cast<long long>(r.points_done),
                 static_cast<long long>(r.points_total), dir.c_str());
-    std::printf("resume with: fpss-stand run --resume %s\n", dir.c_str());
+    if (r.points_done < r.points_total) std::printf("resume with: fpss-stand run --resume %s\n", dir.c_str());
+  }
+  if (!r.catalogue_error.empty()) {
+    std::fprintf(stderr,
+                 "fpss-stand run: %s\nfpss-stand run: the run folder %s is complete; re-index it with: fpss-stand "
+                 "catalogue rebuild --runs-dir %s\n",
+                 r.catalogue_error.c_str(), dir.c_str(), r.run_dir.parent_path().c_str());
   }
   if (r.calibration) std::printf("calibration: %s\n", r.calibration->string().c_str());
   if (r.report) std::printf("report: %s\n", r.report->string().c_str());
@@ -146,18 +131,8 @@ void add_run(CLI::App& app, Runner& run) {
   sub->add_option("--catalogue", a->catalogue, "SQLite catalogue (default <runs-dir>/stand.db)");
   sub->add_flag("--no-progress", a->no_progress, "No live progress line, even on a terminal");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
-  a->speed_opt = sub->add_option("--speed", a->speed, "Emulator: bench clock speed-up (default 20)");
-  a->emu_only.push_back(sub->add_option("--seed", a->seed, "Emulator: seed of all bench noise (default 1)"));
-  a->emu_only.push_back(sub->add_option("--bench", a->bench, "Emulator: bench file (YAML)"));
-  // One value per occurrence (--effect A --effect B), so a procedure after them stays positional.
-  a->emu_only.push_back(sub->add_option("--effect", a->effects, "Emulator: injected effect NAME:key=value,... (repeatable)")
-                            ->allow_extra_args(false));
-  a->emu_only.push_back(
-      sub->add_option("--fault", a->faults, "Emulator: fault NAME[:key=value,...] (repeatable; docs/emulator.md)")
-          ->allow_extra_args(false));
-  a->emu_only.push_back(sub->add_option("--truth", a->truth, "Emulator: coefficient file of the sensor's truth"));
-  a->emu_only.push_back(sub->add_option("--unit-serial", a->unit_serial, "Emulator: serial number the sensor reports"));
-  a->emu_only.push_back(a->speed_opt);
+  add_emulated_bench_options(sub, a->emu);
+  a->emu.options.push_back(sub->add_option("--unit-serial", a->unit_serial, "Emulator: serial number the sensor reports"));
   sub->callback([&run, a] { run = [a] { return run_command(*a); }; });
 }
 

@@ -16,7 +16,7 @@ void add_calibrate(CLI::App& app, Runner& run);
 void add_simulate(CLI::App& app, Runner& run);
 void add_emulate(CLI::App& app, Runner& run);
 void add_run(CLI::App& app, Runner& run);        // run
-void add_catalogue(CLI::App& app, Runner& run);  // runs, history
+void add_catalogue(CLI::App& app, Runner& run);  // runs, history, catalogue rebuild
 void add_diagnose(CLI::App& app, Runner& run);  // diagnose, blindtest
 void add_accept(CLI::App& app, Runner& run);    // accept, compare, import
 

@@ -77,7 +77,6 @@ PlotResult Gnuplot::svg(const std::string& script, const std::string& id_prefix,
   ScratchDir dir;
   const auto script_path = dir.path() / "plot.gp";
   const auto out_path = dir.path() / "plot.svg";
-  const auto err_path = dir.path() / "stderr.txt";
   {
     std::ofstream f(script_path);
     // No `mouse`/`standalone` option: gnuplot then embeds no JavaScript and links nothing.
@@ -90,41 +89,48 @@ PlotResult Gnuplot::svg(const std::string& script, const std::string& id_prefix,
     }
   }
 
+  const GnuplotRun run = run_file(script_path, out_path);
+  if (!run.ok()) {
+    r.error = run.error;
+    r.program_missing = run.program_missing;
+    return r;
+  }
+  const std::string svg = read_file(out_path);
+  if (svg.find("<svg") == std::string::npos || svg.find("</svg>") == std::string::npos) {
+    r.error = fmt::format("gnuplot (\"{}\") wrote no complete SVG", program_);
+    return r;
+  }
+  r.svg = inline_svg(svg, id_prefix);
+  return r;
+}
+
+GnuplotRun Gnuplot::run_file(const fs::path& script, const fs::path& stdout_to) const {
+  ScratchDir dir;
+  const auto err_path = dir.path() / "stderr.txt";
   posix_spawn_file_actions_t fa;
   posix_spawn_file_actions_init(&fa);
   posix_spawn_file_actions_addopen(&fa, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+  posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, stdout_to.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
   posix_spawn_file_actions_addopen(&fa, STDERR_FILENO, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
-  std::string arg0 = program_, arg1 = script_path.string();
+  std::string arg0 = program_, arg1 = script.string();
   char* argv[] = {arg0.data(), arg1.data(), nullptr};
   pid_t pid = 0;
   const int rc = ::posix_spawnp(&pid, program_.c_str(), &fa, nullptr, argv, environ);
   posix_spawn_file_actions_destroy(&fa);
   if (rc != 0) {
-    r.program_missing = true;
-    r.error = fmt::format("cannot run gnuplot (\"{}\": {}); install gnuplot-nox or set FPSS_GNUPLOT", program_,
-                          std::strerror(rc));
-    return r;
+    return {fmt::format("cannot run gnuplot (\"{}\": {}); install gnuplot-nox or set FPSS_GNUPLOT", program_,
+                        std::strerror(rc)),
+            true};
   }
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
-  const std::string err = read_file(err_path);
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    if (WIFEXITED(status) && WEXITSTATUS(status) == 127) r.program_missing = true;
-    r.error = fmt::format("gnuplot (\"{}\") failed ({}): {}", program_,
-                          WIFEXITED(status) ? fmt::format("exit {}", WEXITSTATUS(status))
-                                            : fmt::format("signal {}", WTERMSIG(status)),
-                          last_lines(err, 4));
-    return r;
-  }
-  const std::string svg = read_file(out_path);
-  if (svg.find("<svg") == std::string::npos || svg.find("</svg>") == std::string::npos) {
-    r.error = fmt::format("gnuplot (\"{}\") wrote no complete SVG: {}", program_, last_lines(err, 4));
-    return r;
-  }
-  r.svg = inline_svg(svg, id_prefix);
-  return r;
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return {};
+  return {fmt::format("gnuplot (\"{}\") failed ({}): {}", program_,
+                      WIFEXITED(status) ? fmt::format("exit {}", WEXITSTATUS(status))
+                                        : fmt::format("signal {}", WTERMSIG(status)),
+                      last_lines(read_file(err_path), 4)),
+          WIFEXITED(status) && WEXITSTATUS(status) == 127};
 }
 
 std::string datablock(const std::string& name, const std::vector<std::vector<double>>& rows) {

@@ -1,5 +1,6 @@
 // Plots for HTML reports: gnuplot (svg terminal) run as a child process, its SVG made safe to inline.
 #pragma once
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -11,6 +12,13 @@ struct PlotResult {
   std::optional<std::string> svg;  // ready to inline: no XML prolog, ids prefixed
   std::string error;               // when svg is empty: gnuplot missing, failed (its stderr), ...
   bool program_missing = false;    // gnuplot could not be started at all
+};
+
+// How one run of a gnuplot script went.
+struct GnuplotRun {
+  std::string error;             // empty: it ran and exited 0
+  bool program_missing = false;  // gnuplot could not be started at all
+  bool ok() const { return error.empty(); }
 };
 
 class Gnuplot {
@@ -25,6 +33,9 @@ class Gnuplot {
   // Never throws for gnuplot's own failures: they come back in PlotResult::error.
   PlotResult svg(const std::string& script, const std::string& id_prefix, int width_px = 720,
                  int height_px = 440) const;
+  // Runs a script file that sets its own terminal and output, with an argv (no shell), standard
+  // output to `stdout_to` (default: discarded); the error holds gnuplot's last stderr lines.
+  GnuplotRun run_file(const std::filesystem::path& script, const std::filesystem::path& stdout_to = "/dev/null") const;
 
  private:
   std::string program_;

@@ -43,7 +43,7 @@ struct RunResiduals {
 RunResiduals compute_residuals(const SampleTable& samples, const CoefficientSet& cal,
                                const std::string& method = "differences");
 
-// A further part of the page (issue 6's acceptance certificate, ...): `html` is trusted markup.
+// A further part of the page (the acceptance certificate, ...): `html` is trusted markup.
 struct ReportSection {
   std::string id;     // anchor, [a-z0-9-]
   std::string title;

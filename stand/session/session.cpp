@@ -9,6 +9,9 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <limits>
+#include <optional>
+#include <variant>
 #include <fstream>
 #include <sstream>
 
@@ -20,6 +23,7 @@
 #include "stand/catalogue/catalogue.h"
 #include "stand/session/emulator_process.h"
 #include "stand/session/progress.h"
+#include "stand/session/run_folder.h"
 #include "stand/report/report.h"
 #include "procedures/recorder.h"
 
@@ -32,31 +36,6 @@ std::string serial_from_id(const std::string& id) {
   if (p == std::string::npos) return id;
   const auto e = id.find(',', p);
   return id.substr(p + 3, e == std::string::npos ? std::string::npos : e - p - 3);
-}
-
-RunInfo read_run_info(const fs::path& run_dir) {
-  const fs::path path = run_dir / "run.json";
-  if (!fs::exists(path)) throw InputError(fmt::format("{}: not a run folder (no run.json)", run_dir.string()));
-  RunInfo info;
-  info.doc = read_json_file(path);
-  try {
-    const auto& p = info.doc.at("procedure");
-    info.procedure_text = p.at("text").get<std::string>();
-    info.procedure_origin = p.value("file", "procedure.yaml");
-    const std::string hash = p.at("sha256").get<std::string>();
-    if (sha256_hex(info.procedure_text) != hash) {
-      throw InputError(fmt::format("{}: the procedure text does not match its recorded hash", path.string()));
-    }
-    const auto& s = info.doc.at("stand");
-    if (s.contains("text") && s["text"].is_string()) info.stand_text = s["text"].get<std::string>();
-    if (s.contains("file") && s["file"].is_string()) info.stand_origin = s["file"].get<std::string>();
-    if (info.doc.value("emulated", false)) {
-      info.emulator = EmulatorSpec::from_json(info.doc.at("emulator"), path.string());
-    }
-  } catch (const nlohmann::json::exception& e) {
-    throw InputError(fmt::format("{}: {}", path.string(), e.what()));
-  }
-  return info;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -135,45 +114,15 @@ std::string check_limits(const ResidualLimits& lim, const ResidualStats& r, cons
 // ---------------------------------------------------------------------------------------------
 // The session
 
-SessionResult run_session(const SessionRequest& req) {
-  const auto t_start = std::chrono::steady_clock::now();
-  SessionResult res;
-  const bool resuming = !req.resume_dir.empty();
+namespace {
 
-  // From here on SIGINT/SIGTERM ask for a clean stop rather than killing the process, so a run
-  // folder once made always says how its run ended.
-  RunControl own;
-  RunControl& control = req.control ? *req.control : own;
-  std::optional<SignalScope> signals;
-  if (!req.control) signals.emplace(control);
-
-  Diagnostics d(req.procedure.origin);
-  const Plan plan = expand(req.procedure, req.stand.bench, d);
-  d.throw_if_any();
-  res.points_total = static_cast<int64_t>(plan.points);
-
-  // Console logging first; the run folder's events.log joins once the folder exists.
-  auto console = std::make_shared<spdlog::sinks::stderr_sink_mt>();
-  console->set_level(req.quiet ? spdlog::level::off : req.tty ? spdlog::level::warn : spdlog::level::info);
-  console->set_pattern("fpss-stand run: %v");
-  auto log = std::make_shared<spdlog::logger>("run", spdlog::sinks_init_list{console});
-  log->set_level(spdlog::level::debug);
-  log->flush_on(spdlog::level::info);
-
-  RunInfo prior;
-  if (resuming) {
-    prior = read_run_info(req.resume_dir);
-    const std::string outcome = prior.doc.value("outcome", "");
-    if (outcome == "completed") {
-      throw InputError(fmt::format("{}: the run is already completed; nothing to resume", req.resume_dir.string()));
-    }
-  }
-
-  // The bench.
+// The bench of a run: an emulator child (its log kept in the run folder) or the stand's endpoints.
+struct BenchLauncher {
   std::unique_ptr<EmulatorProcess> emu;
-  StandConfig stand = req.stand;
-  fs::path emu_log_tmp;
-  if (req.emulator) {
+  fs::path tmp_log;  // the child's log until the run folder exists
+
+  void start(const SessionRequest& req, bool resuming, StandConfig& stand, spdlog::logger& log) {
+    if (!req.emulator) return;
     EmulatorLaunch l;
     l.exe = req.emulator->exe;
     l.args = req.emulator->args(!resuming);
@@ -181,291 +130,414 @@ SessionResult run_session(const SessionRequest& req) {
       l.log = req.resume_dir / "emulator.log";
     } else {
       fs::create_directories(req.runs_dir);
-      emu_log_tmp = req.runs_dir / fmt::format(".emulator-{}.log", ::getpid());
-      l.log = emu_log_tmp;
+      tmp_log = req.runs_dir / fmt::format(".emulator-{}.log", ::getpid());
+      l.log = tmp_log;
     }
     emu = std::make_unique<EmulatorProcess>(l);
-    log->info("starting the emulated bench: {}", fmt::join(emu->command(), " "));
+    log.info("starting the emulated bench: {}", fmt::join(emu->command(), " "));
     emu->start();
     stand.gimbal.endpoint = emu->gimbal_endpoint();
     stand.sensor.endpoint = emu->sensor_endpoint();
-    log->info("emulated bench ready: gimbal {}, sensor {}", stand.gimbal.endpoint, stand.sensor.endpoint);
+    log.info("emulated bench ready: gimbal {}, sensor {}", stand.gimbal.endpoint, stand.sensor.endpoint);
   }
-  auto cleanup_tmp_log = [&] {
-    if (!emu_log_tmp.empty() && fs::exists(emu_log_tmp)) {
-      std::error_code ec;
-      if (!res.run_dir.empty()) fs::rename(emu_log_tmp, res.run_dir / "emulator.log", ec);
-      if (res.run_dir.empty() || ec) fs::remove(emu_log_tmp, ec);
-    }
-  };
+  // Moves the child's log into the run folder (or removes it when there is none).
+  void settle_log(const fs::path& run_dir) {
+    if (tmp_log.empty() || !fs::exists(tmp_log)) return;
+    std::error_code ec;
+    if (!run_dir.empty()) fs::rename(tmp_log, run_dir / "emulator.log", ec);
+    if (run_dir.empty() || ec) fs::remove(tmp_log, ec);
+    tmp_log.clear();
+  }
+  int stop() { return emu ? emu->stop() : -1; }
+  ~BenchLauncher() {
+    stop();
+    settle_log({});
+  }
+};
 
-  std::unique_ptr<Gimbal> gimbal;
-  std::unique_ptr<Sensor> sensor;
-  std::string id_reply, unit;
-  try {
-    stand.gimbal.limits = stand.bench.limits;
-    gimbal = make_gimbal(stand.gimbal);
-    sensor = make_sensor(stand.sensor);
-    gimbal->connect();
-    sensor->connect();
-    id_reply = sensor->identify();
-    unit = serial_from_id(id_reply);
-    log->info("sensor: {}", id_reply);
-  } catch (...) {
-    if (emu) emu->stop();
-    cleanup_tmp_log();
-    throw;
-  }
-  if (!stand.unit_serial.empty() && unit != stand.unit_serial) {
-    if (emu) emu->stop();
-    cleanup_tmp_log();
+class Session {
+ public:
+  explicit Session(const SessionRequest& req) : req_(req), resuming_(!req.resume_dir.empty()) {}
+  SessionResult run();
+
+ private:
+  void make_logger();
+  void connect_devices();
+  void open_folder();
+  void write_start_record();
+  void start_catalogue_record();
+  void subscribe();
+  void on_point_done(const PointDone& p);
+  void on_calibrate(const Action& a);
+  std::string on_check(const Action& a) const;
+  void finish(const EngineResult& er);
+  void write_report();
+  template <typename F>
+  void with_catalogue(const char* what, F&& f);
+
+  const SessionRequest& req_;
+  const bool resuming_;
+  SessionResult res_;
+  Plan plan_;
+  std::shared_ptr<spdlog::logger> log_;
+  RunInfo prior_;
+  StandConfig stand_;
+  BenchLauncher bench_;
+  std::unique_ptr<Gimbal> gimbal_;
+  std::unique_ptr<Sensor> sensor_;
+  std::string id_reply_, unit_, run_id_;
+  std::optional<RunFolderLock> lock_;
+  std::unique_ptr<RunRecorder> rec_;
+  std::unique_ptr<EventLog> event_log_;
+  EventBus bus_;
+  nlohmann::json doc_;
+  int session_ = 1;
+  fs::path catalogue_path_;
+  std::string catalogue_error_;
+  SampleTable recorded_;  // every row so far, old (a resume) and new: what calibrate steps fit
+  std::unique_ptr<StreamingCalibrator> live_;
+  std::chrono::steady_clock::time_point last_estimate_ = std::chrono::steady_clock::now() - std::chrono::seconds(10);
+  std::string live_text_;
+  std::unique_ptr<Progress> progress_;
+  std::optional<CalibrationReport> last_cal_;
+  int calibrations_ = 0;
+};
+
+void Session::make_logger() {
+  // Console logging first; the run folder's events.log joins once the folder exists.
+  auto console = std::make_shared<spdlog::sinks::stderr_sink_mt>();
+  console->set_level(req_.quiet ? spdlog::level::off : req_.tty ? spdlog::level::warn : spdlog::level::info);
+  console->set_pattern("fpss-stand run: %v");
+  log_ = std::make_shared<spdlog::logger>("run", spdlog::sinks_init_list{console});
+  log_->set_level(spdlog::level::debug);
+  log_->flush_on(spdlog::level::info);
+}
+
+void Session::connect_devices() {
+  stand_.gimbal.limits = stand_.bench.limits;
+  gimbal_ = make_gimbal(stand_.gimbal);
+  sensor_ = make_sensor(stand_.sensor);
+  gimbal_->connect();
+  sensor_->connect();
+  id_reply_ = sensor_->identify();
+  unit_ = serial_from_id(id_reply_);
+  log_->info("sensor: {}", id_reply_);
+  if (!stand_.unit_serial.empty() && unit_ != stand_.unit_serial) {
     throw InputError(fmt::format("{}: the sensor reports serial \"{}\" ({}), the stand file expects \"{}\"",
-                                 stand.origin.empty() ? "stand" : stand.origin, unit, id_reply, stand.unit_serial));
+                                 stand_.origin.empty() ? "stand" : stand_.origin, unit_, id_reply_, stand_.unit_serial));
   }
-  if (resuming && prior.doc.value("unit", unit) != unit) {
-    if (emu) emu->stop();
+  if (resuming_ && prior_.doc.value("unit", unit_) != unit_) {
     throw InputError(fmt::format("{}: the run was made on unit \"{}\", the sensor now reports \"{}\"",
-                                 req.resume_dir.string(), prior.doc.value("unit", ""), unit));
+                                 req_.resume_dir.string(), prior_.doc.value("unit", ""), unit_));
   }
+}
 
-  // The run folder.
+void Session::open_folder() {
   const std::string now_utc = utc_now_iso();
-  nlohmann::json doc;
-  int session = 1;
-  if (resuming) {
-    res.run_dir = req.resume_dir;
-    doc = prior.doc;
-    session = static_cast<int>(doc.value("sessions", nlohmann::json::array()).size()) + 1;
+  if (resuming_) {
+    res_.run_dir = req_.resume_dir;  // locked and canonical already
+    doc_ = prior_.doc;
+    session_ = static_cast<int>(doc_.value("sessions", nlohmann::json::array()).size()) + 1;
   } else {
-    res.run_dir = make_run_dir(req.runs_dir, now_utc, unit, req.procedure.name);
-    cleanup_tmp_log();
+    res_.run_dir = make_run_dir(req_.runs_dir, now_utc, unit_, req_.procedure.name);
+    lock_.emplace(res_.run_dir);
+    bench_.settle_log(res_.run_dir);
   }
-  const std::string run_id = res.run_dir.filename().string();
-  auto file_sink = std::make_shared<spdlog::sinks::basic_file_sink_mt>((res.run_dir / "events.log").string());
+  run_id_ = res_.run_dir.filename().string();
+  auto file_sink = std::make_shared<spdlog::sinks::basic_file_sink_mt>((res_.run_dir / "events.log").string());
   file_sink->set_pattern("%Y-%m-%dT%H:%M:%S.%e [%l] %v");
-  log->sinks().push_back(file_sink);
-  log->info("run {} session {}: procedure {} ({}), unit {}, {}", run_id, session, req.procedure.name,
-            req.procedure.origin, unit, req.emulator ? "emulated bench" : "stand " + stand.stand_id);
+  log_->sinks().push_back(file_sink);
+  log_->info("run {} session {}: procedure {} ({}), unit {}, {}", run_id_, session_, req_.procedure.name,
+             req_.procedure.origin, unit_, req_.emulator ? "emulated bench" : "stand " + stand_.stand_id);
+  rec_ = std::make_unique<RunRecorder>(res_.run_dir);
+  if (rec_->cut_bytes() > 0) {
+    log_->warn("samples.csv: cut {} bytes of a point that never completed (it is measured again)", rec_->cut_bytes());
+  }
+  event_log_ = std::make_unique<EventLog>(res_.run_dir / "events.jsonl");
+  if (rec_->has_rows()) recorded_ = read_samples_csv(rec_->samples_path());
+  recorded_.origin = rec_->samples_path().string();
+}
+
+void Session::write_start_record() {
+  const std::string now_utc = utc_now_iso();
+  if (!resuming_) {
+    doc_ = nlohmann::json::object();
+    doc_["format"] = "fpss-stand run/1";
+    doc_["run_id"] = run_id_;
+    doc_["software"] = {{"name", "fpss-stand"}, {"version", FPSS_VERSION}};
+    doc_["procedure"] = {{"name", req_.procedure.name},
+                         {"file", req_.procedure.origin},
+                         {"sha256", sha256_hex(req_.procedure.text)},
+                         {"text", req_.procedure.text}};
+    doc_["stand"] = {{"file", stand_.origin.empty() ? nlohmann::json() : nlohmann::json(stand_.origin)},
+                     {"text", stand_.text.empty() ? nlohmann::json() : nlohmann::json(stand_.text)},
+                     {"settings", to_json(stand_)}};
+    doc_["unit"] = unit_;
+    doc_["sensor_id"] = id_reply_;
+    doc_["emulated"] = req_.emulator.has_value();
+    if (req_.emulator) doc_["emulator"] = req_.emulator->to_json();
+    doc_["started_utc"] = now_utc;
+    doc_["points"] = {{"total", plan_.points}, {"completed", 0}};
+    doc_["sessions"] = nlohmann::json::array();
+    doc_["files"] = {{"samples", "samples.csv"}, {"journal", "points.jsonl"}, {"events", "events.log"},
+                     {"event_stream", "events.jsonl"}};
+  }
+  doc_["outcome"] = "running";
+  doc_.erase("ended_utc");
+  doc_.erase("reason");
+  doc_.erase("stop_cause");
+  nlohmann::json sess{{"session", session_}, {"started_utc", now_utc}, {"first_point", rec_->next_point()},
+                      {"pid", ::getpid()}};
+  if (bench_.emu) {
+    sess["emulator"] = {{"command", bench_.emu->command()}, {"gimbal", stand_.gimbal.endpoint},
+                        {"sensor", stand_.sensor.endpoint}};
+  }
+  doc_["sessions"].push_back(sess);
+  write_json_atomic(res_.run_dir / "run.json", doc_);
+}
+
+// A catalogue that cannot record never loses the run (the folder is complete), but the command
+// says so and ends with exit 1; `fpss-stand catalogue rebuild` re-indexes the folder later.
+template <typename F>
+void Session::with_catalogue(const char* what, F&& f) {
+  try {
+    Catalogue cat(catalogue_path_);
+    f(cat);
+  } catch (const std::exception& e) {
+    log_->error("catalogue {}: {}: {}", catalogue_path_.string(), what, e.what());
+    if (catalogue_error_.empty()) catalogue_error_ = fmt::format("catalogue {}: {}: {}", catalogue_path_.string(), what, e.what());
+  }
+}
+
+void Session::start_catalogue_record() {
+  catalogue_path_ = !req_.catalogue.empty() ? req_.catalogue
+                    : resuming_            ? res_.run_dir.parent_path() / "stand.db"
+                                           : Catalogue::default_path(req_.runs_dir);
+  with_catalogue("run start", [&](Catalogue& cat) {
+    RunStart rs;
+    rs.run_id = run_id_;
+    rs.unit = unit_;
+    rs.procedure = req_.procedure.name;
+    rs.procedure_hash = doc_["procedure"]["sha256"].get<std::string>();
+    rs.started_utc = doc_["started_utc"].get<std::string>();
+    rs.run_dir = fs::absolute(res_.run_dir);
+    rs.emulated = req_.emulator.has_value();
+    rs.stand = req_.emulator ? "" : (stand_.stand_id.empty() ? stand_.origin : stand_.stand_id);
+    cat.record_run_start(rs);
+  });
+}
+
+// The subscribers, in order: the recorder (durable first), the rows kept in memory for calibrate
+// steps, events.jsonl, then the live fit and the progress line.
+void Session::subscribe() {
+  record_with(bus_, *rec_);
+  bus_.subscribe([this](const Event& e) {
+    if (const auto* s = std::get_if<Samples>(&e)) {
+      for (const auto& r : *s->rows) recorded_.push_back(r.sample);
+    }
+  });
+  bus_.subscribe([this](const Event& e) { event_log_->write(e); });
+  try {
+    live_ = std::make_unique<StreamingCalibrator>(CalibrationOptions{}, "live");
+    for (size_t i = 0; i < recorded_.size(); ++i) live_->add_sample(recorded_.row(i));
+  } catch (const std::exception& e) {
+    log_->warn("live residual off: {}", e.what());
+    live_.reset();
+  }
+  progress_ = std::make_unique<Progress>(plan_.points, static_cast<size_t>(rec_->next_point()), req_.tty, *log_);
+  bus_.subscribe([this](const Event& e) {
+    if (const auto* p = std::get_if<PointDone>(&e)) on_point_done(*p);
+  });
+}
+
+void Session::on_point_done(const PointDone& p) {
+  if (live_) {
+    try {
+      for (const auto& r : *p.rows) live_->add_sample(r.sample);
+      // The estimate costs a few thousand small solves: refresh it twice a second at most.
+      const bool last = progress_->done() + 1 >= plan_.points;
+      if (last || std::chrono::steady_clock::now() - last_estimate_ > std::chrono::milliseconds(500)) {
+        last_estimate_ = std::chrono::steady_clock::now();
+        const auto est = live_->current();
+        if (est.valid) {
+          live_text_ = fmt::format("live residual rms pitch {:.2f} yaw {:.2f} arcsec ({} pairs)", est.rms_pitch_arcsec,
+                                   est.rms_yaw_arcsec, est.pairs);
+          FitUpdated f;
+          f.points = p.action->point + 1;
+          f.pairs = est.pairs;
+          f.rms_pitch_arcsec = est.rms_pitch_arcsec;
+          f.rms_yaw_arcsec = est.rms_yaw_arcsec;
+          f.sigma_max_pitch_arcsec = f.sigma_max_yaw_arcsec = std::numeric_limits<double>::quiet_NaN();
+          bus_.publish(f);
+        }
+      }
+    } catch (const std::exception& e) {
+      log_->warn("live residual off: {}", e.what());
+      live_.reset();
+    }
+  }
+  progress_->point_done(live_text_);
+}
+
+void Session::on_calibrate(const Action& a) {
+  progress_->clear();
+  int64_t points_before = 0;
+  for (const auto& x : plan_.actions) {
+    if (&x == &a) break;
+    if (x.is_point()) ++points_before;
+  }
+  const SampleTable rows = rows_up_to(recorded_, points_before);
+  CalibrationOptions o;
+  o.method = parse_method(a.calibrate->method).value_or(Method::differences);
+  if (a.calibrate->init) o.init = load_coefficients(*a.calibrate->init);
+  if (a.calibrate->max_iterations) o.max_iterations = *a.calibrate->max_iterations;
+  if (a.calibrate->refine_nodes) o.refine_nodes = static_cast<size_t>(*a.calibrate->refine_nodes);
+  if (a.calibrate->threads) o.threads = *a.calibrate->threads;
+  o.unit = unit_;
+  const auto t0 = std::chrono::steady_clock::now();
+  CalibrationReport rep = calibrate(rows, o);
+  ++calibrations_;
+  const fs::path out = res_.run_dir / (calibrations_ == 1 ? std::string("calibration.json")
+                                                          : fmt::format("calibration-{}.json", calibrations_));
+  save_coefficients(out, rep.coefficients());
+  log_->info("calibrated on {} rows of {} points in {:.2f} s -> {}\n{}", rows.size(), points_before,
+             seconds_since(t0), out.filename().string(), summary_text(rep));
+  res_.calibration = out;
+  last_cal_ = rep;
+  with_catalogue("calibration", [&](Catalogue& cat) {
+    CalibrationRecord cr = CalibrationRecord::from_calibration_json(to_json(rep.coefficients()), out.string());
+    cr.unit = unit_;
+    cr.source = "run";
+    cr.run_id = run_id_;
+    cr.source_ref = run_id_;
+    cr.date_utc = utc_now_iso();
+    cat.record_calibration(cr);
+  });
+}
+
+std::string Session::on_check(const Action& a) const {
+  if (!last_cal_) return "no calibration to check";
+  std::string broken = check_limits(a.check->pitch, last_cal_->pitch.residuals, "pitch");
+  const std::string y = check_limits(a.check->yaw, last_cal_->yaw.residuals, "yaw");
+  if (!y.empty()) broken += (broken.empty() ? "" : "; ") + y;
+  log_->info("check: {}", broken.empty() ? "residuals within the limits" : broken);
+  return broken;
+}
+
+void Session::finish(const EngineResult& er) {
+  res_.outcome = er.outcome;
+  res_.cause = er.cause;
+  res_.reason = er.reason;
+  res_.points_done = er.points_done;
+  const std::string end_utc = utc_now_iso();
+  doc_["outcome"] = to_string(er.outcome);
+  doc_["stop_cause"] = to_string(er.cause);
+  if (!er.reason.empty()) doc_["reason"] = er.reason;
+  doc_["ended_utc"] = end_utc;
+  doc_["points"]["completed"] = er.points_done;
+  doc_["safe_state"] = er.safe_state;
+  auto& s = doc_["sessions"].back();
+  s["ended_utc"] = end_utc;
+  s["outcome"] = to_string(er.outcome);
+  if (!er.reason.empty()) s["reason"] = er.reason;
+  s["points_completed"] = er.points_done;
+  const EngineStats& st = res_.stats;
+  s["engine"] = {{"wall_s", st.wall_s},         {"device_s", st.device_s},       {"sleep_s", st.sleep_s},
+                 {"storage_s", st.storage_s},   {"calibrate_s", st.calibrate_s}, {"own_s", st.own_s()},
+                 {"points", st.points},         {"remeasured", st.remeasured},   {"recoveries", st.recoveries}};
+  if (sensor_) {
+    const SensorStats ss = sensor_->stats();
+    s["sensor_stats"] = {{"frames", ss.frames},           {"crc_errors", ss.crc_errors},
+                         {"garbage_bytes", ss.garbage_bytes}, {"seq_gaps", ss.seq_gaps},
+                         {"frames_lost", ss.frames_lost}};
+  }
+  if (res_.calibration) doc_["files"]["calibration"] = res_.calibration->filename().string();
+  write_json_atomic(res_.run_dir / "run.json", doc_);
+  with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, to_string(er.outcome), end_utc); });
+}
+
+// The report needs a calibration (this session's or an earlier one's); a failure to draw it
+// never fails the run: the recording is what matters.
+void Session::write_report() {
+  if (!fs::exists(res_.run_dir / "calibration.json")) return;
+  try {
+    const auto t0 = std::chrono::steady_clock::now();
+    res_.report = fpss::write_report(res_.run_dir);
+    log_->info("report: {} ({:.2f} s)", res_.report->string(), seconds_since(t0));
+  } catch (const std::exception& e) {
+    log_->warn("report not written: {}", e.what());
+  }
+}
+
+SessionResult Session::run() {
+  const auto t_start = std::chrono::steady_clock::now();
+  // From here on SIGINT/SIGTERM ask for a clean stop rather than killing the process, so a run
+  // folder once made always says how its run ended.
+  RunControl own;
+  RunControl& control = req_.control ? *req_.control : own;
+  std::optional<SignalScope> signals;
+  if (!req_.control) signals.emplace(control);
+
+  Diagnostics d(req_.procedure.origin);
+  plan_ = expand(req_.procedure, req_.stand.bench, d);
+  d.throw_if_any();
+  res_.points_total = static_cast<int64_t>(plan_.points);
+  make_logger();
+  if (resuming_) {
+    lock_.emplace(req_.resume_dir);  // before anything is started or written
+    prior_ = read_run_info(req_.resume_dir);
+    if (prior_.doc.value("outcome", "") == "completed") {
+      throw InputError(fmt::format("{}: the run is already completed; nothing to resume", req_.resume_dir.string()));
+    }
+  }
+  stand_ = req_.stand;
+  bench_.start(req_, resuming_, stand_, *log_);
+  connect_devices();
+  open_folder();
 
   // The drivers log through spdlog's default logger: their retries belong in events.log too.
   struct DefaultLogger {
     std::shared_ptr<spdlog::logger> prev = spdlog::default_logger();
     explicit DefaultLogger(std::shared_ptr<spdlog::logger> l) { spdlog::set_default_logger(std::move(l)); }
     ~DefaultLogger() { spdlog::set_default_logger(prev); }
-  } default_logger(log);
+  } default_logger(log_);
 
-  RunRecorder rec(res.run_dir);
-  if (rec.cut_bytes() > 0) {
-    log->warn("samples.csv: cut {} bytes of a point that never completed (it is measured again)", rec.cut_bytes());
-  }
-
-  if (!resuming) {
-    doc = nlohmann::json::object();
-    doc["format"] = "fpss-stand run/1";
-    doc["run_id"] = run_id;
-    doc["software"] = {{"name", "fpss-stand"}, {"version", FPSS_VERSION}};
-    doc["procedure"] = {{"name", req.procedure.name},
-                        {"file", req.procedure.origin},
-                        {"sha256", sha256_hex(req.procedure.text)},
-                        {"text", req.procedure.text}};
-    doc["stand"] = {{"file", stand.origin.empty() ? nlohmann::json() : nlohmann::json(stand.origin)},
-                    {"text", stand.text.empty() ? nlohmann::json() : nlohmann::json(stand.text)},
-                    {"settings", to_json(stand)}};
-    doc["unit"] = unit;
-    doc["sensor_id"] = id_reply;
-    doc["emulated"] = req.emulator.has_value();
-    if (req.emulator) doc["emulator"] = req.emulator->to_json();
-    doc["started_utc"] = now_utc;
-    doc["points"] = {{"total", plan.points}, {"completed", 0}};
-    doc["sessions"] = nlohmann::json::array();
-    doc["files"] = {{"samples", "samples.csv"}, {"journal", "points.jsonl"}, {"events", "events.log"}};
-  }
-  doc["outcome"] = "running";
-  doc.erase("ended_utc");
-  doc.erase("reason");
-  nlohmann::json sess{{"session", session}, {"started_utc", now_utc}, {"first_point", rec.next_point()},
-                      {"pid", ::getpid()}};
-  if (emu) sess["emulator"] = {{"command", emu->command()}, {"gimbal", stand.gimbal.endpoint},
-                               {"sensor", stand.sensor.endpoint}};
-  doc["sessions"].push_back(sess);
-  write_json_atomic(res.run_dir / "run.json", doc);
-
-  // The catalogue: a failure there is logged, never allowed to lose the run.
-  const fs::path cat_path = !req.catalogue.empty() ? req.catalogue
-                            : resuming            ? res.run_dir.parent_path() / "stand.db"
-                                                  : Catalogue::default_path(req.runs_dir);
-  auto with_catalogue = [&](const char* what, auto&& f) {
-    try {
-      Catalogue cat(cat_path);
-      f(cat);
-    } catch (const std::exception& e) {
-      log->warn("catalogue {}: {}: {}", cat_path.string(), what, e.what());
-    }
-  };
-  with_catalogue("run start", [&](Catalogue& cat) {
-    RunStart rs;
-    rs.run_id = run_id;
-    rs.unit = unit;
-    rs.procedure = req.procedure.name;
-    rs.procedure_hash = doc["procedure"]["sha256"].get<std::string>();
-    rs.started_utc = doc["started_utc"].get<std::string>();
-    rs.run_dir = fs::absolute(res.run_dir);
-    rs.emulated = req.emulator.has_value();
-    rs.stand = req.emulator ? "" : (stand.stand_id.empty() ? stand.origin : stand.stand_id);
-    cat.record_run_start(rs);
-  });
-
-  // Live residual: the streaming estimator fed with every dwell, old (a resume) and new.
-  std::unique_ptr<StreamingCalibrator> live;
-  try {
-    live = std::make_unique<StreamingCalibrator>(CalibrationOptions{}, "live");
-    if (rec.has_rows()) {
-      const SampleTable old = read_samples_csv(rec.samples_path());
-      for (size_t i = 0; i < old.size(); ++i) live->add_sample(old.row(i));
-    }
-  } catch (const std::exception& e) {
-    log->warn("live residual off: {}", e.what());
-    live.reset();
-  }
-  std::string live_text;
-  auto last_estimate = std::chrono::steady_clock::now() - std::chrono::seconds(10);
-
-  Progress progress(plan.points, static_cast<size_t>(rec.next_point()), req.tty, *log);
-  std::optional<CalibrationReport> last_cal;
-  int calibrations = 0;
-
+  write_start_record();
+  start_catalogue_record();
+  subscribe();
   EngineHooks hooks;
-  hooks.point_done = [&](const Action&, const std::vector<RecordedRow>& rows) {
-    if (live) {
-      try {
-        for (const auto& r : rows) live->add_sample(r.sample);
-        // The estimate costs a few thousand small solves: refresh it twice a second at most.
-        const bool last = progress.done() + 1 >= plan.points;
-        if (last || std::chrono::steady_clock::now() - last_estimate > std::chrono::milliseconds(500)) {
-          last_estimate = std::chrono::steady_clock::now();
-          const auto est = live->current();
-          if (est.valid) {
-            live_text = fmt::format("live residual rms pitch {:.2f} yaw {:.2f} arcsec ({} pairs)", est.rms_pitch_arcsec,
-                                    est.rms_yaw_arcsec, est.pairs);
-          }
-        }
-      } catch (const std::exception& e) {
-        log->warn("live residual off: {}", e.what());
-        live.reset();
-      }
-    }
-    progress.point_done(live_text);
-  };
-  hooks.calibrate = [&](const Action& a) {
-    progress.clear();
-    int64_t points_before = 0;
-    for (const auto& x : plan.actions) {
-      if (&x == &a) break;
-      if (x.is_point()) ++points_before;
-    }
-    const SampleTable all = read_samples_csv(rec.samples_path());
-    const SampleTable rows = rows_up_to(all, points_before);
-    CalibrationOptions o;
-    o.method = parse_method(a.calibrate->method).value_or(Method::differences);
-    if (a.calibrate->init) o.init = load_coefficients(*a.calibrate->init);
-    if (a.calibrate->max_iterations) o.max_iterations = *a.calibrate->max_iterations;
-    if (a.calibrate->refine_nodes) o.refine_nodes = static_cast<size_t>(*a.calibrate->refine_nodes);
-    if (a.calibrate->threads) o.threads = *a.calibrate->threads;
-    o.unit = unit;
-    const auto t0 = std::chrono::steady_clock::now();
-    CalibrationReport rep = calibrate(rows, o);
-    ++calibrations;
-    const fs::path out =
-        res.run_dir / (calibrations == 1 ? std::string("calibration.json") : fmt::format("calibration-{}.json", calibrations));
-    save_coefficients(out, rep.coefficients());
-    log->info("calibrated on {} rows of {} points in {:.2f} s -> {}\n{}", rows.size(), points_before,
-              seconds_since(t0), out.filename().string(), summary_text(rep));
-    res.calibration = out;
-    last_cal = rep;
-    with_catalogue("calibration", [&](Catalogue& cat) {
-      CalibrationRecord cr = CalibrationRecord::from_calibration_json(to_json(rep.coefficients()), out.string());
-      cr.unit = unit;
-      cr.source = "run";
-      cr.run_id = run_id;
-      cr.source_ref = run_id;
-      cr.date_utc = utc_now_iso();
-      cat.record_calibration(cr);
-    });
-  };
-  hooks.check = [&](const Action& a) -> std::string {
-    if (!last_cal) return "no calibration to check";
-    std::string broken = check_limits(a.check->pitch, last_cal->pitch.residuals, "pitch");
-    const std::string y = check_limits(a.check->yaw, last_cal->yaw.residuals, "yaw");
-    if (!y.empty()) broken += (broken.empty() ? "" : "; ") + y;
-    log->info("check: {}", broken.empty() ? "residuals within the limits" : broken);
-    return broken;
-  };
-
+  hooks.calibrate = [this](const Action& a) { on_calibrate(a); };
+  hooks.check = [this](const Action& a) { return on_check(a); };
   EngineResult er;
   {
-    Engine engine(*gimbal, *sensor, stand.bench, plan, rec, *log, control, hooks);
-    er = engine.run(session);
-    res.stats = engine.stats();
+    Engine engine(*gimbal_, *sensor_, stand_.bench, plan_, bus_, *log_, control, hooks, rec_->resume_point());
+    er = engine.run(session_);
+    res_.stats = engine.stats();
   }
-  progress.finish();
+  progress_->finish();
   try {
-    sensor->disconnect();
-    gimbal->disconnect();
+    sensor_->disconnect();
+    gimbal_->disconnect();
   } catch (const std::exception& e) {
-    log->warn("disconnect: {}", e.what());
+    log_->warn("disconnect: {}", e.what());
   }
-  if (emu) {
-    const int st = emu->stop();
-    log->info("emulated bench stopped (status {})", st);
+  if (bench_.emu) log_->info("emulated bench stopped (status {})", bench_.stop());
+  finish(er);
+  write_report();
+  log_->info("run {}: {} ({} of {} points){}", run_id_, to_string(er.outcome), er.points_done, plan_.points,
+             er.reason.empty() ? "" : ": " + er.reason);
+  res_.exit_code = er.outcome == RunOutcome::completed ? 0 : 1;
+  if (!catalogue_error_.empty()) {
+    res_.exit_code = 1;
+    res_.catalogue_error = catalogue_error_;
   }
-
-  res.outcome = er.outcome;
-  res.reason = er.reason;
-  res.points_done = er.points_done;
-  const std::string end_utc = utc_now_iso();
-  doc["outcome"] = to_string(er.outcome);
-  if (!er.reason.empty()) doc["reason"] = er.reason;
-  doc["ended_utc"] = end_utc;
-  doc["points"]["completed"] = er.points_done;
-  doc["safe_state"] = er.safe_state;
-  auto& s = doc["sessions"].back();
-  s["ended_utc"] = end_utc;
-  s["outcome"] = to_string(er.outcome);
-  if (!er.reason.empty()) s["reason"] = er.reason;
-  s["points_completed"] = er.points_done;
-  s["engine"] = {{"wall_s", res.stats.wall_s},       {"device_s", res.stats.device_s},
-                 {"sleep_s", res.stats.sleep_s},     {"storage_s", res.stats.storage_s},
-                 {"calibrate_s", res.stats.calibrate_s}, {"own_s", res.stats.own_s()},
-                 {"points", res.stats.points},       {"remeasured", res.stats.remeasured},
-                 {"recoveries", res.stats.recoveries}};
-  if (sensor) {
-    const SensorStats ss = sensor->stats();
-    s["sensor_stats"] = {{"frames", ss.frames},       {"crc_errors", ss.crc_errors},
-                         {"garbage_bytes", ss.garbage_bytes}, {"seq_gaps", ss.seq_gaps},
-                         {"frames_lost", ss.frames_lost}};
-  }
-  if (res.calibration) doc["files"]["calibration"] = res.calibration->filename().string();
-  write_json_atomic(res.run_dir / "run.json", doc);
-  with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id, to_string(er.outcome), end_utc); });
-
-  // The report needs a calibration (this session's or an earlier one's); a failure to draw it
-  // never fails the run: the recording is what matters.
-  if (fs::exists(res.run_dir / "calibration.json")) {
-    try {
-      const auto t0 = std::chrono::steady_clock::now();
-      res.report = write_report(res.run_dir);
-      log->info("report: {} ({:.2f} s)", res.report->string(), seconds_since(t0));
-    } catch (const std::exception& e) {
-      log->warn("report not written: {}", e.what());
-    }
-  }
-
-  log->info("run {}: {} ({} of {} points){}", run_id, to_string(er.outcome), er.points_done, plan.points,
-            er.reason.empty() ? "" : ": " + er.reason);
-  res.exit_code = er.outcome == RunOutcome::completed ? 0 : 1;
-  res.wall_s = seconds_since(t_start);
-  log->flush();
-  return res;
+  res_.wall_s = seconds_since(t_start);
+  log_->flush();
+  return res_;
 }
+
+}  // namespace
+
+SessionResult run_session(const SessionRequest& req) { return Session(req).run(); }
 
 }  // namespace fpss

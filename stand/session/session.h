@@ -10,6 +10,7 @@
 
 #include "procedures/settings.h"
 #include "stand/cli/emulator_contract.h"
+#include "stand/session/run_folder.h"
 #include "stand/config/stand_config.h"
 #include "procedures/engine.h"
 #include "procedures/procedure.h"
@@ -31,7 +32,9 @@ struct SessionRequest {
 struct SessionResult {
   int exit_code = 1;  // 0 completed, 1 failed or interrupted
   RunOutcome outcome = RunOutcome::failed;
+  StopCause cause = StopCause::other;
   std::string reason;
+  std::string catalogue_error;  // the catalogue could not record the run (the run folder is complete)
   std::filesystem::path run_dir;
   std::optional<std::filesystem::path> calibration, report;
   int64_t points_done = 0, points_total = 0;
@@ -40,16 +43,10 @@ struct SessionResult {
 };
 
 // Throws InputError for bad input found before anything moved (invalid procedure or stand, a
-// sensor reporting another serial than expected, a resume folder that does not match).
+// sensor reporting another serial than expected, a resume folder that does not match), and
+// RunFolderBusy when another fpss-stand holds the run folder. `resume_dir` must be canonical
+// (canonical_run_dir).
 SessionResult run_session(const SessionRequest& req);
-
-// What a run folder's run.json holds (for --resume and tools).
-struct RunInfo {
-  nlohmann::json doc;
-  std::string procedure_text, procedure_origin, stand_text, stand_origin;
-  std::optional<EmulatorSpec> emulator;
-};
-RunInfo read_run_info(const std::filesystem::path& run_dir);
 
 // The serial number in an ID? reply "FPSS,SN=<serial>,FW=<version>"; the whole reply otherwise.
 std::string serial_from_id(const std::string& id_reply);

@@ -111,8 +111,8 @@ class InstantSensor : public fpss::Sensor {
   uint64_t n_ = 0;
 };
 
-// The engine over the discrete grid's 113 points with instant devices and a real recorder
-// (samples.csv and the journal synced at every point): what the controller costs per point.
+// The engine over the discrete grid's 113 points with instant devices, a real recorder
+// (samples.csv and the journal synced at every point) and events.jsonl: what the controller costs per point.
 void BM_EngineControllerPerPoint(benchmark::State& state) {
   fpss::test::TempDir tmp("bench-engine");
   const fpss::Procedure proc =
@@ -129,9 +129,14 @@ void BM_EngineControllerPerPoint(benchmark::State& state) {
   int n = 0;
   for (auto _ : state) {
     fpss::RunRecorder rec(tmp / ("run" + std::to_string(n++)));
+    // The session's subscribers that run per point: the recorder and events.jsonl.
+    fpss::EventBus bus;
+    fpss::record_with(bus, rec);
+    fpss::EventLog events(rec.dir() / "events.jsonl");
+    bus.subscribe([&](const fpss::Event& e) { events.write(e); });
     fpss::RunControl ctl;
     fpss::EngineHooks hooks;  // no calibrate: the fit is timed by the calibrator's own benchmark
-    fpss::Engine engine(g, s, b, plan, rec, *log, ctl, hooks);
+    fpss::Engine engine(g, s, b, plan, bus, *log, ctl, hooks);
     const auto r = engine.run();
     if (r.outcome != fpss::RunOutcome::completed) {
       state.SkipWithError(r.reason.c_str());

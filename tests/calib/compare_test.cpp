@@ -156,17 +156,5 @@ TEST(Compare, DriftFlagFollowsTheLimit) {
   EXPECT_THROW(check_drift(v, v, 0.0), InputError);
 }
 
-TEST(Compare, PlotInputsCarryBothAxes) {
-  const CalibrationComparison c = compare_calibrations(load_published("a-6-fpss1"), load_published("a-7-fpss1"));
-  const std::string data = comparison_plot_data(c);
-  EXPECT_NE(data.find("# alpha"), std::string::npos);
-  EXPECT_NE(data.find("# beta"), std::string::npos);
-  EXPECT_LE(c.alpha.counts.size(), 2001u);
-  EXPECT_EQ(c.alpha.counts.back(), static_cast<double>(c.alpha.hi_counts));
-  const std::string script = comparison_plot_script(c, "d.dat", "p.svg", "V -> VI");
-  EXPECT_NE(script.find("set output \"p.svg\""), std::string::npos);
-  EXPECT_NE(script.find("index 1"), std::string::npos);
-}
-
 }  // namespace
 }  // namespace fpss

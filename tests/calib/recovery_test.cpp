@@ -1,4 +1,4 @@
-// The key result of issue 2: every trustworthy published set is recovered from a simulated bench
+// The calibrator's key result: every trustworthy published set is recovered from a simulated bench
 // recording with no starting set, to 0.1 arcsec over the calibrated range, batch and streaming.
 #include <fmt/format.h>
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
 // ModbusGimbal against the emulated gimbal over real loopback TCP (and RTU on a real pty): moves, and every
-// gimbal-side fault of issue 3 ending in a successful retry or a clear error and a safe state.
+// gimbal-side fault of docs/emulator.md ending in a successful retry or a clear error and a safe state.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 

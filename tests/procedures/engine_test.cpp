@@ -1,5 +1,6 @@
-// The engine as a library over the real wire: the emulator is the fpss-stand binary forked as a
-// child (Modbus TCP on loopback, the sensor on a pty); abort and pause come through RunControl.
+// The engine as a library on in-process fake devices driven by the simulated bench's physics (no
+// binary, no wire: the real wire is tested end to end in tests/stand); abort and pause come
+// through RunControl, what happens through the event stream.
 #include <gtest/gtest.h>
 
 #include <spdlog/sinks/null_sink.h>
@@ -8,11 +9,10 @@
 #include <thread>
 
 #include "calib/samples.h"
-#include "drivers/endpoints.h"
-#include "stand/session/emulator_process.h"
 #include "procedures/engine.h"
 #include "procedures/plan.h"
 #include "procedures/recorder.h"
+#include "tests/support/fake_devices.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {
@@ -21,35 +21,32 @@ namespace {
 using test::TempDir;
 namespace fs = std::filesystem;
 
-// One emulated bench and both drivers connected to it.
+// One simulated bench and both fake devices on it, with the event stream a run publishes to.
 struct Bench {
-  explicit Bench(const fs::path& dir, std::vector<std::string> args = {}) {
-    EmulatorLaunch l;
-    l.exe = test::stand_binary();
-    l.args = {"--speed", "20", "--seed", "5"};
-    l.args.insert(l.args.end(), args.begin(), args.end());
-    l.log = dir / "emulator.log";
-    emu = std::make_unique<EmulatorProcess>(l);
-    emu->start();
+  explicit Bench(const fs::path& dir) {
     settings.clock = ClockSync::shared;
     settings.time_scale = 20;
-    GimbalOptions go;
-    go.endpoint = emu->gimbal_endpoint();
-    SensorOptions so;
-    so.endpoint = emu->sensor_endpoint();
-    gimbal = make_gimbal(go);
-    sensor = make_sensor(so);
-    gimbal->connect();
-    sensor->connect();
+    gimbal.connect();
+    sensor.connect();
   }
-  ~Bench() {
-    sensor->disconnect();
-    gimbal->disconnect();
+  // Subscribes a recorder of `dir`'s folder; returns it.
+  RunRecorder& record(const fs::path& dir) {
+    recorders.push_back(std::make_unique<RunRecorder>(dir));
+    record_with(bus, *recorders.back());
+    return *recorders.back();
+  }
+  // Calls `f(point_done)` for every PointDone.
+  void on_point_done(std::function<void(const PointDone&)> f) {
+    bus.subscribe([f](const Event& e) {
+      if (const auto* p = std::get_if<PointDone>(&e)) f(*p);
+    });
   }
   EngineSettings settings;
-  std::unique_ptr<EmulatorProcess> emu;
-  std::unique_ptr<Gimbal> gimbal;
-  std::unique_ptr<Sensor> sensor;
+  test::FakeBench fake{default_bench_config(), 20};
+  test::FakeGimbal gimbal{fake};
+  test::FakeSensor sensor{fake};
+  EventBus bus;
+  std::vector<std::unique_ptr<RunRecorder>> recorders;
 };
 
 Plan plan_of(const Procedure& p, const EngineSettings& b) {
@@ -72,48 +69,21 @@ std::shared_ptr<spdlog::logger> quiet_log() {
   return std::make_shared<spdlog::logger>("test", std::make_shared<spdlog::sinks::null_sink_mt>());
 }
 
-TEST(Engine, EmulatorProcessReportsBothEndpoints) {
-  TempDir tmp("engine-emu");
-  EmulatorLaunch l;
-  l.exe = test::stand_binary();
-  l.log = tmp / "emu.log";
-  EmulatorProcess emu(l);
-  EXPECT_FALSE(emu.running());
-  emu.start();
-  EXPECT_TRUE(emu.running());
-  EXPECT_EQ(emu.gimbal_endpoint().rfind("modbus-tcp:127.0.0.1:", 0), 0u) << emu.gimbal_endpoint();
-  EXPECT_EQ(emu.sensor_endpoint().rfind("pty:/dev/pts/", 0), 0u) << emu.sensor_endpoint();
-  const int status = emu.stop();
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;  // SIGTERM: a clean exit 0
-  EXPECT_FALSE(emu.running());
-  // A bench that cannot start says why.
-  EmulatorLaunch bad = l;
-  bad.args = {"--bench", (tmp / "missing.yaml").string()};
-  EmulatorProcess emu2(bad);
-  try {
-    emu2.start();
-    FAIL();
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("exited before it was ready"), std::string::npos) << e.what();
-  }
-}
-
 TEST(Engine, RunsAPlanAndRecordsEveryPoint) {
   TempDir tmp("engine-run");
   Bench bench(tmp.path());
   const Procedure p = grid();
   const Plan plan = plan_of(p, bench.settings);
-  RunRecorder rec(tmp / "run");
+  bench.record(tmp / "run");
   RunControl ctl;
   auto log = quiet_log();
   int done_hooks = 0;
-  EngineHooks hooks;
-  hooks.point_done = [&](const Action& a, const std::vector<RecordedRow>& rows) {
+  bench.on_point_done([&](const PointDone& p) {
     ++done_hooks;
-    EXPECT_EQ(rows.size(), 4u);
-    EXPECT_EQ(rows.front().sample.step, a.point + 1);
-  };
-  Engine engine(*bench.gimbal, *bench.sensor, bench.settings, plan, rec, *log, ctl, hooks);
+    EXPECT_EQ(p.rows->size(), 4u);
+    EXPECT_EQ(p.rows->front().sample.step, p.action->point + 1);
+  });
+  Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
   const EngineResult r = engine.run();
   EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
   EXPECT_TRUE(r.safe_state);
@@ -129,7 +99,7 @@ TEST(Engine, RunsAPlanAndRecordsEveryPoint) {
     EXPECT_NEAR(t.ref_yaw_arcsec[i], ty[i], 1.0);
   }
   // Back at null at the end.
-  const GimbalState st = bench.gimbal->read_state();
+  const GimbalState st = bench.gimbal.read_state();
   EXPECT_NEAR(st.pitch_arcsec, 0, 1.0);
   EXPECT_NEAR(st.yaw_arcsec, 0, 1.0);
 }
@@ -139,24 +109,25 @@ TEST(Engine, AbortStopsReturnsToNullAndKeepsTheRecording) {
   Bench bench(tmp.path());
   const Procedure p = grid();
   const Plan plan = plan_of(p, bench.settings);
-  RunRecorder rec(tmp / "run");
+  bench.record(tmp / "run");
   RunControl ctl;
   auto log = quiet_log();
-  EngineHooks hooks;
   // Abort while the gimbal is away from null: after the first offset point.
-  hooks.point_done = [&](const Action& a, const std::vector<RecordedRow>&) {
-    if (a.point == 1) {
+  bool abort_armed = true;
+  bench.on_point_done([&](const PointDone& p) {
+    if (abort_armed && p.action->point == 1) {
       ctl.signal = SIGINT;
       ctl.abort = true;
     }
-  };
-  Engine engine(*bench.gimbal, *bench.sensor, bench.settings, plan, rec, *log, ctl, hooks);
+  });
+  Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
   const EngineResult r = engine.run();
   EXPECT_EQ(r.outcome, RunOutcome::interrupted);
   EXPECT_NE(r.reason.find("signal 2"), std::string::npos) << r.reason;
   EXPECT_TRUE(r.safe_state);
   EXPECT_EQ(r.points_done, 2);
-  const GimbalState st = bench.gimbal->read_state();
+  EXPECT_EQ(r.cause, StopCause::interrupted);
+  const GimbalState st = bench.gimbal.read_state();
   EXPECT_NEAR(st.pitch_arcsec, 0, 1.0);
   EXPECT_NEAR(st.yaw_arcsec, 0, 1.0);
   EXPECT_FALSE(st.has(kMoving));
@@ -164,10 +135,11 @@ TEST(Engine, AbortStopsReturnsToNullAndKeepsTheRecording) {
 
   // The same recorder folder picks up where it stopped: no point twice, none lost.
   ctl.abort = false;
-  hooks.point_done = nullptr;
-  RunRecorder rec2(tmp / "run");
+  abort_armed = false;
+  Bench bench2(tmp.path());
+  RunRecorder& rec2 = bench2.record(tmp / "run");
   EXPECT_EQ(rec2.next_point(), 2);
-  Engine again(*bench.gimbal, *bench.sensor, bench.settings, plan, rec2, *log, ctl, hooks);
+  Engine again(bench2.gimbal, bench2.sensor, bench2.settings, plan, bench2.bus, *log, ctl, {}, rec2.resume_point());
   const EngineResult r2 = again.run(2);
   EXPECT_EQ(r2.outcome, RunOutcome::completed) << r2.reason;
   EXPECT_EQ(again.stats().points, static_cast<int64_t>(plan.points) - 2);
@@ -181,14 +153,19 @@ TEST(Engine, PauseHoldsBetweenPoints) {
   Bench bench(tmp.path());
   const Procedure p = grid();
   const Plan plan = plan_of(p, bench.settings);
-  RunRecorder rec(tmp / "run");
+  bench.record(tmp / "run");
   RunControl ctl;
   auto log = quiet_log();
   std::atomic<int64_t> done{0};
   std::atomic<int64_t> done_while_paused{-1};
-  EngineHooks hooks;
   std::thread releaser;
-  hooks.point_done = [&](const Action& a, const std::vector<RecordedRow>&) {
+  int paused_events = 0, resumed_events = 0;
+  bench.bus.subscribe([&](const Event& e) {
+    paused_events += std::holds_alternative<Paused>(e);
+    resumed_events += std::holds_alternative<Resumed>(e);
+  });
+  bench.on_point_done([&](const PointDone& p) {
+    const Action& a = *p.action;
     done = a.point + 1;
     if (a.point == 2) {
       ctl.pause = true;
@@ -199,25 +176,30 @@ TEST(Engine, PauseHoldsBetweenPoints) {
         ctl.pause = false;
       });
     }
-  };
-  Engine engine(*bench.gimbal, *bench.sensor, bench.settings, plan, rec, *log, ctl, hooks);
+  });
+  Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
   const EngineResult r = engine.run();
   if (releaser.joinable()) releaser.join();
   EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
   EXPECT_EQ(done_while_paused.load(), 3);
   EXPECT_EQ(r.points_done, static_cast<int64_t>(plan.points));
+  EXPECT_EQ(paused_events, 1);
+  EXPECT_EQ(resumed_events, 1);
 }
 
 TEST(Engine, FollowingErrorIsClearedAndThePointMeasuredAgain) {
   TempDir tmp("engine-fe");
-  // The fault fires at the 40th Modbus request: in the middle of the grid.
-  Bench bench(tmp.path(), {"--fault", "following_error:at_request=40"});
+  // The fault fires at the gimbal's 40th request: in the middle of the grid.
+  Bench bench(tmp.path());
+  bench.fake.following_error_at_request = 40;
   const Procedure p = grid();
   const Plan plan = plan_of(p, bench.settings);
-  RunRecorder rec(tmp / "run");
+  bench.record(tmp / "run");
   RunControl ctl;
   auto log = quiet_log();
-  Engine engine(*bench.gimbal, *bench.sensor, bench.settings, plan, rec, *log, ctl);
+  int warnings = 0;
+  bench.bus.subscribe([&](const Event& e) { warnings += std::holds_alternative<Fault>(e); });
+  Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
   const EngineResult r = engine.run();
   EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
   EXPECT_GE(engine.stats().remeasured, 1);
@@ -227,6 +209,89 @@ TEST(Engine, FollowingErrorIsClearedAndThePointMeasuredAgain) {
   int retried = 0;
   for (const auto& j : journal) retried += j.attempts > 1;
   EXPECT_EQ(retried, 1);
+  EXPECT_GE(warnings, 1);  // the lost attempt is in the event stream, not only the log
+}
+
+TEST(Engine, PublishesOneOrderedStreamAndATypedStopCause) {
+  TempDir tmp("engine-events");
+  Bench bench(tmp.path());
+  // No Sun from bench second 3 on: the dwells there see only invalid frames.
+  bench.fake.invalid_frames_from_s = 3.0;
+  const Procedure p = grid();
+  const Plan plan = plan_of(p, bench.settings);
+  bench.record(tmp / "run");
+  std::vector<std::string> types;
+  bench.bus.subscribe([&](const Event& e) { types.push_back(to_json(e)["type"].get<std::string>()); });
+  RunControl ctl;
+  auto log = quiet_log();
+  Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
+  const EngineResult r = engine.run();
+  EXPECT_EQ(r.outcome, RunOutcome::failed);
+  EXPECT_EQ(r.cause, StopCause::sensor_invalid) << r.reason;
+  EXPECT_TRUE(r.safe_state);
+  ASSERT_GE(types.size(), 3u);
+  EXPECT_EQ(types.front(), "run_started");
+  EXPECT_EQ(types.back(), "run_stopped");
+  // Every point_done follows its samples (durable first); the failed point has no samples.
+  int64_t done = 0;
+  for (size_t i = 0; i < types.size(); ++i) {
+    if (types[i] != "point_done") continue;
+    ++done;
+    ASSERT_GT(i, 0u);
+    EXPECT_EQ(types[i - 1], "samples");
+  }
+  EXPECT_EQ(done, r.points_done);
+  EXPECT_LT(r.points_done, static_cast<int64_t>(plan.points));
+  EXPECT_EQ(RunRecorder::read_journal(tmp / "run" / "points.jsonl").size(), static_cast<size_t>(r.points_done));
+}
+
+TEST(Engine, AGimbalCommandedByAnotherClientIsNoticedAndThePointMeasuredAgainOrTheRunStopped) {
+  TempDir tmp("engine-foreign");
+  const Procedure p = grid();
+  auto log = quiet_log();
+  // Once: another client writes the max rate before point 3; that point is measured again (the
+  // recovery writes the stand's settings back).
+  {
+    Bench bench(tmp.path());
+    const Plan plan = plan_of(p, bench.settings);
+    bench.record(tmp / "once");
+    bool done = false;
+    bench.on_point_done([&](const PointDone& pd) {
+      if (pd.action->point == 2 && !done) {
+        done = true;
+        bench.gimbal.foreign_max_rate(1000);
+      }
+    });
+    std::vector<std::string> warnings;
+    bench.bus.subscribe([&](const Event& e) {
+      if (const auto* f = std::get_if<Fault>(&e)) warnings.push_back(f->message);
+    });
+    RunControl ctl;
+    Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
+    const EngineResult r = engine.run();
+    EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
+    ASSERT_FALSE(warnings.empty());
+    EXPECT_NE(warnings.front().find("gimbal commanded by another client"), std::string::npos) << warnings.front();
+    EXPECT_GE(engine.stats().remeasured, 1);
+  }
+  // Always: every attempt of point 3 sees a foreign rate; the run stops safely with that cause.
+  {
+    Bench bench(tmp.path());
+    const Plan plan = plan_of(p, bench.settings);
+    bench.record(tmp / "always");
+    bench.bus.subscribe([&](const Event& e) {
+      if (const auto* ps = std::get_if<PointStarted>(&e); ps && ps->action->point >= 2)
+        bench.gimbal.foreign_max_rate(1000 + ps->attempt);
+    });
+    RunControl ctl;
+    Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
+    const EngineResult r = engine.run();
+    EXPECT_EQ(r.outcome, RunOutcome::failed);
+    EXPECT_EQ(r.cause, StopCause::commanded_elsewhere) << r.reason;
+    EXPECT_NE(r.reason.find("gimbal commanded by another client"), std::string::npos) << r.reason;
+    EXPECT_TRUE(r.safe_state);
+    EXPECT_EQ(r.points_done, 2);
+  }
 }
 
 }  // namespace

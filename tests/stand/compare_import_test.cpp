@@ -158,7 +158,7 @@ TEST_F(PaperHistories, CompareVWithViForFpss1MatchesEq1Independently) {
 }
 
 TEST_F(PaperHistories, ViBetaIsComparedAsPrintedNotWithB7Corrected) {
-  // Table A-7 FPSS1 B7 = 0.1877559e-5 looks misprinted (seed README). compare takes it as printed:
+  // Table A-7 FPSS1 B7 = 0.1877559e-5 looks misprinted (every other FPSS1 B7 is two orders larger). compare takes it as printed:
   // VI's second beta sinusoid is then nearly a constant over the range. With B7 read as 1e-4
   // the beta figures come out differently, so the two readings can be told apart.
   const auto v = read_json(published("a-6", "fpss1")), vi = read_json(published("a-7", "fpss1"));
@@ -200,6 +200,26 @@ TEST_F(PaperHistories, TableAndPlot) {
   EXPECT_NE(text.find("<svg"), std::string::npos);
   EXPECT_TRUE(fs::exists(scratch_.path() / "plots" / "v-vi.dat"));
   EXPECT_TRUE(fs::exists(scratch_.path() / "plots" / "v-vi.gp"));
+}
+
+TEST_F(PaperHistories, ALabelOrPathHoldingShellTextRunsNothing) {
+  // An imported file whose calibration label, and a --plot path, hold backquotes and $(...).
+  const fs::path x1 = scratch_.path() / "X1", x2 = scratch_.path() / "X2", x3 = scratch_.path() / "X3";
+  nlohmann::json j = nlohmann::json::parse(test::read_file(published("a-7", "fpss1")));
+  j["calibration"] = "VI `touch " + x1.string() + "` $(touch " + x2.string() + ")";
+  const fs::path hostile = test::write_file(scratch_.path() / "hostile.json", j.dump());
+  auto r = cli("import '" + hostile.string() + "' --unit EVIL --date 1980-09-04 --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const int64_t id = nlohmann::json::parse(r.out).at("id").get<int64_t>();
+  const fs::path svg = scratch_.path() / ("p `touch " + x3.string() + "` $(touch " + x3.string() + ").svg");
+  r = run_stand_shell("compare a-6-fpss1 cal:" + std::to_string(id) + " --plot '" + svg.string() + "' --db '" +
+                          db_.string() + "'",
+                      scratch_.path());
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(svg));
+  EXPECT_FALSE(fs::exists(x1));
+  EXPECT_FALSE(fs::exists(x2));
+  EXPECT_FALSE(fs::exists(x3));
 }
 
 TEST_F(PaperHistories, ReimportIsANoOpAndReportsTheChange) {

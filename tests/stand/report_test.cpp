@@ -96,7 +96,7 @@ CoefficientSet perturbed() {
   return c;
 }
 
-// run.json as the engine writes it (procedures/session.cpp), in part.
+// run.json as the engine writes it (stand/session/session.cpp), in part.
 nlohmann::json run_json() {
   return {{"format", "fpss-stand run/1"},
           {"run_id", "20240501T120000Z-FPSS1-discrete_grid"},

@@ -1,0 +1,244 @@
+// The engine's measurements: a dwell (frames at rest, each with its own encoder reading) and a
+// slew segment (frames aligned with the gimbal's readings by interpolation).
+#include <fmt/format.h>
+
+#include <cmath>
+#include <limits>
+#include <thread>
+
+#include "procedures/align.h"
+#include "procedures/engine.h"
+#include "procedures/engine_detail.h"
+
+namespace fpss {
+
+using namespace engine_detail;
+
+void Engine::measure_dwell(const Action& a, int session) {
+  with_remeasure(a, [&](int attempt) {
+    move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
+    sleep_physical(a.settle_s);
+    const double settled_host = host_now_s();
+    GimbalState before;
+    try {
+      {
+        Timed t(stats_.device_s);
+        s_.flush();
+      }
+      before = read_gimbal();
+    } catch (const DeviceError& e) {
+      throw PointFailure(e.what());
+    }
+    auto check_still = [&](const GimbalState& st, const char* when) {
+      if (st.has(kFault) || st.fault != GimbalFault::none) {
+        throw GimbalFailure(fmt::format("gimbal fault ({}) {} sampling", fault_name(st), when));
+      }
+      const double tol = b_.in_position_tolerance_arcsec;
+      if (st.has(kMoving) || std::fabs(st.pitch_arcsec - a.pitch_arcsec) > tol ||
+          std::fabs(st.yaw_arcsec - a.yaw_arcsec) > tol) {
+        verify_command();  // another client's move explains it: say so
+        throw GimbalFailure(fmt::format("gimbal left the point {} sampling (pitch {}, yaw {}, status 0x{:02x})", when,
+                                        deg(st.pitch_arcsec), deg(st.yaw_arcsec), st.status));
+      }
+    };
+    check_still(before, "before");
+    const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
+    std::vector<SensorSample> frames;
+    std::vector<GimbalState> refs;
+    frames.reserve(static_cast<size_t>(a.frames));
+    refs.reserve(static_cast<size_t>(a.frames));
+    int invalid = 0;
+    uint8_t last_bad_status = 0;
+    while (static_cast<int>(frames.size()) < a.frames) {
+      check_abort();
+      std::optional<SensorSample> f;
+      try {
+        Timed t(stats_.device_s);
+        f = s_.next_sample(frame_wait);
+      } catch (const DeviceError& e) {
+        throw SensorFailure(e.what());
+      }
+      if (!f) throw SensorFailure(fmt::format("the sensor sent no frame within {:.2f} s", frame_wait));
+      if (f->host_time_s < settled_host) continue;  // on its way before the settle ended
+      // One clock for both devices: a frame stamped before the settled gimbal reading was taken
+      // during the move, however late it arrives (a sensor stream catching up after a stall).
+      if (b_.clock == ClockSync::shared && sensor_clock_s(*f) + 1e-6 < before.sample_time_us * 1e-6) continue;
+      if (!f->valid()) {
+        last_bad_status = f->status;
+        if (++invalid > a.max_invalid) {
+          throw SensorFailure(fmt::format("{} invalid frame(s) (status 0x{:02x}; {} tolerated)", invalid,
+                                          last_bad_status, a.max_invalid),
+                              StopCause::sensor_invalid);
+        }
+        continue;
+      }
+      frames.push_back(*f);
+      // Each frame gets its own encoder reading: the dwell's reference is then the mean of as many
+      // readings as frames, not of two (the encoders' noise dominates a dwell's error otherwise).
+      try {
+        refs.push_back(read_gimbal());
+      } catch (const DeviceError& e) {
+        throw GimbalFailure(e.what());
+      }
+      check_still(refs.back(), "while");
+    }
+    verify_command();
+    const double temp = read_temperature_c(a);
+    std::vector<RecordedRow> rows;
+    rows.reserve(frames.size());
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const GimbalState& g = refs[i];
+      const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
+      rows.push_back(make_row(a, a.phase, frames[i], sensor_clock_s(frames[i]), ref, temp, attempt, session));
+    }
+    publish_point(a, rows, attempt, session, invalid);
+  });
+}
+
+void Engine::measure_slew(const Action& a, int session) {
+  with_remeasure(a, [&](int attempt) {
+    move_and_wait(a.start_pitch_arcsec, a.start_yaw_arcsec, b_.move_timeout_s);
+    sleep_physical(a.settle_s);
+    struct RateGuard {
+      Engine& e;
+      ~RateGuard() {
+        try {
+          Timed t(e.stats_.device_s);
+          e.command_rate(e.b_.profile_rate_arcsec_s);
+        } catch (const DeviceError& ex) {
+          e.log_.warn("could not restore the profile rate: {}", ex.what());
+        }
+      }
+    };
+    std::vector<GimbalFix> fixes;
+    std::vector<SensorSample> frames;
+    auto fix = [&](const GimbalState& st) {
+      fixes.push_back(GimbalFix{static_cast<double>(st.sample_time_us) / 1e6, st.host_time_s, st.pitch_arcsec,
+                                st.yaw_arcsec, st.pitch_rate_arcsec_s, st.yaw_rate_arcsec_s, st.status});
+    };
+    auto drain = [&] {
+      Timed t(stats_.device_s);
+      while (auto f = s_.next_sample(0.0)) frames.push_back(*f);
+    };
+    try {
+      {
+        Timed t(stats_.device_s);
+        command_rate(a.rate_arcsec_s);
+      }
+      RateGuard guard{*this};
+      {
+        Timed t(stats_.device_s);
+        s_.flush();
+      }
+      fix(read_gimbal());
+      {
+        Timed t(stats_.device_s);
+        command_move(a.pitch_arcsec, a.yaw_arcsec);
+      }
+      const double span = std::fabs(a.axis == StandAxis::pitch ? a.pitch_arcsec - a.start_pitch_arcsec
+                                                               : a.yaw_arcsec - a.start_yaw_arcsec);
+      const double timeout_wall = b_.wall(span / a.rate_arcsec_s * 2 + b_.move_timeout_s) + 2.0;
+      const auto start = Clock::now();
+      const double tol = b_.in_position_tolerance_arcsec;
+      for (;;) {
+        check_abort();
+        GimbalState st = read_gimbal();
+        fix(st);
+        if (st.has(kFault) || st.fault != GimbalFault::none) {
+          throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
+        }
+        drain();
+        if (st.has(kInPosition) && !st.has(kMoving) && std::fabs(st.pitch_arcsec - a.pitch_arcsec) <= tol &&
+            std::fabs(st.yaw_arcsec - a.yaw_arcsec) <= tol) {
+          break;
+        }
+        if (seconds_since(start) > timeout_wall) {
+          throw GimbalFailure(fmt::format("slew did not reach its end within {:.1f} s (at pitch {}, yaw {})",
+                                          timeout_wall, deg(st.pitch_arcsec), deg(st.yaw_arcsec)));
+        }
+        Timed t(stats_.sleep_s);
+        std::this_thread::sleep_for(std::chrono::microseconds(500));
+      }
+      // Frames sampled before the arrival may still be on the line: wait one frame period more.
+      {
+        const double frame_wait = b_.wall(2.0 / b_.sample_rate_hz) + 0.05;
+        Timed t(stats_.device_s);
+        if (auto f = s_.next_sample(frame_wait)) frames.push_back(*f);
+      }
+      drain();
+    } catch (const DeviceError& e) {
+      throw PointFailure(e.what());
+    }
+    verify_command();
+    if (frames.empty()) throw SensorFailure("the sensor sent no frame during the slew");
+
+    // Sensor time -> gimbal time.
+    std::vector<double> g_times(frames.size());
+    std::vector<double> s_times(frames.size());
+    if (b_.clock == ClockSync::shared) {
+      for (size_t i = 0; i < frames.size(); ++i) {
+        // Unwrap against the gimbal time nearest in host time (both on one clock).
+        auto it = std::lower_bound(fixes.begin(), fixes.end(), frames[i].host_time_s,
+                                   [](const GimbalFix& f, double h) { return f.host_time_s < h; });
+        const double ref = (it == fixes.end() ? fixes.back() : *it).gimbal_time_s;
+        s_times[i] = std::round((unwrap_near(frames[i].sensor_time_us, ref) + b_.sensor_time_offset_s) * 1e6) / 1e6;
+        g_times[i] = s_times[i];
+      }
+    } else {
+      std::vector<double> hs, ds, hg, dg;
+      for (const auto& f : frames) {
+        hs.push_back(f.host_time_s);
+        ds.push_back(f.sensor_time_s);
+      }
+      for (const auto& f : fixes) {
+        hg.push_back(f.host_time_s);
+        dg.push_back(f.gimbal_time_s);
+      }
+      const double cs = clock_offset(hs, ds, b_.time_scale), cg = clock_offset(hg, dg, b_.time_scale);
+      for (size_t i = 0; i < frames.size(); ++i) {
+        s_times[i] = frames[i].sensor_time_s + b_.sensor_time_offset_s;
+        g_times[i] = s_times[i] + cs - cg;
+      }
+    }
+    const double temp = read_temperature_c(a);
+    std::vector<RecordedRow> rows;
+    int invalid = 0, gapped = 0;
+    double next_keep = -std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const auto& f = frames[i];
+      auto at = interpolate_at(fixes, g_times[i]);
+      if (!at) continue;  // before the first or after the last gimbal reading: no reference
+      if (at->gap_s > b_.max_reference_gap_s) {
+        ++gapped;  // the gimbal was not read often enough around this frame to trust its reference
+        continue;
+      }
+      if (!f.valid()) {
+        ++invalid;
+        continue;
+      }
+      // One sample per period on the sensor's clock: the first frame at least a period after the
+      // last one kept (a microsecond of slack for float rounding).
+      if (s_times[i] + 1e-6 < next_keep) continue;
+      next_keep = s_times[i] + a.sample_period_s;
+      const GimbalRef ref{g_times[i], at->pitch_arcsec, at->yaw_arcsec, at->status};
+      rows.push_back(make_row(a, Phase::slew, f, s_times[i], ref, temp, attempt, session));
+    }
+    if (rows.empty()) {
+      throw SensorFailure(fmt::format("no valid frame aligned with the gimbal during the slew ({} frames, {} invalid)",
+                                      frames.size(), invalid),
+                          invalid > 0 ? StopCause::sensor_invalid : StopCause::sensor_timeout);
+    }
+    if (invalid > 0) warn(&a, fmt::format("point {}: {} invalid frame(s) during the slew skipped", a.point + 1, invalid));
+    if (gapped > 0) {
+      log_.info("point {}: {} frame(s) skipped: gimbal readings around them more than {} s apart", a.point + 1, gapped,
+                b_.max_reference_gap_s);
+    }
+    double max_gap = 0;
+    for (size_t i = 1; i < fixes.size(); ++i) max_gap = std::max(max_gap, fixes[i].gimbal_time_s - fixes[i - 1].gimbal_time_s);
+    log_.debug("point {}: slew of {} frames, {} kept, {} gimbal readings (largest gap {:.1f} ms of bench time)",
+               a.point + 1, frames.size(), rows.size(), fixes.size(), max_gap * 1e3);
+    publish_point(a, rows, attempt, session, invalid);
+  });
+}
+
+}  // namespace fpss

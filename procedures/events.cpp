@@ -1,0 +1,202 @@
+#include "procedures/events.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+
+#include "procedures/plan.h"
+
+namespace fpss {
+
+const char* to_string(RunOutcome o) {
+  switch (o) {
+    case RunOutcome::completed: return "completed";
+    case RunOutcome::failed: return "failed";
+    case RunOutcome::interrupted: return "interrupted";
+  }
+  return "?";
+}
+
+const char* to_string(StopCause c) {
+  switch (c) {
+    case StopCause::none: return "none";
+    case StopCause::interrupted: return "interrupted";
+    case StopCause::aborted: return "aborted";
+    case StopCause::sensor_invalid: return "sensor_invalid";
+    case StopCause::sensor_timeout: return "sensor_timeout";
+    case StopCause::gimbal_fault: return "gimbal_fault";
+    case StopCause::limit: return "limit";
+    case StopCause::commanded_elsewhere: return "commanded_elsewhere";
+    case StopCause::check_failed: return "check_failed";
+    case StopCause::calibration_failed: return "calibration_failed";
+    case StopCause::storage: return "storage";
+    case StopCause::unsafe: return "unsafe";
+    case StopCause::other: return "other";
+  }
+  return "?";
+}
+
+PointStats PointStats::of(const std::vector<RecordedRow>& rows) {
+  PointStats s;
+  s.rows = rows.size();
+  if (rows.empty()) return s;
+  for (const auto& r : rows) {
+    s.ref_pitch_arcsec += r.sample.ref_pitch_arcsec;
+    s.ref_yaw_arcsec += r.sample.ref_yaw_arcsec;
+    s.counts_alpha += r.sample.counts_alpha;
+    s.counts_beta += r.sample.counts_beta;
+  }
+  const double n = static_cast<double>(rows.size());
+  s.ref_pitch_arcsec /= n;
+  s.ref_yaw_arcsec /= n;
+  s.counts_alpha /= n;
+  s.counts_beta /= n;
+  if (rows.size() > 1) {
+    double va = 0, vb = 0;
+    for (const auto& r : rows) {
+      va += (r.sample.counts_alpha - s.counts_alpha) * (r.sample.counts_alpha - s.counts_alpha);
+      vb += (r.sample.counts_beta - s.counts_beta) * (r.sample.counts_beta - s.counts_beta);
+    }
+    s.sd_counts_alpha = std::sqrt(va / (n - 1));
+    s.sd_counts_beta = std::sqrt(vb / (n - 1));
+  }
+  return s;
+}
+
+namespace {
+
+using ojson = nlohmann::ordered_json;
+
+std::string utc_now_ms() {
+  const auto now = std::chrono::system_clock::now();
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
+  const std::string s = utc_now_iso();  // ...SSZ
+  return fmt::format("{}.{:03d}Z", s.substr(0, s.size() - 1), ms);
+}
+
+// A point as the outside sees it: 1-based number, the step it came from, its target.
+ojson point_json(const Action* a) {
+  if (!a) return nullptr;
+  ojson j;
+  j["point"] = a->point + 1;
+  j["step"] = a->step_index;
+  j["kind"] = a->kind == Action::Kind::slew ? "slew" : "dwell";
+  j["phase"] = std::string(to_string(a->phase));
+  j["target_pitch_arcsec"] = a->pitch_arcsec;
+  j["target_yaw_arcsec"] = a->yaw_arcsec;
+  return j;
+}
+
+ojson finite_or_null(double v) { return std::isfinite(v) ? ojson(v) : ojson(nullptr); }
+
+struct ToJson {
+  ojson operator()(const RunStarted& e) const {
+    ojson j{{"type", "run_started"}, {"session", e.session}, {"first_point", e.first_point + 1}};
+    if (e.plan) {
+      j["points_total"] = e.plan->points;
+      j["estimated_s"] = e.plan->estimated_s;
+      ojson pts = ojson::array();
+      for (size_t i : e.plan->point_action) {
+        const Action& a = e.plan->actions[i];
+        pts.push_back({a.point + 1, a.pitch_arcsec, a.yaw_arcsec});
+      }
+      j["points"] = std::move(pts);  // [point, target_pitch_arcsec, target_yaw_arcsec]
+    }
+    return j;
+  }
+  ojson operator()(const PointStarted& e) const {
+    ojson j{{"type", "point_started"}};
+    j.update(point_json(e.action));
+    j["attempt"] = e.attempt;
+    return j;
+  }
+  ojson operator()(const Samples& e) const {
+    ojson j{{"type", "samples"}};
+    j.update(point_json(e.action));
+    j["rows"] = e.rows ? e.rows->size() : 0;
+    j["attempt"] = e.attempt;
+    return j;
+  }
+  ojson operator()(const PointDone& e) const {
+    ojson j{{"type", "point_done"}};
+    j.update(point_json(e.action));
+    j["rows"] = e.stats.rows;
+    j["ref_pitch_arcsec"] = e.stats.ref_pitch_arcsec;
+    j["ref_yaw_arcsec"] = e.stats.ref_yaw_arcsec;
+    j["counts_alpha"] = e.stats.counts_alpha;
+    j["counts_beta"] = e.stats.counts_beta;
+    j["sd_counts_alpha"] = e.stats.sd_counts_alpha;
+    j["sd_counts_beta"] = e.stats.sd_counts_beta;
+    j["attempts"] = e.attempts;
+    j["invalid_frames"] = e.invalid_frames;
+    j["valid"] = true;
+    return j;
+  }
+  ojson operator()(const FitUpdated& e) const {
+    return {{"type", "fit_updated"},
+            {"points", e.points},
+            {"pairs", e.pairs},
+            {"rms_pitch_arcsec", finite_or_null(e.rms_pitch_arcsec)},
+            {"rms_yaw_arcsec", finite_or_null(e.rms_yaw_arcsec)},
+            {"sigma_max_pitch_arcsec", finite_or_null(e.sigma_max_pitch_arcsec)},
+            {"sigma_max_yaw_arcsec", finite_or_null(e.sigma_max_yaw_arcsec)}};
+  }
+  ojson operator()(const Paused& e) const { return {{"type", "paused"}, {"next_point", e.next_point + 1}}; }
+  ojson operator()(const Resumed& e) const { return {{"type", "resumed"}, {"next_point", e.next_point + 1}}; }
+  ojson operator()(const Fault& e) const {
+    ojson j{{"type", e.level == Fault::Level::fault ? "fault" : "warning"}};
+    j["point"] = e.point >= 0 ? ojson(e.point + 1) : ojson(nullptr);
+    j["message"] = e.message;
+    return j;
+  }
+  ojson operator()(const RunStopped& e) const {
+    return {{"type", "run_stopped"},     {"outcome", to_string(e.outcome)}, {"cause", to_string(e.cause)},
+            {"reason", e.reason},        {"points_done", e.points_done},    {"safe_state", e.safe_state}};
+  }
+};
+
+}  // namespace
+
+nlohmann::ordered_json to_json(const Event& e) {
+  ojson body = std::visit(ToJson{}, e);
+  ojson j{{"type", body["type"]}, {"utc", utc_now_ms()}};
+  body.erase("type");
+  j.update(body);
+  return j;
+}
+
+void record_with(EventBus& bus, RunRecorder& rec) {
+  bus.subscribe([&rec](const Event& e) {
+    if (const auto* s = std::get_if<Samples>(&e)) rec.append_point(s->action->point, *s->rows, s->attempt, s->session);
+  });
+}
+
+EventLog::EventLog(const std::filesystem::path& path) : path_(path) {
+  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC | O_NOFOLLOW, 0644);
+  if (fd_ < 0) throw std::runtime_error(fmt::format("{}: cannot open: {}", path.string(), std::strerror(errno)));
+}
+
+EventLog::~EventLog() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void EventLog::write(const Event& e) {
+  const std::string line = to_json(e).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
+  // One write per line on an O_APPEND descriptor: a reader never sees two events interleaved.
+  size_t off = 0;
+  while (off < line.size()) {
+    const ssize_t n = ::write(fd_, line.data() + off, line.size() - off);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) throw std::runtime_error(fmt::format("{}: cannot append: {}", path_.string(), std::strerror(errno)));
+    off += static_cast<size_t>(n);
+  }
+}
+
+}  // namespace fpss

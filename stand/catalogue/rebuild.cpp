@@ -1,0 +1,115 @@
+#include "stand/catalogue/rebuild.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <set>
+
+#include "procedures/recorder.h"
+
+namespace fpss {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+RunStart run_start_of(const nlohmann::json& doc, const fs::path& dir) {
+  RunStart rs;
+  rs.run_id = dir.filename().string();
+  rs.unit = doc.value("unit", "");
+  rs.procedure = doc.at("procedure").value("name", "");
+  rs.procedure_hash = doc.at("procedure").value("sha256", "");
+  rs.started_utc = doc.value("started_utc", "");
+  rs.run_dir = fs::absolute(dir);
+  rs.emulated = doc.value("emulated", false);
+  if (!rs.emulated && doc.contains("stand") && doc["stand"].contains("settings")) {
+    rs.stand = doc["stand"]["settings"].value("stand", "");
+  }
+  if (doc.contains("software")) rs.software_version = doc["software"].value("version", rs.software_version);
+  return rs;
+}
+
+// calibration.json, calibration-2.json, ... in the order they were made.
+std::vector<fs::path> calibration_files(const fs::path& dir) {
+  std::vector<std::pair<int, fs::path>> found;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string n = e.path().filename().string();
+    if (n == "calibration.json") found.emplace_back(1, e.path());
+    else if (n.rfind("calibration-", 0) == 0 && n.size() > 17 && n.substr(n.size() - 5) == ".json") {
+      try {
+        found.emplace_back(std::stoi(n.substr(12, n.size() - 17)), e.path());
+      } catch (const std::exception&) {
+      }
+    }
+  }
+  std::sort(found.begin(), found.end());
+  std::vector<fs::path> out;
+  for (auto& f : found) out.push_back(f.second);
+  return out;
+}
+
+void index_run(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
+  const nlohmann::json doc = read_json_file(dir / "run.json");
+  const RunStart rs = run_start_of(doc, dir);
+  const std::string outcome = doc.value("outcome", "running");
+  const auto known = cat.find_run(rs.run_id);
+  if (!known) {
+    cat.record_run_start(rs);
+    ++r.runs_added;
+    if (outcome != "running") cat.record_run_end(rs.run_id, outcome, doc.value("ended_utc", ""));
+  } else if (known->outcome != outcome && outcome != "running") {
+    cat.record_run_end(rs.run_id, outcome, doc.value("ended_utc", ""));
+    ++r.runs_updated;
+  }
+  std::set<std::string> have;
+  for (const auto& c : cat.run_calibrations(rs.run_id)) have.insert(c.coefficients.dump());
+  for (const auto& f : calibration_files(dir)) {
+    CalibrationRecord cr = CalibrationRecord::from_calibration_json(read_json_file(f), f.string());
+    if (have.count(cr.coefficients.dump())) continue;
+    cr.unit = rs.unit;
+    cr.source = "run";
+    cr.run_id = rs.run_id;
+    cr.source_ref = rs.run_id;
+    cr.date_utc = cr.coefficients.value("calibrated_at", doc.value("ended_utc", rs.started_utc));
+    cat.record_calibration(cr);
+    have.insert(cr.coefficients.dump());
+    ++r.calibrations_added;
+  }
+  if (fs::exists(dir / "acceptance.json")) {
+    bool indexed = false;
+    for (const auto& a : cat.unit_acceptances(rs.unit)) indexed |= a.run_id == rs.run_id;
+    if (!indexed) {
+      const nlohmann::json cert = read_json_file(dir / "acceptance.json");
+      AcceptanceRecord rec;
+      rec.unit = cert.value("unit", rs.unit);
+      rec.run_id = rs.run_id;
+      rec.passed = cert.value("passed", false);
+      rec.date_utc = cert.value("date_utc", doc.value("ended_utc", ""));
+      rec.certificate = cert;
+      cat.record_acceptance(rec);
+      ++r.acceptances_added;
+    }
+  }
+}
+
+}  // namespace
+
+RebuildReport rebuild_catalogue(Catalogue& cat, const fs::path& runs_dir) {
+  RebuildReport r;
+  std::vector<fs::path> dirs;
+  for (const auto& e : fs::directory_iterator(runs_dir)) {
+    if (e.is_directory() && !e.is_symlink() && fs::exists(e.path() / "run.json")) dirs.push_back(e.path());
+  }
+  std::sort(dirs.begin(), dirs.end());  // folder names start with the UTC start time
+  for (const auto& d : dirs) {
+    ++r.folders;
+    try {
+      index_run(cat, d, r);
+    } catch (const std::exception& e) {
+      r.skipped.push_back(fmt::format("{}: {}", d.string(), e.what()));
+    }
+  }
+  return r;
+}
+
+}  // namespace fpss

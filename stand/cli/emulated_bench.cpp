@@ -1,0 +1,67 @@
+#include "stand/cli/emulated_bench.h"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+
+#include "calib/coefficients.h"
+#include "calib/errors.h"
+#include "fixtures/bench.h"
+
+namespace fpss::cli {
+
+namespace fs = std::filesystem;
+
+void add_emulated_bench_options(CLI::App* sub, EmulatedBenchArgs& a) {
+  a.options.push_back(sub->add_option("--speed", a.speed, "Emulator: bench clock speed-up (default 20)"));
+  a.options.push_back(sub->add_option("--seed", a.seed, "Emulator: seed of all bench noise (default 1)"));
+  a.options.push_back(sub->add_option("--bench", a.bench, "Emulator: bench file (YAML)"));
+  // One value per occurrence (--effect A --effect B), so a positional argument after them stays one.
+  a.options.push_back(sub->add_option("--effect", a.effects, "Emulator: injected effect NAME:key=value,... (repeatable)")
+                          ->allow_extra_args(false));
+  a.options.push_back(
+      sub->add_option("--fault", a.faults, "Emulator: fault NAME[:key=value,...] (repeatable; docs/emulator.md)")
+          ->allow_extra_args(false));
+  a.options.push_back(sub->add_option("--truth", a.truth, "Emulator: coefficient file of the sensor's truth"));
+}
+
+void require_emulate_for_options(const EmulatedBenchArgs& a, const std::string& command) {
+  for (auto* o : a.options) {
+    if (o->count() > 0) throw InputError(fmt::format("{}: {} needs --emulate", command, o->get_name()));
+  }
+}
+
+EmulatorSpec emulator_spec(const EmulatedBenchArgs& a, const std::string& unit_serial) {
+  EmulatorSpec e;
+  e.speed = a.speed;
+  e.seed = a.seed;
+  e.bench_file = a.bench.empty() ? "" : fs::absolute(a.bench).string();
+  e.truth_file = a.truth.empty() ? "" : fs::absolute(a.truth).string();
+  e.unit_serial = unit_serial;
+  for (const auto& spec : a.effects) {
+    const Effect eff = parse_effect(spec);
+    e.effects.push_back(eff.name == "coefficients" ? spec : format_effect(eff));
+  }
+  // Relative files named inside effects are the caller's: make them absolute for the child.
+  for (auto& spec : e.effects) {
+    const auto at = spec.find("file=");
+    if (at != std::string::npos) {
+      const auto end = spec.find(',', at);
+      const std::string file = spec.substr(at + 5, end == std::string::npos ? std::string::npos : end - at - 5);
+      spec.replace(at + 5, file.size(), fs::absolute(file).string());
+    }
+  }
+  if (!e.bench_file.empty()) (void)load_bench_file(e.bench_file);
+  if (!e.truth_file.empty()) (void)load_coefficients(e.truth_file);
+  e.faults = a.faults;
+  e.exe = this_binary();
+  return e;
+}
+
+fs::path this_binary() {
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? fs::path("/proc/self/exe") : self;
+}
+
+}  // namespace fpss::cli

@@ -1,0 +1,78 @@
+#include "stand/session/run_folder.h"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+
+#include <cerrno>
+#include <cstring>
+#include <string>
+
+#include "calib/errors.h"
+#include "procedures/procedure.h"
+#include "procedures/recorder.h"
+
+namespace fpss {
+
+namespace fs = std::filesystem;
+
+fs::path canonical_run_dir(const fs::path& dir) {
+  std::error_code ec;
+  const fs::path c = fs::canonical(dir, ec);
+  if (ec) throw InputError(fmt::format("{}: {}", dir.string(), ec.message()));
+  if (!fs::is_directory(c)) throw InputError(fmt::format("{}: not a folder", dir.string()));
+  return c;
+}
+
+RunFolderLock::RunFolderLock(const fs::path& run_dir) {
+  const fs::path path = run_dir / ".lock";
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+  if (fd_ < 0) throw std::runtime_error(fmt::format("{}: cannot open: {}", path.string(), std::strerror(errno)));
+  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+    const int err = errno;
+    char buf[32] = {0};
+    const ssize_t n = ::pread(fd_, buf, sizeof buf - 1, 0);
+    ::close(fd_);
+    fd_ = -1;
+    if (err != EWOULDBLOCK) throw std::runtime_error(fmt::format("{}: cannot lock: {}", path.string(), std::strerror(err)));
+    const std::string pid = n > 0 ? std::string(buf, static_cast<size_t>(n)) : std::string("?");
+    throw RunFolderBusy(fmt::format("{}: the run folder is in use by another fpss-stand (pid {}); nothing was written",
+                                    run_dir.string(), pid.substr(0, pid.find_first_of("\n"))));
+  }
+  const std::string pid = std::to_string(::getpid()) + "\n";
+  // Without the pid the lock still holds; only a second owner's message is poorer.
+  if (::ftruncate(fd_, 0) == 0) (void)!::pwrite(fd_, pid.data(), pid.size(), 0);
+}
+
+RunFolderLock::~RunFolderLock() {
+  if (fd_ >= 0) ::close(fd_);  // releases the flock
+}
+
+RunInfo read_run_info(const fs::path& run_dir) {
+  const fs::path path = run_dir / "run.json";
+  if (!fs::exists(path)) throw InputError(fmt::format("{}: not a run folder (no run.json)", run_dir.string()));
+  RunInfo info;
+  info.doc = read_json_file(path);
+  try {
+    const auto& p = info.doc.at("procedure");
+    info.procedure_text = p.at("text").get<std::string>();
+    info.procedure_origin = p.value("file", "procedure.yaml");
+    const std::string hash = p.at("sha256").get<std::string>();
+    if (sha256_hex(info.procedure_text) != hash) {
+      throw InputError(fmt::format("{}: the procedure text does not match its recorded hash", path.string()));
+    }
+    const auto& s = info.doc.at("stand");
+    if (s.contains("text") && s["text"].is_string()) info.stand_text = s["text"].get<std::string>();
+    if (s.contains("file") && s["file"].is_string()) info.stand_origin = s["file"].get<std::string>();
+    if (info.doc.value("emulated", false)) {
+      info.emulator = EmulatorSpec::from_json(info.doc.at("emulator"), path.string());
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: {}", path.string(), e.what()));
+  }
+  return info;
+}
+
+}  // namespace fpss

@@ -1,0 +1,117 @@
+// A run folder end to end: one owner at a time, one run whatever the spelling of its path, a catalogue
+// that cannot record ends in exit 1 with the folder complete and `catalogue rebuild` restoring the
+// index, and events.jsonl telling the run as it happened.
+#include <fmt/format.h>
+
+#include <unistd.h>
+
+#include <sstream>
+
+#include "tests/stand/run_helpers.h"
+
+namespace fpss {
+namespace {
+
+using namespace runtest;
+using test::run_stand;
+using test::TempDir;
+
+const char* kSmallGrid =
+    "name: small_grid\nsteps:\n  - home\n"
+    "  - null_offset_grid: {extent_deg: 0.3, step_deg: 0.05, frames: 5, settle_s: 0.2}\n"
+    "  - calibrate: {}\n";
+
+std::vector<nlohmann::json> jsonl(const fs::path& p) {
+  std::vector<nlohmann::json> out;
+  std::istringstream in(test::read_file(p));
+  for (std::string line; std::getline(in, line);) out.push_back(nlohmann::json::parse(line));
+  return out;
+}
+
+TEST(RunFolder, ASecondOwnerIsRefusedAndEverySpellingReachesTheSameRun) {
+  TempDir tmp("run-lock");
+  const auto runs = tmp / "runs";
+  test::Child c = test::start_stand(
+      {"run", proc("discrete_grid.yaml"), "--emulate", "--runs-dir", runs.string(), "--quiet"}, tmp.path(), "first");
+  ASSERT_TRUE(test::wait_until([&] { return test::journaled_points(runs) >= 3; }, 60, std::chrono::milliseconds(20)));
+  const fs::path run = only_run(runs);
+  fs::create_directory_symlink(run, tmp / "link");
+  // While it runs: a resume through a symlink and one with a trailing slash are both refused.
+  for (const std::string spelling : {(tmp / "link").string(), run.string() + "/"}) {
+    const auto r = run_stand({"run", "--resume", spelling, "--quiet"}, tmp.path(), "second");
+    EXPECT_EQ(r.code, 1) << spelling << ": " << r.err;
+    EXPECT_NE(r.err.find(fmt::format("pid {}", c.pid())), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("in use"), std::string::npos) << r.err;
+  }
+  c.signal(SIGTERM);
+  ASSERT_EQ(c.wait(60), 1);
+  EXPECT_EQ(run_json(run)["sessions"].size(), 1u);  // the refused ones wrote nothing
+  // Resumed as tab completion gives it, relative (to this process's folder, which the child
+  // shares) with a trailing slash: the same run, the runs folder's catalogue, no stray catalogue
+  // inside the run folder.
+  const std::string relative = fs::relative(run, fs::current_path()).string() + "/";
+  const auto r = run_stand({"run", "--resume", relative, "--quiet"}, tmp.path(), "resume");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(run / "stand.db"));
+  EXPECT_EQ(run_json(run)["outcome"], "completed");
+  Catalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
+  EXPECT_EQ(cat.find_run(run.filename().string())->outcome, "completed");
+  EXPECT_EQ(cat.run_calibrations(run.filename().string()).size(), 1u);
+}
+
+TEST(RunFolder, ACatalogueThatCannotRecordExitsOneThenRebuildIndexesTheFolder) {
+  TempDir tmp("run-catalogue");
+  const auto runs = tmp / "runs";
+  test::write_file(tmp / "grid.yaml", kSmallGrid);
+  test::write_file(tmp / "not-a-folder", "a file where the catalogue's folder should be\n");
+  const fs::path bad_catalogue = tmp / "not-a-folder" / "stand.db";
+  const auto r = run_stand({"run", (tmp / "grid.yaml").string(), "--emulate", "--runs-dir", runs.string(),
+                            "--catalogue", bad_catalogue.string(), "--quiet"},
+                           tmp.path(), "run");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("catalogue"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("catalogue rebuild"), std::string::npos) << r.err;
+  const fs::path run = only_run(runs);
+  const auto doc = run_json(run);
+  EXPECT_EQ(doc["outcome"], "completed");
+  EXPECT_EQ(doc["stop_cause"], "none");
+  EXPECT_TRUE(fs::exists(run / "calibration.json"));
+  const size_t points = RunRecorder::read_journal(run / "points.jsonl").size();
+  EXPECT_EQ(static_cast<int64_t>(points), doc["points"]["total"].get<int64_t>());
+
+  // events.jsonl: one ordered story of the run.
+  const auto events = jsonl(run / "events.jsonl");
+  ASSERT_GE(events.size(), 2u);
+  EXPECT_EQ(events.front()["type"], "run_started");
+  EXPECT_EQ(events.back()["type"], "run_stopped");
+  EXPECT_EQ(events.back()["cause"], "none");
+  size_t done = 0;
+  int64_t last_point = 0;
+  for (const auto& e : events) {
+    if (e["type"] != "point_done") continue;
+    ++done;
+    EXPECT_EQ(e["point"].get<int64_t>(), last_point + 1);  // 1-based, in order
+    last_point = e["point"].get<int64_t>();
+  }
+  EXPECT_EQ(done, points);
+
+  // Nothing recorded on disk is lost to the index: rebuild, twice (the second adds nothing).
+  auto rb = run_stand({"catalogue", "rebuild", "--runs-dir", runs.string(), "--json"}, tmp.path(), "rebuild");
+  ASSERT_EQ(rb.code, 0) << rb.err;
+  auto j = nlohmann::json::parse(rb.out);
+  EXPECT_EQ(j["runs_added"], 1);
+  EXPECT_EQ(j["calibrations_added"], 1);
+  rb = run_stand({"catalogue", "rebuild", "--runs-dir", runs.string(), "--json"}, tmp.path(), "rebuild2");
+  ASSERT_EQ(rb.code, 0) << rb.err;
+  j = nlohmann::json::parse(rb.out);
+  EXPECT_EQ(j["runs_added"], 0);
+  EXPECT_EQ(j["calibrations_added"], 0);
+  Catalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
+  const auto rec = cat.find_run(run.filename().string());
+  ASSERT_TRUE(rec);
+  EXPECT_EQ(rec->outcome, "completed");
+  EXPECT_EQ(cat.run_calibrations(run.filename().string()).size(), 1u);
+}
+
+}  // namespace
+}  // namespace fpss

@@ -1,0 +1,91 @@
+// In-process fake Gimbal and Sensor (after ros2_control's mock_components), driven by the simulated bench's physics.
+#pragma once
+#include <chrono>
+#include <memory>
+#include <mutex>
+#include <optional>
+
+#include "drivers/gimbal.h"
+#include "drivers/sensor.h"
+#include "fixtures/bench.h"
+
+namespace fpss::test {
+
+// One simulated bench shared by both fakes. Its clock is the wall clock since construction times
+// `speed`, as the emulator's real-time clock is, so the engine's waits mean what they mean on a
+// real stand; but there is no wire, no child process and no pty.
+class FakeBench {
+ public:
+  explicit FakeBench(BenchConfig cfg = default_bench_config(), double speed = 20);
+  // Brings the physics up to now and returns the bench time.
+  double now_s();
+  Bench& bench() { return bench_; }
+  std::mutex& mutex() { return mu_; }
+  double speed() const { return speed_; }
+  // Faults on demand: the gimbal's following error at its n-th request (1-based; 0 never), and
+  // invalid sensor frames (sun absent) from bench time t on (infinite: never).
+  uint64_t following_error_at_request = 0;
+  double invalid_frames_from_s = 1e300;
+
+ private:
+  std::mutex mu_;
+  Bench bench_;
+  double speed_;
+  std::chrono::steady_clock::time_point t0_ = std::chrono::steady_clock::now();
+};
+
+class FakeGimbal : public Gimbal {
+ public:
+  FakeGimbal(FakeBench& bench, SoftLimits limits = {}) : b_(bench), limits_(limits) {}
+  void connect() override { connected_ = true; }
+  void disconnect() override { connected_ = false; }
+  bool connected() const override { return connected_; }
+  GimbalState read_state() override;
+  void set_max_rate(double arcsec_s) override;
+  void move_to(double pitch_arcsec, double yaw_arcsec) override;
+  GimbalState wait_in_position(double timeout_s) override;
+  void start_rate(double pitch_arcsec_s, double yaw_arcsec_s) override;
+  void stop() override { command(2); }
+  void home() override { command(3); }
+  void clear_fault() override { command(4); }
+  void set_watchdog(double seconds) override;
+  std::optional<GimbalCommand> read_command() override;
+  uint64_t requests() const { return requests_; }
+  // Another client's write, as a second Modbus master on the same gimbal would make it.
+  void foreign_max_rate(double arcsec_s);
+
+ private:
+  void request();  // counts a request; fires the following error when it is due
+  void command(uint16_t code);
+  FakeBench& b_;
+  SoftLimits limits_;
+  bool connected_ = false;
+  uint64_t requests_ = 0;
+  uint16_t last_command_ = 0;
+};
+
+class FakeSensor : public Sensor {
+ public:
+  explicit FakeSensor(FakeBench& bench) : b_(bench) {}
+  void connect() override { connected_ = true; }
+  void disconnect() override { connected_ = false; }
+  bool connected() const override { return connected_; }
+  std::string identify() override;
+  void set_rate(int hz) override;
+  void start() override;
+  void stop() override { streaming_ = false; }
+  double temperature_c() override;
+  std::optional<SensorSample> next_sample(double timeout_s) override;
+  void flush() override;
+  SensorStats stats() const override { return stats_; }
+
+ private:
+  double frame_time_s(uint64_t k) const { return static_cast<double>(k) / rate_hz_; }
+  FakeBench& b_;
+  bool connected_ = false, streaming_ = false;
+  double rate_hz_ = 50;
+  uint64_t next_frame_ = 0;
+  SensorStats stats_;
+};
+
+}  // namespace fpss::test
