@@ -21,6 +21,7 @@
 #include "calib/coefficients.h"
 #include "calib/compare.h"
 #include "calib/errors.h"
+#include "calib/json_file.h"
 #include "calib/text_file.h"
 #include "fixtures/bench.h"
 #include "procedures/acceptance.h"
@@ -85,21 +86,13 @@ int run_gnuplot(const fs::path& script) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  f << text;
-  f.close();
-  if (!f) throw std::runtime_error(fmt::format("{}: cannot write", path.string()));
-}
-
 // The SVG at `svg`, with its data (.dat) and gnuplot script (.gp) next to it to redraw it.
 void write_plot(const CalibrationComparison& c, const fs::path& svg, const std::string& title) {
-  if (svg.has_parent_path()) fs::create_directories(svg.parent_path());
   fs::path data = svg, script = svg;
   data.replace_extension(".dat");
   script.replace_extension(".gp");
-  write_text(data, comparison_plot_data(c));
-  write_text(script, comparison_plot_script(c, data.string(), svg.string(), title));
+  write_text_atomic(data, comparison_plot_data(c));
+  write_text_atomic(script, comparison_plot_script(c, data.string(), svg.string(), title));
   const int rc = run_gnuplot(script);
   if (rc != 0) {
     throw std::runtime_error(fmt::format("gnuplot {} failed ({}); the data and script are at {} and {}",
@@ -157,6 +150,17 @@ void add_compare(CLI::App& app, Runner& run) {
   sub->callback([o, &run] {
     run = [o] {
       const fs::path db = catalogue_path(o->db, o->runs_dir);
+      if (!o->plot.empty()) {
+        // The plot's folder is made when missing; then the one output check (folder writable, no input overwritten).
+        const fs::path svg = o->plot;
+        std::error_code ec;
+        if (svg.has_parent_path()) fs::create_directories(svg.parent_path(), ec);
+        if (ec) throw InputError(fmt::format("--plot {}: cannot make its folder: {}", o->plot, ec.message()));
+        fs::path data = svg, script = svg;
+        data.replace_extension(".dat");
+        script.replace_extension(".gp");
+        for (const fs::path& p : {svg, data, script}) check_output_path(p, {o->a, o->b, db}, "--plot");
+      }
       const NamedSet a = resolve_calibration(o->a, db), b = resolve_calibration(o->b, db);
       const CalibrationComparison c = compare_calibrations(a.set, b.set, o->range_deg);
       if (!o->plot.empty()) {
@@ -194,14 +198,9 @@ void add_import(CLI::App& app, Runner& run) {
     run = [o] {
       if (o->unit.empty()) throw InputError("--unit: the serial must not be empty");
       const std::string date = checked_date(o->date);
-      std::ifstream in(o->file, std::ios::binary);
-      if (!in) throw InputError(fmt::format("{}: cannot open", o->file));
-      nlohmann::json j;
-      try {
-        j = nlohmann::json::parse(in);
-      } catch (const nlohmann::json::parse_error& e) {
-        throw InputError(fmt::format("{}: not JSON: {}", o->file, e.what()));
-      }
+      const fs::path db_path = catalogue_path(o->db, o->runs_dir);
+      if (fs::exists(db_path)) check_output_path(db_path, {o->file}, "--db");
+      const nlohmann::json j = read_json_file(o->file, "coefficient file");
       CalibrationRecord rec = CalibrationRecord::from_calibration_json(j, o->file);  // validates C1..C8
       if (!rec.unit.empty() && rec.unit != o->unit) {
         std::fprintf(stderr, "note: %s names unit \"%s\"; recorded against --unit %s\n", o->file.c_str(),
