@@ -304,7 +304,7 @@ int accept_command(const AcceptArgs& a) {
   req.quiet = a.quiet;
   req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
   Diagnostics dp(proc_path.string());
-  req.procedure = parse_procedure(read_text_file(proc_path, "procedure file"), proc_path.string(), dp);
+  req.procedure = parse_procedure(read_text_file(proc_path, "procedure file", kMaxConfigFileBytes), proc_path.string(), dp);
   Diagnostics ds(a.stand_file);
   req.stand = stand_for_run(a.stand_file, a.emulate, a.speed, ds);
   if (!a.unit.empty() && !a.emulate) req.stand.unit_serial = a.unit;

@@ -78,7 +78,7 @@ int run_command(const RunArgs& a) {
       }
     }
     // Validate everything before anything moves, and report every error of both files at once.
-    const std::string ptext = read_text_file(a.procedure, "procedure file");
+    const std::string ptext = read_text_file(a.procedure, "procedure file", kMaxConfigFileBytes);
     Diagnostics dp(a.procedure);
     req.procedure = parse_procedure(ptext, a.procedure, dp);
     Diagnostics ds(a.stand_file);
