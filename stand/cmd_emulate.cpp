@@ -5,13 +5,14 @@
 #include <fmt/format.h>
 
 #include <cstdio>
-#include <fstream>
+#include <sstream>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
+#include "calib/text_file.h"
 #include "fixtures/emulator.h"
 #include "stand/commands.h"
 
@@ -34,11 +35,16 @@ struct EmulateArgs {
 // Reads the fault file (one NAME:key=value,... per line, # comments) and arms each fault. A bad
 // line is reported and skipped: the emulator keeps running for the other clients.
 void inject_from_file(Emulator& emu, const std::string& path) {
-  std::ifstream in(path);
-  if (!in) {
-    fmt::print(stderr, "emulate: SIGUSR1: cannot read fault file {}\n", path);
+  // A regular file of at most kMaxConfigFileBytes: a FIFO or /dev/zero there cannot stall or
+  // swell the emulator.
+  std::string text;
+  try {
+    text = read_text_file(path, "fault file", kMaxConfigFileBytes);
+  } catch (const InputError& e) {
+    fmt::print(stderr, "emulate: SIGUSR1: {}\n", e.what());
     return;
   }
+  std::istringstream in(text);
   std::string line;
   for (int n = 1; std::getline(in, line); ++n) {
     const auto b = line.find_first_not_of(" \t\r");

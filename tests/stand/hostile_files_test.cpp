@@ -139,6 +139,11 @@ TEST_F(HostileFiles, AnOutputThatIsAnInputInAnySpellingIsRefusedAndKept) {
   EXPECT_EQ(r.code == 0 || r.code == 1, true) << r.err;                   // 1 only when gnuplot is missing
   r = run({"compare", data, "a-7-fpss1", "--plot", path("rec.svg")});     // rec.dat is free, but not an input...
   EXPECT_EQ(r.code, 2);                                                    // ...rec.csv is not a coefficient file
+  // import --db naming the coefficient file itself.
+  r = run({"import", model, "--unit", "U1", "--date", "2024-01-01", "--db", path("sub/../model.json")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--db " + path("sub/../model.json") + ": is the same file as the input"), std::string::npos)
+      << r.err;
   EXPECT_EQ(test::read_file(data), before);
   EXPECT_EQ(test::read_file(model), test::read_file(kGood));
 }
