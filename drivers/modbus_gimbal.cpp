@@ -230,9 +230,13 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
       // libmodbus's response timeout covers only the first byte, and its byte timeout restarts
       // with every byte: a device sending its reply one byte every 0.1 s would hold a request for
       // seconds. So the byte timeout is the response timeout shared out over the reply's bytes
-      // (each attempt then ends within twice the response timeout), and a reply complete only
-      // after the response timeout counts as a timeout (docs/icd.md, section 4).
-      const double byte_timeout_s = std::max(0.002, options_.response_timeout_s / reply_bytes(o, count, rtu_));
+      // (over TCP each attempt then ends within twice the response timeout), and a reply complete
+      // only after twice the response timeout counts as a timeout (docs/icd.md, section 4). Serial
+      // links (USB adapters, ptys) deliver a reply in chunks with gaps of tens of milliseconds, so
+      // over RTU the byte timeout is at least 0.1 s (or the response timeout when shorter).
+      const double share_s = options_.response_timeout_s / reply_bytes(o, count, rtu_);
+      const double byte_timeout_s =
+          rtu_ ? std::max(share_s, std::min(0.1, options_.response_timeout_s)) : std::max(0.002, share_s);
       modbus_set_byte_timeout(ctx, 0, static_cast<uint32_t>(std::lround(byte_timeout_s * 1e6)));
       const auto started = Clock::now();
       int rc = -1;
@@ -243,7 +247,7 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
         case Op::write_multiple: rc = modbus_write_registers(ctx, addr, count, regs); break;
       }
       const double took_s = std::chrono::duration<double>(Clock::now() - started).count();
-      if (rc >= 0 && took_s <= options_.response_timeout_s) {
+      if (rc >= 0 && took_s <= 2 * options_.response_timeout_s) {
         ++counters_.requests;
         return rc;
       }
@@ -253,7 +257,7 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
         throw DeviceError(fmt::format("gimbal {}: {} of {}: {}", options_.endpoint, op_name(o),
                                       where(o, addr, count), exception_text(e)));
       last = busy      ? exception_text(e)
-             : rc >= 0 ? fmt::format("reply complete only after {:.3f} s, beyond the response timeout of {} s (errno {})",
+             : rc >= 0 ? fmt::format("reply complete only after {:.3f} s, beyond twice the response timeout of {} s (errno {})",
                                      took_s, options_.response_timeout_s, e)
                        : fmt::format("{} (errno {})", modbus_strerror(e), e);
       // Timeout, dropped link, corrupt or mismatched reply: a late answer could still arrive and be
