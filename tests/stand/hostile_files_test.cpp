@@ -48,10 +48,6 @@ TEST_F(HostileFiles, EveryCoefficientReaderRefusesDeepDuplicateAndAbsurdJson) {
   const std::string dup = write("dup.json", R"({"alpha": [0,5e-7,0,0,0,0,0,0], "alpha": [0,5e-7,0,0,0,0,0,0], "beta": [0,5e-7,0,0,0,0,0,0]})");
   const std::string huge = write("huge.json", R"({"alpha": [0,5e-7,0,0,1e308,0,0,0], "beta": [0,5e-7,0,0,0,0,0,0]})");
   const std::string data = write("d.csv", "time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha,counts_beta\n0,null,1,0,0,0,0\n");
-  struct Case {
-    std::string expect;
-    std::vector<std::string> (*args)(const std::string& file, const std::string& data, const std::string& dir);
-  };
   using V = std::vector<std::string>;
   const std::vector<std::pair<const char*, V (*)(const std::string&, const std::string&, const std::string&)>> commands = {
       {"angles", [](const std::string& f, const std::string&, const std::string&) { return V{"angles", "--model", f, "--alpha", "0", "--beta", "0"}; }},
