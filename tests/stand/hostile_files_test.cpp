@@ -73,6 +73,21 @@ TEST_F(HostileFiles, EveryCoefficientReaderRefusesDeepDuplicateAndAbsurdJson) {
   EXPECT_EQ(names(), (std::vector<std::string>{"cli.err", "cli.out", "d.csv", "deep.json", "dup.json", "huge.json"}));
 }
 
+TEST_F(HostileFiles, ProceduresBeyondTheLimitsExitTwoBeforeAnythingRuns) {
+  const std::string head = "name: g\nsteps:\n  - null_offset_grid:\n      axes: [pitch, yaw]\n      extent_deg: 0.42\n";
+  const std::string big = write("big.yaml", head + "      step_deg: 1e-5\n      frames: 1\n");
+  const std::string slow = write("slow.yaml", head + "      step_deg: 0.03\n      frames: 1\n      settle_s: 1e308\n");
+  CommandResult r = run({"run", big, "--emulate", "--dry-run", "--runs-dir", path("runs")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("big.yaml:4:7: step 1 (null_offset_grid): extent 1512 arcsec in steps of"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("a plan may have at most 100000"), std::string::npos) << r.err;
+  r = run({"run", slow, "--emulate", "--dry-run", "--runs-dir", path("runs")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("slow.yaml:8:17: step 1 (null_offset_grid): field settle_s: 1e308 is outside"), std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(path("runs")));  // nothing started, nothing recorded
+}
+
 TEST_F(HostileFiles, AnglesRefusesCountsThatAreNotFiniteNumbers) {
   for (const std::string v : {"nan", "inf", "-inf", "1e308"}) {
     SCOPED_TRACE(v);
