@@ -5,9 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
 
 #include "calib/errors.h"
+#include "calib/json_file.h"
 #include "calib/text_file.h"
 
 namespace fpss {
@@ -28,6 +28,10 @@ AxisCoeffs parse_axis(const nlohmann::json& j, const char* key, const std::strin
     if (!a[i].is_number() || !std::isfinite(a[i].get<double>())) {
       throw InputError(fmt::format("{}: \"{}\"[{}] (C{}) must be a finite number, got {}", origin,
                                    key, i, i + 1, a[i].dump()));
+    }
+    if (std::abs(a[i].get<double>()) > kMaxAbsCoefficient) {
+      throw InputError(fmt::format("{}: \"{}\"[{}] (C{}) = {} is beyond +-{:g} (docs/formats.md, Limits)", origin, key,
+                                   i, i + 1, a[i].dump(), kMaxAbsCoefficient));
     }
     c[i] = a[i].get<double>();
   }
@@ -52,16 +56,7 @@ CoefficientSet parse_coefficients(const nlohmann::json& j, const std::string& or
 }
 
 CoefficientSet load_coefficients(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(fmt::format("{}: cannot open coefficient file", path.string()));
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::exception& e) {
-    // parse_error, and out_of_range for numbers beyond a double (1e999): both are bad files.
-    throw InputError(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
-  }
-  return parse_coefficients(j, path.string());
+  return parse_coefficients(read_json_file(path, "coefficient file"), path.string());
 }
 
 nlohmann::json to_json(const CoefficientSet& s) {

@@ -20,7 +20,12 @@ struct CoefficientSet {
   AxisModel beta_model() const { return AxisModel(beta); }
 };
 
-// Throws InputError naming `origin` (the file) and the key at fault.
+// Largest |C1..C8| taken from a file (radians, rad/count; the paper's are below 4): anything
+// beyond is a corrupt file, not a sensor (docs/formats.md, Limits).
+inline constexpr double kMaxAbsCoefficient = 1e3;
+
+// Throws InputError naming `origin` (the file) and the key at fault (non-finite, beyond
+// kMaxAbsCoefficient). load_coefficients reads with read_json_file (size, depth, duplicate keys).
 CoefficientSet parse_coefficients(const nlohmann::json& j, const std::string& origin);
 CoefficientSet load_coefficients(const std::filesystem::path& path);
 nlohmann::json to_json(const CoefficientSet& set);

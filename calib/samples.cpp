@@ -6,7 +6,9 @@
 
 #include <array>
 #include <charconv>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
 
@@ -134,6 +136,13 @@ std::vector<double> SampleTable::numeric_column(std::string_view name) const {
   return v;
 }
 
+namespace {
+// The largest magnitude of each required numeric column (docs/formats.md, Limits): a day of stand
+// time many times over, half a turn of reference angle, the counts' 16-bit range with margin.
+// Beyond these a value is a corrupt file, and sums of squares of it would overflow.
+constexpr double kSampleLimit[] = {1e9, 0, 0, 648000.0, 648000.0, 1e6, 1e6};
+}  // namespace
+
 SampleTable parse_samples_csv(std::string_view text, const std::string& origin) {
   SampleTable t;
   t.origin = origin;
@@ -148,6 +157,8 @@ SampleTable parse_samples_csv(std::string_view text, const std::string& origin) 
     ++line_no;
     return true;
   };
+  // A UTF-8 byte order mark (spreadsheets write one) is not part of the first column's name.
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
   std::string_view line;
   // Header: the first line that is neither blank nor a '#' comment.
   do {
@@ -211,6 +222,8 @@ SampleTable parse_samples_csv(std::string_view text, const std::string& origin) 
         s.step = step;
       } else if (!parse_double(v, *num[r])) {
         throw bad(r, fmt::format("expected a finite number, got \"{}\"", v));
+      } else if (std::abs(*num[r]) > kSampleLimit[r]) {
+        throw bad(r, fmt::format("{} is beyond +-{:g} (docs/formats.md, Limits)", v, kSampleLimit[r]));
       }
     }
     if (!t.empty()) {
@@ -258,15 +271,20 @@ std::string row_line(const Sample& s, const std::vector<std::string>& extras, si
 }  // namespace
 
 void write_samples_csv(const std::filesystem::path& path, const SampleTable& t) {
-  std::ofstream out(path, std::ios::trunc | std::ios::binary);
-  if (!out) throw std::runtime_error(fmt::format("{}: cannot write", path.string()));
-  out << header_line(t.extra_names());
+  // Whole or not at all: a full disk leaves no truncated CSV (and no temporary file).
+  AtomicFile out(path);
+  std::string chunk = header_line(t.extra_names());
   std::vector<std::string> extras(t.extra_names().size());
   for (size_t i = 0; i < t.size(); ++i) {
     for (size_t k = 0; k < extras.size(); ++k) extras[k] = t.extra_column(t.extra_names()[k])[i];
-    out << row_line(t.row(i), extras, extras.size());
+    chunk += row_line(t.row(i), extras, extras.size());
+    if (chunk.size() >= (1u << 20)) {
+      out.write(chunk);
+      chunk.clear();
+    }
   }
-  if (!out) throw std::runtime_error(fmt::format("{}: write failed", path.string()));
+  out.write(chunk);
+  out.commit();
 }
 
 SamplesCsvWriter::SamplesCsvWriter(const std::filesystem::path& path, std::vector<std::string> extra_names)
@@ -283,8 +301,13 @@ SamplesCsvWriter::SamplesCsvWriter(const std::filesystem::path& path, std::vecto
     std::string l;
     while (std::getline(in, l)) if (!l.empty()) ++rows_;
   }
-  f_ = std::fopen(path.c_str(), "ab");
-  if (!f_) throw std::runtime_error(fmt::format("{}: cannot open for append", path.string()));
+  // O_NOFOLLOW: a symlink planted at the recording's path is never followed.
+  const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CREAT | O_NOFOLLOW | O_CLOEXEC, 0644);
+  if (fd < 0 || !(f_ = ::fdopen(fd, "ab"))) {
+    const std::string why = std::strerror(errno);
+    if (fd >= 0) ::close(fd);
+    throw std::runtime_error(fmt::format("{}: cannot open for append: {}", path.string(), why));
+  }
   if (!exists) {
     std::fputs(header.c_str(), f_);
     sync();

@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -78,6 +79,13 @@ int32_t to_mas(double arcsec) {
   if (!(mas >= -2147483648.0 && mas <= 2147483647.0))
     throw LimitError(fmt::format("{} arcsec does not fit an int32 of milliarcseconds", arcsec));
   return static_cast<int32_t>(mas);
+}
+
+// Bytes of the complete reply to a request (docs/icd.md): TCP adds the 7-byte MBAP header, RTU
+// the address byte and the CRC.
+int reply_bytes(int op, int count, bool rtu) {
+  const int pdu = op <= 1 ? 2 + 2 * count : 5;  // reads: function, byte count, data; writes: echo
+  return rtu ? 1 + pdu + 2 : 7 + pdu;
 }
 
 void check_range(const char* axis, double v, double lo, double hi, const char* unit) {
@@ -219,6 +227,18 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
     if (link_up_) {
       if (rtu_) discard_stale_rtu_input(link_failed);
       modbus_t* ctx = ctx_.get();
+      // libmodbus's response timeout covers only the first byte, and its byte timeout restarts
+      // with every byte: a device sending its reply one byte every 0.1 s would hold a request for
+      // seconds. So the byte timeout is the response timeout shared out over the reply's bytes
+      // (over TCP each attempt then ends within twice the response timeout), and a reply complete
+      // only after twice the response timeout counts as a timeout (docs/icd.md, section 4). Serial
+      // links (USB adapters, ptys) deliver a reply in chunks with gaps of tens of milliseconds, so
+      // over RTU the byte timeout is at least 0.1 s (or the response timeout when shorter).
+      const double share_s = options_.response_timeout_s / reply_bytes(o, count, rtu_);
+      const double byte_timeout_s =
+          rtu_ ? std::max(share_s, std::min(0.1, options_.response_timeout_s)) : std::max(0.002, share_s);
+      modbus_set_byte_timeout(ctx, 0, static_cast<uint32_t>(std::lround(byte_timeout_s * 1e6)));
+      const auto started = Clock::now();
       int rc = -1;
       switch (op) {
         case Op::read_input: rc = modbus_read_input_registers(ctx, addr, count, regs); break;
@@ -226,16 +246,20 @@ int ModbusGimbal::transact(Op op, int addr, int count, uint16_t* regs) {
         case Op::write_single: rc = modbus_write_register(ctx, addr, regs[0]); break;
         case Op::write_multiple: rc = modbus_write_registers(ctx, addr, count, regs); break;
       }
-      if (rc >= 0) {
+      const double took_s = std::chrono::duration<double>(Clock::now() - started).count();
+      if (rc >= 0 && took_s <= 2 * options_.response_timeout_s) {
         ++counters_.requests;
         return rc;
       }
-      const int e = errno;
+      const int e = rc >= 0 ? ETIMEDOUT : errno;
       bool busy = e == EMBXSBUSY;
       if (is_exception(e) && !busy)
         throw DeviceError(fmt::format("gimbal {}: {} of {}: {}", options_.endpoint, op_name(o),
                                       where(o, addr, count), exception_text(e)));
-      last = busy ? exception_text(e) : fmt::format("{} (errno {})", modbus_strerror(e), e);
+      last = busy      ? exception_text(e)
+             : rc >= 0 ? fmt::format("reply complete only after {:.3f} s, beyond twice the response timeout of {} s (errno {})",
+                                     took_s, options_.response_timeout_s, e)
+                       : fmt::format("{} (errno {})", modbus_strerror(e), e);
       // Timeout, dropped link, corrupt or mismatched reply: a late answer could still arrive and be
       // taken for the next one, so drop the link and start clean.
       if (!busy) {

@@ -17,6 +17,8 @@ struct SensorSample {
   uint8_t status = 0;
   double host_time_s = 0;  // host steady clock at receipt
 
+  // The rule for a valid sample (docs/icd.md, "Sensor to host"); fixtures/icd.h states the same
+  // for the emulator and the in-process recorder, which may not include drivers' code.
   bool valid() const {
     return (status & kSunPresent) && (status & kAlphaValid) && (status & kBetaValid) && !(status & kSaturated);
   }

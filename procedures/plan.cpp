@@ -39,6 +39,12 @@ class Expander {
       step_ = &st;
       std::visit([this](const auto& body) { add(body); }, st.body);
       flush_limit_errors();
+      if (too_many_) {
+        d_.error(st.mark, fmt::format("step {} ({}): the plan reaches more than {} points; a plan may have at most {} "
+                                      "(docs/procedures.md, Limits)",
+                                      st.index, st.type, kMaxPlanPoints, kMaxPlanPoints));
+        break;
+      }
     }
     // The engine returns to null at the end of every run.
     plan_.estimated_s += move_duration_s(p_, y_, 0, 0, b_.profile_rate_arcsec_s, b_.acceleration_arcsec_s2);
@@ -55,6 +61,10 @@ class Expander {
   }
 
   void push(Action a) {
+    if (a.is_point() && plan_.points >= kMaxPlanPoints) {
+      too_many_ = true;  // reported once, by run(); nothing more is built
+      return;
+    }
     if (a.is_point()) {
       a.point = static_cast<int64_t>(plan_.points++);
       plan_.point_action.push_back(plan_.actions.size());
@@ -236,6 +246,7 @@ class Expander {
   Plan plan_;
   double p_ = 0, y_ = 0;  // planned position: a run starts from null
   std::vector<std::string> bad_;
+  bool too_many_ = false;
 };
 
 }  // namespace

@@ -21,7 +21,9 @@ int FrameSpec::count(double sample_rate_hz) const {
 std::vector<double> GridStep::offsets_arcsec() const {
   std::vector<double> pos;
   // A small tolerance so that 0.42 / 0.06 gives 7 offsets despite rounding.
-  const int n = static_cast<int>(std::floor(extent_arcsec / step_arcsec + 1e-9));
+  // Bounded (parse_grid refuses a grid beyond kMaxPlanPoints): never an overflowing int.
+  const double nd = std::floor(extent_arcsec / step_arcsec + 1e-9);
+  const int n = nd >= 0 && nd <= kMaxPlanPoints ? static_cast<int>(nd) : 0;
   // To the microarcsecond: 3 x (0.14 deg) is 1512 arcsec, not 1512.0000000000002.
   for (int k = 1; k <= n; ++k) pos.push_back(std::round(k * step_arcsec * 1e6) / 1e6);
   std::vector<double> out;
@@ -144,6 +146,12 @@ StepBody parse_grid(MapReader& r) {
     d.error(r.mark(), fmt::format("{}: step must be > 0", r.where()));
     step.reset();
   }
+  // The gimbal resolves 1 mas (docs/icd.md): a finer step would repeat points.
+  if (step && *step < 0.001) {
+    d.error(r.node(r.has("step_deg") ? "step_deg" : "step_arcsec"),
+            fmt::format("{}: step {} arcsec is finer than the gimbal's resolution of 0.001 arcsec", r.where(), *step));
+    step.reset();
+  }
   if (extent && step && *step > *extent * (1 + 1e-9)) {
     d.error(r.mark(), fmt::format("{}: step ({} arcsec) is larger than extent ({} arcsec): no offsets", r.where(),
                                   *step, *extent));
@@ -159,6 +167,19 @@ StepBody parse_grid(MapReader& r) {
   if (auto l = r.choice("layout", {"axes", "diagonals", "full"})) {
     s.layout = *l == "axes" ? GridStep::Layout::axes
                : *l == "diagonals" ? GridStep::Layout::diagonals : GridStep::Layout::full;
+  }
+  // The plan's size, counted before anything is built (docs/procedures.md, Limits).
+  if (extent && step) {
+    const double n = std::floor(*extent / *step + 1e-9);  // offsets per direction
+    const double per_axis = 2 * n, axes_n = static_cast<double>(s.axes.size());
+    const double points = s.layout == GridStep::Layout::full        ? (2 * n + 1) * (2 * n + 1) - 1
+                          : s.layout == GridStep::Layout::diagonals ? axes_n * per_axis + 2 * per_axis
+                                                                    : axes_n * per_axis;
+    if (!(2 * points + 1 <= kMaxPlanPoints)) {
+      d.error(r.mark(), fmt::format("{}: extent {} arcsec in steps of {} arcsec gives {:.4g} points; a plan may have at "
+                                    "most {} (docs/procedures.md, Limits)",
+                                    r.where(), *extent, *step, 2 * points + 1, kMaxPlanPoints));
+    }
   }
   if (s.layout != GridStep::Layout::axes && s.axes.size() != 2 && axes.IsDefined()) {
     d.error(axes, fmt::format("{}: layout {} needs both axes", r.where(),
@@ -196,7 +217,7 @@ StepBody parse_slew(MapReader& r) {
       continue;
     }
     for (const auto& e : n) {
-      if (auto v = MapReader::as_number(e, what, d)) {
+      if (auto v = MapReader::as_number(e, what, d, key)) {
         if (*v <= 0) d.error(e, fmt::format("{}: a rate must be > 0, got {}", what, *v));
         else s.rates_arcsec_s.push_back(*v * factor);
       }
@@ -333,7 +354,7 @@ Procedure parse_procedure(std::string_view text, const std::string& origin, Diag
 }
 
 Procedure load_procedure(const std::filesystem::path& path) {
-  const std::string text = read_text_file(path, "procedure file");
+  const std::string text = read_text_file(path, "procedure file", kMaxConfigFileBytes);
   Diagnostics d(path.string());
   Procedure p = parse_procedure(text, path.string(), d);
   d.throw_if_any();

@@ -45,6 +45,11 @@ struct SampleStep {
   double settle_s = 0;         // after re-moving when the point is measured again
 };
 
+// The most points (dwells and slews) one plan may have (docs/procedures.md, Limits): 100,000
+// dwells are days of stand time, and anything beyond is a typo (step_deg: 1e-7) that would
+// otherwise exhaust memory.
+inline constexpr size_t kMaxPlanPoints = 100000;
+
 // The paper's pattern: null, offset, null, offset, ... every offset between two null dwells.
 struct GridStep {
   enum class Order { outward, ascending, descending };

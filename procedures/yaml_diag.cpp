@@ -102,12 +102,36 @@ YAML::Node MapReader::field(const std::string& key, bool required) {
   return n;
 }
 
-std::optional<double> MapReader::as_number(const YAML::Node& n, const std::string& what, Diagnostics& d) {
+NumberRange number_range(std::string_view key) {
+  auto ends = [&](std::string_view suffix) {
+    return key.size() >= suffix.size() && key.substr(key.size() - suffix.size()) == suffix;
+  };
+  // Longest suffixes first: "_arcsec_s" before "_s", "_deg_s" before "_s".
+  if (ends("_arcsec_s2")) return {-3.6e7, 3.6e7};        // 10,000 deg/s^2
+  if (ends("_arcsec_s")) return {-360000, 360000};       // 100 deg/s
+  if (ends("_deg_s")) return {-100, 100};
+  if (ends("_arcsec")) return {-648000, 648000};         // half a turn
+  if (ends("_deg")) return {-180, 180};
+  if (ends("_hz")) return {-10000, 10000};
+  if (ends("_s")) return {-86400, 86400};                // a day: durations, settling, timeouts, offsets
+  if (key == "time_scale") return {-10000, 10000};
+  return {-1e9, 1e9};
+}
+
+std::optional<double> MapReader::as_number(const YAML::Node& n, const std::string& what, Diagnostics& d,
+                                           std::string_view key) {
   // A quoted "5" is text: numbers are written plain, so a typo'd quote is caught rather than guessed.
   if (n.IsScalar() && n.Tag() != "!") {
     try {
       const double v = n.as<double>();
-      if (std::isfinite(v)) return v;
+      if (std::isfinite(v)) {
+        const NumberRange r = number_range(key);
+        if (v < r.lo || v > r.hi) {
+          d.error(n, fmt::format("{}: {} is outside [{}, {}] (docs/procedures.md, Limits)", what, n.Scalar(), r.lo, r.hi));
+          return std::nullopt;
+        }
+        return v;
+      }
     } catch (const YAML::Exception&) {
     }
   }
@@ -118,7 +142,7 @@ std::optional<double> MapReader::as_number(const YAML::Node& n, const std::strin
 std::optional<double> MapReader::number(const std::string& key, bool required) {
   YAML::Node n = field(key, required);
   if (!n.IsDefined()) return std::nullopt;
-  return as_number(n, fmt::format("{}: field {}", where_, key), d_);
+  return as_number(n, fmt::format("{}: field {}", where_, key), d_, key);
 }
 
 std::optional<double> MapReader::positive(const std::string& key, bool required) {
@@ -241,8 +265,8 @@ std::optional<std::pair<double, double>> MapReader::angle_range_arcsec(const std
     d_.error(n, fmt::format("{}: expected [min, max], got {}", what, describe_node(n)));
     return std::nullopt;
   }
-  auto lo = as_number(n[0], what, d_);
-  auto hi = as_number(n[1], what, d_);
+  auto lo = as_number(n[0], what, d_, k->first);
+  auto hi = as_number(n[1], what, d_, k->first);
   if (!lo || !hi) return std::nullopt;
   if (!(*lo < *hi)) {
     d_.error(n, fmt::format("{}: expected min < max, got [{}, {}]", what, *lo, *hi));

@@ -58,6 +58,14 @@ YAML::Node parse_yaml(std::string_view text, Diagnostics& d);
 // What a YAML node is, for "expected X, got Y" messages.
 std::string describe_node(const YAML::Node& n);
 
+// The documented range of a number field (docs/procedures.md, Limits), chosen by the unit its name
+// ends with: every number MapReader reads is checked against it, whatever the caller then asks
+// (positive, non-negative). Beyond it a value is a typo or an attack, never a stand setting.
+struct NumberRange {
+  double lo, hi;
+};
+NumberRange number_range(std::string_view key);
+
 // Reads the fields of one YAML map with type checks; finish() reports every field nobody asked
 // for as unknown, listing the known ones. `where` prefixes messages, e.g. "step 3 (move)".
 class MapReader {
@@ -91,8 +99,10 @@ class MapReader {
   Diagnostics& diagnostics() { return d_; }
   TextMark mark() const { return TextMark::of(map_); }
 
-  // Reads a scalar node as a number; reports "expected a number" otherwise.
-  static std::optional<double> as_number(const YAML::Node& n, const std::string& what, Diagnostics& d);
+  // Reads a scalar node as a number; reports "expected a number" otherwise, and a value outside
+  // number_range(key) as out of range.
+  static std::optional<double> as_number(const YAML::Node& n, const std::string& what, Diagnostics& d,
+                                         std::string_view key = {});
 
  private:
   void missing(const std::string& what);

@@ -19,6 +19,7 @@
 #include "calib/coefficients.h"
 #include "calib/compare.h"
 #include "calib/errors.h"
+#include "calib/json_file.h"
 #include "calib/text_file.h"
 #include "fixtures/bench.h"
 #include "stand/acceptance/acceptance.h"
@@ -123,6 +124,17 @@ void add_compare(CLI::App& app, Runner& run) {
   sub->callback([o, &run] {
     run = [o] {
       const fs::path db = catalogue_path(o->db, o->runs_dir);
+      if (!o->plot.empty()) {
+        // The plot's folder is made when missing; then the one output check (folder writable, no input overwritten).
+        const fs::path svg = o->plot;
+        std::error_code ec;
+        if (svg.has_parent_path()) fs::create_directories(svg.parent_path(), ec);
+        if (ec) throw InputError(fmt::format("--plot {}: cannot make its folder: {}", o->plot, ec.message()));
+        fs::path data = svg, script = svg;
+        data.replace_extension(".dat");
+        script.replace_extension(".gp");
+        for (const fs::path& p : {svg, data, script}) check_output_path(p, {o->a, o->b, db}, "--plot");
+      }
       const NamedSet a = resolve_calibration(o->a, db), b = resolve_calibration(o->b, db);
       const CalibrationComparison c = compare_calibrations(a.set, b.set, o->range_deg);
       if (!o->plot.empty()) {
@@ -160,14 +172,9 @@ void add_import(CLI::App& app, Runner& run) {
     run = [o] {
       if (o->unit.empty()) throw InputError("--unit: the serial must not be empty");
       const std::string date = checked_date(o->date);
-      std::ifstream in(o->file, std::ios::binary);
-      if (!in) throw InputError(fmt::format("{}: cannot open", o->file));
-      nlohmann::json j;
-      try {
-        j = nlohmann::json::parse(in);
-      } catch (const nlohmann::json::parse_error& e) {
-        throw InputError(fmt::format("{}: not JSON: {}", o->file, e.what()));
-      }
+      const fs::path db_path = catalogue_path(o->db, o->runs_dir);
+      if (fs::exists(db_path)) check_output_path(db_path, {o->file}, "--db");
+      const nlohmann::json j = read_json_file(o->file, "coefficient file");
       CalibrationRecord rec = CalibrationRecord::from_calibration_json(j, o->file);  // validates C1..C8
       if (!rec.unit.empty() && rec.unit != o->unit) {
         std::fprintf(stderr, "note: %s names unit \"%s\"; recorded against --unit %s\n", o->file.c_str(),
@@ -273,7 +280,7 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
   const std::string proc = p.procedure_path.string();
   Diagnostics dp(proc);
-  req.procedure = parse_procedure(read_text_file(p.procedure_path, "procedure file"), proc, dp);
+  req.procedure = parse_procedure(read_text_file(p.procedure_path, "procedure file", kMaxConfigFileBytes), proc, dp);
   Diagnostics ds(a.stand_file);
   req.stand = stand_for_run(a.stand_file, a.emulate, a.emu.speed, ds);
   if (!a.unit.empty() && !a.emulate) req.stand.unit_serial = a.unit;

@@ -1,9 +1,15 @@
 // fpss-stand angles: the two transfer functions of a coefficient file at given counts.
+#include <fmt/format.h>
+
+#include <cmath>
 #include <cstdio>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
 #include "calib/coefficients.h"
+#include "calib/errors.h"
+#include "calib/units.h"
 #include "stand/cli/commands.h"
 
 namespace fpss::cli {
@@ -17,6 +23,13 @@ void add_angles(CLI::App& app, Runner& run) {
   sub->add_option("--beta", o->beta, "counts_beta")->required();
   sub->callback([o, &run] {
     run = [o] {
+      // CLI11 reads "nan" and "inf" as numbers, and its Range check lets NaN through.
+      for (const auto& [name, v] : {std::pair{"--alpha", o->alpha}, std::pair{"--beta", o->beta}}) {
+        if (!std::isfinite(v) || v < kCountsMin || v > kCountsMax) {
+          throw InputError(fmt::format("{} {}: expected counts, a finite number in [{}, {}]", name, v, kCountsMin,
+                                       kCountsMax));
+        }
+      }
       const CoefficientSet set = load_coefficients(o->model);
       nlohmann::ordered_json j;
       j["alpha_arcsec"] = set.alpha_model().angle_arcsec(o->alpha);

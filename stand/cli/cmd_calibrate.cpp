@@ -9,6 +9,7 @@
 #include "calib/coefficients.h"
 #include "calib/report.h"
 #include "calib/samples.h"
+#include "calib/text_file.h"
 #include "procedures/recorder.h"
 #include "stand/cli/commands.h"
 
@@ -36,6 +37,7 @@ void add_calibrate(CLI::App& app, Runner& run) {
   sub->add_option("--unit", o->unit, "unit name written to the coefficient file (default: from --init or --truth)");
   sub->callback([o, &run] {
     run = [o] {
+      check_output_path(o->out, {o->data, o->init, o->truth});
       CalibrationOptions opts;
       opts.method = *parse_method(o->method);
       std::optional<CoefficientSet> truth;

@@ -3,7 +3,7 @@
 #include <fmt/format.h>
 
 #include <cstdio>
-#include <fstream>
+#include <filesystem>
 
 #include "calib/coefficients.h"
 #include "calib/diagnosis.h"
@@ -14,6 +14,7 @@
 #include "stand/cli/commands.h"
 
 namespace fpss::cli {
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -41,6 +42,13 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
                 "accept a recording that cannot reveal every effect (no slews or no offsets): exit 0 instead of 2");
   sub->callback([o, &run] {
     run = [o] {
+      check_output_path(o->out, {o->model, o->data});
+      if (!o->report.empty()) {
+        check_output_path(o->report, {o->model, o->data, o->out}, "--report");
+        if (fs::path(o->report).lexically_normal() == fs::path(o->out).lexically_normal()) {
+          throw InputError(fmt::format("--report {}: the same file as --out", o->report));
+        }
+      }
       const CoefficientSet model = load_coefficients(o->model);
       const SampleTable data = read_samples_csv(o->data);
       Diagnosis d = diagnose(data, model, o->d);

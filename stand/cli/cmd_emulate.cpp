@@ -5,13 +5,14 @@
 #include <fmt/format.h>
 
 #include <cstdio>
-#include <fstream>
+#include <sstream>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
+#include "calib/text_file.h"
 #include "fixtures/emulator.h"
 #include "stand/cli/emulator_contract.h"
 #include "stand/cli/commands.h"
@@ -24,7 +25,9 @@ struct EmulateArgs {
   std::string bench_file, serial_link, truth_file, unit_serial, fault_file;
   std::string modbus_host = "127.0.0.1";
   int modbus_port = 1502;
-  bool modbus_rtu = false;
+  bool modbus_rtu = false, allow_remote = false;
+  int max_clients = 32;
+  double idle_timeout_s = 60.0;
   double speed = 20.0;
   uint64_t seed = 1;
   std::vector<std::string> effects, faults;
@@ -33,11 +36,16 @@ struct EmulateArgs {
 // Reads the fault file (one NAME:key=value,... per line, # comments) and arms each fault. A bad
 // line is reported and skipped: the emulator keeps running for the other clients.
 void inject_from_file(Emulator& emu, const std::string& path) {
-  std::ifstream in(path);
-  if (!in) {
-    fmt::print(stderr, "emulate: SIGUSR1: cannot read fault file {}\n", path);
+  // A regular file of at most kMaxConfigFileBytes: a FIFO or /dev/zero there cannot stall or
+  // swell the emulator.
+  std::string text;
+  try {
+    text = read_text_file(path, "fault file", kMaxConfigFileBytes);
+  } catch (const InputError& e) {
+    fmt::print(stderr, "emulate: SIGUSR1: {}\n", e.what());
     return;
   }
+  std::istringstream in(text);
   std::string line;
   for (int n = 1; std::getline(in, line); ++n) {
     const auto b = line.find_first_not_of(" \t\r");
@@ -64,9 +72,18 @@ int run_emulate(const EmulateArgs& a, bool seed_given) {
   o.modbus_host = a.modbus_host;
   o.modbus_port = a.modbus_port;
   o.modbus_rtu = a.modbus_rtu;
+  o.allow_remote = a.allow_remote;
+  o.modbus_limits.max_clients = a.max_clients;
+  o.modbus_limits.idle_timeout_s = a.idle_timeout_s;
   o.serial_link = a.serial_link;
   o.speed = a.speed;
   auto emu = std::make_unique<Emulator>(std::move(o));  // checks the options: InputError -> 2
+  if (a.allow_remote && a.modbus_host.rfind("127.", 0) != 0) {
+    fmt::print(stderr,
+               "emulate: WARNING: serving Modbus on {} (--allow-remote): anyone who can reach this address can "
+               "move the emulated gimbal; at most {} clients, idle ones closed after {} s\n",
+               a.modbus_host, a.max_clients, a.idle_timeout_s);
+  }
 
   // Signals are taken by sigwait below, so every thread started from here on blocks them.
   sigset_t set;
@@ -102,10 +119,12 @@ int run_emulate(const EmulateArgs& a, bool seed_given) {
   const EmulatorStats s = emu->stats();
   emu->stop();
   fmt::print(stderr,
-             "emulate: stopped at bench t={:.3f} s; modbus {} requests ({} exceptions, {} connections); sensor {} "
+             "emulate: stopped at bench t={:.3f} s; modbus {} requests ({} exceptions, {} connections, {} refused, "
+             "{} evicted, {} idle closed, at most {} at once); sensor {} "
              "frames written, {} dropped unread, {} commands; {} faults fired\n",
              s.bench_time_s, s.modbus_tcp.requests + s.modbus_rtu.requests,
-             s.modbus_tcp.exceptions + s.modbus_rtu.exceptions, s.modbus_tcp.connections, s.sensor.frames_written,
+             s.modbus_tcp.exceptions + s.modbus_rtu.exceptions, s.modbus_tcp.connections, s.modbus_tcp.refused,
+             s.modbus_tcp.evicted, s.modbus_tcp.idle_closed, s.modbus_tcp.peak_active, s.sensor.frames_written,
              s.sensor.frames_dropped, s.sensor.commands, s.faults_fired);
   return 0;
 }
@@ -122,6 +141,13 @@ void add_emulate(CLI::App& app, Runner& run) {
       ->capture_default_str()
       ->check(CLI::Range(0, 65535));
   sub->add_option("--modbus-host", args->modbus_host, "Address the Modbus TCP server binds (an IPv4 address)")
+      ->capture_default_str();
+  sub->add_flag("--allow-remote", args->allow_remote,
+                "Allow a --modbus-host other than loopback (127.x): the bench is then open to the network");
+  sub->add_option("--max-clients", args->max_clients, "Modbus TCP clients served at once (1..1000)")
+      ->capture_default_str();
+  sub->add_option("--idle-timeout-s", args->idle_timeout_s,
+                  "Close a Modbus TCP connection with no request for this long (0.1..86400 s)")
       ->capture_default_str();
   sub->add_flag("--modbus-rtu", args->modbus_rtu, "Also serve Modbus RTU (unit 1) on a pty; prints gimbal-rtu:");
   sub->add_option("--serial-link", args->serial_link, "Symlink to the sensor pty at this path (removed at exit)");

@@ -71,7 +71,7 @@ int run_command(const RunArgs& a) {
     }
     if (!a.emulate) require_emulate_for_options(a.emu, "run");
     // Validate everything before anything moves, and report every error of both files at once.
-    const std::string ptext = read_text_file(a.procedure, "procedure file");
+    const std::string ptext = read_text_file(a.procedure, "procedure file", kMaxConfigFileBytes);
     Diagnostics dp(a.procedure);
     req.procedure = parse_procedure(ptext, a.procedure, dp);
     Diagnostics ds(a.stand_file);

@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "calib/samples.h"
+#include "calib/text_file.h"
 #include "fixtures/recording.h"
 #include "stand/cli/commands.h"
 
@@ -26,6 +27,7 @@ void add_simulate(CLI::App& app, Runner& run) {
   sub->add_option("--samples-per-dwell", o->grid.samples_per_dwell, "samples per dwell")->capture_default_str()->check(CLI::Range(1, 100000));
   sub->callback([o, &run] {
     run = [o] {
+      check_output_path(o->out, {o->truth, o->bench});
       BenchConfig cfg = o->bench.empty() ? default_bench_config() : load_bench_file(o->bench);
       if (!o->truth.empty()) cfg.truth = load_coefficients(o->truth);
       cfg.seed = o->seed;

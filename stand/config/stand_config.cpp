@@ -164,7 +164,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
 }
 
 StandConfig load_stand_file(const std::filesystem::path& path) {
-  const std::string text = read_text_file(path, "stand file");
+  const std::string text = read_text_file(path, "stand file", kMaxConfigFileBytes);
   Diagnostics d(path.string());
   StandConfig c = parse_stand(text, path.string(), d);
   d.throw_if_any();
@@ -173,7 +173,7 @@ StandConfig load_stand_file(const std::filesystem::path& path) {
 
 StandConfig stand_for_run(const std::string& stand_file, bool emulate, double speed, Diagnostics& d) {
   if (stand_file.empty()) return emulated_stand(speed);
-  StandConfig c = parse_stand(read_text_file(stand_file, "stand file"), stand_file, d);
+  StandConfig c = parse_stand(read_text_file(stand_file, "stand file", kMaxConfigFileBytes), stand_file, d);
   if (emulate) adapt_to_emulator(c, speed);
   return c;
 }

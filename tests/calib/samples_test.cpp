@@ -1,6 +1,8 @@
 // The samples CSV (the stand's recording format): reading, writing, appending, and malformed files.
 #include "calib/samples.h"
 
+#include <sys/stat.h>
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -139,6 +141,57 @@ TEST(Samples, PhaseNamesRoundTrip) {
     EXPECT_EQ(parse_phase(to_string(p)), p);
   }
   EXPECT_FALSE(parse_phase("NULL").has_value());
+}
+
+TEST(Samples, ByteOrderMarkAccepted) {
+  const SampleTable t = parse_samples_csv("\xEF\xBB\xBF" + std::string(kHeader) + "0,null,1,0,0,3,4\n", "bom.csv");
+  ASSERT_EQ(t.size(), 1u);
+  EXPECT_EQ(t.counts_beta[0], 4);
+  EXPECT_TRUE(t.extra_names().empty());  // the mark is not part of the first column's name
+}
+
+TEST(Samples, OverflowingValuesNameFileRowAndColumn) {
+  const std::string h = kHeader;
+  std::string m = error_of(h + "0,null,1,0,0,0,0\n1,offset,2,1e308,0,0,0\n");
+  EXPECT_NE(m.find("rec.csv:3: column \"ref_pitch_arcsec\": 1e308 is beyond +-648000"), std::string::npos) << m;
+  m = error_of(h + "0,null,1,0,1e400,0,0\n");
+  EXPECT_NE(m.find("rec.csv:2: column \"ref_yaw_arcsec\": expected a finite number, got \"1e400\""), std::string::npos) << m;
+  m = error_of(h + "1e300,null,1,0,0,0,0\n");
+  EXPECT_NE(m.find("rec.csv:2: column \"time_s\": 1e300 is beyond"), std::string::npos) << m;
+  m = error_of(h + "0,null,1,0,0,-1e7,0\n");
+  EXPECT_NE(m.find("rec.csv:2: column \"counts_alpha\": -1e7 is beyond +-1e+06"), std::string::npos) << m;
+  m = error_of(h + "0,null,99999999999999999999,0,0,0,0\n");
+  EXPECT_NE(m.find("rec.csv:2: column \"step\": expected an integer"), std::string::npos) << m;
+}
+
+TEST(Samples, WhatIsNotARegularFileIsRefusedNotRead) {
+  TempDir d;
+  const fs::path fifo = d / "rec.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const fs::path& p : {d.path(), fs::path("/dev/zero"), fifo}) {
+    const std::string m = test::error_of<InputError>([&] { read_samples_csv(p); });
+    EXPECT_NE(m.find(p.string() + ": not a regular file"), std::string::npos) << m;
+  }
+}
+
+TEST(Samples, WriterLeavesNoPartialFileOnAFullDisk) {
+  test::SmallTmpfs disk("64k");
+  if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (needs root)";
+  SampleTable t;
+  for (int i = 0; i < 5000; ++i) t.push_back(Sample{i * 0.01, Phase::null, i, 1.25, -2.5, 100.5, -200.25});
+  const fs::path out = disk / "rec.csv";
+  const std::string m = test::error_of<std::runtime_error>([&] { write_samples_csv(out, t); });
+  EXPECT_NE(m.find("rec.csv: write failed: No space left on device"), std::string::npos) << m;
+  EXPECT_TRUE(fs::is_empty(disk.path()));  // neither a truncated CSV nor a temporary file
+}
+
+TEST(Samples, AppendingWriterNeverFollowsASymlink) {
+  TempDir d;
+  const fs::path victim = d.write("victim.txt", "");  // empty: the writer would write its header there
+  fs::create_symlink(victim, d / "samples.csv");
+  const std::string m = test::error_of<std::runtime_error>([&] { SamplesCsvWriter w(d / "samples.csv", {}); });
+  EXPECT_NE(m.find("samples.csv: cannot open for append"), std::string::npos) << m;
+  EXPECT_EQ(test::read_file(victim), "");
 }
 
 }  // namespace

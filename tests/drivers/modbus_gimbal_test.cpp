@@ -3,6 +3,9 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdio>
 #include <modbus.h>
 
 #include "drivers/endpoints.h"
@@ -203,6 +206,38 @@ TEST(ModbusGimbal, PersistentTimeoutEndsInAClearError) {
   server.set_hook(nullptr);
   g.read_state();
   EXPECT_TRUE(g.connected());
+}
+
+TEST(ModbusGimbal, AReplyDribbledByteByByteIsATimeoutWithinTheDeadline) {
+  ModbusTestServer server;
+  server.set_hook([](const ModbusTestServer::Request&, std::size_t) {
+    return ModbusTestServer::Decision{Action::dribble, 0, 0.1};  // 39 bytes: 3.9 s for one reply
+  });
+  GimbalOptions o = fast_options(server.endpoint(), 0.5);
+  o.retries = 2;
+  ModbusGimbal g(o);
+  g.connect();
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string msg = error_of([&] { g.read_state(); });
+  const double took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_THAT(msg, HasSubstr("input registers 0..14"));
+  EXPECT_THAT(msg, HasSubstr("after 3 attempts"));
+  EXPECT_THAT(msg, HasSubstr("errno 110"));
+  EXPECT_EQ(g.counters().retries, 2u);
+  // Each attempt ends within twice the response timeout, so three attempts and two backoffs stay
+  // below the time the device takes to send even one reply (libmodbus alone: 3 x 3.9 s).
+  EXPECT_LT(took_s, 3.9);
+  std::printf("dribbled reply: gave up after %.3f s (3 attempts)\n", took_s);
+
+  // A reply dribbled fast enough to be complete within the response timeout is taken.
+  server.set_hook([](const ModbusTestServer::Request&, std::size_t) {
+    return ModbusTestServer::Decision{Action::dribble, 0, 0.001};
+  });
+  GimbalOptions patient = fast_options(server.endpoint(), 2.0);
+  ModbusGimbal g2(patient);
+  g2.connect();
+  server.set_input_i32(0, 42'000);
+  EXPECT_DOUBLE_EQ(g2.read_state().pitch_arcsec, 42.0);
 }
 
 TEST(ModbusGimbal, DroppedConnectionIsReconnected) {

@@ -10,7 +10,9 @@
 #include <termios.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <stdexcept>
+#include <thread>
 
 namespace fpss::test {
 namespace {
@@ -130,6 +132,25 @@ bool ModbusTestServer::handle(const uint8_t* q, int length) {
   if (hook_) d = hook_(r, index_);
   ++index_;
   if (d.action == Action::drop) return true;
+  if (d.action == Action::dribble && transport_ == Transport::tcp) {
+    // The reply libmodbus would send, captured on a socket pair, then trickled out byte by byte.
+    int sp[2];
+    if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sp) != 0) return false;
+    const int client = modbus_get_socket(ctx_);
+    modbus_set_socket(ctx_, sp[0]);
+    modbus_reply(ctx_, q, length, map_);
+    modbus_set_socket(ctx_, client);
+    uint8_t reply[MODBUS_TCP_MAX_ADU_LENGTH];
+    const ssize_t n = recv(sp[1], reply, sizeof reply, MSG_DONTWAIT);
+    close(sp[0]);
+    close(sp[1]);
+    lk.unlock();
+    for (ssize_t k = 0; k < n && !stop_; ++k) {
+      if (send(client, reply + k, 1, MSG_NOSIGNAL) != 1) return false;  // the client gave up
+      std::this_thread::sleep_for(std::chrono::duration<double>(d.dribble_s));
+    }
+    return true;
+  }
   if (d.action == Action::close) return false;
   if (d.action == Action::exception) {
     modbus_reply_exception(ctx_, q, d.exception_code);

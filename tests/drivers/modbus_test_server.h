@@ -24,10 +24,13 @@ class ModbusTestServer {
     int count = 0;
     std::vector<uint16_t> values;  // written values (functions 06, 16)
   };
-  enum class Action { reply, exception, drop, close };
+  // dribble: the normal reply, sent one byte at a time with dribble_s between bytes (TCP), as a
+  // slow or misbehaving device would.
+  enum class Action { reply, exception, drop, close, dribble };
   struct Decision {
     Action action = Action::reply;
     int exception_code = 0;
+    double dribble_s = 0;
   };
   // Called for every request before the default behaviour; return nullopt-like {reply} to go on.
   using Hook = std::function<Decision(const Request&, std::size_t index)>;

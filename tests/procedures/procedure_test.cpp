@@ -1,6 +1,7 @@
 // Procedure files: parsing, validation with every error at file:line:column, expansion and the dry-run text.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <regex>
 #include <set>
 
@@ -320,6 +321,73 @@ TEST(Plan, DryRunText) {
 TEST(Procedure, Sha256) {
   EXPECT_EQ(sha256_hex("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
   EXPECT_EQ(sha256_hex(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+}
+
+// A procedure with one grid step whose fields are given as text (one per line, 6 spaces in).
+std::string grid_procedure(const std::string& fields) {
+  return "name: g\nsteps:\n  - null_offset_grid:\n      axes: [pitch, yaw]\n" + fields;
+}
+
+TEST(Procedure, EveryNumberHasARangeNamedWithItsPlace) {
+  struct Case {
+    std::string fields;
+    int line, col;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      // step_deg: 1e-7 once exhausted memory (4.2 million offsets per axis); 1e-5 still gives 336,001 points.
+      {"      extent_deg: 0.42\n      step_deg: 1e-5\n      frames: 1\n", 4, 7, "points; a plan may have at most 100000"},
+      // 1e-12 gave a silently empty plan (an overflowing int of offsets).
+      {"      extent_deg: 0.42\n      step_deg: 1e-12\n      frames: 1\n", 6, 17, "finer than the gimbal's resolution"},
+      {"      extent_deg: 0.42\n      step_deg: 0.03\n      duration_s: 1e308\n", 7, 19,
+       "field duration_s: 1e308 is outside [-86400, 86400]"},
+      {"      extent_deg: 0.42\n      step_deg: 0.03\n      frames: 1\n      settle_s: 1e308\n", 8, 17,
+       "field settle_s: 1e308 is outside"},
+      {"      extent_deg: 1e300\n      step_deg: 0.03\n      frames: 1\n", 5, 19, "field extent_deg: 1e300 is outside [-180, 180]"},
+      {"      extent_deg: .inf\n      step_deg: 0.03\n      frames: 1\n", 5, 19, "expected a number"},
+      {"      extent_deg: 0.42\n      step_deg: 0.03\n      frames: 1\n      layout: full\n      extent_deg: 0.5\n", 0, 0, ""},
+  };
+  for (const auto& c : cases) {
+    if (c.says.empty()) continue;
+    SCOPED_TRACE(c.fields);
+    const Diagnostics d = parse_bad(grid_procedure(c.fields));
+    EXPECT_TRUE(has_error(d, c.line, c.col, c.says)) << d.text();
+    EXPECT_NE(d.text().find("bad.yaml:"), std::string::npos);
+  }
+  // The full layout squares the count: 0.42 deg in steps of 0.001 deg is 841 x 841 lattice points.
+  const Diagnostics full = parse_bad(grid_procedure("      extent_deg: 0.42\n      step_deg: 0.001\n      frames: 1\n      layout: full\n"));
+  EXPECT_NE(full.text().find("a plan may have at most 100000"), std::string::npos) << full.text();
+  // Within the limits, as the shipped procedures are.
+  parse_ok(grid_procedure("      extent_deg: 0.42\n      step_deg: 0.01\n      frames: 1\n      settle_s: 3600\n"));
+}
+
+TEST(Procedure, PlansAreCappedAtOneHundredThousandPoints) {
+  // Each grid alone is within the limit; together they are not.
+  std::string text = "name: many\nsteps:\n";
+  for (int i = 0; i < 3; ++i) text += "  - null_offset_grid:\n      axes: [pitch, yaw]\n      extent_deg: 0.42\n      step_deg: 0.000035\n      frames: 1\n";
+  const Procedure p = parse_ok(text);
+  Diagnostics d("many.yaml");
+  const Plan plan = expand(p, bench(), d);
+  EXPECT_NE(d.text().find("the plan reaches more than 100000 points"), std::string::npos) << d.text();
+  EXPECT_LE(plan.points, kMaxPlanPoints);
+  // The dry-run estimate stays finite and positive for the largest settling allowed.
+  const Procedure slow = parse_ok(grid_procedure("      extent_deg: 0.06\n      step_deg: 0.03\n      frames: 1\n      settle_s: 86400\n"));
+  Diagnostics d2("slow.yaml");
+  const Plan sp = expand(slow, bench(), d2);
+  EXPECT_TRUE(d2.empty()) << d2.text();
+  EXPECT_GT(sp.estimated_s, 9 * 86400.0);
+  EXPECT_TRUE(std::isfinite(sp.estimated_s));
+}
+
+TEST(Procedure, RangesChosenByTheFieldsUnit) {
+  EXPECT_EQ(number_range("settle_s").hi, 86400);
+  EXPECT_EQ(number_range("max_rate_arcsec_s").hi, 360000);
+  EXPECT_EQ(number_range("rate_deg_s").hi, 100);
+  EXPECT_EQ(number_range("step_deg").hi, 180);
+  EXPECT_EQ(number_range("pitch_arcsec").lo, -648000);
+  EXPECT_EQ(number_range("acceleration_arcsec_s2").hi, 3.6e7);
+  EXPECT_EQ(number_range("sample_rate_hz").hi, 10000);
+  EXPECT_EQ(number_range("anything_else").hi, 1e9);
 }
 
 }  // namespace

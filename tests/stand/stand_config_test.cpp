@@ -73,6 +73,18 @@ TEST(StandConfig, EveryErrorAtOnce) {
   EXPECT_EQ(d.size(), 8u) << d.text();
 }
 
+TEST(StandConfig, NumbersOutsideTheirRangeNamePlaceAndField) {
+  Diagnostics d("s.yaml");
+  parse_stand("gimbal:\n  endpoint: 'modbus-tcp:127.0.0.1:1502'\n  response_timeout_s: 1e308\n"
+              "  profile_rate_arcsec_s: 1e9\nsensor: {endpoint: 'pty:/dev/pts/9'}\n"
+              "soft_limits:\n  pitch_deg: [-1e6, 0.75]\nclock:\n  sensor_offset_s: -1e300\n",
+              "s.yaml", d);
+  EXPECT_TRUE(test::has_error(d, 3, 23, "field response_timeout_s: 1e308 is outside [-86400, 86400]")) << d.text();
+  EXPECT_TRUE(test::has_error(d, 4, 26, "field profile_rate_arcsec_s: 1e9 is outside [-360000, 360000]")) << d.text();
+  EXPECT_TRUE(test::has_error(d, 7, 15, "-1e6 is outside [-180, 180]")) << d.text();
+  EXPECT_TRUE(test::has_error(d, 9, 20, "field sensor_offset_s: -1e300 is outside")) << d.text();
+}
+
 TEST(StandConfig, MissingDevicesAndBadMapping) {
   Diagnostics d("s.yaml");
   parse_stand("axes: {pitch: gamma}\nsoft_limits: {yaw_arcsec: [100, 200]}\n", "s.yaml", d);

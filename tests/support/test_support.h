@@ -5,6 +5,7 @@
 #include <signal.h>
 #include <spawn.h>
 #include <stdlib.h>
+#include <sys/mount.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -259,5 +260,31 @@ inline CommandResult run_stand_shell(const std::string& args, const fs::path& di
   if (!fs::exists(stand_binary())) throw std::runtime_error(stand_binary().string() + " is not built");
   return run_command({"/bin/sh", "-c", "exec '" + stand_binary().string() + "' " + args}, dir, tag);
 }
+
+// ---------------------------------------------------------------- small file systems
+
+// A tmpfs of `size` (e.g. "64k") mounted on a fresh folder, read-only when asked: a full disk or a
+// read-only folder even for root. mounted() is false where mounting is not allowed (not root, a
+// container without CAP_SYS_ADMIN): tests then skip with GTEST_SKIP.
+class SmallTmpfs {
+ public:
+  explicit SmallTmpfs(const std::string& size, bool read_only = false) : dir_("tmpfs") {
+    const std::string opts = "size=" + size + ",mode=0755";
+    mounted_ = ::mount("tmpfs", dir_.path().c_str(), "tmpfs", read_only ? MS_RDONLY : 0, opts.c_str()) == 0;
+  }
+  ~SmallTmpfs() {
+    if (mounted_) ::umount2(dir_.path().c_str(), MNT_DETACH);
+  }
+  SmallTmpfs(const SmallTmpfs&) = delete;
+  SmallTmpfs& operator=(const SmallTmpfs&) = delete;
+
+  bool mounted() const { return mounted_; }
+  const fs::path& path() const { return dir_.path(); }
+  fs::path operator/(const std::string& name) const { return dir_.path() / name; }
+
+ private:
+  TempDir dir_;
+  bool mounted_ = false;
+};
 
 }  // namespace fpss::test
