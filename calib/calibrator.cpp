@@ -488,12 +488,12 @@ CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const Calib
   return rep;
 }
 
-std::vector<bool> outlier_rows(const SampleTable& t, const CalibrationOptions& opts) {
+namespace {
+
+std::vector<bool> flag_count_outliers(const SampleTable& t, double floor_counts) {
   std::vector<bool> out(t.size(), false);
   OutlierRule rule;
-  // The floor: the rounding's own scatter, or the rounded noise when it is known.
-  const double s = opts.count_noise_counts.value_or(0.0);
-  rule.min_sigma = std::sqrt(1.0 / 12.0 + (std::isfinite(s) ? s * s : 0.0));
+  rule.min_sigma = floor_counts;
   std::vector<double> v(t.size());
   for (const auto* col : {&t.counts_alpha, &t.counts_beta}) {
     for (size_t i = 0; i < t.size(); ++i) {
@@ -504,6 +504,28 @@ std::vector<bool> outlier_rows(const SampleTable& t, const CalibrationOptions& o
     for (size_t i = 0; i < t.size(); ++i) out[i] = out[i] || f.outlier[i];
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<bool> outlier_rows(const SampleTable& t, const CalibrationOptions& opts) {
+  // The floor under the robust sigma: the rounded noise, sqrt(1/12 + s^2). With whole counts and
+  // little noise the pooled MAD is zero, and the rounding's scatter alone (1/sqrt(12)) would flag
+  // ordinary 2-count excursions at 0.3 counts of noise. Unknown noise: a first pass with that
+  // floor keeps gross spikes out of the within-dwell scatter the noise is estimated from.
+  std::optional<double> s = opts.count_noise_counts;
+  if (!s) {
+    const auto first = flag_count_outliers(t, std::sqrt(1.0 / 12.0));
+    std::vector<CountScatter> sc;
+    for (const Dwell& d : average_dwells(t, first)) {
+      if (d.samples < 2 || !d.whole_counts_alpha || !d.whole_counts_beta) continue;
+      sc.push_back({d.counts_alpha, d.sd_counts_alpha * d.sd_counts_alpha, d.samples});
+      sc.push_back({d.counts_beta, d.sd_counts_beta * d.sd_counts_beta, d.samples});
+    }
+    s = estimate_count_noise(sc.data(), sc.size());
+    if (!s) return first;
+  }
+  return flag_count_outliers(t, std::sqrt(1.0 / 12.0 + *s * *s));
 }
 
 CalibrationReport calibrate(const SampleTable& samples, const CalibrationOptions& opts) {

@@ -50,8 +50,9 @@ struct CalibrationOptions {
   // Dwell means of whole counts are replaced by the count whose expected rounded value they are,
   // when the count noise is known or estimated (false: for comparison).
   bool quantisation_correction = true;
-  // chi2/dof of the dwell residuals beyond 1 + this many sqrt(2/dof) is a model remainder.
-  double remainder_sigmas = 3.0;
+  // chi2/dof of the dwell residuals beyond 1 + this many sqrt(2/dof) is a model remainder (4: the
+  // weights come from estimated noise, which widens chi2's scatter beyond its textbook one).
+  double remainder_sigmas = 4.0;
   // Angles at which the calibration's 1-sigma is listed (evenly over the calibrated range).
   int sigma_angles = 41;
 };
