@@ -242,8 +242,10 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
       c = counts_from_rounded_mean(r.counts, *s);
       const double h = expected_rounded_slope(c, *s);
       vc = rounded_counts_variance(c, *s) / (n * h * h);
-    } else if (s && whole) {
+    } else if (s && whole && *s < kMinQuantisationNoise) {
       vc = 1.0 / 12.0;  // rounding without dither: an error of the dwell, not averaged away
+    } else if (s && whole) {
+      vc = rounded_counts_variance(r.counts, *s) / n;  // the raw mean's own scatter (no correction)
     } else if (s) {
       vc = *s * *s / n;
     }

@@ -32,4 +32,16 @@ struct CountScatter {
 // scatter (no dwell of two or more samples).
 std::optional<double> estimate_count_noise(const CountScatter* dwells, size_t count);
 
+// The same, fed one dwell at a time (memory does not grow with the dwells).
+class CountNoiseEstimator {
+ public:
+  void add(const CountScatter& d);
+  std::optional<double> estimate() const;
+
+ private:
+  static constexpr int kBins = 1024;  // frac(mean): the rounded variance's only dependence on the count
+  double w_[kBins] = {};
+  double dof_ = 0, pooled_ = 0;
+};
+
 }  // namespace fpss
