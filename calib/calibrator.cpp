@@ -75,9 +75,9 @@ uint32_t dwell_row(AxisData& d, Axis axis, const Dwell& dw) {
   AxisData::DwellRow r;
   r.step = dw.step;
   r.counts = counts_of(dw, axis);
-  r.sd_counts = sd_counts_of(dw, axis);
+  r.sd_counts = static_cast<float>(sd_counts_of(dw, axis));
   r.ref_arcsec = ref_of(dw, axis);
-  r.sd_ref_arcsec = sd_ref_of(dw, axis);
+  r.sd_ref_arcsec = static_cast<float>(sd_ref_of(dw, axis));
   r.samples = static_cast<uint32_t>(dw.samples);
   r.link = static_cast<uint32_t>(n);
   r.null = dw.phase == Phase::null;
@@ -211,7 +211,7 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
     raw_ss += f * r.sd_counts * r.sd_counts;
     ref_dof += f;
     raw_dof += f;
-    scatter.push_back({r.counts, r.sd_counts * r.sd_counts, r.samples});
+    scatter.push_back({r.counts, static_cast<double>(r.sd_counts) * r.sd_counts, r.samples});
   }
   if (!s) {
     if (whole) s = estimate_count_noise(scatter.data(), scatter.size());
@@ -251,8 +251,8 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
     }
     g.counts[k] = c;
     g.ref_arcsec[k] = r.ref_arcsec;
-    g.var_ref_arcsec2[k] = std::isfinite(ref_var) ? ref_var / n : 0.0;
-    g.var_counts2[k] = vc;
+    g.var_ref_arcsec2[k] = static_cast<float>(std::isfinite(ref_var) ? ref_var / n : 0.0);
+    g.var_counts2[k] = static_cast<float>(vc);
     // Union-find roots: a parent always has the lower index, so one pass finds every root.
     uint32_t root = static_cast<uint32_t>(k);
     while (d.dwells[root].link != root) root = d.dwells[root].link;
@@ -340,7 +340,10 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
     }
   }
   if (!best) throw std::runtime_error(fmt::format("{} axis: the solver failed from every start", out.axis));
-  Refined fin = fraction >= 1.0 && best->converged ? std::move(*best) : refine_axis(d, best->coeffs, ro);
+  // With the GLS to follow (over every dwell, in memory that does not grow with them), the changes'
+  // least squares on the screening subset is start enough: no full-size Ceres problem.
+  const bool gls = opts.gls && d.differences && !d.dwells.empty();
+  Refined fin = (fraction >= 1.0 || gls) && best->converged ? std::move(*best) : refine_axis(d, best->coeffs, ro);
   if (!fin.usable) throw std::runtime_error(fmt::format("{} axis: the solver failed: {}", out.axis, fin.brief));
 
   out.coeffs = fin.coeffs;
@@ -352,7 +355,7 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
   out.solver.converged = fin.converged;
 
   Uncertainty u;
-  if (opts.gls && d.differences && !d.dwells.empty()) {
+  if (gls) {
     Prepared pr = prepare_gls(d, opts);
     GlsFit gf = refine_gls(pr.g, out.coeffs, d.counts_lo, d.counts_hi, opts.remainder_sigmas);
     out.coeffs = gf.coeffs;

@@ -284,7 +284,7 @@ struct Pass {
   double cost = 0;  // sum w (e - level)^2
 };
 
-Pass level_pass(const GlsData& g, const std::vector<double>& w, const Scaled& u) {
+Pass level_pass(const GlsData& g, const std::vector<float>& w, const Scaled& u) {
   Pass p;
   p.lv.assign(g.levels, LevelSums{});
   Vec7 gr;
@@ -304,8 +304,8 @@ Pass level_pass(const GlsData& g, const std::vector<double>& w, const Scaled& u)
 }
 
 // R (8 x 8) of the QR of [J~ | r], the projected Jacobian and residuals, accumulated in chunks.
-Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const std::vector<double>& w, const Scaled& u,
-                                        const Pass& p, std::vector<double>* standardised) {
+Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const std::vector<float>& w, const Scaled& u,
+                                        const Pass& p) {
   constexpr int kChunk = 256;
   Eigen::Matrix<double, Eigen::Dynamic, 8> stack(kChunk + 8, 8);
   Eigen::Matrix<double, 8, 8> r = Eigen::Matrix<double, 8, 8>::Zero();
@@ -329,7 +329,6 @@ Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const std::vector<doub
     stack.row(rows).head<7>() = (sw * (gr - l.wg / l.w)).transpose();
     const double res = -sw * (e - l.we / l.w);
     stack(rows, 7) = res;
-    if (standardised) standardised->push_back(res);
     if (++rows == kChunk) reduce();
   }
   if (rows > 0 || !have_r) reduce();
@@ -370,18 +369,18 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
   c0[0] = 0;
   Scaled u = to_scaled(c0);
   // Weights from the start's slope (the count noise enters as slope x count error).
-  std::vector<double> w(g.size(), 1.0);
+  std::vector<float> w(g.size(), 1.0f);  // 1 / variance, arcsec^-2 (float: memory per dwell)
   if (g.noise_known) {
     for (size_t k = 0; k < g.size(); ++k) {
       const double slope = rad_to_arcsec(transfer_slope(c0.data(), g.counts[k]));
-      w[k] = 1.0 / std::max(1e-30, g.var_ref_arcsec2[k] + slope * slope * g.var_counts2[k]);
+      w[k] = static_cast<float>(1.0 / std::max(1e-30, g.var_ref_arcsec2[k] + slope * slope * g.var_counts2[k]));
     }
   }
   Pass p = level_pass(g, w, u);
   constexpr int kMaxIterations = 30;
   for (int it = 0; it < kMaxIterations; ++it) {
     out.iterations = it + 1;
-    const Solve s = solve_r(projected_r(g, w, u, p, nullptr));
+    const Solve s = solve_r(projected_r(g, w, u, p));
     double t = 1.0;
     bool moved = false;
     for (int half = 0; half < 12; ++half, t *= 0.5) {
@@ -408,7 +407,7 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
   c[0] = 0;
   u = to_scaled(c);
   p = level_pass(g, w, u);
-  const Solve s = solve_r(projected_r(g, w, u, p, &out.standardised));
+  const Solve s = solve_r(projected_r(g, w, u, p));
 
   // C1 = sum_g share_g level_g, level_g = weighted mean of (ref - f0) over its dwells.
   double c1 = 0, var_c1_noise = 0;

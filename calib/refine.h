@@ -49,8 +49,8 @@ double angle_sigma_arcsec(const Uncertainty& u, const AxisCoeffs& fit, double co
 struct GlsData {
   std::vector<double> counts;           // the dwell's count (quantisation-corrected when known)
   std::vector<double> ref_arcsec;       // its reference angle
-  std::vector<double> var_ref_arcsec2;  // variance of the reference mean
-  std::vector<double> var_counts2;      // variance of the count estimate, counts^2
+  std::vector<float> var_ref_arcsec2;  // variance of the reference mean
+  std::vector<float> var_counts2;      // variance of the count estimate, counts^2
   std::vector<uint32_t> level;          // which reference level, 0 .. levels - 1
   std::vector<double> level_share;      // C1 = sum share_g level_g: the null condition over null dwells
   size_t levels = 0;
@@ -72,7 +72,6 @@ struct GlsFit {
   bool model_remainder = false;
   double sigma_scale = 1;  // factor applied to every sigma (1, or sqrt(reduced_chi2))
   Uncertainty uncertainty;
-  std::vector<double> standardised;  // per dwell residual / sigma at the fit
 };
 
 // Gauss-Newton from `start` (the changes' least-squares fit) with the levels projected out

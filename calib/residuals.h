@@ -36,7 +36,8 @@ struct AxisData {
   // one reference level).
   struct DwellRow {
     int64_t step = 0;
-    double counts = 0, sd_counts = 0, ref_arcsec = 0, sd_ref_arcsec = 0;
+    double counts = 0, ref_arcsec = 0;
+    float sd_counts = 0, sd_ref_arcsec = 0;  // within-dwell scatter (float: memory per dwell)
     uint32_t samples = 0, link = 0;
     bool null = false, whole_counts = false;
   };
