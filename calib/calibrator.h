@@ -72,7 +72,7 @@ struct SolverInfo {
   size_t candidates = 0;  // starts refined
   size_t grid_rows = 0;  // rows the grid stage saw
   double grid_rms_arcsec = 0;  // residual RMS at the best grid node
-  std::string brief;  // Ceres BriefReport of the final refinement
+  std::string brief;  // Ceres BriefReport of the final least-squares refinement (with GLS: the start it refines)
   int iterations = 0;
   // 0.5 sum r^2 over the changes, arcsec^2 (final: the Table 1 residuals' sum). Plain least
   // squares: Ceres's, at the winning start and at the end. GLS: under the nominal scale factor
