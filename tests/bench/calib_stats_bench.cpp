@@ -39,8 +39,12 @@ void BM_CalibrationStatistics(benchmark::State& state, const std::string& truth_
   for (auto _ : state) {
     test::TempDir dir("calib-stats");
     const auto files = test::mc::generate(truth_path, dir / "short", recordings, 1000 + std::hash<std::string>{}(truth_name) % 1000, design);
-    std::vector<Variant> variants(3);
+    std::vector<Variant> variants(5);
+    variants[4].name = "gls noise given";  // the stand file's noise instead of the scatter's estimate
+    variants[4].opts.count_noise_counts = design.count_noise_counts;
     variants[0].name = "gls";
+    variants[3].name = "gls raw means";  // without the quantisation correction: what it buys
+    variants[3].opts.quantisation_correction = false;
     variants[1].name = "ols changes";
     variants[1].opts.gls = false;
     variants[1].opts.quantisation_correction = false;
