@@ -8,6 +8,8 @@
 #include <thread>
 
 #include "calib/errors.h"
+#include "calib/outliers.h"
+#include "calib/quantisation.h"
 #include "calib/refine.h"
 #include "calib/units.h"
 
@@ -56,7 +58,48 @@ double ref_of(const Dwell& d, Axis a) { return a == Axis::alpha ? d.ref_pitch_ar
 
 }  // namespace
 
+namespace {
+
+double sd_counts_of(const Dwell& d, Axis a) { return a == Axis::alpha ? d.sd_counts_alpha : d.sd_counts_beta; }
+double sd_ref_of(const Dwell& d, Axis a) { return a == Axis::alpha ? d.sd_ref_pitch_arcsec : d.sd_ref_yaw_arcsec; }
+bool whole_of(const Dwell& d, Axis a) { return a == Axis::alpha ? d.whole_counts_alpha : d.whole_counts_beta; }
+
+// The dwell's row (found by step among the latest rows: pairs and nulls arrive in recording order),
+// added when new.
+constexpr size_t kDwellLookBack = 64;
+uint32_t dwell_row(AxisData& d, Axis axis, const Dwell& dw) {
+  const size_t n = d.dwells.size();
+  for (size_t k = n; k > 0 && n - k < kDwellLookBack; --k) {
+    if (d.dwells[k - 1].step == dw.step) return static_cast<uint32_t>(k - 1);
+  }
+  AxisData::DwellRow r;
+  r.step = dw.step;
+  r.counts = counts_of(dw, axis);
+  r.sd_counts = static_cast<float>(sd_counts_of(dw, axis));
+  r.ref_arcsec = ref_of(dw, axis);
+  r.sd_ref_arcsec = static_cast<float>(sd_ref_of(dw, axis));
+  r.samples = static_cast<uint32_t>(dw.samples);
+  r.link = static_cast<uint32_t>(n);
+  r.null = dw.phase == Phase::null;
+  r.whole_counts = whole_of(dw, axis);
+  d.dwells.push_back(r);
+  return static_cast<uint32_t>(n);
+}
+
+uint32_t root_of(std::vector<AxisData::DwellRow>& rows, uint32_t k) {
+  while (rows[k].link != k) {
+    rows[k].link = rows[rows[k].link].link;  // path halving
+    k = rows[k].link;
+  }
+  return k;
+}
+
+}  // namespace
+
 void add_pair_rows(AxisData& d, Axis axis, const Dwell& null_dwell, const Dwell& offset_dwell) {
+  const uint32_t a = root_of(d.dwells, dwell_row(d, axis, null_dwell));
+  const uint32_t b = root_of(d.dwells, dwell_row(d, axis, offset_dwell));
+  d.dwells[std::max(a, b)].link = std::min(a, b);
   d.n_plus.push_back(counts_of(offset_dwell, axis));
   d.n_minus.push_back(counts_of(null_dwell, axis));
   d.y_arcsec.push_back(ref_of(offset_dwell, axis) - ref_of(null_dwell, axis));
@@ -65,6 +108,7 @@ void add_pair_rows(AxisData& d, Axis axis, const Dwell& null_dwell, const Dwell&
 }
 
 void add_null(AxisData& d, Axis axis, const Dwell& null_dwell) {
+  dwell_row(d, axis, null_dwell);
   d.null_counts_sum += counts_of(null_dwell, axis);
   d.null_ref_arcsec_sum += ref_of(null_dwell, axis);
   ++d.null_dwells;
@@ -125,6 +169,128 @@ void check_axis(const AxisData& d, Axis axis, const std::string& origin) {
   }
 }
 
+namespace {
+
+struct Prepared {
+  GlsData g;
+  NoiseInfo noise;
+};
+
+std::optional<double> noise_from_file(const CalibrationOptions& opts) {
+  if (!opts.init || !opts.init->extra.is_object() || !opts.init->extra.contains("count_noise_counts")) return std::nullopt;
+  const auto& v = opts.init->extra.at("count_noise_counts");
+  if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < 0) {
+    throw DataError(fmt::format("start set{}: \"count_noise_counts\": expected a number >= 0 (counts), got {}",
+                                opts.init->unit.empty() ? "" : " of " + opts.init->unit, v.dump()));
+  }
+  return v.get<double>();
+}
+
+// The dwells with their counts' and references' variances (the noise model), and the levels.
+Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
+  Prepared p;
+  NoiseInfo& ni = p.noise;
+  std::optional<double> s;
+  if (opts.count_noise_counts) {
+    if (!std::isfinite(*opts.count_noise_counts) || *opts.count_noise_counts < 0) {
+      throw DataError(fmt::format("count noise {} counts: expected a number >= 0", *opts.count_noise_counts));
+    }
+    s = *opts.count_noise_counts;
+    ni.count_noise_source = opts.count_noise_source;
+  } else if ((s = noise_from_file(opts))) {
+    ni.count_noise_source = "coefficient file";
+  }
+  bool whole = true;
+  double ref_ss = 0, ref_dof = 0, raw_ss = 0, raw_dof = 0;
+  std::vector<CountScatter> scatter;
+  for (const auto& r : d.dwells) {
+    whole = whole && r.whole_counts;
+    if (r.samples < 2) continue;
+    const double f = r.samples - 1.0;
+    ref_ss += f * r.sd_ref_arcsec * r.sd_ref_arcsec;
+    raw_ss += f * r.sd_counts * r.sd_counts;
+    ref_dof += f;
+    raw_dof += f;
+    scatter.push_back({r.counts, static_cast<double>(r.sd_counts) * r.sd_counts, r.samples});
+  }
+  if (!s) {
+    if (whole) s = estimate_count_noise(scatter.data(), scatter.size());
+    else if (raw_dof > 0) s = std::sqrt(raw_ss / raw_dof);
+    if (s) ni.count_noise_source = "within-dwell scatter";
+  }
+  const double ref_var = ref_dof > 0 ? ref_ss / ref_dof : std::nan("");
+  if (s) ni.count_noise_counts = *s;
+  if (ref_dof > 0) ni.ref_noise_arcsec = std::sqrt(ref_var);
+  ni.quantisation_corrected = opts.quantisation_correction && s && whole && *s >= kMinQuantisationNoise;
+
+  GlsData& g = p.g;
+  g.noise_known = s.has_value() && ref_dof > 0;
+  const size_t m = d.dwells.size();
+  g.counts.resize(m);
+  g.ref_arcsec.resize(m);
+  g.var_ref_arcsec2.resize(m);
+  g.var_counts2.resize(m);
+  g.level.resize(m);
+  std::vector<uint32_t> level_of_root(m, UINT32_MAX);
+  std::vector<double> nulls;
+  double total_nulls = 0;
+  for (size_t k = 0; k < m; ++k) {
+    const auto& r = d.dwells[k];
+    const double n = static_cast<double>(std::max<uint32_t>(1, r.samples));
+    double c = r.counts, vc = 0;
+    if (ni.quantisation_corrected) {
+      c = counts_from_rounded_mean(r.counts, *s);
+      const double h = expected_rounded_slope(c, *s);
+      vc = rounded_counts_variance(c, *s) / (n * h * h);
+    } else if (s && whole && *s < kMinQuantisationNoise) {
+      vc = 1.0 / 12.0;  // rounding without dither: an error of the dwell, not averaged away
+    } else if (s && whole) {
+      vc = rounded_counts_variance(r.counts, *s) / n;  // the raw mean's own scatter (no correction)
+    } else if (s) {
+      vc = *s * *s / n;
+    }
+    g.counts[k] = c;
+    g.ref_arcsec[k] = r.ref_arcsec;
+    g.var_ref_arcsec2[k] = static_cast<float>(std::isfinite(ref_var) ? ref_var / n : 0.0);
+    g.var_counts2[k] = static_cast<float>(vc);
+    // Union-find roots: a parent always has the lower index, so one pass finds every root.
+    uint32_t root = static_cast<uint32_t>(k);
+    while (d.dwells[root].link != root) root = d.dwells[root].link;
+    if (level_of_root[root] == UINT32_MAX) {
+      level_of_root[root] = static_cast<uint32_t>(g.levels++);
+      nulls.push_back(0);
+    }
+    g.level[k] = level_of_root[root];
+    if (r.null) {
+      nulls[g.level[k]] += 1;
+      total_nulls += 1;
+    }
+  }
+  g.level_share.resize(g.levels);
+  for (size_t l = 0; l < g.levels; ++l) g.level_share[l] = total_nulls > 0 ? nulls[l] / total_nulls : 0.0;
+  return p;
+}
+
+void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, int count) {
+  out.angle_sigma_arcsec.clear();
+  if (count < 2) return;
+  const AxisModel model(out.coeffs);
+  const double margin = 0.05 * (d.counts_hi - d.counts_lo) + 10;
+  for (int i = 0; i < count; ++i) {
+    const double a = d.ref_lo_arcsec + (d.ref_hi_arcsec - d.ref_lo_arcsec) * i / (count - 1);
+    double sig = std::numeric_limits<double>::quiet_NaN();
+    try {
+      const double n = model.counts_for_angle_unchecked(arcsec_to_rad(a), d.counts_lo - margin, d.counts_hi + margin);
+      sig = angle_sigma_arcsec(u, out.coeffs, n);
+    } catch (const std::exception&) {
+      // not reached within the range: listed as null
+    }
+    out.angle_sigma_arcsec.push_back({a, sig});
+  }
+}
+
+}  // namespace
+
 AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const CalibrationOptions& opts) {
   AxisFit out;
   out.axis = axis_name(axis);
@@ -174,7 +340,10 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
     }
   }
   if (!best) throw std::runtime_error(fmt::format("{} axis: the solver failed from every start", out.axis));
-  Refined fin = fraction >= 1.0 && best->converged ? std::move(*best) : refine_axis(d, best->coeffs, ro);
+  // With the GLS to follow (over every dwell, in memory that does not grow with them), the changes'
+  // least squares on the screening subset is start enough: no full-size Ceres problem.
+  const bool gls = opts.gls && d.differences && !d.dwells.empty();
+  Refined fin = (fraction >= 1.0 || gls) && best->converged ? std::move(*best) : refine_axis(d, best->coeffs, ro);
   if (!fin.usable) throw std::runtime_error(fmt::format("{} axis: the solver failed: {}", out.axis, fin.brief));
 
   out.coeffs = fin.coeffs;
@@ -185,7 +354,25 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
   out.solver.final_cost = fin.final_cost;
   out.solver.converged = fin.converged;
 
-  const Uncertainty u = uncertainty(d, out.coeffs, ro);
+  Uncertainty u;
+  if (gls) {
+    Prepared pr = prepare_gls(d, opts);
+    GlsFit gf = refine_gls(pr.g, out.coeffs, d.counts_lo, d.counts_hi, opts.remainder_sigmas);
+    out.coeffs = gf.coeffs;
+    out.fit_form = "gls";
+    out.noise = pr.noise;
+    out.reduced_chi2 = gf.reduced_chi2;
+    out.chi2_dof = gf.dof;
+    out.model_remainder = gf.model_remainder;
+    out.sigma_scale = gf.sigma_scale;
+    out.dwells_fitted = pr.g.size();
+    out.levels = pr.g.levels;
+    out.solver.gls_iterations = gf.iterations;
+    out.solver.gls_converged = gf.converged;
+    u = std::move(gf.uncertainty);
+  } else {
+    u = uncertainty(d, out.coeffs, ro);
+  }
   out.sigma = u.sigma;
   out.angle_sigma_max_arcsec = u.angle_sigma_max_arcsec;
   out.covariance_pseudo_inverse = u.pseudo_inverse;
@@ -193,6 +380,19 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
 
   out.residuals = residual_stats(d, out.coeffs);
   out.counts_range = {d.counts_lo, d.counts_hi};
+  if (out.fit_form == "gls") {
+    // The GLS minimises the dwells' standardised residuals, not the changes' sum of squares: the
+    // costs reported are the changes' at the search's own origin (the nominal scale factor alone,
+    // as the grid starts) and at the returned coefficients.
+    double start = 0;
+    for (size_t i = 0; i < d.rows(); ++i) {
+      const double r = d.y_arcsec[i] - kNominalC2 * kArcsecPerRad * (d.n_plus[i] - d.n_minus[i]);
+      start += r * r;
+    }
+    out.solver.initial_cost = 0.5 * start;
+    out.solver.final_cost = 0.5 * out.residuals.rms_arcsec * out.residuals.rms_arcsec * static_cast<double>(out.residuals.points);
+  }
+  list_angle_sigmas(out, u, d, opts.sigma_angles);
   return out;
 }
 
@@ -218,12 +418,15 @@ ResidualStats residual_stats(const AxisData& d, const AxisCoeffs& c) {
 std::vector<DwellPair> add_dwell_rows(AxisData& alpha, AxisData& beta, const std::vector<Dwell>& dwells) {
   std::vector<DwellPair> pairs;
   if (alpha.differences) {
-    pairs = pair_dwells(dwells);
-    for (const auto& p : pairs) {
-      add_pair_rows(alpha, Axis::alpha, dwells[p.null_index], dwells[p.offset_index]);
-      add_pair_rows(beta, Axis::beta, dwells[p.null_index], dwells[p.offset_index]);
-    }
+    // In recording order, as the streaming calibrator takes them: the changes each dwell completes
+    // (the rows come in pair_dwells' order), then the dwell's null condition.
+    DwellPairer pairer;
     for (const auto& d : dwells) {
+      for (const auto& p : pairer.add(d)) {
+        add_pair_rows(alpha, Axis::alpha, dwells[p.null_index], dwells[p.offset_index]);
+        add_pair_rows(beta, Axis::beta, dwells[p.null_index], dwells[p.offset_index]);
+        pairs.push_back(p);
+      }
       if (d.phase != Phase::null) continue;
       add_null(alpha, Axis::alpha, d);
       add_null(beta, Axis::beta, d);
@@ -247,7 +450,10 @@ CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const Calib
   rep.source = source;
   rep.unit = opts.unit;
   rep.samples = samples;
-  for (const auto& d : dwells) (d.phase == Phase::null ? rep.null_dwells : rep.offset_dwells)++;
+  for (const auto& d : dwells) {
+    (d.phase == Phase::null ? rep.null_dwells : rep.offset_dwells)++;
+    rep.outlier_frames += d.outliers;
+  }
   if (dwells.empty()) {
     throw DataError(fmt::format("{}: no null or offset rows: nothing to calibrate (slew and move rows are not used)", src));
   }
@@ -287,8 +493,49 @@ CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const Calib
   return rep;
 }
 
+namespace {
+
+std::vector<bool> flag_count_outliers(const SampleTable& t, double floor_counts) {
+  std::vector<bool> out(t.size(), false);
+  OutlierRule rule;
+  rule.min_sigma = floor_counts;
+  std::vector<double> v(t.size());
+  for (const auto* col : {&t.counts_alpha, &t.counts_beta}) {
+    for (size_t i = 0; i < t.size(); ++i) {
+      const bool dwell = t.phase[i] == Phase::null || t.phase[i] == Phase::offset;
+      v[i] = dwell ? (*col)[i] : std::numeric_limits<double>::quiet_NaN();
+    }
+    const OutlierFlags f = flag_outliers(v, t.step, rule);
+    for (size_t i = 0; i < t.size(); ++i) out[i] = out[i] || f.outlier[i];
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<bool> outlier_rows(const SampleTable& t, const CalibrationOptions& opts) {
+  // The floor under the robust sigma: the rounded noise, sqrt(1/12 + s^2). With whole counts and
+  // little noise the pooled MAD is zero, and the rounding's scatter alone (1/sqrt(12)) would flag
+  // ordinary 2-count excursions at 0.3 counts of noise. Unknown noise: a first pass with that
+  // floor keeps gross spikes out of the within-dwell scatter the noise is estimated from.
+  std::optional<double> s = opts.count_noise_counts;
+  if (!s) {
+    const auto first = flag_count_outliers(t, std::sqrt(1.0 / 12.0));
+    std::vector<CountScatter> sc;
+    for (const Dwell& d : average_dwells(t, first)) {
+      if (d.samples < 2 || !d.whole_counts_alpha || !d.whole_counts_beta) continue;
+      sc.push_back({d.counts_alpha, d.sd_counts_alpha * d.sd_counts_alpha, d.samples});
+      sc.push_back({d.counts_beta, d.sd_counts_beta * d.sd_counts_beta, d.samples});
+    }
+    s = estimate_count_noise(sc.data(), sc.size());
+    if (!s) return first;
+  }
+  return flag_count_outliers(t, std::sqrt(1.0 / 12.0 + *s * *s));
+}
+
 CalibrationReport calibrate(const SampleTable& samples, const CalibrationOptions& opts) {
-  return calibrate_dwells(average_dwells(samples), opts, samples.origin, samples.size());
+  if (!opts.reject_outliers) return calibrate_dwells(average_dwells(samples), opts, samples.origin, samples.size());
+  return calibrate_dwells(average_dwells(samples, outlier_rows(samples, opts)), opts, samples.origin, samples.size());
 }
 
 }  // namespace fpss

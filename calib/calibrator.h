@@ -2,6 +2,7 @@
 #pragma once
 #include <array>
 #include <cstddef>
+#include <limits>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -35,6 +36,25 @@ struct CalibrationOptions {
   int threads = 0;  // Ceres threads; 0: the machine's
   int max_iterations = 200;
   std::string unit;  // written to the coefficient set
+
+  // Gaussian count noise per frame before whole-count rounding, counts (the stand file's expected
+  // noise). Unset: the start set's (--init) `count_noise_counts` key, else estimated from the
+  // within-dwell scatter. Used for the quantisation correction and the dwells' weights.
+  std::optional<double> count_noise_counts;
+  std::string count_noise_source = "caller";  // how the report names a given noise ("stand file", ...)
+  // Frames far from their step's median are left out of the dwell means (calib/outliers.h).
+  bool reject_outliers = true;
+  // The differences method fits the changes with their covariance (GLS); false: the plain
+  // least squares of the changes (for comparison).
+  bool gls = true;
+  // Dwell means of whole counts are replaced by the count whose expected rounded value they are,
+  // when the count noise is known or estimated (false: for comparison).
+  bool quantisation_correction = true;
+  // chi2/dof of the dwell residuals beyond 1 + this many sqrt(2/dof) is a model remainder (4: the
+  // weights come from estimated noise, which widens chi2's scatter beyond its textbook one).
+  double remainder_sigmas = 4.0;
+  // Angles at which the calibration's 1-sigma is listed (evenly over the calibrated range).
+  int sigma_angles = 41;
 };
 
 // Table 1 of the paper: residuals of one axis's fit, arcsec.
@@ -52,10 +72,26 @@ struct SolverInfo {
   size_t candidates = 0;  // starts refined
   size_t grid_rows = 0;  // rows the grid stage saw
   double grid_rms_arcsec = 0;  // residual RMS at the best grid node
-  std::string brief;  // Ceres BriefReport of the final refinement
+  std::string brief;  // Ceres BriefReport of the final least-squares refinement (with GLS: the start it refines)
   int iterations = 0;
-  double initial_cost = 0, final_cost = 0;  // 0.5 sum r^2, arcsec^2
+  // 0.5 sum r^2 over the changes, arcsec^2 (final: the Table 1 residuals' sum). Plain least
+  // squares: Ceres's, at the winning start and at the end. GLS: under the nominal scale factor
+  // alone (where the search starts) and at the returned coefficients.
+  double initial_cost = 0, final_cost = 0;
   bool converged = false;
+  // The fit with the changes' covariance (differences method, dwells known): Gauss-Newton iterations.
+  int gls_iterations = 0;
+  bool gls_converged = false;
+};
+
+// What the fit knew of the noise, per axis.
+struct NoiseInfo {
+  double count_noise_counts = std::numeric_limits<double>::quiet_NaN();  // per frame, before rounding
+  // "caller" (or what CalibrationOptions::count_noise_source says), "coefficient file",
+  // "within-dwell scatter" or "unknown"
+  std::string count_noise_source = "unknown";
+  double ref_noise_arcsec = std::numeric_limits<double>::quiet_NaN();  // per frame, within-dwell scatter
+  bool quantisation_corrected = false;  // dwell counts are E[round(n + e)] inverted, not raw means
 };
 
 struct AxisFit {
@@ -69,6 +105,19 @@ struct AxisFit {
   std::array<double, 2> counts_range{};  // the calibrated count range
   ResidualStats residuals;
   SolverInfo solver;
+
+  // How the fit was made: "gls" (changes with their covariance: dwells, one level per joined set,
+  // weighted by the noise model), or "ols" (changes or absolute angles, equal weights).
+  std::string fit_form = "ols";
+  NoiseInfo noise;
+  // [angle_arcsec, sigma_arcsec]: 1-sigma of (fitted - true angle) at evenly spaced angles over the
+  // calibrated reference range, C1 (the null condition) included.
+  std::vector<std::array<double, 2>> angle_sigma_arcsec;
+  double reduced_chi2 = std::numeric_limits<double>::quiet_NaN();  // of the standardised dwell residuals
+  size_t chi2_dof = 0;
+  bool model_remainder = false;  // reduced chi2 materially > 1: sigmas scaled up by sigma_scale
+  double sigma_scale = 1.0;
+  size_t dwells_fitted = 0, levels = 0;
 };
 
 struct CalibrationReport {
@@ -76,6 +125,7 @@ struct CalibrationReport {
   std::string source;  // the samples file
   std::string unit;
   size_t samples = 0, null_dwells = 0, offset_dwells = 0, pairs = 0;
+  size_t outlier_frames = 0;  // frames left out of the dwell means (calib/outliers.h)
   AxisFit pitch, yaw;  // pitch from counts_alpha (alpha), yaw from counts_beta (beta)
 
   // The fitted set in the coefficient-file format, with residuals, uncertainties, method,
@@ -86,6 +136,9 @@ struct CalibrationReport {
 // Throws DataError when the recording cannot determine a transfer function (naming what is
 // missing), std::runtime_error when the solver fails.
 CalibrationReport calibrate(const SampleTable& samples, const CalibrationOptions& opts = {});
+// Outlier frames of a table's null/offset rows (either axis's counts), by calib/outliers.h's rule
+// with the rounding's scatter (or the given count noise) as the floor under the robust sigma.
+std::vector<bool> outlier_rows(const SampleTable& samples, const CalibrationOptions& opts = {});
 CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const CalibrationOptions& opts,
                                    const std::string& source = {}, size_t samples = 0);
 

@@ -8,7 +8,7 @@
 
 namespace fpss {
 
-std::optional<Dwell> DwellBuilder::add(const Sample& s) {
+std::optional<Dwell> DwellBuilder::add(const Sample& s, bool outlier) {
   if (s.phase != Phase::null && s.phase != Phase::offset) return std::nullopt;
   std::optional<Dwell> done;
   if (open_ && s.step != step_) done = close();
@@ -19,15 +19,23 @@ std::optional<Dwell> DwellBuilder::add(const Sample& s) {
     phase_ = s.phase;
     sums_ = Sums{};
     sums_.t0 = s.time_s;
-    for (int i = 0; i < 4; ++i) sums_.o[i] = v[i];
   } else if (s.phase != phase_) {
     throw DataError(fmt::format(
         "{}: step {} holds both null and offset rows; each dwell must be one or the other "
         "(cannot tell which reference the sensor saw)",
         origin_.empty() ? "samples" : origin_, s.step));
   }
-  sums_.n += 1;
   sums_.t1 = s.time_s;
+  if (outlier) {
+    ++sums_.skipped;
+    return done;
+  }
+  if (!sums_.origin_set) {
+    for (int i = 0; i < 4; ++i) sums_.o[i] = v[i];
+    sums_.origin_set = true;
+  }
+  sums_.n += 1;
+  for (int i = 0; i < 2; ++i) sums_.whole[i] = sums_.whole[i] && v[i] == std::floor(v[i]);
   for (int i = 0; i < 4; ++i) {
     const double d = v[i] - sums_.o[i];
     sums_.s[i] += d;
@@ -41,6 +49,7 @@ std::optional<Dwell> DwellBuilder::flush() { return open_ ? close() : std::nullo
 std::optional<Dwell> DwellBuilder::close() {
   open_ = false;
   const double n = sums_.n;
+  if (!(n > 0)) return std::nullopt;  // every frame an outlier: no dwell
   double mean[4], sd[4];
   for (int i = 0; i < 4; ++i) {
     const double m = sums_.s[i] / n;
@@ -61,6 +70,9 @@ std::optional<Dwell> DwellBuilder::close() {
   d.sd_counts_beta = sd[1];
   d.sd_ref_pitch_arcsec = sd[2];
   d.sd_ref_yaw_arcsec = sd[3];
+  d.whole_counts_alpha = sums_.whole[0];
+  d.whole_counts_beta = sums_.whole[1];
+  d.outliers = sums_.skipped;
   return d;
 }
 
@@ -83,6 +95,16 @@ std::vector<Dwell> average_dwells(const SampleTable& t) {
   DwellBuilder b(t.origin);
   for (size_t i = 0; i < t.size(); ++i) {
     if (auto d = b.add(t.row(i))) out.push_back(*d);
+  }
+  if (auto d = b.flush()) out.push_back(*d);
+  return out;
+}
+
+std::vector<Dwell> average_dwells(const SampleTable& t, const std::vector<bool>& skip) {
+  std::vector<Dwell> out;
+  DwellBuilder b(t.origin);
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (auto d = b.add(t.row(i), i < skip.size() && skip[i])) out.push_back(*d);
   }
   if (auto d = b.flush()) out.push_back(*d);
   return out;

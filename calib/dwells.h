@@ -21,6 +21,10 @@ struct Dwell {
   double ref_pitch_arcsec = 0, ref_yaw_arcsec = 0;
   double sd_counts_alpha = 0, sd_counts_beta = 0;
   double sd_ref_pitch_arcsec = 0, sd_ref_yaw_arcsec = 0;
+  // Every frame's counts were whole numbers (the sensor's own output, not averaged upstream):
+  // the quantisation correction applies.
+  bool whole_counts_alpha = true, whole_counts_beta = true;
+  size_t outliers = 0;  // frames left out of the means (calib/outliers.h)
 };
 
 // One change the differences method fits: from the null dwell to the offset dwell
@@ -36,7 +40,9 @@ class DwellBuilder {
  public:
   explicit DwellBuilder(std::string origin = {}) : origin_(std::move(origin)) {}
   // Returns the dwell that the previous step completed, when this row starts a new one.
-  std::optional<Dwell> add(const Sample& s);
+  // An `outlier` row opens and closes steps like any other but stays out of the dwell's means
+  // (counted in Dwell::outliers).
+  std::optional<Dwell> add(const Sample& s, bool outlier = false);
   // The dwell still open (end of data).
   std::optional<Dwell> flush();
 
@@ -45,6 +51,9 @@ class DwellBuilder {
     double n = 0, t0 = 0, t1 = 0;
     // Shifted sums (first value as origin) keep the variance exact for large counts.
     double o[4] = {0, 0, 0, 0}, s[4] = {0, 0, 0, 0}, ss[4] = {0, 0, 0, 0};
+    bool whole[2] = {true, true};
+    size_t skipped = 0;
+    bool origin_set = false;
   };
   std::optional<Dwell> close();
   std::string origin_;
@@ -68,6 +77,8 @@ class DwellPairer {
 };
 
 std::vector<Dwell> average_dwells(const SampleTable& t);
+// The same, leaving out the rows flagged in `skip` (one flag per row; each dwell counts its own).
+std::vector<Dwell> average_dwells(const SampleTable& t, const std::vector<bool>& skip);
 std::vector<DwellPair> pair_dwells(const std::vector<Dwell>& dwells);
 
 }  // namespace fpss

@@ -18,6 +18,38 @@ double median_of(std::vector<double>& v) {
 
 }  // namespace
 
+double StepValues::median() const {
+  if (frames == 0) return NAN;
+  // Sorted positions mid (and mid - 1 for an even count), as median_of takes them.
+  const uint64_t mid = frames / 2;
+  auto value_at = [&](uint64_t k) {
+    uint64_t seen = 0;
+    for (const auto& [v, n] : values) {
+      seen += n;
+      if (seen > k) return v;
+    }
+    return values.rbegin()->first;
+  };
+  double m = value_at(mid);
+  if (frames % 2 == 0) m = 0.5 * (m + value_at(mid - 1));
+  return m;
+}
+
+double StepOutlierScreen::pool_step(const StepValues& step) {
+  if (step.frames < static_cast<uint64_t>(std::max(0, rule_.min_step_frames)) || step.frames == 0) return NAN;
+  const double m = step.median();
+  for (const auto& [v, n] : step.values) {
+    deviations_.values[std::fabs(v - m)] += n;
+    deviations_.frames += n;
+  }
+  return m;
+}
+
+double StepOutlierScreen::robust_sigma() const {
+  if (deviations_.frames == 0) return 0.0;
+  return std::max(1.4826 * deviations_.median(), rule_.min_sigma);
+}
+
 OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vector<int64_t>& step,
                            const OutlierRule& rule) {
   if (residual.size() != step.size()) throw std::invalid_argument("flag_outliers: residual and step differ in size");

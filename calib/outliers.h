@@ -1,6 +1,8 @@
 // Isolated frames far from their step: the one outlier rule the calibrator and the diagnosis share.
 #pragma once
+#include <cmath>
 #include <cstdint>
+#include <map>
 #include <vector>
 
 namespace fpss {
@@ -29,5 +31,42 @@ struct OutlierFlags {
 // residual); `step` the step id of each frame, rows of one step contiguous or not.
 OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vector<int64_t>& step,
                            const OutlierRule& rule = {});
+
+// One step's values as a multiset (value -> frames): the step's median without holding its frames
+// (a handful of distinct values for whole counts, whatever the frames per step).
+struct StepValues {
+  std::map<double, uint64_t> values;
+  uint64_t frames = 0;
+  void add(double v) {
+    if (std::isfinite(v)) {
+      ++values[v];
+      ++frames;
+    }
+  }
+  // flag_outliers' median (the mean of the two middle values for an even count).
+  double median() const;
+};
+
+// The same rule over a recording read step by step, in memory that does not grow with the frames:
+// pass 1 pools every step's deviations from its median (pool_step, which returns the median, NaN
+// for a step too short to have one); after it, a frame is an outlier when it lies more than
+// threshold x robust_sigma() from its step's median. Gives flag_outliers' flags exactly.
+class StepOutlierScreen {
+ public:
+  explicit StepOutlierScreen(OutlierRule rule = {}) : rule_(rule) {}
+  double pool_step(const StepValues& step);
+  // max(1.4826 x the pooled median absolute deviation, rule.min_sigma); 0 with nothing pooled.
+  double robust_sigma() const;
+  bool is_outlier(double value, double step_median) const {
+    const double s = robust_sigma();
+    return std::isfinite(value) && std::isfinite(step_median) && s > 0 &&
+           std::fabs(value - step_median) > rule_.threshold_sigma * s;
+  }
+  void set_min_sigma(double s) { rule_.min_sigma = s; }
+
+ private:
+  OutlierRule rule_;
+  StepValues deviations_;
+};
 
 }  // namespace fpss

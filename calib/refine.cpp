@@ -3,6 +3,8 @@
 #include <ceres/ceres.h>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -222,6 +224,15 @@ Uncertainty uncertainty(const AxisData& d, const AxisCoeffs& fit, const RefineOp
     for (int i = 0; i < p; ++i) jc(0, i) = -g_null(i) / kArcsecPerRad;
   }
   out.covariance = jc * cu * jc.transpose();
+  {
+    // u[0] = C1 in arcsec: fitted (absolute) or through the null condition (differences).
+    Eigen::MatrixXd ju = Eigen::MatrixXd::Zero(8, p);
+    for (int i = 0; i < p; ++i) ju(first + i, i) = 1.0;
+    if (d.differences) {
+      for (int i = 0; i < p; ++i) ju(0, i) = -g_null(i);
+    }
+    out.covariance_scaled = ju * cu * ju.transpose();
+  }
   for (int i = 0; i < 8; ++i) out.sigma[i] = std::sqrt(std::max(0.0, out.covariance(i, i)));
 
   constexpr int kSteps = 200;
@@ -232,6 +243,228 @@ Uncertainty uncertainty(const AxisData& d, const AxisCoeffs& fit, const RefineOp
     if (sig > out.angle_sigma_max_arcsec) {
       out.angle_sigma_max_arcsec = sig;
       out.angle_sigma_at_counts = n;
+    }
+  }
+  return out;
+}
+
+}  // namespace fpss::fit
+
+namespace fpss::fit {
+
+double angle_sigma_arcsec(const Uncertainty& u, const AxisCoeffs& fit, double counts) {
+  const Eigen::Matrix<double, 8, 1> g = angle_gradient(to_scaled(fit), false, counts);
+  return std::sqrt(std::max(0.0, g.dot(u.covariance_scaled * g)));
+}
+
+namespace {
+
+using Vec7 = Eigen::Matrix<double, 7, 1>;
+using Mat7 = Eigen::Matrix<double, 7, 7>;
+
+// f0 (the angle with C1 = 0, arcsec) and its gradient over u[1..7] at one count.
+double angle_and_gradient(const Scaled& u, double n, Vec7& grad) {
+  using J = ceres::Jet<double, 7>;
+  J u27[7];
+  for (int i = 0; i < 7; ++i) u27[i] = J(u[1 + i], i);
+  const DwellLevelResidual f{n, 0.0, 1.0};
+  const J a = f(u27, J(0.0));
+  for (int i = 0; i < 7; ++i) grad(i) = a.v[i];
+  return a.a;
+}
+
+// Per level: weighted sums of the dwells' e = ref - f0 and of the gradients.
+struct LevelSums {
+  double w = 0, we = 0, wee = 0;
+  Vec7 wg = Vec7::Zero();
+};
+
+struct Pass {
+  std::vector<LevelSums> lv;
+  double cost = 0;  // sum w (e - level)^2
+};
+
+Pass level_pass(const GlsData& g, const std::vector<float>& w, const Scaled& u) {
+  Pass p;
+  p.lv.assign(g.levels, LevelSums{});
+  Vec7 gr;
+  for (size_t k = 0; k < g.size(); ++k) {
+    const double e = g.ref_arcsec[k] - angle_and_gradient(u, g.counts[k], gr);
+    LevelSums& l = p.lv[g.level[k]];
+    l.w += w[k];
+    l.we += w[k] * e;
+    l.wee += w[k] * e * e;
+    l.wg += w[k] * gr;
+  }
+  for (const auto& l : p.lv) {
+    if (l.w > 0) p.cost += l.wee - l.we * l.we / l.w;
+  }
+  p.cost = std::max(0.0, p.cost);
+  return p;
+}
+
+// R (8 x 8) of the QR of [J~ | r], the projected Jacobian and residuals, accumulated in chunks.
+Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const std::vector<float>& w, const Scaled& u,
+                                        const Pass& p) {
+  constexpr int kChunk = 256;
+  Eigen::Matrix<double, Eigen::Dynamic, 8> stack(kChunk + 8, 8);
+  Eigen::Matrix<double, 8, 8> r = Eigen::Matrix<double, 8, 8>::Zero();
+  int rows = 0;
+  bool have_r = false;
+  auto reduce = [&] {
+    if (have_r) stack.middleRows(rows, 8) = r;
+    const int m = rows + (have_r ? 8 : 0);
+    Eigen::HouseholderQR<Eigen::Matrix<double, Eigen::Dynamic, 8>> qr(stack.topRows(m));
+    r.setZero();
+    const int k = std::min(m, 8);
+    r.topRows(k) = qr.matrixQR().topRows(k).triangularView<Eigen::Upper>();
+    have_r = true;
+    rows = 0;
+  };
+  Vec7 gr;
+  for (size_t k = 0; k < g.size(); ++k) {
+    const LevelSums& l = p.lv[g.level[k]];
+    const double e = g.ref_arcsec[k] - angle_and_gradient(u, g.counts[k], gr);
+    const double sw = std::sqrt(w[k]);
+    stack.row(rows).head<7>() = (sw * (gr - l.wg / l.w)).transpose();
+    const double res = -sw * (e - l.we / l.w);
+    stack(rows, 7) = res;
+    if (++rows == kChunk) reduce();
+  }
+  if (rows > 0 || !have_r) reduce();
+  return r;
+}
+
+// Pseudo-inverse of R11^T R11 and the Gauss-Newton step -R11^+ z.
+struct Solve {
+  Mat7 cov = Mat7::Zero();
+  Vec7 step = Vec7::Zero();
+  bool deficient = false;
+};
+Solve solve_r(const Eigen::Matrix<double, 8, 8>& r) {
+  Solve s;
+  const Mat7 r11 = r.topLeftCorner<7, 7>();
+  const Vec7 z = r.topRightCorner<7, 1>();
+  Eigen::JacobiSVD<Mat7> svd(r11, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const auto& sv = svd.singularValues();
+  const double tol = 1e-10 * sv(0);
+  Vec7 inv = Vec7::Zero();
+  for (int i = 0; i < 7; ++i) {
+    if (sv(i) > tol) inv(i) = 1.0 / sv(i);
+    else s.deficient = true;
+  }
+  const Mat7 v = svd.matrixV();
+  s.cov = v * inv.cwiseAbs2().asDiagonal() * v.transpose();
+  s.step = -(v * inv.asDiagonal() * svd.matrixU().transpose() * z);
+  return s;
+}
+
+}  // namespace
+
+GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, double counts_hi,
+                  double remainder_sigmas) {
+  GlsFit out;
+  AxisCoeffs c0 = start;
+  normalise(c0);
+  c0[0] = 0;
+  Scaled u = to_scaled(c0);
+  // Weights from the start's slope (the count noise enters as slope x count error).
+  std::vector<float> w(g.size(), 1.0f);  // 1 / variance, arcsec^-2 (float: memory per dwell)
+  if (g.noise_known) {
+    for (size_t k = 0; k < g.size(); ++k) {
+      const double slope = rad_to_arcsec(transfer_slope(c0.data(), g.counts[k]));
+      w[k] = static_cast<float>(1.0 / std::max(1e-30, g.var_ref_arcsec2[k] + slope * slope * g.var_counts2[k]));
+    }
+  }
+  Pass p = level_pass(g, w, u);
+  constexpr int kMaxIterations = 30;
+  for (int it = 0; it < kMaxIterations; ++it) {
+    out.iterations = it + 1;
+    const Solve s = solve_r(projected_r(g, w, u, p));
+    double t = 1.0;
+    bool moved = false;
+    for (int half = 0; half < 12; ++half, t *= 0.5) {
+      Scaled trial = u;
+      for (int i = 0; i < 7; ++i) trial[1 + i] += t * s.step(i);
+      Pass q = level_pass(g, w, trial);
+      if (q.cost <= p.cost) {
+        const double gain = p.cost - q.cost;
+        u = trial;
+        p = std::move(q);
+        moved = true;
+        if (gain <= 1e-13 * std::max(p.cost, 1e-300)) out.converged = true;
+        break;
+      }
+    }
+    if (!moved || out.converged || s.step.norm() < 1e-13) {
+      out.converged = true;
+      break;
+    }
+  }
+  // Back to the normalised form (positive frequencies, phases in (-pi, pi]) before the covariance.
+  AxisCoeffs c = from_scaled(u);
+  normalise(c);
+  c[0] = 0;
+  u = to_scaled(c);
+  p = level_pass(g, w, u);
+  const Solve s = solve_r(projected_r(g, w, u, p));
+
+  // C1 = sum_g share_g level_g, level_g = weighted mean of (ref - f0) over its dwells.
+  double c1 = 0, var_c1_noise = 0;
+  Vec7 gbar = Vec7::Zero();
+  for (size_t l = 0; l < g.levels; ++l) {
+    const LevelSums& ls = p.lv[l];
+    if (!(ls.w > 0) || !(g.level_share[l] > 0)) continue;
+    const double a = g.level_share[l];
+    c1 += a * ls.we / ls.w;
+    gbar += a * ls.wg / ls.w;
+    var_c1_noise += a * a / ls.w;
+  }
+  u[0] = c1;
+  out.coeffs = from_scaled(u);
+
+  out.chi2 = p.cost;
+  const size_t params = 7 + g.levels;
+  out.dof = g.size() > params ? g.size() - params : 0;
+  out.reduced_chi2 = out.dof > 0 ? out.chi2 / static_cast<double>(out.dof) : std::nan("");
+  double scale2 = 1.0;
+  if (!g.noise_known) {
+    scale2 = out.dof > 0 ? out.reduced_chi2 : std::nan("");
+  } else if (out.dof > 0 &&
+             out.reduced_chi2 > 1.0 + remainder_sigmas * std::sqrt(2.0 / static_cast<double>(out.dof))) {
+    out.model_remainder = true;
+    scale2 = out.reduced_chi2;
+  }
+  out.sigma_scale = std::sqrt(scale2);
+
+  Uncertainty& un = out.uncertainty;
+  Eigen::Matrix<double, 8, 8> cs = Eigen::Matrix<double, 8, 8>::Zero();
+  cs.bottomRightCorner<7, 7>() = s.cov;
+  const Vec7 cg = s.cov * gbar;
+  cs(0, 0) = gbar.dot(cg) + var_c1_noise;
+  cs.block<1, 7>(0, 1) = -cg.transpose();
+  cs.block<7, 1>(1, 0) = -cg;
+  un.covariance_scaled = cs * scale2;
+  un.pseudo_inverse = s.deficient;
+  un.residual_sigma_arcsec = out.sigma_scale;
+  for (int i = 0; i < 8; ++i) {
+    for (int j = 0; j < 8; ++j) un.covariance(i, j) = un.covariance_scaled(i, j) * kScaleFactor[i] * kScaleFactor[j];
+  }
+  for (int i = 0; i < 8; ++i) un.sigma[i] = std::sqrt(std::max(0.0, un.covariance(i, i)));
+  un.note = g.noise_known
+                ? (out.model_remainder
+                       ? "GLS of the changes (dwells with one level per joined set), noise model; chi2/dof "
+                         "materially above 1 (a remainder the model does not fit): sigmas scaled by sqrt(chi2/dof)"
+                       : "GLS of the changes (dwells with one level per joined set), covariance from the noise model")
+                : "GLS of the changes with equal dwell weights (no noise known): covariance scaled by the residuals";
+  if (s.deficient) un.note += "; J^T J rank deficient: pseudo-inverse";
+  constexpr int kSteps = 200;
+  for (int k = 0; k <= kSteps; ++k) {
+    const double n = counts_lo + (counts_hi - counts_lo) * k / kSteps;
+    const double sig = angle_sigma_arcsec(un, out.coeffs, n);
+    if (sig > un.angle_sigma_max_arcsec) {
+      un.angle_sigma_max_arcsec = sig;
+      un.angle_sigma_at_counts = n;
     }
   }
   return out;

@@ -34,7 +34,51 @@ struct Uncertainty {
   double angle_sigma_at_counts = 0;  // where that max is
   bool pseudo_inverse = false;  // J^T J was rank deficient: Moore-Penrose pseudo-inverse
   std::string note;
+  // Of the scaled coefficients u[0..7] (u[0] = C1 in arcsec, residuals.h), what the angle sigma
+  // at any count is computed from (angle_sigma_arcsec).
+  Eigen::Matrix<double, 8, 8> covariance_scaled = Eigen::Matrix<double, 8, 8>::Zero();
 };
+
+// 1-sigma of the fitted angle at `counts`, arcsec, from the scaled covariance (C1 included).
+double angle_sigma_arcsec(const Uncertainty& u, const AxisCoeffs& fit, double counts);
+
+// The dwells as the fit with the changes' covariance sees them: every change null <-> offset is
+// the difference of two dwells, so fitting the changes with their covariance (GLS) is fitting the
+// dwells with one free reference level per set of dwells the changes join (the changes lose
+// exactly that level), each dwell weighted by its own variance. Prepared by the calibrator.
+struct GlsData {
+  std::vector<double> counts;           // the dwell's count (quantisation-corrected when known)
+  std::vector<double> ref_arcsec;       // its reference angle
+  std::vector<float> var_ref_arcsec2;  // variance of the reference mean
+  std::vector<float> var_counts2;      // variance of the count estimate, counts^2
+  std::vector<uint32_t> level;          // which reference level, 0 .. levels - 1
+  std::vector<double> level_share;      // C1 = sum share_g level_g: the null condition over null dwells
+  size_t levels = 0;
+  // Variances from a noise model (given or from within-dwell scatter); false: equal weights, and
+  // the covariance is scaled by the residuals.
+  bool noise_known = true;
+  size_t size() const { return counts.size(); }
+};
+
+struct GlsFit {
+  AxisCoeffs coeffs{};  // C1 from the levels (the null condition)
+  int iterations = 0;
+  bool converged = false;
+  double chi2 = 0;  // sum of squared standardised residuals
+  size_t dof = 0;
+  double reduced_chi2 = 0;
+  // chi2 / dof materially above 1 (more than `remainder_sigmas` of its own scatter, sqrt(2 / dof)):
+  // the model does not describe the data; the covariance is then scaled by reduced_chi2.
+  bool model_remainder = false;
+  double sigma_scale = 1;  // factor applied to every sigma (1, or sqrt(reduced_chi2))
+  Uncertainty uncertainty;
+};
+
+// Gauss-Newton from `start` (the changes' least-squares fit) with the levels projected out
+// (variable projection: each level is its dwells' weighted mean at any C2..C8); QR of the
+// projected Jacobian accumulated in chunks (TSQR), so memory does not grow with the dwells.
+GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, double counts_hi,
+                  double remainder_sigmas = 3.0);
 
 // Least squares from `start` over an evenly spread `fraction` of the rows of `d` (in_spread_subset).
 // Throws nothing on a poor fit; `usable` false means Ceres could not produce a solution.

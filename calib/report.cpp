@@ -40,6 +40,18 @@ nlohmann::json uncertainties_json(const CalibrationReport& r) {
   for (const AxisFit* a : {&r.pitch, &r.yaw}) {
     nlohmann::ordered_json ax;
     ax["angle_sigma_max_arcsec"] = number_or_null(a->angle_sigma_max_arcsec);
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto& [angle, sigma] : a->angle_sigma_arcsec) list.push_back({angle, number_or_null(sigma)});
+    ax["angle_sigma_arcsec"] = list;
+    ax["fit"] = a->fit_form;
+    ax["reduced_chi2"] = number_or_null(a->reduced_chi2);
+    ax["chi2_dof"] = a->chi2_dof;
+    ax["model_remainder"] = a->model_remainder;
+    ax["sigma_scale"] = a->sigma_scale;
+    ax["count_noise_counts"] = number_or_null(a->noise.count_noise_counts);
+    ax["count_noise_source"] = a->noise.count_noise_source;
+    ax["ref_noise_arcsec"] = number_or_null(a->noise.ref_noise_arcsec);
+    ax["quantisation_corrected"] = a->noise.quantisation_corrected;
     ax["pseudo_inverse"] = a->covariance_pseudo_inverse;
     ax["covariance"] = a->covariance_note;
     j[a->axis] = ax;
@@ -59,6 +71,8 @@ nlohmann::json solver_json(const CalibrationReport& r) {
     s["initial_cost"] = a->solver.initial_cost;
     s["final_cost"] = a->solver.final_cost;
     s["converged"] = a->solver.converged;
+    s["gls_iterations"] = a->solver.gls_iterations;
+    s["gls_converged"] = a->solver.gls_converged;
     s["brief"] = a->solver.brief;
     j[a->axis] = s;
   }
@@ -74,7 +88,7 @@ CoefficientSet CalibrationReport::coefficients() const {
   s.extra["method"] = std::string(to_string(method));
   s.extra["source"] = source;
   s.extra["samples"] = samples;
-  s.extra["dwells"] = {{"null", null_dwells}, {"offset", offset_dwells}, {"pairs", pairs}};
+  s.extra["dwells"] = {{"null", null_dwells}, {"offset", offset_dwells}, {"pairs", pairs}, {"outlier_frames", outlier_frames}};
   s.extra["residuals"] = residuals_json(*this);
   s.extra["uncertainties"] = uncertainties_json(*this);
   s.extra["solver"] = solver_json(*this);
@@ -106,6 +120,17 @@ std::string summary_text(const CalibrationReport& r) {
                      a->axis, a->counts_range[0], a->counts_range[1], a->angle_sigma_max_arcsec,
                      a->covariance_pseudo_inverse ? " (pseudo-inverse: J^T J rank deficient)" : "");
   }
+  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+    if (a->fit_form != "gls") continue;
+    o += fmt::format("{}: GLS of the changes over {} dwells; count noise {} ({}{}), reference noise {:.3f} arcsec; "
+                     "chi2/dof {:.2f} ({} dof){}\n",
+                     a->axis, a->dwells_fitted,
+                     std::isfinite(a->noise.count_noise_counts) ? fmt::format("{:.3f} counts", a->noise.count_noise_counts) : "unknown",
+                     a->noise.count_noise_source, a->noise.quantisation_corrected ? ", quantisation corrected" : "",
+                     a->noise.ref_noise_arcsec, a->reduced_chi2, a->chi2_dof,
+                     a->model_remainder ? fmt::format(": MODEL REMAINDER, sigmas scaled by {:.2f}", a->sigma_scale) : "");
+  }
+  if (r.outlier_frames > 0) o += fmt::format("{} outlier frames left out of the dwell means\n", r.outlier_frames);
   for (const AxisFit* a : {&r.pitch, &r.yaw}) {
     o += fmt::format("{}: start {} (best of {}); {}\n", a->axis, a->solver.start, a->solver.candidates,
                      a->solver.brief);

@@ -31,6 +31,18 @@ struct AxisData {
   double counts_lo = 0, counts_hi = 0, ref_lo_arcsec = 0, ref_hi_arcsec = 0;
   bool covered = false;
 
+  // The dwells themselves (differences method), for the fit with the changes' covariance: one
+  // entry per dwell, in order; `link` is the union-find parent (dwells joined by a change share
+  // one reference level).
+  struct DwellRow {
+    int64_t step = 0;
+    double counts = 0, ref_arcsec = 0;
+    float sd_counts = 0, sd_ref_arcsec = 0;  // within-dwell scatter (float: memory per dwell)
+    uint32_t samples = 0, link = 0;
+    bool null = false, whole_counts = false;
+  };
+  std::vector<DwellRow> dwells;
+
   size_t rows() const { return y_arcsec.size(); }
   size_t parameters() const { return differences ? 7 : 8; }
   double null_counts() const { return null_counts_sum / static_cast<double>(null_dwells); }
@@ -126,6 +138,20 @@ struct AbsoluteResiduals {
     arcsec_coeffs(u + 1, u[0], c);
     for (int i = 0; i < count; ++i) r[i] = transfer_angle(c, n[i]) - ref_arcsec[i];
     return true;
+  }
+};
+
+// One dwell against its reference level (the GLS form of the differences method): the fitted angle at
+// the dwell's counts, C1 replaced by the level the changes tie it to, minus its reference, in
+// standard deviations. u27 are u[1..7], level in arcsec.
+struct DwellLevelResidual {
+  double counts, ref_arcsec, inv_sigma;
+
+  template <typename T>
+  T operator()(const T* u27, const T& level_arcsec) const {
+    T c[8];
+    arcsec_coeffs(u27, level_arcsec, c);
+    return (transfer_angle(c, T(counts)) - T(ref_arcsec)) * inv_sigma;
   }
 };
 

@@ -244,6 +244,88 @@ SampleTable read_samples_csv(const std::filesystem::path& path) {
   return parse_samples_csv(read_text_file(path, "samples file"), path.string());
 }
 
+namespace {
+
+// parse_samples_csv on a chunk names chunk lines: 1 the header, 2 the carried row (when there is
+// one), 3.. the chunk's own lines. Rewrites "<origin>:<n>:" to the file's line.
+[[noreturn]] void rethrow_at_file_line(const InputError& e, const std::string& origin, size_t header_line,
+                                       size_t carry_line, size_t first_line, bool carried) {
+  const std::string m = e.what();
+  const std::string prefix = origin + ":";
+  size_t n = 0, p = prefix.size();
+  if (m.compare(0, prefix.size(), prefix) == 0) {
+    while (p < m.size() && m[p] >= '0' && m[p] <= '9') n = n * 10 + static_cast<size_t>(m[p++] - '0');
+  }
+  if (n == 0 || p >= m.size() || m[p] != ':') throw e;
+  const size_t own = carried ? 3 : 2;
+  const size_t line = n == 1 ? header_line : (carried && n == 2) ? carry_line : first_line + (n - own);
+  throw InputError(fmt::format("{}{}{}", prefix, line, m.substr(p)));
+}
+
+}  // namespace
+
+size_t for_each_sample_csv(const std::filesystem::path& path, const std::function<void(const Sample&)>& on_row,
+                           size_t chunk_lines) {
+  const std::string origin = path.string();
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot open {}", origin, "samples file"));
+  std::string line, header;
+  size_t line_no = 0, header_line = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (!line.empty() && line.front() != '#') {
+      header = line;
+      header_line = line_no;
+      break;
+    }
+  }
+  if (header.empty()) parse_samples_csv(std::string_view(), origin);  // its "empty file" message
+  try {
+    parse_samples_csv(header + "\n", origin);  // the header's own checks
+  } catch (const InputError& e) {
+    rethrow_at_file_line(e, origin, header_line, 0, 0, false);
+  }
+  std::string carry;  // the last data row of the previous chunk, for the order checks
+  size_t carry_line = 0, rows = 0;
+  std::string chunk;
+  for (bool more = true; more;) {
+    chunk = header + "\n";
+    const bool carried = !carry.empty();
+    if (carried) chunk += carry + "\n";
+    const size_t first_line = line_no + 1;
+    size_t taken = 0;
+    std::string last;
+    size_t last_line = 0;
+    while (taken < chunk_lines && (more = static_cast<bool>(std::getline(in, line)))) {
+      ++line_no;
+      ++taken;
+      chunk += line;
+      chunk += '\n';
+      std::string_view l(line);
+      if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
+      if (!l.empty() && l.front() != '#') {
+        last = line;
+        last_line = line_no;
+      }
+    }
+    if (taken == 0) break;
+    SampleTable t;
+    try {
+      t = parse_samples_csv(chunk, origin);
+    } catch (const InputError& e) {
+      rethrow_at_file_line(e, origin, header_line, carry_line, first_line, carried);
+    }
+    for (size_t i = carried ? 1 : 0; i < t.size(); ++i) on_row(t.row(i));
+    rows += t.size() - (carried ? 1 : 0);
+    if (!last.empty()) {
+      carry = std::move(last);
+      carry_line = last_line;
+    }
+  }
+  return rows;
+}
+
 std::string format_number(double v) {
   char buf[64];
   auto [p, ec] = std::to_chars(buf, buf + sizeof buf, v);

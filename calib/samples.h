@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -64,6 +65,13 @@ class SampleTable {
 // step decreasing.
 SampleTable read_samples_csv(const std::filesystem::path& path);
 SampleTable parse_samples_csv(std::string_view text, const std::string& origin);
+
+// Reads a samples CSV row by row without holding it: `on_row` gets every data row in order (the
+// required columns). The same checks and messages as read_samples_csv (it parses the file in
+// chunks of lines with parse_samples_csv, each chunk headed by the header and the row before it,
+// so the order checks hold across chunks). Returns the number of rows.
+size_t for_each_sample_csv(const std::filesystem::path& path, const std::function<void(const Sample&)>& on_row,
+                           size_t chunk_lines = 4096);
 
 // Writes a whole table (required columns first, then extras).
 void write_samples_csv(const std::filesystem::path& path, const SampleTable& t);

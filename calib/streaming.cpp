@@ -1,9 +1,15 @@
 #include "calib/streaming.h"
 
+#include <array>
 #include <cmath>
+#include <functional>
+#include <optional>
+#include <limits>
 #include <stdexcept>
 
 #include "calib/errors.h"
+#include "calib/outliers.h"
+#include "calib/quantisation.h"
 #include "calib/refine.h"
 
 namespace fpss {
@@ -33,6 +39,7 @@ void StreamingCalibrator::add_dwell(const Dwell& d) {
 void StreamingCalibrator::take_dwell(const Dwell& d) {
   const size_t index = first_recent_ + recent_.size();
   if (d.phase == Phase::offset) ++offset_dwells_;
+  outlier_frames_ += d.outliers;
   recent_.push_back(d);
   for (const auto& p : pairer_.add(d)) {
     add_pair(recent_[p.null_index - first_recent_], recent_[p.offset_index - first_recent_]);
@@ -93,11 +100,99 @@ CalibrationReport StreamingCalibrator::finish() {
   rep.null_dwells = null_dwells_;
   rep.offset_dwells = offset_dwells_;
   rep.pairs = pairs();
+  rep.outlier_frames = outlier_frames_;
   fit::check_axis(pitch_, fit::Axis::alpha, source_);
   fit::check_axis(yaw_, fit::Axis::beta, source_);
   rep.pitch = fit::fit_axis(pitch_, gram_pitch_, fit::Axis::alpha, opts_);
   rep.yaw = fit::fit_axis(yaw_, gram_yaw_, fit::Axis::beta, opts_);
   return rep;
+}
+
+namespace {
+
+bool is_dwell_row(const Sample& s) { return s.phase == Phase::null || s.phase == Phase::offset; }
+
+// The null/offset rows of a file, step by step: on_row(row, index of its step among the steps).
+size_t each_dwell_row(const std::filesystem::path& path, const std::function<void(const Sample&, size_t)>& on_row) {
+  size_t steps = 0;
+  bool open = false;
+  int64_t step = 0;
+  return for_each_sample_csv(path, [&](const Sample& s) {
+    if (!is_dwell_row(s)) return;
+    if (!open || s.step != step) {
+      if (open) ++steps;
+      open = true;
+      step = s.step;
+    }
+    on_row(s, steps);
+  });
+}
+
+}  // namespace
+
+CalibrationReport calibrate_csv(const std::filesystem::path& path, const CalibrationOptions& opts) {
+  if (opts.method != Method::differences) return calibrate(read_samples_csv(path), opts);
+  const std::string origin = path.string();
+  // Pass 1: every step's median count per axis, and the pooled deviations (calib/outliers.h).
+  const double kRounding = std::sqrt(1.0 / 12.0);
+  OutlierRule rule;
+  rule.min_sigma = kRounding;
+  StepOutlierScreen screen[2] = {StepOutlierScreen(rule), StepOutlierScreen(rule)};
+  std::vector<std::array<double, 2>> medians;  // per step: alpha, beta
+  if (opts.reject_outliers) {
+    StepValues cur[2];
+    size_t cur_step = 0;
+    bool any = false;
+    auto close = [&] {
+      medians.push_back({screen[0].pool_step(cur[0]), screen[1].pool_step(cur[1])});
+      cur[0] = StepValues{};
+      cur[1] = StepValues{};
+    };
+    each_dwell_row(path, [&](const Sample& s, size_t k) {
+      if (any && k != cur_step) close();
+      any = true;
+      cur_step = k;
+      cur[0].add(s.counts_alpha);
+      cur[1].add(s.counts_beta);
+    });
+    if (any) close();
+  }
+  auto outlier = [&](const Sample& s, size_t k) {
+    return opts.reject_outliers && (screen[0].is_outlier(s.counts_alpha, medians[k][0]) ||
+                                    screen[1].is_outlier(s.counts_beta, medians[k][1]));
+  };
+  // Pass 2 (noise not given): the within-dwell scatter without the gross spikes, for the floor.
+  if (opts.reject_outliers) {
+    std::optional<double> noise = opts.count_noise_counts;
+    if (!noise) {
+      CountNoiseEstimator est;
+      DwellBuilder b(origin);
+      auto take = [&](const Dwell& d) {
+        if (d.samples < 2 || !d.whole_counts_alpha || !d.whole_counts_beta) return;
+        est.add({d.counts_alpha, d.sd_counts_alpha * d.sd_counts_alpha, d.samples});
+        est.add({d.counts_beta, d.sd_counts_beta * d.sd_counts_beta, d.samples});
+      };
+      each_dwell_row(path, [&](const Sample& s, size_t k) {
+        if (auto d = b.add(s, outlier(s, k))) take(*d);
+      });
+      if (auto d = b.flush()) take(*d);
+      noise = est.estimate();
+    }
+    if (noise) {
+      for (auto& sc : screen) sc.set_min_sigma(std::sqrt(1.0 / 12.0 + *noise * *noise));
+    }
+  }
+  // Pass 3: the dwells, into the streaming calibrator.
+  StreamingCalibrator cal(opts, origin);
+  DwellBuilder b(origin);
+  const size_t rows = each_dwell_row(path, [&](const Sample& s, size_t k) {
+    if (auto d = b.add(s, outlier(s, k))) cal.add_dwell(*d);
+  });
+  if (auto d = b.flush()) cal.add_dwell(*d);
+  cal.set_samples(rows);
+  // Nothing to pair (no nulls, no offsets, no dwells): the batch calibrator says what is missing.
+  if (cal.pairs() == 0) return calibrate(read_samples_csv(path), opts);
+  return cal.finish();
 }
 
 }  // namespace fpss

@@ -2,6 +2,7 @@
 // a current estimate after each, and at the end the same refinement as the batch fit.
 #pragma once
 #include <cstddef>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,6 +31,8 @@ class StreamingCalibrator {
   void add_null(const Dwell& null_dwell);
 
   size_t pairs() const { return pitch_.rows(); }
+  // Rows counted in the report's `samples` when dwells (not rows) are fed, e.g. by calibrate_csv.
+  void set_samples(size_t n) { samples_ = n; }
 
   struct Estimate {
     bool valid = false;
@@ -53,9 +56,17 @@ class StreamingCalibrator {
   DwellPairer pairer_;
   std::vector<Dwell> recent_;  // dwells the pairer may still refer to, by index
   size_t first_recent_ = 0;  // pairer index of recent_[0]
-  size_t samples_ = 0, null_dwells_ = 0, offset_dwells_ = 0;
+  size_t samples_ = 0, null_dwells_ = 0, offset_dwells_ = 0, outlier_frames_ = 0;
   fit::AxisData pitch_, yaw_;
   fit::FrequencyGram gram_pitch_, gram_yaw_;
 };
+
+// calibrate() of a samples file without holding it: the file is read row by row (three passes when
+// outliers are screened and the count noise is not given: the steps' medians and the pooled robust
+// sigma, the noise from the within-dwell scatter for the outlier floor, then the dwells), only
+// per-step medians and dwell sums are kept, and the dwells go to the StreamingCalibrator. The same
+// outlier rule, dwells and fit as calibrate(read_samples_csv(path)). The absolute method has no
+// streaming form: it reads the file whole.
+CalibrationReport calibrate_csv(const std::filesystem::path& path, const CalibrationOptions& opts = {});
 
 }  // namespace fpss

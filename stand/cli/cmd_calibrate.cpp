@@ -9,6 +9,7 @@
 #include "calib/coefficients.h"
 #include "calib/report.h"
 #include "calib/samples.h"
+#include "calib/streaming.h"
 #include "calib/text_file.h"
 #include "procedures/recorder.h"
 #include "stand/cli/commands.h"
@@ -18,6 +19,7 @@ namespace fpss::cli {
 void add_calibrate(CLI::App& app, Runner& run) {
   struct Opts {
     std::string data, out, init, method = "differences", truth, unit;
+    std::optional<double> count_noise;
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand(
@@ -34,6 +36,10 @@ void add_calibrate(CLI::App& app, Runner& run) {
       ->capture_default_str();
   sub->add_option("--truth", o->truth,
                   "a coefficient file with the known truth (simulations): prints how far the fit is from it");
+  sub->add_option("--count-noise-counts", o->count_noise,
+                  "expected sensor noise per frame before whole-count rounding, counts (default: the --init "
+                  "file's count_noise_counts, else estimated from the within-dwell scatter)")
+      ->check(CLI::NonNegativeNumber);
   sub->add_option("--unit", o->unit, "unit name written to the coefficient file (default: from --init or --truth)");
   sub->callback([o, &run] {
     run = [o] {
@@ -47,8 +53,12 @@ void add_calibrate(CLI::App& app, Runner& run) {
                   : opts.init       ? opts.init->unit
                   : truth           ? truth->unit
                                     : std::string();
-      const SampleTable samples = read_samples_csv(o->data);
-      const CalibrationReport rep = calibrate(samples, opts);
+      if (o->count_noise) {
+        opts.count_noise_counts = *o->count_noise;
+        opts.count_noise_source = "command line";
+      }
+      // Row by row: only the dwells' sums are kept, whatever the recording's length.
+      const CalibrationReport rep = calibrate_csv(o->data, opts);
 
       CoefficientSet set = rep.coefficients();
       set.extra["calibrated_at"] = utc_now_iso();

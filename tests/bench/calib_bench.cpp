@@ -2,6 +2,8 @@
 // takes beyond its input (peak RSS reset per run through /proc/self/clear_refs).
 #include <benchmark/benchmark.h>
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -11,6 +13,7 @@
 
 #include "calib/calibrator.h"
 #include "calib/coefficients.h"
+#include "calib/streaming.h"
 
 namespace fpss {
 namespace {
@@ -96,6 +99,43 @@ void BM_Calibrate(benchmark::State& state) {
 }
 
 BENCHMARK(BM_Calibrate)->Arg(2000)->Arg(20000)->Arg(200000)->Arg(2000000)->Unit(benchmark::kMillisecond);
+
+// The command's path: calibrate_csv on the recording written as a samples file. Peak memory of the
+// whole process during the call (VmHWM after a reset, the table freed before): what `fpss-stand
+// calibrate` needs beyond its code. Target: <= 50 MB at 2 million rows.
+void BM_CalibrateFile(benchmark::State& state) {
+  const size_t n = static_cast<size_t>(state.range(0));
+  const std::string path = "/tmp/fpss-bench-calib-" + std::to_string(::getpid()) + "-" + std::to_string(n) + ".csv";
+  {
+    const SampleTable t = make_recording(n, 42);
+    write_samples_csv(path, t);
+  }
+  CalibrationOptions opts;
+  opts.threads = 2;
+  double peak_mb = 0, rss_before_mb = 0;
+  bool peak_ok = true;
+  size_t outliers = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    peak_ok = reset_peak() && peak_ok;
+    rss_before_mb = status_kb("VmRSS:") / 1024.0;
+    state.ResumeTiming();
+    const CalibrationReport r = calibrate_csv(path, opts);
+    state.PauseTiming();
+    peak_mb = std::max(peak_mb, status_kb("VmHWM:") / 1024.0);
+    outliers = r.outlier_frames;
+    benchmark::DoNotOptimize(r.pitch.coeffs);
+    state.ResumeTiming();
+  }
+  std::remove(path.c_str());
+  state.counters["rows"] = static_cast<double>(n);
+  state.counters["peak_MB"] = peak_ok ? peak_mb : -1;  // whole process, during the call
+  state.counters["rss_before_MB"] = rss_before_mb;
+  state.counters["fit_bytes_per_row"] = peak_ok ? (peak_mb - rss_before_mb) * 1024 * 1024 / static_cast<double>(n) : -1;
+  state.counters["outlier_frames"] = static_cast<double>(outliers);
+}
+
+BENCHMARK(BM_CalibrateFile)->Arg(2000)->Arg(200000)->Arg(2000000)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 }  // namespace
 }  // namespace fpss

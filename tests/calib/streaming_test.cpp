@@ -6,7 +6,9 @@
 #include <cmath>
 #include <cstdio>
 
+#include "calib/errors.h"
 #include "fixtures/recording.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
@@ -86,6 +88,45 @@ TEST(Streaming, FinishAgreesWithTheBatchFitWhicheverWayTheDataComeIn) {
   EXPECT_EQ(a.samples, t.size());
   EXPECT_EQ(a.null_dwells, batch.null_dwells);
   EXPECT_EQ(a.offset_dwells, batch.offset_dwells);
+}
+
+TEST(Streaming, AFileCalibratedRowByRowEqualsTheBatchCalibration) {
+  const auto truth = load_published("a-6-fpss1");
+  SampleTable t = recording(truth, 21);
+  // Spikes in a few frames of either axis (the outlier rule must find the same frames both ways).
+  for (size_t i = 7; i < t.size(); i += 97) {
+    if (t.phase[i] == Phase::slew || t.phase[i] == Phase::move) continue;
+    (i % 2 ? t.counts_alpha[i] : t.counts_beta[i]) += (i % 3 ? 40.0 : -150.0);
+  }
+  test::TempDir dir("streaming");
+  const auto path = dir / "rec.csv";
+  write_samples_csv(path, t);
+  const SampleTable back = read_samples_csv(path);
+  for (bool given_noise : {false, true}) {
+    CalibrationOptions o = one_thread();
+    if (given_noise) o.count_noise_counts = 0.3;
+    const CalibrationReport batch = calibrate(back, o);
+    const CalibrationReport stream = calibrate_csv(path, o);
+    EXPECT_GT(batch.outlier_frames, 0u);
+    EXPECT_EQ(stream.outlier_frames, batch.outlier_frames);
+    EXPECT_EQ(stream.samples, batch.samples);
+    EXPECT_EQ(stream.pairs, batch.pairs);
+    EXPECT_EQ(stream.null_dwells, batch.null_dwells);
+    // The same dwells and the same fit: equal to rounding.
+    for (int i = 0; i < 8; ++i) {
+      EXPECT_NEAR(stream.pitch.coeffs[i], batch.pitch.coeffs[i], 1e-9 * std::abs(batch.pitch.coeffs[i]) + 1e-15) << i;
+      EXPECT_NEAR(stream.yaw.coeffs[i], batch.yaw.coeffs[i], 1e-9 * std::abs(batch.yaw.coeffs[i]) + 1e-15) << i;
+    }
+    EXPECT_EQ(stream.pitch.noise.count_noise_source, batch.pitch.noise.count_noise_source);
+    EXPECT_NEAR(stream.pitch.angle_sigma_max_arcsec, batch.pitch.angle_sigma_max_arcsec, 1e-9);
+  }
+  // What cannot be calibrated says so as the batch calibrator does.
+  SampleTable nulls;
+  for (size_t i = 0; i < t.size(); ++i)
+    if (t.phase[i] == Phase::null) nulls.push_back(t.row(i));
+  write_samples_csv(dir / "nulls.csv", nulls);
+  const std::string m = test::error_of<DataError>([&] { calibrate_csv(dir / "nulls.csv", one_thread()); });
+  EXPECT_NE(m.find("no offset dwells"), std::string::npos) << m;
 }
 
 TEST(Streaming, OnlyTheDifferencesMethod) {

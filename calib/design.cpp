@@ -1,0 +1,209 @@
+#include "calib/design.h"
+
+#include <Eigen/Dense>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "calib/quantisation.h"
+#include "calib/units.h"
+
+namespace fpss {
+namespace {
+
+using Vec8 = Eigen::Matrix<double, 8, 1>;
+using Mat8 = Eigen::Matrix<double, 8, 8>;
+constexpr double kScale = 16384.0;  // counts over half the field, as the fit scales them
+constexpr int kSigmaAngles = 41;
+
+// d angle(n) / d(u1..u7, level), arcsec per scaled unit (the fit's scaled coefficients, C1 as a level).
+Vec8 gradient(const AxisCoeffs& c, double n) {
+  const double x = n / kScale;
+  const double u2 = rad_to_arcsec(c[2]), u3 = c[3] * kScale, u5 = rad_to_arcsec(c[5]), u6 = c[6] * kScale;
+  const double a = u3 * x + c[4], b = u6 * x + c[7];
+  Vec8 g;
+  g << x, std::sin(a), u2 * std::cos(a) * x, u2 * std::cos(a), std::sin(b), u5 * std::cos(b) * x, u5 * std::cos(b), 1.0;
+  return g;
+}
+
+// What one axis needs: the counts at its null, and per candidate angle the count and the dwell's
+// information row (gradient over sigma, times its transpose) at a given frames-per-dwell.
+struct AxisModelCache {
+  AxisCoeffs c{};
+  std::vector<double> sigma_counts;  // counts at the listed angles (+-extent)
+  Mat8 null_info = Mat8::Zero();     // one null dwell (or a dwell of the other axis's offsets)
+  std::vector<Mat8> offset_info;     // per candidate angle
+
+  Mat8 info_at(const DesignInputs& in, double n, int m) const {
+    const AxisModel model(c);
+    const double slope = rad_to_arcsec(model.slope_rad_per_count(n));
+    const double s = in.count_noise_counts;
+    double var_counts = s * s / m;
+    if (s >= kMinQuantisationNoise) {
+      const double h = expected_rounded_slope(n, s);
+      var_counts = rounded_counts_variance(n, s) / (m * h * h);
+    } else {
+      var_counts = 1.0 / 12.0;  // rounding without dither: not averaged away
+    }
+    const double var = in.ref_noise_arcsec * in.ref_noise_arcsec / m + slope * slope * var_counts;
+    const Vec8 g = gradient(c, n);
+    return g * g.transpose() / var;
+  }
+};
+
+AxisModelCache cache_axis(const DesignInputs& in, const AxisCoeffs& c, const std::vector<double>& angles_deg, int m) {
+  AxisModelCache a;
+  a.c = c;
+  const AxisModel model(c);
+  a.null_info = a.info_at(in, model.counts_for_angle(0.0), m);
+  for (double deg : angles_deg) a.offset_info.push_back(a.info_at(in, model.counts_for_angle(arcsec_to_rad(deg_to_arcsec(deg))), m));
+  for (int i = 0; i < kSigmaAngles; ++i) {
+    const double deg = -in.extent_deg + 2 * in.extent_deg * i / (kSigmaAngles - 1);
+    a.sigma_counts.push_back(model.counts_for_angle(arcsec_to_rad(deg_to_arcsec(deg))));
+  }
+  return a;
+}
+
+double max_sigma(const AxisModelCache& a, const Mat8& info) {
+  const Eigen::LDLT<Mat8> ldlt(info);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-12 * ldlt.vectorD().maxCoeff())) {
+    return std::numeric_limits<double>::infinity();
+  }
+  double worst = 0;
+  for (double n : a.sigma_counts) {
+    const Vec8 g = gradient(a.c, n);
+    worst = std::max(worst, std::sqrt(std::max(0.0, g.dot(ldlt.solve(g)))));
+  }
+  return worst;
+}
+
+double slew_s(const DesignInputs& in, double deg) {
+  const double d = std::abs(deg), v = in.rate_deg_s, a = in.accel_deg_s2;
+  return d >= v * v / a ? d / v + v / a : 2 * std::sqrt(d / a);
+}
+
+void check(const DesignInputs& in) {
+  if (!(in.rate_deg_s > 0 && in.accel_deg_s2 > 0 && in.frame_rate_hz > 0 && in.settle_s >= 0 && in.extent_deg > 0 &&
+        in.candidate_step_deg > 0 && in.candidate_step_deg <= in.extent_deg && in.count_noise_counts >= 0 &&
+        in.ref_noise_arcsec >= 0 && in.target_sigma_arcsec > 0 && !in.samples_choices.empty())) {
+    throw std::invalid_argument(
+        "design: rate, acceleration, frame rate, extent, candidate step and target must be > 0; settle and noise >= 0; "
+        "at least one frames-per-dwell choice");
+  }
+}
+
+// Outward: +s, -s, +2s, -2s, ... per axis, pitch first.
+std::vector<DesignOffset> ordered(std::vector<DesignOffset> o) {
+  std::stable_sort(o.begin(), o.end(), [](const DesignOffset& a, const DesignOffset& b) {
+    if (a.pitch != b.pitch) return a.pitch;
+    if (std::abs(a.angle_deg) != std::abs(b.angle_deg)) return std::abs(a.angle_deg) < std::abs(b.angle_deg);
+    return a.angle_deg > b.angle_deg;
+  });
+  return o;
+}
+
+}  // namespace
+
+double design_time_s(const DesignInputs& in, const std::vector<DesignOffset>& offsets, int m) {
+  const double dwell = in.settle_s + m / in.frame_rate_hz;
+  double t = dwell;  // the first null
+  for (const auto& o : offsets) t += 2 * slew_s(in, o.angle_deg) + 2 * dwell;  // out, offset, back, null
+  return t;
+}
+
+double predicted_max_sigma_arcsec(const DesignInputs& in, const std::vector<DesignOffset>& offsets, int m, bool pitch) {
+  const AxisCoeffs& c = pitch ? in.prior.alpha : in.prior.beta;
+  std::vector<double> angles;
+  for (const auto& o : offsets) angles.push_back(o.pitch == pitch ? o.angle_deg : 0.0);
+  const AxisModelCache a = cache_axis(in, c, angles, m);
+  Mat8 info = a.null_info;  // the first null
+  for (size_t k = 0; k < offsets.size(); ++k) info += a.offset_info[k] + a.null_info;
+  return max_sigma(a, info);
+}
+
+ExperimentDesign design_experiment(const DesignInputs& in) {
+  check(in);
+  std::vector<double> cand;
+  const int steps = static_cast<int>(std::floor(in.extent_deg / in.candidate_step_deg + 1e-9));
+  for (int i = -steps; i <= steps; ++i) {
+    if (i != 0) cand.push_back(i * in.candidate_step_deg);
+  }
+  ExperimentDesign best;
+  double best_sigma = std::numeric_limits<double>::infinity();
+  for (int m : in.samples_choices) {
+    if (m < 1) continue;
+    const AxisModelCache ap = cache_axis(in, in.prior.alpha, cand, m), ay = cache_axis(in, in.prior.beta, cand, m);
+    const double dwell = in.settle_s + m / in.frame_rate_hz;
+    // Start: 8 offsets per axis at +-extent x {1/4, 1/2, 3/4, 1} (nearest candidates): 9 distinct
+    // counts per axis, enough for C2..C8 and the level.
+    std::vector<DesignOffset> offs;
+    Mat8 ip = ap.null_info, iy = ay.null_info;
+    double time = dwell;
+    auto add = [&](bool pitch, size_t k) {
+      offs.push_back({pitch, cand[k]});
+      ip += (pitch ? ap.offset_info[k] : ap.null_info) + ap.null_info;
+      iy += (pitch ? ay.null_info : ay.offset_info[k]) + ay.null_info;
+      time += 2 * slew_s(in, cand[k]) + 2 * dwell;
+    };
+    for (bool pitch : {true, false}) {
+      for (double f : {0.25, 0.5, 0.75, 1.0}) {
+        for (double sgn : {1.0, -1.0}) {
+          const double want = sgn * f * in.extent_deg;
+          size_t k = 0;
+          for (size_t j = 1; j < cand.size(); ++j)
+            if (std::abs(cand[j] - want) < std::abs(cand[k] - want)) k = j;
+          add(pitch, k);
+        }
+      }
+    }
+    double sp = max_sigma(ap, ip), sy = max_sigma(ay, iy);
+    int per_axis[2] = {8, 8};
+    while (std::max(sp, sy) > in.target_sigma_arcsec) {
+      // The worse axis gets the offset that lowers its largest sigma most per second.
+      const bool pitch = sp >= sy;
+      if (per_axis[pitch ? 0 : 1] >= in.max_offsets_per_axis) break;
+      const AxisModelCache& a = pitch ? ap : ay;
+      const Mat8& info = pitch ? ip : iy;
+      const double now = pitch ? sp : sy;
+      double best_gain = -1;
+      size_t best_k = 0;
+      for (size_t k = 0; k < cand.size(); ++k) {
+        const double s = max_sigma(a, info + a.offset_info[k] + a.null_info);
+        const double gain = (now - s) / (2 * slew_s(in, cand[k]) + 2 * dwell);
+        if (gain > best_gain) {
+          best_gain = gain;
+          best_k = k;
+        }
+      }
+      add(pitch, best_k);
+      ++per_axis[pitch ? 0 : 1];
+      sp = max_sigma(ap, ip);
+      sy = max_sigma(ay, iy);
+    }
+    const bool reached = std::max(sp, sy) <= in.target_sigma_arcsec;
+    const bool better = reached ? (!best.reached || time < best.bench_time_s)
+                                : (!best.reached && std::max(sp, sy) < best_sigma);
+    if (better) {
+      best.reached = reached;
+      best.offsets = ordered(offs);
+      best.samples_per_dwell = m;
+      best.bench_time_s = time;
+      best.max_sigma_arcsec_pitch = sp;
+      best.max_sigma_arcsec_yaw = sy;
+      best_sigma = std::max(sp, sy);
+    }
+  }
+  if (!best.reached) {
+    best.note = fmt::format(
+        "target {:.4f} arcsec not reached with up to {} offsets per axis and at most {} frames per dwell: the best "
+        "design found gives {:.4f} arcsec",
+        in.target_sigma_arcsec, in.max_offsets_per_axis,
+        *std::max_element(in.samples_choices.begin(), in.samples_choices.end()), best_sigma);
+  }
+  return best;
+}
+
+}  // namespace fpss

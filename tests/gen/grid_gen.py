@@ -1,0 +1,102 @@
+#!/usr/bin/python3
+"""Independent generator of noise-only null-to-offset grid recordings (samples CSV), for Monte Carlo.
+
+Written from the paper's procedure (Gambardella and Thompson 1980, section 2: the stand is stepped
+null -> offset -> null along pitch and along yaw over the field of view) and the sensor physics in
+fpss_physics.py (eq. 1, 2, whole-count rounding), not from the C++ bench or emulator.
+
+Per dwell: `samples` frames; each frame's counts are round(N_true + Gaussian count noise), each
+frame's reference the true angle plus Gaussian reference noise. The true angle is the commanded
+offset exactly (noise-only recordings: no gimbal dynamics, no misalignment). pitch = alpha(N_alpha),
+yaw = beta(N_beta), as the coefficient files define.
+
+Usage:
+  /usr/bin/python3 tests/gen/grid_gen.py --truth FILE --out-dir DIR --recordings K --seed S
+      [--samples-per-dwell M] [--count-noise-counts 0.3] [--ref-noise-arcsec 0.05]
+      [--extent-deg 0.45] [--step-deg 0.03] [--outlier-rate 0]
+Writes DIR/rec-0000.csv ... and prints one line per file.
+"""
+import argparse
+import math
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import fpss_physics as phys  # noqa: E402
+
+ARCSEC_PER_DEG = 3600.0
+
+
+def offsets_deg(extent, step):
+    """Outward order: +s, -s, +2s, -2s, ... up to +-extent."""
+    k = int(math.floor(extent / step + 1e-9))
+    out = []
+    for i in range(1, k + 1):
+        out += [i * step, -i * step]
+    return out
+
+
+def plan(extent, step):
+    """(phase, pitch_deg, yaw_deg) per dwell: null, off, null, off, ..., null; pitch offsets, then yaw."""
+    dwells = [("null", 0.0, 0.0)]
+    for axis in ("pitch", "yaw"):
+        for o in offsets_deg(extent, step):
+            dwells.append(("offset", o, 0.0) if axis == "pitch" else ("offset", 0.0, o))
+            dwells.append(("null", 0.0, 0.0))
+    return dwells
+
+
+def recording(alpha, beta, dwells, m, count_noise, ref_noise, outlier_rate, rng):
+    rows = []
+    t = 0.0
+    n_dw = len(dwells)
+    pitch = np.array([d[1] for d in dwells]) * ARCSEC_PER_DEG
+    yaw = np.array([d[2] for d in dwells]) * ARCSEC_PER_DEG
+    na = phys.counts_for_angle(alpha, pitch / phys.ARCSEC_PER_RAD)
+    nb = phys.counts_for_angle(beta, yaw / phys.ARCSEC_PER_RAD)
+    shape = (n_dw, m)
+    ca = np.clip(np.rint(na[:, None] + rng.normal(0.0, count_noise, shape)), phys.COUNTS_MIN, phys.COUNTS_MAX)
+    cb = np.clip(np.rint(nb[:, None] + rng.normal(0.0, count_noise, shape)), phys.COUNTS_MIN, phys.COUNTS_MAX)
+    if outlier_rate > 0:
+        # Isolated spikes: a frame's count off by 20..200 counts (a bit error, a glint).
+        hit = rng.random(shape) < outlier_rate
+        ca = np.where(hit, ca + rng.choice([-1, 1], shape) * rng.integers(20, 200, shape), ca)
+    rp = pitch[:, None] + rng.normal(0.0, ref_noise, shape)
+    ry = yaw[:, None] + rng.normal(0.0, ref_noise, shape)
+    time = np.arange(n_dw * m, dtype=float).reshape(shape) * 0.1 + np.arange(n_dw)[:, None] * 2.0
+    for k, d in enumerate(dwells):
+        for i in range(m):
+            rows.append("%.3f,%s,%d,%.6f,%.6f,%d,%d" % (time[k, i], d[0], k + 1, rp[k, i], ry[k, i], ca[k, i], cb[k, i]))
+    return "time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha,counts_beta\n" + "\n".join(rows) + "\n"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--truth", required=True)
+    ap.add_argument("--out-dir", required=True)
+    ap.add_argument("--recordings", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--samples-per-dwell", type=int, default=5)
+    ap.add_argument("--count-noise-counts", type=float, default=0.3)
+    ap.add_argument("--ref-noise-arcsec", type=float, default=0.05)
+    ap.add_argument("--extent-deg", type=float, default=0.45)
+    ap.add_argument("--step-deg", type=float, default=0.03)
+    ap.add_argument("--outlier-rate", type=float, default=0.0)
+    a = ap.parse_args()
+    alpha, beta = phys.load_coefficients(a.truth)
+    dwells = plan(a.extent_deg, a.step_deg)
+    rng = np.random.default_rng(a.seed)
+    os.makedirs(a.out_dir, exist_ok=True)
+    for r in range(a.recordings):
+        text = recording(alpha, beta, dwells, a.samples_per_dwell, a.count_noise_counts, a.ref_noise_arcsec,
+                         a.outlier_rate, rng)
+        path = os.path.join(a.out_dir, "rec-%04d.csv" % r)
+        with open(path, "w") as f:
+            f.write(text)
+        print(path)
+
+
+if __name__ == "__main__":
+    main()
