@@ -16,8 +16,9 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // A step whose reference spans more than this on an axis moved during the step (a slew).
 // Encoder noise is ~0.05 arcsec, grid offsets hundreds of arcsec.
 constexpr double kMotionSpan_arcsec = 5.0;
-// Between steps, a change of reference larger than this is an (unrecorded) move.
-constexpr double kMoveThreshold_arcsec = 1.0;
+// A reversal of an axis's motion (or an unrecorded move between rows) is a change of its
+// reference by more than this against its running extreme (at least 10x the reference's noise).
+constexpr double kReverse_arcsec = 0.5;
 
 int8_t sign_of(double v) { return v > 0 ? 1 : (v < 0 ? -1 : 0); }
 
@@ -94,47 +95,92 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
     }
   }
 
-  // Approach and settling state, as the emulator keeps it: each axis remembers the sign of its
-  // last motion (backlash) and of its last move (settling, also kept by an axis that did not
-  // move); every dwell follows an arrival settle_s before its first row.
+  // Direction of motion (backlash), per axis and row, from the reference's own motion and
+  // never from step boundaries or labels: a hysteresis on the running extreme, `reverse`
+  // arcsec wide (far above the reference's noise). A reversal inside a step is dated back to
+  // the turning point (the first row after the extreme that left it by half the hysteresis);
+  // a jump between steps (an unrecorded move) takes effect at the first row after it.
+  double ref_noise = 0;
+  {
+    double s2 = 0;
+    size_t m = 0;
+    for (const Step& s : r.steps) {
+      if (s.kind != StepKind::dwell) continue;
+      for (size_t i = s.begin + 1; i + 1 < s.end; ++i) {
+        for (int a = 0; a < 2; ++a) {
+          const double d = r.ref[a][i + 1] - 2 * r.ref[a][i] + r.ref[a][i - 1];
+          s2 += d * d;
+          ++m;
+        }
+      }
+    }
+    if (m > 10) ref_noise = std::sqrt(s2 / static_cast<double>(m) / 6.0);
+  }
+  const double reverse = std::max(kReverse_arcsec, 10.0 * ref_noise);
+  r.reverse_arcsec = reverse;
   for (int a = 0; a < 2; ++a) {
     r.dir[a].assign(n, 0);
-    r.move_dir[a].assign(n, 0);
+    const auto& x = r.ref[a];
+    int8_t d = 0;
+    size_t hi_i = 0, lo_i = 0;  // the extremes since the last turn
+    for (size_t i = 0; i < n; ++i) {
+      if (x[i] > x[hi_i]) hi_i = i;
+      if (x[i] < x[lo_i]) lo_i = i;
+      int8_t turn = 0;
+      size_t from = i;
+      if (d <= 0 && x[i] - x[lo_i] > reverse) { turn = 1; from = lo_i; }
+      else if (d >= 0 && x[hi_i] - x[i] > reverse) { turn = -1; from = hi_i; }
+      if (turn != 0) {
+        d = turn;
+        const size_t first = std::max(from + 1, r.steps[r.step_of[i]].begin);
+        for (size_t k = first; k < i; ++k) {
+          if (std::abs(x[k] - x[from]) > 0.5 * reverse) {
+            for (size_t q = k; q < i; ++q) r.dir[a][q] = d;
+            break;
+          }
+        }
+        hi_i = lo_i = i;
+      }
+      r.dir[a][i] = d;
+    }
   }
+
+  // Settling clock, as docs/diagnosis.md states the physics: every dwell follows an arrival
+  // settle_s before its first row (or time_since_move_s). The axes that ring are those that moved
+  // in the last move: that jumped between the previous row and the dwell's first row, or that
+  // moved in the motion step just before it; each rings in its own direction of motion. A dwell
+  // that continues the previous one (no axis jumped) keeps its clock. Rows of slew segments are
+  // moving: no settling.
+  for (int a = 0; a < 2; ++a) r.move_dir[a].assign(n, 0);
   r.since_move.assign(n, kNaN);
-  int8_t last_dir[2] = {0, 0}, last_move[2] = {0, 0};
-  double prev_end[2] = {kNaN, kNaN};
-  for (const Step& s : r.steps) {
-    for (int a = 0; a < 2; ++a) {
-      const double d = r.ref[a][s.begin] - prev_end[a];
-      if (std::isfinite(d) && std::abs(d) > kMoveThreshold_arcsec) last_dir[a] = last_move[a] = sign_of(d);
+  int8_t ring[2] = {0, 0};
+  double arrival = kNaN;
+  for (size_t si = 0; si < r.steps.size(); ++si) {
+    const Step& s = r.steps[si];
+    if (s.kind == StepKind::motion) {
+      ring[0] = ring[1] = 0;
+      arrival = kNaN;
+      continue;
     }
-    if (s.kind == StepKind::dwell) {
-      const double arrival = r.t[s.begin] - opts.settle_s;
-      for (size_t i = s.begin; i < s.end; ++i) {
-        for (int a = 0; a < 2; ++a) {
-          r.dir[a][i] = last_dir[a];
-          r.move_dir[a][i] = last_move[a];
-        }
-        r.since_move[i] = r.t[i] - arrival;
-      }
+    bool moved = false;
+    int8_t now[2] = {0, 0};
+    if (s.begin > 0) {
+      const Step& prev = r.steps[r.step_of[s.begin - 1]];
       for (int a = 0; a < 2; ++a) {
-        double sum = 0;
-        for (size_t i = s.begin; i < s.end; ++i) sum += r.ref[a][i];
-        prev_end[a] = sum / static_cast<double>(s.end - s.begin);
-      }
-    } else {
-      for (int a = 0; a < 2; ++a) {
-        if (s.moves[a]) last_dir[a] = last_move[a] = sign_of(r.ref[a][s.end - 1] - r.ref[a][s.begin]);
-        for (size_t i = s.begin; i < s.end; ++i) {
-          r.dir[a][i] = last_dir[a];
-          r.move_dir[a][i] = last_move[a];
-        }
-        prev_end[a] = r.ref[a][s.end - 1];
+        const double jump = r.ref[a][s.begin] - r.ref[a][s.begin - 1];
+        if (std::abs(jump) > reverse) now[a] = sign_of(jump);
+        else if (prev.kind == StepKind::motion && prev.moves[a]) now[a] = r.dir[a][s.begin - 1];
+        moved = moved || now[a] != 0;
       }
     }
-    if (!since_col.empty()) {
-      for (size_t i = s.begin; i < s.end; ++i) r.since_move[i] = since_col[i];
+    if (moved || !std::isfinite(arrival)) {
+      ring[0] = now[0];
+      ring[1] = now[1];
+      arrival = r.t[s.begin] - opts.settle_s;
+    }
+    for (size_t i = s.begin; i < s.end; ++i) {
+      for (int a = 0; a < 2; ++a) r.move_dir[a][i] = ring[a];
+      r.since_move[i] = since_col.empty() ? r.t[i] - arrival : since_col[i];
     }
   }
 

@@ -38,13 +38,14 @@ struct Recording {
   std::vector<uint32_t> step_of;  // index into steps
   std::vector<Step> steps;
   std::vector<double> vel[2];       // reference rate, arcsec/s (0 in dwells)
-  std::vector<int8_t> dir[2];       // backlash: sign of the axis's last motion (0 before any)
-  std::vector<int8_t> move_dir[2];  // settling: sign of the axis's last move (emulator: kept by axes that did not move)
+  std::vector<int8_t> dir[2];       // backlash: the axis's direction of motion at this row (0 before any)
+  std::vector<int8_t> move_dir[2];  // settling: direction of the axis in the last move, 0 if it did not move
   std::vector<double> since_move;   // s since the last arrival; NaN while moving
   std::vector<Use> use;
   std::vector<uint32_t> fit_rows, heldout_rows;
   CoefficientSet model;
   double guard_s = 0;
+  double reverse_arcsec = 0;  // the direction detector's hysteresis
   size_t dwells = 0, motions = 0, excluded_rows = 0;
 };
 
