@@ -1,5 +1,6 @@
 // Sim-to-real gap diagnosis: which unmodelled bench effect explains model(counts) - reference, checked on held-out steps.
 #pragma once
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -52,6 +53,10 @@ struct EffectResult {
   double heldout_rms_arcsec = 0;  // on the held-out rows
   double score = 0;               // selection score, lower is better (none = 0)
   nlohmann::ordered_json notes = nlohmann::ordered_json::object();
+  std::string degenerate;         // why the fit is ill-conditioned/implausible; never the cause then
+  // The smallest magnitude of each parameter this recording would have made material (its own
+  // units); empty when not computed (none, coefficients).
+  nlohmann::ordered_json detection_limit = nlohmann::ordered_json::object();
 };
 
 struct NotObservable {
@@ -82,6 +87,26 @@ struct Diagnosis {
   nlohmann::ordered_json split;
   nlohmann::ordered_json recording;  // what the data holds: rows, steps, spans
   std::vector<std::string> warnings;
+
+  // no_gap | explained | partly_explained | unexplained (docs/diagnosis.md)
+  std::string verdict = "no_gap";
+  std::string verdict_sentence;  // the verdict in one plain sentence
+  // Present when verdict is partly_explained or unexplained: what stays after the causes.
+  struct Remainder {
+    double heldout_rms_arcsec = 0;
+    std::vector<WhereEntry> where;
+    nlohmann::ordered_json flexible_shrink = nlohmann::ordered_json::object();
+  };
+  std::optional<Remainder> unexplained;
+  // Within-step scatter of one sample about its step mean after the causes (dwells), and the
+  // model file's expected_scatter_arcsec when it has one.
+  double within_step_scatter_arcsec = std::numeric_limits<double>::quiet_NaN();
+  double expected_scatter_arcsec = std::numeric_limits<double>::quiet_NaN();
+  double excess_scatter() const { return within_step_scatter_arcsec / expected_scatter_arcsec; }
+  // Isolated frames far from their step's robust estimate, kept out of every fit.
+  int64_t outliers = 0;
+  double outlier_fraction = 0;
+  std::vector<int64_t> outlier_steps;
 
   bool incomplete_recording() const;
   // GAP.json

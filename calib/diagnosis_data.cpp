@@ -8,6 +8,8 @@
 
 #include "calib/diagnosis_model.h"
 #include "calib/errors.h"
+#include "calib/outliers.h"
+#include "calib/units.h"
 
 namespace fpss::diag {
 namespace {
@@ -82,6 +84,40 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
         "roll, non-orthogonality, backlash, settling or the transfer function, and nothing is left to hold out; "
         "record a null-offset grid (several dwells on both axes)",
         r.origin, r.dwells == 0 ? "no" : "only one", r.dwells == 1 ? "" : "s"));
+  }
+
+  // The sim's expected 1-sigma scatter of one sample about its step mean (optional key).
+  if (model.extra.contains("expected_scatter_arcsec")) {
+    const auto& v = model.extra["expected_scatter_arcsec"];
+    if (!v.is_number() || !(v.get<double>() > 0) || !std::isfinite(v.get<double>())) {
+      throw InputError("model: \"expected_scatter_arcsec\" must be a positive number (arcsec)");
+    }
+    r.expected_scatter = v.get<double>();
+  }
+
+  // Isolated frames far from a robust local estimate of their step (calib/outliers.h, a running
+  // median of 7 frames, so a settling decay or a slew's changing residual is followed): flagged on
+  // either axis, they are kept out of every fit, score and noise estimate.
+  {
+    std::vector<int64_t> ids(n);
+    for (size_t i = 0; i < n; ++i) ids[i] = r.steps[r.step_of[i]].id;
+    OutlierRule rule;
+    rule.local_half_window = 3;
+    // Whole counts with little noise can have a zero MAD: the floor is the rounding's own scatter
+    // (1/sqrt(12) count) or the expected scatter when the model says it.
+    rule.min_sigma = std::isfinite(r.expected_scatter) ? r.expected_scatter
+                                                       : rad_to_arcsec(std::abs(model.alpha[1])) / std::sqrt(12.0);
+    r.outlier.assign(n, false);
+    for (int a = 0; a < 2; ++a) {
+      const OutlierFlags f = flag_outliers(r.res[a], ids, rule);
+      for (size_t i = 0; i < n; ++i) if (f.outlier[i]) r.outlier[i] = true;
+    }
+    for (size_t i = 0; i < n; ++i) {
+      if (!r.outlier[i]) continue;
+      ++r.outliers;
+      const int64_t id = ids[i];
+      if (r.outlier_steps.empty() || r.outlier_steps.back() != id) r.outlier_steps.push_back(id);
+    }
   }
 
   // Rates within motion steps (central differences); dwells are at rest.
@@ -197,7 +233,7 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
     s.heldout = m == 2 ? k == 1 : (m >= 3 && k % every == every - 1);
     for (size_t i = s.begin; i < s.end; ++i) {
       const bool guard = !dwell && (r.t[i] - r.t[s.begin] < r.guard_s || r.t[s.end - 1] - r.t[i] < r.guard_s);
-      r.use[i] = guard ? Use::excluded : (s.heldout ? Use::heldout : Use::fit);
+      r.use[i] = guard || r.outlier[i] ? Use::excluded : (s.heldout ? Use::heldout : Use::fit);
     }
   }
   for (size_t i = 0; i < n; ++i) {

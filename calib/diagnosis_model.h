@@ -3,6 +3,7 @@
 #pragma once
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -42,6 +43,11 @@ struct Recording {
   std::vector<int8_t> move_dir[2];  // settling: direction of the axis in the last move, 0 if it did not move
   std::vector<double> since_move;   // s since the last arrival; NaN while moving
   std::vector<Use> use;
+  // Isolated frames far from their step (calib/outliers.h): kept out of every fit and score.
+  std::vector<bool> outlier;
+  size_t outliers = 0;
+  std::vector<int64_t> outlier_steps;
+  double expected_scatter = std::numeric_limits<double>::quiet_NaN();  // model file's, arcsec
   std::vector<uint32_t> fit_rows, heldout_rows;
   CoefficientSet model;
   double guard_s = 0;
@@ -84,6 +90,9 @@ class Candidate {
   virtual void hold(const std::string& key, double value) {}
   // The next fit starts afresh (global search) instead of from the last solution.
   virtual void restart() {}
+  // Why the last fit is ill-conditioned or physically implausible (empty when it is not): such a
+  // candidate is reported but can never be the cause.
+  virtual std::string degenerate() const { return {}; }
 };
 
 std::unique_ptr<Candidate> make_candidate(const std::string& name);

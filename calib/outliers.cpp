@@ -31,6 +31,18 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
   deviations.reserve(residual.size());
   for (const auto& [id, rows] : rows_of) {
     if (static_cast<int>(rows.size()) < rule.min_step_frames) continue;
+    if (rule.local_half_window > 0) {
+      const size_t k = static_cast<size_t>(rule.local_half_window);
+      for (size_t q = 0; q < rows.size(); ++q) {
+        const size_t lo = q >= k ? q - k : 0, hi = std::min(rows.size(), q + k + 1);
+        tmp.clear();
+        for (size_t w = lo; w < hi; ++w) tmp.push_back(residual[rows[w]]);
+        const double m = median_of(tmp);
+        centre[rows[q]] = m;
+        deviations.push_back(std::fabs(residual[rows[q]] - m));
+      }
+      continue;
+    }
     tmp.clear();
     for (size_t i : rows) tmp.push_back(residual[i]);
     const double m = median_of(tmp);

@@ -16,6 +16,11 @@ struct OutlierRule {
   // median absolute deviation of zero, so the caller passes the rounding's own scatter (1/sqrt(12)
   // of a count, in the residual's units) or the expected noise.
   double min_sigma = 0;
+  // 0: the centre is the step's median (a step at rest). k > 0: the centre is the running median
+  // of the frame and its k neighbours on each side within the same step (in frame order), which
+  // follows anything monotonic exactly (a settling decay, a slew's residual that changes with the
+  // rate) while an isolated spike stays out of it.
+  int local_half_window = 0;
 };
 
 struct OutlierFlags {
