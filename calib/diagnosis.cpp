@@ -869,7 +869,7 @@ ojson Diagnosis::to_json() const {
     j["excess_scatter"] = std::isfinite(excess_scatter()) ? ojson(excess_scatter()) : ojson();
   }
   j["outliers"] = {{"count", outliers}, {"fraction", outlier_fraction}, {"step_ids", outlier_steps},
-                   {"rule", "more than 6 robust sigmas from the running median of 7 frames of the step, either axis "
+                   {"rule", "more than 6 robust sigmas from the median of up to 3 neighbours on each side in its step, either axis "
                             "(calib/outliers.h); kept out of every fit and score"}};
   j["split"] = split;
   j["recording"] = recording;

@@ -108,9 +108,18 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
     rule.min_sigma = std::isfinite(r.expected_scatter) ? r.expected_scatter
                                                        : rad_to_arcsec(std::abs(model.alpha[1])) / std::sqrt(12.0);
     r.outlier.assign(n, false);
+    // Rows of a slew segment's ends (the guard, below) are not judged: the gimbal's acceleration
+    // and a time shift bend the residual there faster than any neighbour median follows.
+    std::vector<bool> judged(n, true);
+    for (const Step& s : r.steps) {
+      if (s.kind == StepKind::dwell) continue;
+      for (size_t i = s.begin; i < s.end; ++i) {
+        judged[i] = !(r.t[i] - r.t[s.begin] < opts.max_skew_s || r.t[s.end - 1] - r.t[i] < opts.max_skew_s);
+      }
+    }
     for (int a = 0; a < 2; ++a) {
       const OutlierFlags f = flag_outliers(r.res[a], ids, rule);
-      for (size_t i = 0; i < n; ++i) if (f.outlier[i]) r.outlier[i] = true;
+      for (size_t i = 0; i < n; ++i) if (f.outlier[i] && judged[i]) r.outlier[i] = true;
     }
     for (size_t i = 0; i < n; ++i) {
       if (!r.outlier[i]) continue;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <map>
 #include <stdexcept>
 
@@ -32,11 +33,15 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
   for (const auto& [id, rows] : rows_of) {
     if (static_cast<int>(rows.size()) < rule.min_step_frames) continue;
     if (rule.local_half_window > 0) {
+      // The median of the frame's neighbours, as many on each side (up to k) as the step has, the
+      // frame itself left out: exact for anything linear, and the first and last frames (no
+      // neighbour on one side) are not judged.
       const size_t k = static_cast<size_t>(rule.local_half_window);
       for (size_t q = 0; q < rows.size(); ++q) {
-        const size_t lo = q >= k ? q - k : 0, hi = std::min(rows.size(), q + k + 1);
+        const size_t h = std::min({k, q, rows.size() - 1 - q});
+        if (h == 0) continue;
         tmp.clear();
-        for (size_t w = lo; w < hi; ++w) tmp.push_back(residual[rows[w]]);
+        for (size_t w = q - h; w <= q + h; ++w) if (w != q) tmp.push_back(residual[rows[w]]);
         const double m = median_of(tmp);
         centre[rows[q]] = m;
         deviations.push_back(std::fabs(residual[rows[q]] - m));

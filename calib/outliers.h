@@ -16,10 +16,11 @@ struct OutlierRule {
   // median absolute deviation of zero, so the caller passes the rounding's own scatter (1/sqrt(12)
   // of a count, in the residual's units) or the expected noise.
   double min_sigma = 0;
-  // 0: the centre is the step's median (a step at rest). k > 0: the centre is the running median
-  // of the frame and its k neighbours on each side within the same step (in frame order), which
-  // follows anything monotonic exactly (a settling decay, a slew's residual that changes with the
-  // rate) while an isolated spike stays out of it.
+  // 0: the centre is the step's median (a step at rest). k > 0: the centre is the median of the
+  // frame's neighbours within the same step (in frame order), up to k on each side and as many on
+  // both sides, the frame itself left out: it follows anything linear or monotonic closely (a
+  // settling decay, a slew's residual that changes with the rate) while an isolated spike stays out
+  // of it. A step's first and last frames are then not judged.
   int local_half_window = 0;
 };
 
