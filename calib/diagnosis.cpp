@@ -869,7 +869,7 @@ ojson Diagnosis::to_json() const {
     j["excess_scatter"] = std::isfinite(excess_scatter()) ? ojson(excess_scatter()) : ojson();
   }
   j["outliers"] = {{"count", outliers}, {"fraction", outlier_fraction}, {"step_ids", outlier_steps},
-                   {"rule", "more than 6 robust sigmas from the median of up to 3 neighbours on each side in its step, either axis "
+                   {"rule", "more than 6 robust sigmas from the median of the frame and up to 3 neighbours on each side in its step, either axis "
                             "(calib/outliers.h); kept out of every fit and score"}};
   j["split"] = split;
   j["recording"] = recording;
@@ -1083,7 +1083,7 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
       {"heldout_rows", r.heldout_rows.size()},
       {"excluded_rows", r.excluded_rows},
       {"excluded_why", fmt::format("the first and last {} s of every slew segment (the reference outside a segment "
-                                   "is not recorded, so a time shift cannot be predicted there), and outlier frames",
+                                   "is not recorded, so a time shift cannot be predicted there), the two rows around every reversal inside a step (the turning time is known to a fraction of a sample), and outlier frames",
                                    r.guard_s)},
       {"fit_steps", {{"dwells", r.dwells - held_d}, {"slews", r.motions - held_m}}},
       {"heldout_steps", {{"dwells", held_d}, {"slews", held_m}}},

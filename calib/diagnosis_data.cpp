@@ -143,7 +143,7 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
   // Direction of motion (backlash), per axis and row, from the reference's own motion and
   // never from step boundaries or labels: a hysteresis on the running extreme, `reverse`
   // arcsec wide (far above the reference's noise). A reversal inside a step is dated back to
-  // the turning point (the first row after the extreme that left it by half the hysteresis);
+  // the turning point (the vertex of a parabola through the extreme row and its neighbours);
   // a jump between steps (an unrecorded move) takes effect at the first row after it.
   double ref_noise = 0;
   {
@@ -163,6 +163,7 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
   }
   const double reverse = std::max(kReverse_arcsec, 10.0 * ref_noise);
   r.reverse_arcsec = reverse;
+  r.turning.assign(n, false);
   for (int a = 0; a < 2; ++a) {
     r.dir[a].assign(n, 0);
     const auto& x = r.ref[a];
@@ -177,11 +178,24 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
       else if (d >= 0 && x[hi_i] - x[i] > reverse) { turn = -1; from = hi_i; }
       if (turn != 0) {
         d = turn;
-        const size_t first = std::max(from + 1, r.steps[r.step_of[i]].begin);
-        for (size_t k = first; k < i; ++k) {
-          if (std::abs(x[k] - x[from]) > 0.5 * reverse) {
-            for (size_t q = k; q < i; ++q) r.dir[a][q] = d;
-            break;
+        // Within the step, the turning time is the vertex of the parabola through the extreme
+        // row and its neighbours (the gimbal decelerates and reverses at a finite acceleration);
+        // rows after it move the new way.
+        const Step& st = r.steps[r.step_of[i]];
+        if (from > st.begin && from + 1 < st.end && from + 1 <= i) {
+          const double t0 = r.t[from - 1], t1 = r.t[from], t2 = r.t[from + 1];
+          const double y0 = x[from - 1], y1 = x[from], y2 = x[from + 1];
+          const double den = (t0 - t1) * (t0 - t2) * (t1 - t2);
+          const double A = (t2 * (y1 - y0) + t1 * (y0 - y2) + t0 * (y2 - y1)) / den;
+          const double B = (t2 * t2 * (y0 - y1) + t1 * t1 * (y2 - y0) + t0 * t0 * (y1 - y2)) / den;
+          double tv = A != 0 ? -B / (2 * A) : t1;
+          if (!std::isfinite(tv)) tv = t1;
+          tv = std::clamp(tv, t0, t2);
+          for (size_t q = from; q < i; ++q) if (r.t[q] > tv) r.dir[a][q] = d;
+          // The turning time is known to a fraction of a sample: the two rows around it are left
+          // out of every fit and score (a backlash would flip on either).
+          for (size_t q = from - 1; q <= from + 1; ++q) {
+            if (q + 1 < st.end && r.t[q] <= tv && r.t[q + 1] > tv) { r.turning[q] = r.turning[q + 1] = true; break; }
           }
         }
         hi_i = lo_i = i;
@@ -242,7 +256,7 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
     s.heldout = m == 2 ? k == 1 : (m >= 3 && k % every == every - 1);
     for (size_t i = s.begin; i < s.end; ++i) {
       const bool guard = !dwell && (r.t[i] - r.t[s.begin] < r.guard_s || r.t[s.end - 1] - r.t[i] < r.guard_s);
-      r.use[i] = guard || r.outlier[i] ? Use::excluded : (s.heldout ? Use::heldout : Use::fit);
+      r.use[i] = guard || r.outlier[i] || r.turning[i] ? Use::excluded : (s.heldout ? Use::heldout : Use::fit);
     }
   }
   for (size_t i = 0; i < n; ++i) {

@@ -45,6 +45,7 @@ struct Recording {
   std::vector<Use> use;
   // Isolated frames far from their step (calib/outliers.h): kept out of every fit and score.
   std::vector<bool> outlier;
+  std::vector<bool> turning;  // the two rows around a reversal inside a step (left out)
   size_t outliers = 0;
   std::vector<int64_t> outlier_steps;
   double expected_scatter = std::numeric_limits<double>::quiet_NaN();  // model file's, arcsec

@@ -33,18 +33,23 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
   for (const auto& [id, rows] : rows_of) {
     if (static_cast<int>(rows.size()) < rule.min_step_frames) continue;
     if (rule.local_half_window > 0) {
-      // The median of the frame's neighbours, as many on each side (up to k) as the step has, the
-      // frame itself left out: exact for anything linear, and the first and last frames (no
-      // neighbour on one side) are not judged.
+      // The median of the frame and its neighbours, as many on each side (up to k) as the step
+      // has: it keeps a step change and anything monotonic exactly, while a spike never is the
+      // median. The deviation of a noise-only frame from such a median is smaller than from the
+      // step's median, by a factor that depends on the window (Gaussian: 0.462, 0.732, 0.817 of
+      // sigma for 3, 5, 7 frames): the robust sigma is taken from deviations divided by it. A frame
+      // is judged by its own deviation (in the tail the median hardly depends on the frame, so the
+      // deviation is as wide as the noise). First and last frames are not judged.
       const size_t k = static_cast<size_t>(rule.local_half_window);
       for (size_t q = 0; q < rows.size(); ++q) {
         const size_t h = std::min({k, q, rows.size() - 1 - q});
         if (h == 0) continue;
         tmp.clear();
-        for (size_t w = q - h; w <= q + h; ++w) if (w != q) tmp.push_back(residual[rows[w]]);
+        for (size_t w = q - h; w <= q + h; ++w) tmp.push_back(residual[rows[w]]);
         const double m = median_of(tmp);
+        const double f = h == 1 ? 0.462 : h == 2 ? 0.732 : h == 3 ? 0.817 : 1.0 - 0.183 * 3.0 / static_cast<double>(h);
         centre[rows[q]] = m;
-        deviations.push_back(std::fabs(residual[rows[q]] - m));
+        deviations.push_back(std::fabs(residual[rows[q]] - m) / f);
       }
       continue;
     }

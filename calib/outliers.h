@@ -17,10 +17,9 @@ struct OutlierRule {
   // of a count, in the residual's units) or the expected noise.
   double min_sigma = 0;
   // 0: the centre is the step's median (a step at rest). k > 0: the centre is the median of the
-  // frame's neighbours within the same step (in frame order), up to k on each side and as many on
-  // both sides, the frame itself left out: it follows anything linear or monotonic closely (a
-  // settling decay, a slew's residual that changes with the rate) while an isolated spike stays out
-  // of it. A step's first and last frames are then not judged.
+  // frame and its neighbours within the same step (in frame order), up to k on each side and as
+  // many on both sides: it follows a step change, a settling decay or a slew's changing residual,
+  // while an isolated spike is never the median. A step's first and last frames are not judged.
   int local_half_window = 0;
 };
 
