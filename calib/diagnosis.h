@@ -128,9 +128,24 @@ struct SensorPrediction {
 SensorPrediction predict_sensor(const SampleTable& data, const CoefficientSet& model, const EffectParams& effect,
                                 const DiagnosisOptions& opts = {});
 
-// The HTML report: the residual against every factor before and after, and the residual map
-// over the field (gnuplot SVG inlined when gnuplot is installed; tables otherwise).
-void write_diagnosis_report(const std::string& html_path, const SampleTable& data, const CoefficientSet& model,
-                            const Diagnosis& d, const DiagnosisOptions& opts = {});
+// What the report shows, as data (calib writes no HTML and runs no plotter; the page is
+// stand/report/diagnosis_page.h): the residual of each axis against every factor, before and
+// after the causes, on scored rows (at most ~20000, evenly strided), and the residual map over
+// the field (one point per dwell: its mean reference and mean residual before and after).
+struct DiagnosisFactorSeries {
+  std::string factor;  // angle, cross_angle, slew_rate, approach_direction, time, time_since_move, temperature
+  std::string xlabel;
+  std::vector<double> x[2], before[2], after[2];  // per axis (0 pitch, 1 yaw)
+};
+struct DiagnosisMapPoint {
+  double pitch_arcsec = 0, yaw_arcsec = 0;
+  double before[2] = {0, 0}, after[2] = {0, 0};
+};
+struct DiagnosisFigures {
+  std::vector<DiagnosisFactorSeries> factors;
+  std::vector<DiagnosisMapPoint> map;
+};
+DiagnosisFigures diagnosis_figures(const SampleTable& data, const CoefficientSet& model, const Diagnosis& d,
+                                   const DiagnosisOptions& opts = {});
 
 }  // namespace fpss

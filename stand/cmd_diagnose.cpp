@@ -12,6 +12,7 @@
 #include "calib/text_file.h"
 #include "stand/blindtest.h"
 #include "stand/commands.h"
+#include "stand/report/diagnosis_page.h"
 
 namespace fpss::cli {
 
@@ -47,7 +48,7 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
       nlohmann::ordered_json j = d.to_json();
       j["model"] = o->model;
       write_json_file(o->out, j);
-      if (!o->report.empty()) write_diagnosis_report(o->report, data, model, d, o->d);
+      if (!o->report.empty()) write_diagnosis_page(o->report, d, diagnosis_figures(data, model, d, o->d));
       std::printf("cause: %s", d.cause.c_str());
       for (size_t k = 1; k < d.causes.size(); ++k) std::printf(", then %s", d.causes[k].name.c_str());
       std::printf("\ngap: %.4f arcsec before, %.4f after (noise floor %.4f), held-out rows %zu\n", d.gap_before_arcsec,

@@ -344,36 +344,5 @@ TEST(Diagnosis, GapJsonCarriesTheContractKeysInTheEmulatorsNames) {
   EXPECT_NEAR(j["causes"][0]["params"]["width_arcsec"].get<double>(), 3.0, 0.1);
 }
 
-TEST(DiagnosisReport, FiguresWithGnuplotAndTablesWithout) {
-  const SampleTable t = record(bench(111, {"drift:pitch_arcsec_per_s=0.02,yaw_arcsec_per_s=0.01"}));
-  const CoefficientSet m = default_bench_config().truth;
-  const Diagnosis d = diagnose(t, m, options());
-  const std::string dir = ::testing::TempDir();
-  auto read = [](const std::string& f) {
-    std::ifstream in(f);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-  };
-  const std::string with = dir + "/diag_with.html", without = dir + "/diag_without.html";
-  write_diagnosis_report(with, t, m, d, options());
-  const std::string h = read(with);
-  EXPECT_NE(h.find("Where the gap lies"), std::string::npos);
-  EXPECT_NE(h.find("drift"), std::string::npos);
-  if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
-    EXPECT_NE(h.find("<svg"), std::string::npos);
-    EXPECT_NE(h.find("Residual map over the field"), std::string::npos);
-    EXPECT_NE(h.find("Residual against slew_rate"), std::string::npos);
-  }
-  const std::string saved = std::getenv("PATH") ? std::getenv("PATH") : "";
-  setenv("PATH", "/nonexistent", 1);
-  write_diagnosis_report(without, t, m, d, options());
-  setenv("PATH", saved.c_str(), 1);
-  const std::string h2 = read(without);
-  EXPECT_NE(h2.find("gnuplot is not installed"), std::string::npos);
-  EXPECT_EQ(h2.find("<svg"), std::string::npos);
-  EXPECT_NE(h2.find("Where the gap lies"), std::string::npos);
-}
-
 }  // namespace
 }  // namespace fpss

@@ -15,11 +15,54 @@
 #include <nlohmann/json.hpp>
 
 #include "calib/samples.h"
+#include "stand/report/diagnosis_page.h"
 
 namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
+
+TEST(DiagnosisPage, VerdictFirstThenLimitsFiguresWithGnuplotAndTablesWithout) {
+  BenchConfig cfg = blindtest_bench(111);
+  cfg.effects.push_back(parse_effect("drift:pitch_arcsec_per_s=0.02,yaw_arcsec_per_s=0.01"));
+  Bench bench(cfg);
+  const SampleTable t = record_session(bench, blindtest_plan());
+  const CoefficientSet m = cfg.truth;
+  const Diagnosis d = diagnose(t, m, blindtest_diagnosis_options());
+  const DiagnosisFigures f = diagnosis_figures(t, m, d, blindtest_diagnosis_options());
+  ASSERT_FALSE(f.factors.empty());
+  ASSERT_FALSE(f.map.empty());
+  const std::string dir = ::testing::TempDir();
+  auto read = [](const std::string& p) {
+    std::ifstream in(p);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  };
+  const std::string with = dir + "/diag_with.html", without = dir + "/diag_without.html";
+  write_diagnosis_page(with, d, f);
+  const std::string h = read(with);
+  // The verdict in one sentence opens the page, the detection limits follow.
+  const auto v = h.find("id=verdict"), lim = h.find("id=limits"), where = h.find("Where the gap lies");
+  ASSERT_NE(v, std::string::npos);
+  ASSERT_NE(lim, std::string::npos);
+  EXPECT_LT(v, lim);
+  EXPECT_LT(lim, where);
+  EXPECT_NE(h.find("Explained: drift"), std::string::npos);
+  if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
+    EXPECT_NE(h.find("<svg"), std::string::npos);
+    EXPECT_NE(h.find("Residual map over the field"), std::string::npos);
+    EXPECT_NE(h.find("Residual against slew_rate"), std::string::npos);
+  }
+  const std::string saved = std::getenv("PATH") ? std::getenv("PATH") : "";
+  setenv("PATH", "/nonexistent", 1);
+  write_diagnosis_page(without, d, f);
+  setenv("PATH", saved.c_str(), 1);
+  const std::string h2 = read(without);
+  EXPECT_NE(h2.find("gnuplot is not installed"), std::string::npos);
+  EXPECT_EQ(h2.find("<svg"), std::string::npos);
+  EXPECT_NE(h2.find("Where the gap lies"), std::string::npos);
+}
 
 TEST(BlindCheck, SeededSetCoversEveryEffectAndNoneAndMeetsTheTargets) {
   BlindTestOptions o;
