@@ -9,6 +9,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <limits>
 #include <map>
@@ -253,6 +255,7 @@ struct Factor {
   int bins = 10;
   bool discrete = false;
   std::string nan_label;
+  bool spline = false;  // hat functions of a linear spline: fitted with a roughness penalty
 };
 
 std::string signed_num(double v, int prec = 2) { return fmt::format("{:+.{}f}", v, prec); }
@@ -268,6 +271,16 @@ struct Scale {
   double lo = -1, hi = 1;
   double operator()(double x) const { return hi > lo ? 2 * (x - lo) / (hi - lo) - 1 : 0.0; }
 };
+
+// Hat functions of a linear spline with k knots evenly over [-1, 1].
+constexpr int kAngleKnots = 24;
+void hat(double x, int k, double* phi) {
+  std::fill(phi, phi + k, 0.0);
+  const double u = std::clamp((x + 1) * 0.5 * (k - 1), 0.0, k - 1.0);
+  const int j = std::min(static_cast<int>(u), k - 2);
+  phi[j] = 1 - (u - j);
+  phi[j + 1] = u - j;
+}
 
 void cubic(double x, double* phi) {
   phi[0] = 1;
@@ -330,6 +343,12 @@ ojson flexible_shrink(const Recording& r, const std::vector<double> e_in[2], con
         b += phi * e[a][i];
       }
       G = G.selfadjointView<Eigen::Lower>();
+      const double lam = 1e-3 * (G.diagonal().mean() + 1e-30);  // roughness penalty, as in where_of
+      for (int k = 0; k + 2 < kKnots; ++k) {
+        const int idx[3] = {k, k + 1, k + 2};
+        const double c[3] = {1, -2, 1};
+        for (int u = 0; u < 3; ++u) for (int v = 0; v < 3; ++v) G(idx[u], idx[v]) += lam * c[u] * c[v];
+      }
       G.diagonal().array() += 1e-6 * (G.diagonal().maxCoeff() + 1e-30);
       const Eigen::VectorXd x = G.ldlt().solve(b);
       for (size_t i = 0; i < r.n; ++i) {
@@ -379,10 +398,12 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
   std::vector<Factor> factors;
   factors.push_back({"constant", 1, [](size_t, int, double* p) { p[0] = 1; }, [](size_t, int) { return 0.0; }, one, 1,
                      false, ""});
-  factors.push_back({"angle", 4, [&](size_t i, int a, double* p) { cubic(ang[a](r.ref[a][i]), p); },
-                     [&](size_t i, int a) { return r.ref[a][i]; }, one, 12, false, ""});
-  factors.push_back({"cross_angle", 4, [&](size_t i, int a, double* p) { cubic(ang[1 - a](r.ref[1 - a][i]), p); },
-                     [&](size_t i, int a) { return r.ref[1 - a][i]; }, one, 12, false, ""});
+  // Angles: a linear spline (kAngleKnots knots over the range covered), so that a cyclic error
+  // of a few hundred arcsec period is as visible as a smooth one.
+  factors.push_back({"angle", kAngleKnots, [&](size_t i, int a, double* p) { hat(ang[a](r.ref[a][i]), kAngleKnots, p); },
+                     [&](size_t i, int a) { return r.ref[a][i]; }, one, 12, false, "", true});
+  factors.push_back({"cross_angle", kAngleKnots, [&](size_t i, int a, double* p) { hat(ang[1 - a](r.ref[1 - a][i]), kAngleKnots, p); },
+                     [&](size_t i, int a) { return r.ref[1 - a][i]; }, one, 12, false, "", true});
   // Linear in the rate: slews come at few rates (a held-out segment may run at a rate and
   // direction the fit rows lack), and a straight line is what a few rates support.
   factors.push_back({"slew_rate", 3,
@@ -444,6 +465,16 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
       b += phi * e[a][i];
     }
     G = G.selfadjointView<Eigen::Lower>();
+    if (f.spline) {
+      // A roughness penalty on the spline's second differences: knots the fit rows barely reach
+      // follow their neighbours instead of swinging (the held-out rows may lie there).
+      const double lam = 1e-3 * (G.diagonal().mean() + 1e-30);
+      for (int k = 0; k + 2 < f.dims; ++k) {
+        const int idx[3] = {k, k + 1, k + 2};
+        const double c[3] = {1, -2, 1};
+        for (int u = 0; u < 3; ++u) for (int v = 0; v < 3; ++v) G(idx[u], idx[v]) += lam * c[u] * c[v];
+      }
+    }
     G.diagonal().array() += 1e-9 * (G.diagonal().maxCoeff() + 1e-30);
     x = G.ldlt().solve(b);
     double before = 0, after = 0;
@@ -510,6 +541,7 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
       for (int a = 0; a < 2; ++a) p.gain[a] = fit_factor(factors[k], a, p.x[a]);
       const double adj = p.gain[0] + p.gain[1] - penalty * 2 * factors[k].dims;
       raw.push_back({p.gain[0] + p.gain[1], static_cast<int>(k)});
+      if (std::getenv("FPSS_WHERE_DEBUG")) std::fprintf(stderr, "round %d %s gain %g %g adj %g total %g\n", round, factors[k].name.c_str(), p.gain[0], p.gain[1], adj, total);
       if (adj > best_adj) { best_adj = adj; best = static_cast<int>(k); best_pick = p; }
     }
     if (best < 0) {

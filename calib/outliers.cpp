@@ -29,6 +29,7 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
     if (std::isfinite(residual[i])) rows_of[step[i]].push_back(i);
 
   std::vector<double> centre(residual.size(), NAN), deviations, tmp;
+  std::vector<bool> edge(residual.size(), false);
   deviations.reserve(residual.size());
   for (const auto& [id, rows] : rows_of) {
     if (static_cast<int>(rows.size()) < rule.min_step_frames) continue;
@@ -43,7 +44,26 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
       const size_t k = static_cast<size_t>(rule.local_half_window);
       for (size_t q = 0; q < rows.size(); ++q) {
         const size_t h = std::min({k, q, rows.size() - 1 - q});
-        if (h == 0) continue;
+        if (h == 0) {
+          // A step's first or last frame: the line through its k nearest neighbours (Theil-Sen:
+          // the median of their pairwise slopes), extrapolated to it, judged against a limit
+          // widened by the extrapolation's own scatter (x1.5).
+          const size_t m = std::min(k, rows.size() - 1);
+          if (m < 2) continue;
+          std::vector<double> xs, ys, slopes;
+          for (size_t j = 1; j <= m; ++j) {
+            const size_t w = q == 0 ? j : q - j;
+            xs.push_back(q == 0 ? static_cast<double>(j) : -static_cast<double>(j));
+            ys.push_back(residual[rows[w]]);
+          }
+          for (size_t u = 0; u < xs.size(); ++u)
+            for (size_t v = u + 1; v < xs.size(); ++v) slopes.push_back((ys[v] - ys[u]) / (xs[v] - xs[u]));
+          const double slope = median_of(slopes);
+          for (size_t u = 0; u < xs.size(); ++u) ys[u] -= slope * xs[u];
+          centre[rows[q]] = median_of(ys);
+          edge[rows[q]] = true;
+          continue;
+        }
         tmp.clear();
         for (size_t w = q - h; w <= q + h; ++w) tmp.push_back(residual[rows[w]]);
         const double m = median_of(tmp);
@@ -66,7 +86,7 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
   if (!(out.robust_sigma > 0)) return out;
   const double limit = rule.threshold_sigma * out.robust_sigma;
   for (size_t i = 0; i < residual.size(); ++i) {
-    if (std::isnan(centre[i]) || std::fabs(residual[i] - centre[i]) <= limit) continue;
+    if (std::isnan(centre[i]) || std::fabs(residual[i] - centre[i]) <= (edge[i] ? 1.5 : 1.0) * limit) continue;
     out.outlier[i] = true;
     ++out.count;
     if (out.steps.empty() || out.steps.back() != step[i]) out.steps.push_back(step[i]);
