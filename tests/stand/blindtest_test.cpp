@@ -22,6 +22,44 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Closing the loop: a recording with a known effect is diagnosed, the diagnosis emitted as an
+// emulator bench file, the bench re-simulated from that file (load_bench_file, as `emulate
+// --bench` reads it) and diagnosed again: the same cause, parameters within 5 %.
+TEST(EmitBench, RoundTripThroughTheEmulatorsBenchFile) {
+  const fs::path dir = fs::path(::testing::TempDir()) / "emit_bench";
+  fs::create_directories(dir);
+  for (const std::string spec : {"settling:amplitude_arcsec=4,tau_s=0.7", "time_skew:skew_s=0.05"}) {
+    SCOPED_TRACE(spec);
+    BenchConfig cfg = blindtest_bench(77);
+    CoefficientSet model = cfg.truth;
+    model.extra["expected_scatter_arcsec"] = expected_scatter_arcsec(cfg);
+    const fs::path model_path = dir / "model.json";
+    save_coefficients(model_path, model);
+    cfg.effects.push_back(parse_effect(spec));
+    Bench b1(cfg);
+    const Diagnosis d1 = diagnose(record_session(b1, blindtest_plan()), model, blindtest_diagnosis_options());
+    const std::string name = cfg.effects.front().name;
+    ASSERT_EQ(d1.cause, name);
+    const fs::path bench_path = dir / "bench.yaml";
+    write_emitted_bench(bench_path.string(), d1, model_path.string());
+    BenchConfig cfg2 = load_bench_file(bench_path);
+    ASSERT_EQ(cfg2.effects.size(), 1u);
+    EXPECT_EQ(cfg2.effects.front().name, name);
+    EXPECT_NEAR(expected_scatter_arcsec(cfg2), expected_scatter_arcsec(cfg), 1e-9);  // the truth's scatter honoured
+    cfg2.seed = 78;
+    cfg2.temperature = cfg.temperature;
+    Bench b2(cfg2);
+    const Diagnosis d2 = diagnose(record_session(b2, blindtest_plan()), model, blindtest_diagnosis_options());
+    EXPECT_EQ(d2.cause, name);
+    EXPECT_EQ(d2.verdict, "explained");
+    for (const auto& [k, v] : cfg.effects.front().params) {
+      const double p1 = d1.causes.front().params.at(k).get<double>(), p2 = d2.causes.front().params.at(k).get<double>();
+      EXPECT_NEAR(p2, p1, 0.05 * std::abs(p1)) << k;
+      EXPECT_NEAR(p2, v, 0.05 * std::abs(v)) << k;
+    }
+  }
+}
+
 TEST(DiagnosisPage, VerdictFirstThenLimitsFiguresWithGnuplotAndTablesWithout) {
   BenchConfig cfg = blindtest_bench(111);
   cfg.effects.push_back(parse_effect("drift:pitch_arcsec_per_s=0.02,yaw_arcsec_per_s=0.01"));
