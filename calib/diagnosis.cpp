@@ -1115,7 +1115,7 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
       {"heldout_rows", r.heldout_rows.size()},
       {"excluded_rows", r.excluded_rows},
       {"excluded_why", fmt::format("the first and last {} s of every slew segment (the reference outside a segment "
-                                   "is not recorded, so a time shift cannot be predicted there), the two rows around every reversal inside a step (the turning time is known to a fraction of a sample), and outlier frames",
+                                   "is not recorded, so a time shift cannot be predicted there), the rows within the same margin of every reversal inside a step (a time shift moves where the sensor sees the turn), and outlier frames",
                                    r.guard_s)},
       {"fit_steps", {{"dwells", r.dwells - held_d}, {"slews", r.motions - held_m}}},
       {"heldout_steps", {{"dwells", held_d}, {"slews", held_m}}},

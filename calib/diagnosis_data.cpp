@@ -192,10 +192,15 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
           if (!std::isfinite(tv)) tv = t1;
           tv = std::clamp(tv, t0, t2);
           for (size_t q = from; q < i; ++q) if (r.t[q] > tv) r.dir[a][q] = d;
-          // The turning time is known to a fraction of a sample: the two rows around it are left
-          // out of every fit and score (a backlash would flip on either).
-          for (size_t q = from - 1; q <= from + 1; ++q) {
-            if (q + 1 < st.end && r.t[q] <= tv && r.t[q + 1] > tv) { r.turning[q] = r.turning[q + 1] = true; break; }
+          // Rows within max_skew_s of the turn (at least the two around it) are left out of every
+          // fit and score, as the slew-segment ends are: a time shift moves where the sensor sees
+          // the turn (and a backlash flip with it), and the turning time is known only to a
+          // fraction of a sample.
+          for (size_t q = st.begin; q < st.end; ++q) {
+            if (std::abs(r.t[q] - tv) < std::max(opts.max_skew_s, 1e-9) ||
+                (q + 1 < st.end && r.t[q] <= tv && r.t[q + 1] > tv) || (q > st.begin && r.t[q - 1] <= tv && r.t[q] > tv)) {
+              r.turning[q] = true;
+            }
           }
         }
         hi_i = lo_i = i;
