@@ -9,8 +9,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <functional>
 #include <limits>
 #include <map>
@@ -541,7 +539,6 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
       for (int a = 0; a < 2; ++a) p.gain[a] = fit_factor(factors[k], a, p.x[a]);
       const double adj = p.gain[0] + p.gain[1] - penalty * 2 * factors[k].dims;
       raw.push_back({p.gain[0] + p.gain[1], static_cast<int>(k)});
-      if (std::getenv("FPSS_WHERE_DEBUG")) std::fprintf(stderr, "round %d %s gain %g %g adj %g total %g\n", round, factors[k].name.c_str(), p.gain[0], p.gain[1], adj, total);
       if (adj > best_adj) { best_adj = adj; best = static_cast<int>(k); best_pick = p; }
     }
     if (best < 0) {
