@@ -38,6 +38,9 @@ def main():
         ok = gap["verdict"] in verdicts and all(n in got for n in named) and (where is None or lead == where)
         if not classes:
             ok = ok and not got
+        # a degenerate (ill-conditioned) fit is never a cause
+        degenerate = {e["name"] for e in gap["effects"] if e.get("degenerate")}
+        ok = ok and not (degenerate & set(got))
         if classes == ["outliers"]:
             ok = ok and gap["outliers"]["count"] > 0
         line = f"{'+'.join(classes) or 'none':24s} -> {gap['verdict']:17s} causes {got} remainder where {lead}"
