@@ -3,6 +3,7 @@
 #include "calib/diagnosis.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <Eigen/Dense>
 
@@ -10,6 +11,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 #include <numeric>
 
 #include "calib/diagnosis_model.h"
@@ -56,6 +58,7 @@ double noise_floor(const Recording& r, double* per_axis) {
     for (const auto& s : r.steps) {
       if (s.kind != kind) continue;
       for (size_t i = s.begin + 1; i + (order == 2 ? 1 : 0) < s.end; ++i) {
+        if (r.outlier[i] || r.outlier[i - 1] || (order == 2 && r.outlier[i + 1])) continue;
         const double d = order == 2 ? r.res[a][i + 1] - 2 * r.res[a][i] + r.res[a][i - 1] : r.res[a][i] - r.res[a][i - 1];
         d2.push_back(d * d);
       }
@@ -230,6 +233,7 @@ Scored fit_one(const Recording& r, const std::string& name, const Contribution& 
   s.result.heldout_rms_arcsec = std::sqrt(ms);
   s.result.score = penalised(ms, ms0, s.result.parameters, N);
   s.result.notes = s.cand->notes();
+  s.result.degenerate = s.cand->degenerate();
   return s;
 }
 
@@ -249,6 +253,7 @@ struct Factor {
   int bins = 10;
   bool discrete = false;
   std::string nan_label;
+  bool spline = false;  // hat functions of a linear spline: fitted with a roughness penalty
 };
 
 std::string signed_num(double v, int prec = 2) { return fmt::format("{:+.{}f}", v, prec); }
@@ -265,6 +270,16 @@ struct Scale {
   double operator()(double x) const { return hi > lo ? 2 * (x - lo) / (hi - lo) - 1 : 0.0; }
 };
 
+// Hat functions of a linear spline with k knots evenly over [-1, 1].
+constexpr int kAngleKnots = 24;
+void hat(double x, int k, double* phi) {
+  std::fill(phi, phi + k, 0.0);
+  const double u = std::clamp((x + 1) * 0.5 * (k - 1), 0.0, k - 1.0);
+  const int j = std::min(static_cast<int>(u), k - 2);
+  phi[j] = 1 - (u - j);
+  phi[j + 1] = u - j;
+}
+
 void cubic(double x, double* phi) {
   phi[0] = 1;
   phi[1] = x;
@@ -272,7 +287,83 @@ void cubic(double x, double* phi) {
   phi[3] = x * x * x;
 }
 
-std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec) {
+// How far a flexible, non-physical model of the leading factor(s) shrinks the held-out
+// remainder: per axis a linear spline (16 knots over the factor's range, its own constant where
+// the factor does not apply) in each of the one or two leading factors, fitted additively on the
+// fit rows, judged on the held-out rows. A large shrink says the remainder is a smooth function
+// of that factor that no catalogued effect has; a small one that it is not (noise, outliers, or
+// a factor the list lacks).
+ojson flexible_shrink(const Recording& r, const std::vector<double> e_in[2], const std::vector<Factor>& factors,
+                      const std::vector<WhereEntry>& lead) {
+  std::vector<const Factor*> use;
+  for (const auto& w : lead) {
+    if (use.size() >= 2 || w.share < 0.05) break;
+    for (const auto& f : factors) {
+      if (f.name == w.factor && std::find(use.begin(), use.end(), &f) == use.end()) use.push_back(&f);
+    }
+  }
+  double before = 0;
+  for (uint32_t i : r.heldout_rows) before += e_in[0][i] * e_in[0][i] + e_in[1][i] * e_in[1][i];
+  const double n_h = 2.0 * static_cast<double>(r.heldout_rows.size());
+  ojson j{{"factors", ojson::array()}, {"model", "additive linear splines, 16 knots per factor and axis, fitted on the "
+                                                 "fit rows"}};
+  if (use.empty() || before <= 0) {
+    j["heldout_rms_arcsec"] = std::sqrt(before / std::max(n_h, 1.0));
+    j["ratio"] = 1.0;
+    return j;
+  }
+  std::vector<double> e[2] = {e_in[0], e_in[1]};
+  constexpr int kKnots = 16;
+  for (const Factor* f : use) {
+    j["factors"].push_back(f->name);
+    for (int a = 0; a < 2; ++a) {
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      for (size_t i = 0; i < r.n; ++i) {
+        const double v = f->value(i, a);
+        if (r.use[i] != Use::excluded && std::isfinite(v)) { lo = std::min(lo, v); hi = std::max(hi, v); }
+      }
+      const int dims = kKnots + 1;
+      auto basis = [&](size_t i, double* phi) {
+        std::fill(phi, phi + dims, 0.0);
+        const double v = f->value(i, a);
+        if (!std::isfinite(v) || !(hi > lo)) { phi[kKnots] = std::isfinite(v) ? 0.0 : 1.0; if (std::isfinite(v)) phi[0] = 1; return; }
+        const double x = std::clamp((v - lo) / (hi - lo) * (kKnots - 1), 0.0, kKnots - 1.0);
+        const int k = std::min(static_cast<int>(x), kKnots - 2);
+        const double w = x - k, sg = f->sign(i, a);
+        phi[k] = (1 - w) * sg;
+        phi[k + 1] = w * sg;
+      };
+      Eigen::MatrixXd G = Eigen::MatrixXd::Zero(dims, dims);
+      Eigen::VectorXd b = Eigen::VectorXd::Zero(dims), phi(dims);
+      for (uint32_t i : r.fit_rows) {
+        basis(i, phi.data());
+        G.selfadjointView<Eigen::Lower>().rankUpdate(phi);
+        b += phi * e[a][i];
+      }
+      G = G.selfadjointView<Eigen::Lower>();
+      const double lam = 1e-3 * (G.diagonal().mean() + 1e-30);  // roughness penalty, as in where_of
+      for (int k = 0; k + 2 < kKnots; ++k) {
+        const int idx[3] = {k, k + 1, k + 2};
+        const double c[3] = {1, -2, 1};
+        for (int u = 0; u < 3; ++u) for (int v = 0; v < 3; ++v) G(idx[u], idx[v]) += lam * c[u] * c[v];
+      }
+      G.diagonal().array() += 1e-6 * (G.diagonal().maxCoeff() + 1e-30);
+      const Eigen::VectorXd x = G.ldlt().solve(b);
+      for (size_t i = 0; i < r.n; ++i) {
+        basis(i, phi.data());
+        e[a][i] -= phi.dot(x);
+      }
+    }
+  }
+  double after = 0;
+  for (uint32_t i : r.heldout_rows) after += e[0][i] * e[0][i] + e[1][i] * e[1][i];
+  j["heldout_rms_arcsec"] = std::sqrt(after / n_h);
+  j["ratio"] = std::sqrt(after / before);
+  return j;
+}
+
+std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec,
+                                 ojson* flexible = nullptr) {
   const std::vector<uint32_t>& F = r.fit_rows;
   const std::vector<uint32_t>& H = r.heldout_rows;
   double total = 0;
@@ -305,10 +396,12 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
   std::vector<Factor> factors;
   factors.push_back({"constant", 1, [](size_t, int, double* p) { p[0] = 1; }, [](size_t, int) { return 0.0; }, one, 1,
                      false, ""});
-  factors.push_back({"angle", 4, [&](size_t i, int a, double* p) { cubic(ang[a](r.ref[a][i]), p); },
-                     [&](size_t i, int a) { return r.ref[a][i]; }, one, 12, false, ""});
-  factors.push_back({"cross_angle", 4, [&](size_t i, int a, double* p) { cubic(ang[1 - a](r.ref[1 - a][i]), p); },
-                     [&](size_t i, int a) { return r.ref[1 - a][i]; }, one, 12, false, ""});
+  // Angles: a linear spline (kAngleKnots knots over the range covered), so that a cyclic error
+  // of a few hundred arcsec period is as visible as a smooth one.
+  factors.push_back({"angle", kAngleKnots, [&](size_t i, int a, double* p) { hat(ang[a](r.ref[a][i]), kAngleKnots, p); },
+                     [&](size_t i, int a) { return r.ref[a][i]; }, one, 12, false, "", true});
+  factors.push_back({"cross_angle", kAngleKnots, [&](size_t i, int a, double* p) { hat(ang[1 - a](r.ref[1 - a][i]), kAngleKnots, p); },
+                     [&](size_t i, int a) { return r.ref[1 - a][i]; }, one, 12, false, "", true});
   // Linear in the rate: slews come at few rates (a held-out segment may run at a rate and
   // direction the fit rows lack), and a straight line is what a few rates support.
   factors.push_back({"slew_rate", 3,
@@ -370,6 +463,16 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
       b += phi * e[a][i];
     }
     G = G.selfadjointView<Eigen::Lower>();
+    if (f.spline) {
+      // A roughness penalty on the spline's second differences: knots the fit rows barely reach
+      // follow their neighbours instead of swinging (the held-out rows may lie there).
+      const double lam = 1e-3 * (G.diagonal().mean() + 1e-30);
+      for (int k = 0; k + 2 < f.dims; ++k) {
+        const int idx[3] = {k, k + 1, k + 2};
+        const double c[3] = {1, -2, 1};
+        for (int u = 0; u < 3; ++u) for (int v = 0; v < 3; ++v) G(idx[u], idx[v]) += lam * c[u] * c[v];
+      }
+    }
     G.diagonal().array() += 1e-9 * (G.diagonal().maxCoeff() + 1e-30);
     x = G.ldlt().solve(b);
     double before = 0, after = 0;
@@ -481,6 +584,7 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
     }
   }
   std::stable_sort(out.begin(), out.end(), [](const WhereEntry& a, const WhereEntry& b) { return a.share > b.share; });
+  if (flexible) *flexible = flexible_shrink(r, e_in, factors, out);
   return out;
 }
 
@@ -494,6 +598,11 @@ ojson effect_json(const EffectResult& e) {
   ojson j{{"name", e.name}, {"params", e.params}, {"parameters", e.parameters}, {"fit_rms_arcsec", e.fit_rms_arcsec},
           {"heldout_rms_arcsec", e.heldout_rms_arcsec}, {"score", e.score}};
   if (!e.notes.empty()) j["notes"] = e.notes;
+  if (!e.degenerate.empty()) {
+    j["degenerate"] = true;
+    j["degenerate_why"] = e.degenerate;
+  }
+  if (!e.detection_limit.empty()) j["detection_limit"] = e.detection_limit;
   return j;
 }
 
@@ -586,12 +695,150 @@ JointFit joint_fit(const Recording& r, const Scored& first, const std::string& n
     j.e[q].params = c[q]->params();
     j.e[q].parameters = c[q]->parameters();
     j.e[q].notes = c[q]->notes();
+    j.e[q].degenerate = c[q]->degenerate();
     j.e[q].fit_rms_arcsec = std::sqrt(mean_square(r, &sum, r.fit_rows));  // jointly
     j.e[q].heldout_rms_arcsec = std::sqrt(ms);
     j.e[q].score = j.score;
   }
   j.sum = std::move(sum);
   return j;
+}
+
+// Pooled within-step scatter of one sample about its step mean (dwells with three or more
+// frames, outliers left out), RMS over both axes; NaN when no dwell has three frames.
+double within_step_scatter(const Recording& r, const std::vector<double> e[2]) {
+  double ss[2] = {0, 0};
+  double dof = 0;
+  for (const auto& s : r.steps) {
+    if (s.kind != StepKind::dwell) continue;
+    double sum[2] = {0, 0}, sq[2] = {0, 0}, m = 0;
+    for (size_t i = s.begin; i < s.end; ++i) {
+      if (r.outlier[i]) continue;
+      m += 1;
+      for (int a = 0; a < 2; ++a) { sum[a] += e[a][i]; sq[a] += e[a][i] * e[a][i]; }
+    }
+    if (m < 3) continue;
+    for (int a = 0; a < 2; ++a) ss[a] += sq[a] - sum[a] * sum[a] / m;
+    dof += m - 1;
+  }
+  if (dof < 10) return kNaN;
+  return std::sqrt(0.5 * (ss[0] + ss[1]) / dof);
+}
+
+// The smallest magnitude of each of a candidate's parameters that this recording would have made
+// material: an effect of magnitude m adds m^2 G to the held-out mean square (G the mean square of
+// its contribution per unit, both axes); the candidate is found when that beats both the
+// materiality rule (0.1 noise^2) and the score's penalty (N ln(1 + m^2 G / noise^2) > k ln N).
+// Nonlinear parameters (settling's tau, temperature's t0_c) are held at the fitted values;
+// magnitudes are taken small, where every effect is linear in them.
+ojson detection_limit(const Recording& r, const EffectResult& e, double noise, double N) {
+  ojson out = ojson::object();
+  if (e.name == "none" || e.name == "coefficients" || !std::isfinite(noise) || noise <= 0) return out;
+  static const std::map<std::string, double> unit = {
+      {"pitch_arcsec", 0.01},         {"yaw_arcsec", 0.01},         {"pitch_arcsec_per_s", 1e-5},
+      {"yaw_arcsec_per_s", 1e-5},     {"pitch_ppm", 1.0},           {"yaw_ppm", 1.0},
+      {"roll_arcsec", 0.1},           {"skew_arcsec", 0.1},         {"width_arcsec", 0.01},
+      {"amplitude_arcsec", 0.01},     {"skew_s", 1e-5},             {"pitch_arcsec_per_c", 0.001},
+      {"yaw_arcsec_per_c", 0.001}};
+  const double need = noise * noise * std::max(0.1, std::expm1(e.parameters * std::log(N) / N));
+  for (auto it = e.params.begin(); it != e.params.end(); ++it) {
+    auto u = unit.find(it.key());
+    if (u == unit.end()) continue;
+    EffectParams p;
+    p.name = e.name;
+    for (auto jt = e.params.begin(); jt != e.params.end(); ++jt) {
+      if (jt.value().is_number()) p.params[jt.key()] = unit.count(jt.key()) ? 0.0 : jt.value().get<double>();
+    }
+    if (e.name == "settling" && !(p.params["tau_s"] > 0.02 && p.params["tau_s"] < 29)) p.params["tau_s"] = 0.5;
+    if (e.name == "temperature") {
+      double s = 0, m = 0;
+      for (size_t i = 0; i < r.n; ++i) if (std::isfinite(r.temp[i])) { s += r.temp[i]; m += 1; }
+      if (m > 0) p.params["t0_c"] = s / m;  // only the temperature's variation is told from a bias
+    }
+    p.params[it.key()] = u->second;
+    auto c = diag::make_candidate(e.name);
+    c->set(p);
+    Contribution k;
+    k.resize(r.n);
+    c->contribute(r, k);
+    double g = 0;
+    for (uint32_t i : r.heldout_rows) g += k.v[0][i] * k.v[0][i] + k.v[1][i] * k.v[1][i];
+    g /= N * u->second * u->second;
+    out[it.key()] = g > 0 ? std::sqrt(need / g) : std::numeric_limits<double>::infinity();
+  }
+  return out;
+}
+
+// The verdict (docs/diagnosis.md): no_gap, explained, partly_explained or unexplained, and the
+// remainder when something stays unexplained.
+void decide_verdict(const Recording& r, Diagnosis& d, const ojson& flexible) {
+  const double nf = d.noise_floor_arcsec;
+  const double remainder = d.cause == "none" ? d.gap_before_arcsec : d.gap_after_all_arcsec;
+  const bool held_gap = remainder > 1.5 * nf;
+  const bool scatter = std::isfinite(d.excess_scatter()) && d.excess_scatter() > 2.0;
+  const bool outl = d.outliers > 0;
+  const bool found = d.cause != "none";
+  if (!held_gap && !scatter && !outl) {
+    d.verdict = found ? "explained" : "no_gap";
+  } else {
+    d.verdict = found ? "partly_explained" : "unexplained";
+  }
+  std::vector<std::string> why;
+  if (held_gap) {
+    why.push_back(fmt::format("{:.2f}x the noise floor stays on the held-out steps", remainder / nf));
+  }
+  if (scatter) {
+    why.push_back(fmt::format("the scatter within steps is {:.1f}x what the model expects", d.excess_scatter()));
+  }
+  if (outl) {
+    why.push_back(fmt::format("{} outlier frame{} ({:.2f} %)", d.outliers, d.outliers == 1 ? "" : "s",
+                              100 * d.outlier_fraction));
+  }
+  std::string causes;
+  for (size_t k = 0; k < d.causes.size(); ++k) causes += (k ? " and " : "") + d.causes[k].name;
+  if (d.verdict == "no_gap") {
+    d.verdict_sentence = fmt::format("No gap: the recording matches the model within its noise ({:.3f} arcsec held out "
+                                     "against a noise floor of {:.3f}).",
+                                     remainder, nf);
+  } else if (d.verdict == "explained") {
+    d.verdict_sentence = fmt::format("Explained: {} account{} for the gap ({:.3f} -> {:.3f} arcsec held out, noise "
+                                     "floor {:.3f}).",
+                                     causes, d.causes.size() > 1 ? "" : "s", d.gap_before_arcsec, remainder, nf);
+  } else if (d.verdict == "partly_explained") {
+    d.verdict_sentence = fmt::format("Partly explained: {} account{} for part of the gap ({:.3f} -> {:.3f} arcsec "
+                                     "held out), but {}.",
+                                     causes, d.causes.size() > 1 ? "" : "s", d.gap_before_arcsec, remainder,
+                                     fmt::join(why, "; "));
+  } else {
+    d.verdict_sentence = fmt::format("Unexplained: no catalogued effect is material, yet {}.", fmt::join(why, "; "));
+  }
+  if (d.verdict != "partly_explained" && d.verdict != "unexplained") return;
+  Diagnosis::Remainder rem;
+  rem.heldout_rms_arcsec = remainder;
+  rem.flexible_shrink = flexible;
+  std::vector<WhereEntry> extra;
+  if (scatter) {
+    const double x = d.excess_scatter();
+    extra.push_back({"within_step", "both", std::clamp(1.0 - 1.0 / (x * x), 0.0, 1.0),
+                     fmt::format("one sample scatters {:.4f} arcsec about its step mean, {:.1f}x the expected {:.4f} "
+                                 "(vibration, or noise the model does not know)",
+                                 d.within_step_scatter_arcsec, x, d.expected_scatter_arcsec)});
+  }
+  if (outl) {
+    extra.push_back({"outlier_frames", "both", d.outlier_fraction,
+                     fmt::format("{} isolated frame{} more than 6 robust sigmas from their step, in {} step{} (kept out "
+                                 "of every fit)",
+                                 d.outliers, d.outliers == 1 ? "" : "s", d.outlier_steps.size(),
+                                 d.outlier_steps.size() == 1 ? "" : "s")});
+  }
+  if (held_gap) {
+    rem.where = d.where_after;
+    rem.where.insert(rem.where.end(), extra.begin(), extra.end());
+  } else {
+    rem.where = extra;
+  }
+  d.unexplained = std::move(rem);
+  (void)r;
 }
 
 }  // namespace
@@ -603,6 +850,8 @@ bool Diagnosis::incomplete_recording() const {
 ojson Diagnosis::to_json() const {
   ojson j;
   j["source"] = source;
+  j["verdict"] = verdict;
+  j["verdict_sentence"] = verdict_sentence;
   j["cause"] = cause;
   ojson cs = ojson::array();
   for (const auto& c : causes) cs.push_back(effect_json(c));
@@ -638,6 +887,19 @@ ojson Diagnosis::to_json() const {
     amb.push_back({{"name", m.name}, {"score_difference", m.score_difference}, {"why", m.why}});
   }
   j["ambiguous_with"] = amb;
+  if (unexplained) {
+    j["unexplained"] = {{"heldout_rms_arcsec", unexplained->heldout_rms_arcsec},
+                        {"where", where_json(unexplained->where)},
+                        {"flexible_shrink", unexplained->flexible_shrink}};
+  }
+  j["within_step_scatter_arcsec"] = std::isfinite(within_step_scatter_arcsec) ? ojson(within_step_scatter_arcsec) : ojson();
+  if (std::isfinite(expected_scatter_arcsec)) {
+    j["expected_scatter_arcsec"] = expected_scatter_arcsec;
+    j["excess_scatter"] = std::isfinite(excess_scatter()) ? ojson(excess_scatter()) : ojson();
+  }
+  j["outliers"] = {{"count", outliers}, {"fraction", outlier_fraction}, {"step_ids", outlier_steps},
+                   {"rule", "more than 6 robust sigmas from the median of the frame and up to 3 neighbours on each side in its step, either axis "
+                            "(calib/outliers.h); kept out of every fit and score"}};
   j["split"] = split;
   j["recording"] = recording;
   j["warnings"] = warnings;
@@ -692,6 +954,7 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
   for (size_t k = 0; k < all.size(); ++k) {
     const auto& e = all[k].result;
     if (e.name == "none") { pick = k; break; }
+    if (!e.degenerate.empty()) continue;  // an ill-conditioned fit is never the cause
     if (ms0 - e.heldout_rms_arcsec * e.heldout_rms_arcsec >= material) { pick = k; break; }
   }
   const Scored& best = all[pick];
@@ -720,12 +983,12 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
         if (f->result.name != "none" && std::find(firsts.begin(), firsts.end(), f) == firsts.end()) firsts.push_back(f);
       };
       for (size_t k = 0, m = 0; k < all.size() && m < 3; ++k) {
-        if (all[k].result.name == "none") continue;
+        if (all[k].result.name == "none" || !all[k].result.degenerate.empty()) continue;
         add_first(&all[k]);
         ++m;
       }
       std::vector<const Scored*> by_fit;
-      for (const auto& s1 : all) if (s1.result.name != "none") by_fit.push_back(&s1);
+      for (const auto& s1 : all) if (s1.result.name != "none" && s1.result.degenerate.empty()) by_fit.push_back(&s1);
       std::sort(by_fit.begin(), by_fit.end(), [&](const Scored* a, const Scored* b) {
         return penalised(a->result.fit_rms_arcsec * a->result.fit_rms_arcsec, 1.0, a->result.parameters, N) <
                penalised(b->result.fit_rms_arcsec * b->result.fit_rms_arcsec, 1.0, b->result.parameters, N);
@@ -765,6 +1028,7 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
         if (screened.size() > 3) screened.resize(3);
         for (const auto& sc : screened) {
           JointFit j = joint_fit(r, f, sc.second, ms0, N);
+          if (!j.e[0].degenerate.empty() || !j.e[1].degenerate.empty()) continue;
           if (!pair || j.score < pair->score) pair = std::move(j);
         }
       }
@@ -818,7 +1082,18 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
     for (size_t i = 0; i < r.n; ++i) after[a][i] = r.res[a][i] - combined.v[a][i];
   }
   d.where = where_of(r, before, d.noise_floor_arcsec);
-  d.where_after = where_of(r, after, d.noise_floor_arcsec);
+  ojson flexible;
+  d.where_after = where_of(r, after, d.noise_floor_arcsec, &flexible);
+
+  // Noise is not structure: the within-step scatter of what the causes leave, against what the
+  // sim expects of one sample about its step mean.
+  d.within_step_scatter_arcsec = within_step_scatter(r, after);
+  d.expected_scatter_arcsec = r.expected_scatter;
+  d.outliers = static_cast<int64_t>(r.outliers);
+  d.outlier_fraction = static_cast<double>(r.outliers) / static_cast<double>(r.n);
+  d.outlier_steps = r.outlier_steps;
+  for (auto& e : d.effects) e.detection_limit = detection_limit(r, e, d.noise_floor_arcsec, N);
+  decide_verdict(r, d, flexible);
 
   // What the data holds and how it was divided.
   std::vector<int64_t> held_ids;
@@ -837,7 +1112,7 @@ Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const D
       {"heldout_rows", r.heldout_rows.size()},
       {"excluded_rows", r.excluded_rows},
       {"excluded_why", fmt::format("the first and last {} s of every slew segment (the reference outside a segment "
-                                   "is not recorded, so a time shift cannot be predicted there)",
+                                   "is not recorded, so a time shift cannot be predicted there), the rows within the same margin of every reversal inside a step (a time shift moves where the sensor sees the turn), and outlier frames",
                                    r.guard_s)},
       {"fit_steps", {{"dwells", r.dwells - held_d}, {"slews", r.motions - held_m}}},
       {"heldout_steps", {{"dwells", held_d}, {"slews", held_m}}},

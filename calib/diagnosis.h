@@ -1,5 +1,6 @@
 // Sim-to-real gap diagnosis: which unmodelled bench effect explains model(counts) - reference, checked on held-out steps.
 #pragma once
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -52,6 +53,10 @@ struct EffectResult {
   double heldout_rms_arcsec = 0;  // on the held-out rows
   double score = 0;               // selection score, lower is better (none = 0)
   nlohmann::ordered_json notes = nlohmann::ordered_json::object();
+  std::string degenerate;         // why the fit is ill-conditioned/implausible; never the cause then
+  // The smallest magnitude of each parameter this recording would have made material (its own
+  // units); empty when not computed (none, coefficients).
+  nlohmann::ordered_json detection_limit = nlohmann::ordered_json::object();
 };
 
 struct NotObservable {
@@ -83,6 +88,26 @@ struct Diagnosis {
   nlohmann::ordered_json recording;  // what the data holds: rows, steps, spans
   std::vector<std::string> warnings;
 
+  // no_gap | explained | partly_explained | unexplained (docs/diagnosis.md)
+  std::string verdict = "no_gap";
+  std::string verdict_sentence;  // the verdict in one plain sentence
+  // Present when verdict is partly_explained or unexplained: what stays after the causes.
+  struct Remainder {
+    double heldout_rms_arcsec = 0;
+    std::vector<WhereEntry> where;
+    nlohmann::ordered_json flexible_shrink = nlohmann::ordered_json::object();
+  };
+  std::optional<Remainder> unexplained;
+  // Within-step scatter of one sample about its step mean after the causes (dwells), and the
+  // model file's expected_scatter_arcsec when it has one.
+  double within_step_scatter_arcsec = std::numeric_limits<double>::quiet_NaN();
+  double expected_scatter_arcsec = std::numeric_limits<double>::quiet_NaN();
+  double excess_scatter() const { return within_step_scatter_arcsec / expected_scatter_arcsec; }
+  // Isolated frames far from their step's robust estimate, kept out of every fit.
+  int64_t outliers = 0;
+  double outlier_fraction = 0;
+  std::vector<int64_t> outlier_steps;
+
   bool incomplete_recording() const;
   // GAP.json
   nlohmann::ordered_json to_json() const;
@@ -103,9 +128,24 @@ struct SensorPrediction {
 SensorPrediction predict_sensor(const SampleTable& data, const CoefficientSet& model, const EffectParams& effect,
                                 const DiagnosisOptions& opts = {});
 
-// The HTML report: the residual against every factor before and after, and the residual map
-// over the field (gnuplot SVG inlined when gnuplot is installed; tables otherwise).
-void write_diagnosis_report(const std::string& html_path, const SampleTable& data, const CoefficientSet& model,
-                            const Diagnosis& d, const DiagnosisOptions& opts = {});
+// What the report shows, as data (calib writes no HTML and runs no plotter; the page is
+// stand/report/diagnosis_page.h): the residual of each axis against every factor, before and
+// after the causes, on scored rows (at most ~20000, evenly strided), and the residual map over
+// the field (one point per dwell: its mean reference and mean residual before and after).
+struct DiagnosisFactorSeries {
+  std::string factor;  // angle, cross_angle, slew_rate, approach_direction, time, time_since_move, temperature
+  std::string xlabel;
+  std::vector<double> x[2], before[2], after[2];  // per axis (0 pitch, 1 yaw)
+};
+struct DiagnosisMapPoint {
+  double pitch_arcsec = 0, yaw_arcsec = 0;
+  double before[2] = {0, 0}, after[2] = {0, 0};
+};
+struct DiagnosisFigures {
+  std::vector<DiagnosisFactorSeries> factors;
+  std::vector<DiagnosisMapPoint> map;
+};
+DiagnosisFigures diagnosis_figures(const SampleTable& data, const CoefficientSet& model, const Diagnosis& d,
+                                   const DiagnosisOptions& opts = {});
 
 }  // namespace fpss

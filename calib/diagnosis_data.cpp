@@ -8,6 +8,8 @@
 
 #include "calib/diagnosis_model.h"
 #include "calib/errors.h"
+#include "calib/outliers.h"
+#include "calib/units.h"
 
 namespace fpss::diag {
 namespace {
@@ -16,8 +18,9 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // A step whose reference spans more than this on an axis moved during the step (a slew).
 // Encoder noise is ~0.05 arcsec, grid offsets hundreds of arcsec.
 constexpr double kMotionSpan_arcsec = 5.0;
-// Between steps, a change of reference larger than this is an (unrecorded) move.
-constexpr double kMoveThreshold_arcsec = 1.0;
+// A reversal of an axis's motion (or an unrecorded move between rows) is a change of its
+// reference by more than this against its running extreme (at least 10x the reference's noise).
+constexpr double kReverse_arcsec = 0.5;
 
 int8_t sign_of(double v) { return v > 0 ? 1 : (v < 0 ? -1 : 0); }
 
@@ -83,6 +86,49 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
         r.origin, r.dwells == 0 ? "no" : "only one", r.dwells == 1 ? "" : "s"));
   }
 
+  // The sim's expected 1-sigma scatter of one sample about its step mean (optional key).
+  if (model.extra.contains("expected_scatter_arcsec")) {
+    const auto& v = model.extra["expected_scatter_arcsec"];
+    if (!v.is_number() || !(v.get<double>() > 0) || !std::isfinite(v.get<double>())) {
+      throw InputError("model: \"expected_scatter_arcsec\" must be a positive number (arcsec)");
+    }
+    r.expected_scatter = v.get<double>();
+  }
+
+  // Isolated frames far from a robust local estimate of their step (calib/outliers.h, a running
+  // median of 7 frames, so a settling decay or a slew's changing residual is followed): flagged on
+  // either axis, they are kept out of every fit, score and noise estimate.
+  {
+    std::vector<int64_t> ids(n);
+    for (size_t i = 0; i < n; ++i) ids[i] = r.steps[r.step_of[i]].id;
+    OutlierRule rule;
+    rule.local_half_window = 3;
+    // Whole counts with little noise can have a zero MAD: the floor is the rounding's own scatter
+    // (1/sqrt(12) count) or the expected scatter when the model says it.
+    rule.min_sigma = std::isfinite(r.expected_scatter) ? r.expected_scatter
+                                                       : rad_to_arcsec(std::abs(model.alpha[1])) / std::sqrt(12.0);
+    r.outlier.assign(n, false);
+    // Rows of a slew segment's ends (the guard, below) are not judged: the gimbal's acceleration
+    // and a time shift bend the residual there faster than any neighbour median follows.
+    std::vector<bool> judged(n, true);
+    for (const Step& s : r.steps) {
+      if (s.kind == StepKind::dwell) continue;
+      for (size_t i = s.begin; i < s.end; ++i) {
+        judged[i] = !(r.t[i] - r.t[s.begin] < opts.max_skew_s || r.t[s.end - 1] - r.t[i] < opts.max_skew_s);
+      }
+    }
+    for (int a = 0; a < 2; ++a) {
+      const OutlierFlags f = flag_outliers(r.res[a], ids, rule);
+      for (size_t i = 0; i < n; ++i) if (f.outlier[i] && judged[i]) r.outlier[i] = true;
+    }
+    for (size_t i = 0; i < n; ++i) {
+      if (!r.outlier[i]) continue;
+      ++r.outliers;
+      const int64_t id = ids[i];
+      if (r.outlier_steps.empty() || r.outlier_steps.back() != id) r.outlier_steps.push_back(id);
+    }
+  }
+
   // Rates within motion steps (central differences); dwells are at rest.
   for (int a = 0; a < 2; ++a) r.vel[a].assign(n, 0.0);
   for (const Step& s : r.steps) {
@@ -94,47 +140,111 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
     }
   }
 
-  // Approach and settling state, as the emulator keeps it: each axis remembers the sign of its
-  // last motion (backlash) and of its last move (settling, also kept by an axis that did not
-  // move); every dwell follows an arrival settle_s before its first row.
+  // Direction of motion (backlash), per axis and row, from the reference's own motion and
+  // never from step boundaries or labels: a hysteresis on the running extreme, `reverse`
+  // arcsec wide (far above the reference's noise). A reversal inside a step is dated back to
+  // the turning point (the vertex of a parabola through the extreme row and its neighbours);
+  // a jump between steps (an unrecorded move) takes effect at the first row after it.
+  double ref_noise = 0;
+  {
+    double s2 = 0;
+    size_t m = 0;
+    for (const Step& s : r.steps) {
+      if (s.kind != StepKind::dwell) continue;
+      for (size_t i = s.begin + 1; i + 1 < s.end; ++i) {
+        for (int a = 0; a < 2; ++a) {
+          const double d = r.ref[a][i + 1] - 2 * r.ref[a][i] + r.ref[a][i - 1];
+          s2 += d * d;
+          ++m;
+        }
+      }
+    }
+    if (m > 10) ref_noise = std::sqrt(s2 / static_cast<double>(m) / 6.0);
+  }
+  const double reverse = std::max(kReverse_arcsec, 10.0 * ref_noise);
+  r.reverse_arcsec = reverse;
+  r.turning.assign(n, false);
   for (int a = 0; a < 2; ++a) {
     r.dir[a].assign(n, 0);
-    r.move_dir[a].assign(n, 0);
+    const auto& x = r.ref[a];
+    int8_t d = 0;
+    size_t hi_i = 0, lo_i = 0;  // the extremes since the last turn
+    for (size_t i = 0; i < n; ++i) {
+      if (x[i] > x[hi_i]) hi_i = i;
+      if (x[i] < x[lo_i]) lo_i = i;
+      int8_t turn = 0;
+      size_t from = i;
+      if (d <= 0 && x[i] - x[lo_i] > reverse) { turn = 1; from = lo_i; }
+      else if (d >= 0 && x[hi_i] - x[i] > reverse) { turn = -1; from = hi_i; }
+      if (turn != 0) {
+        d = turn;
+        // Within the step, the turning time is the vertex of the parabola through the extreme
+        // row and its neighbours (the gimbal decelerates and reverses at a finite acceleration);
+        // rows after it move the new way.
+        const Step& st = r.steps[r.step_of[i]];
+        if (from > st.begin && from + 1 < st.end && from + 1 <= i) {
+          const double t0 = r.t[from - 1], t1 = r.t[from], t2 = r.t[from + 1];
+          const double y0 = x[from - 1], y1 = x[from], y2 = x[from + 1];
+          const double den = (t0 - t1) * (t0 - t2) * (t1 - t2);
+          const double A = (t2 * (y1 - y0) + t1 * (y0 - y2) + t0 * (y2 - y1)) / den;
+          const double B = (t2 * t2 * (y0 - y1) + t1 * t1 * (y2 - y0) + t0 * t0 * (y1 - y2)) / den;
+          double tv = A != 0 ? -B / (2 * A) : t1;
+          if (!std::isfinite(tv)) tv = t1;
+          tv = std::clamp(tv, t0, t2);
+          for (size_t q = from; q < i; ++q) if (r.t[q] > tv) r.dir[a][q] = d;
+          // Rows within max_skew_s of the turn (at least the two around it) are left out of every
+          // fit and score, as the slew-segment ends are: a time shift moves where the sensor sees
+          // the turn (and a backlash flip with it), and the turning time is known only to a
+          // fraction of a sample.
+          for (size_t q = st.begin; q < st.end; ++q) {
+            if (std::abs(r.t[q] - tv) < std::max(opts.max_skew_s, 1e-9) ||
+                (q + 1 < st.end && r.t[q] <= tv && r.t[q + 1] > tv) || (q > st.begin && r.t[q - 1] <= tv && r.t[q] > tv)) {
+              r.turning[q] = true;
+            }
+          }
+        }
+        hi_i = lo_i = i;
+      }
+      r.dir[a][i] = d;
+    }
   }
+
+  // Settling clock, as docs/diagnosis.md states the physics: every dwell follows an arrival
+  // settle_s before its first row (or time_since_move_s). The axes that ring are those that moved
+  // in the last move: that jumped between the previous row and the dwell's first row, or that
+  // moved in the motion step just before it; each rings in its own direction of motion. A dwell
+  // that continues the previous one (no axis jumped) keeps its clock. Rows of slew segments are
+  // moving: no settling.
+  for (int a = 0; a < 2; ++a) r.move_dir[a].assign(n, 0);
   r.since_move.assign(n, kNaN);
-  int8_t last_dir[2] = {0, 0}, last_move[2] = {0, 0};
-  double prev_end[2] = {kNaN, kNaN};
-  for (const Step& s : r.steps) {
-    for (int a = 0; a < 2; ++a) {
-      const double d = r.ref[a][s.begin] - prev_end[a];
-      if (std::isfinite(d) && std::abs(d) > kMoveThreshold_arcsec) last_dir[a] = last_move[a] = sign_of(d);
+  int8_t ring[2] = {0, 0};
+  double arrival = kNaN;
+  for (size_t si = 0; si < r.steps.size(); ++si) {
+    const Step& s = r.steps[si];
+    if (s.kind == StepKind::motion) {
+      ring[0] = ring[1] = 0;
+      arrival = kNaN;
+      continue;
     }
-    if (s.kind == StepKind::dwell) {
-      const double arrival = r.t[s.begin] - opts.settle_s;
-      for (size_t i = s.begin; i < s.end; ++i) {
-        for (int a = 0; a < 2; ++a) {
-          r.dir[a][i] = last_dir[a];
-          r.move_dir[a][i] = last_move[a];
-        }
-        r.since_move[i] = r.t[i] - arrival;
-      }
+    bool moved = false;
+    int8_t now[2] = {0, 0};
+    if (s.begin > 0) {
+      const Step& prev = r.steps[r.step_of[s.begin - 1]];
       for (int a = 0; a < 2; ++a) {
-        double sum = 0;
-        for (size_t i = s.begin; i < s.end; ++i) sum += r.ref[a][i];
-        prev_end[a] = sum / static_cast<double>(s.end - s.begin);
-      }
-    } else {
-      for (int a = 0; a < 2; ++a) {
-        if (s.moves[a]) last_dir[a] = last_move[a] = sign_of(r.ref[a][s.end - 1] - r.ref[a][s.begin]);
-        for (size_t i = s.begin; i < s.end; ++i) {
-          r.dir[a][i] = last_dir[a];
-          r.move_dir[a][i] = last_move[a];
-        }
-        prev_end[a] = r.ref[a][s.end - 1];
+        const double jump = r.ref[a][s.begin] - r.ref[a][s.begin - 1];
+        if (std::abs(jump) > reverse) now[a] = sign_of(jump);
+        else if (prev.kind == StepKind::motion && prev.moves[a]) now[a] = r.dir[a][s.begin - 1];
+        moved = moved || now[a] != 0;
       }
     }
-    if (!since_col.empty()) {
-      for (size_t i = s.begin; i < s.end; ++i) r.since_move[i] = since_col[i];
+    if (moved || !std::isfinite(arrival)) {
+      ring[0] = now[0];
+      ring[1] = now[1];
+      arrival = r.t[s.begin] - opts.settle_s;
+    }
+    for (size_t i = s.begin; i < s.end; ++i) {
+      for (int a = 0; a < 2; ++a) r.move_dir[a][i] = ring[a];
+      r.since_move[i] = since_col.empty() ? r.t[i] - arrival : since_col[i];
     }
   }
 
@@ -151,7 +261,7 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
     s.heldout = m == 2 ? k == 1 : (m >= 3 && k % every == every - 1);
     for (size_t i = s.begin; i < s.end; ++i) {
       const bool guard = !dwell && (r.t[i] - r.t[s.begin] < r.guard_s || r.t[s.end - 1] - r.t[i] < r.guard_s);
-      r.use[i] = guard ? Use::excluded : (s.heldout ? Use::heldout : Use::fit);
+      r.use[i] = guard || r.outlier[i] || r.turning[i] ? Use::excluded : (s.heldout ? Use::heldout : Use::fit);
     }
   }
   for (size_t i = 0; i < n; ++i) {

@@ -579,6 +579,7 @@ class Coefficients : public Candidate {
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
     const AxisCoeffs model[2] = {r.model.alpha, r.model.beta};
     for (int a = 0; a < 2; ++a) {
+      model_amp_[a] = std::max(std::abs(rad_to_arcsec(model[a][2])), std::abs(rad_to_arcsec(model[a][5])));
       std::vector<double> n, y;
       n.reserve(rows.size());
       y.reserve(rows.size());
@@ -618,6 +619,36 @@ class Coefficients : public Candidate {
   void set(const EffectParams& p) override {
     if (p.coefficients) { c_[0] = p.coefficients->alpha; c_[1] = p.coefficients->beta; }
   }
+  // Ill-conditioned or implausible: sinusoids far beyond any the sensor family shows (10x the
+  // model's largest, at least 200 arcsec), or two that nearly cancel (each more than 10x what the
+  // pair adds up to over the counts fitted): the refit then stands in for something eq. 1 is not.
+  std::string degenerate() const override {
+    if (!fitted_) return {};
+    const char* axis[2] = {"alpha", "beta"};
+    for (int a = 0; a < 2; ++a) {
+      const double a3 = std::abs(rad_to_arcsec(c_[a][2])), a6 = std::abs(rad_to_arcsec(c_[a][5]));
+      const double big = std::max(a3, a6), limit = std::max(200.0, 10.0 * model_amp_[a]);
+      if (big > limit) {
+        return fmt::format("{}: sinusoid amplitudes {:.0f} and {:.0f} arcsec, beyond physical plausibility (> {:.0f})",
+                           axis[a], a3, a6, limit);
+      }
+      double s2 = 0;
+      constexpr int kSteps = 200;
+      for (int k = 0; k <= kSteps; ++k) {
+        const double nn = lo_[a] + (hi_[a] - lo_[a]) * k / kSteps;
+        const double v = rad_to_arcsec(c_[a][2] * std::sin(c_[a][3] * nn + c_[a][4]) +
+                                       c_[a][5] * std::sin(c_[a][6] * nn + c_[a][7]));
+        s2 += v * v;
+      }
+      const double rms = std::sqrt(s2 / (kSteps + 1));
+      if (big > 50.0 && std::min(a3, a6) > 10.0 * rms) {
+        return fmt::format("{}: two nearly cancelling sinusoids ({:.0f} and {:.0f} arcsec, together {:.1f} arcsec RMS): "
+                           "an ill-conditioned refit",
+                           axis[a], a3, a6, rms);
+      }
+    }
+    return {};
+  }
   ojson notes() const override {
     if (!fitted_) return ojson::object();
     return {{"params", "the sensor's transfer function (paper eq. 1) refitted per axis on the fit rows: C1..C8, "
@@ -628,6 +659,7 @@ class Coefficients : public Candidate {
  private:
   AxisCoeffs c_[2]{};
   double lo_[2] = {0, 0}, hi_[2] = {0, 0};
+  double model_amp_[2] = {0, 0};
   bool fitted_ = false;
 };
 

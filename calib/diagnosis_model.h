@@ -3,6 +3,7 @@
 #pragma once
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -38,13 +39,20 @@ struct Recording {
   std::vector<uint32_t> step_of;  // index into steps
   std::vector<Step> steps;
   std::vector<double> vel[2];       // reference rate, arcsec/s (0 in dwells)
-  std::vector<int8_t> dir[2];       // backlash: sign of the axis's last motion (0 before any)
-  std::vector<int8_t> move_dir[2];  // settling: sign of the axis's last move (emulator: kept by axes that did not move)
+  std::vector<int8_t> dir[2];       // backlash: the axis's direction of motion at this row (0 before any)
+  std::vector<int8_t> move_dir[2];  // settling: direction of the axis in the last move, 0 if it did not move
   std::vector<double> since_move;   // s since the last arrival; NaN while moving
   std::vector<Use> use;
+  // Isolated frames far from their step (calib/outliers.h): kept out of every fit and score.
+  std::vector<bool> outlier;
+  std::vector<bool> turning;  // the two rows around a reversal inside a step (left out)
+  size_t outliers = 0;
+  std::vector<int64_t> outlier_steps;
+  double expected_scatter = std::numeric_limits<double>::quiet_NaN();  // model file's, arcsec
   std::vector<uint32_t> fit_rows, heldout_rows;
   CoefficientSet model;
   double guard_s = 0;
+  double reverse_arcsec = 0;  // the direction detector's hysteresis
   size_t dwells = 0, motions = 0, excluded_rows = 0;
 };
 
@@ -83,6 +91,9 @@ class Candidate {
   virtual void hold(const std::string& key, double value) {}
   // The next fit starts afresh (global search) instead of from the last solution.
   virtual void restart() {}
+  // Why the last fit is ill-conditioned or physically implausible (empty when it is not): such a
+  // candidate is reported but can never be the cause.
+  virtual std::string degenerate() const { return {}; }
 };
 
 std::unique_ptr<Candidate> make_candidate(const std::string& name);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <map>
 #include <stdexcept>
 
@@ -60,9 +61,50 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
     if (std::isfinite(residual[i])) rows_of[step[i]].push_back(i);
 
   std::vector<double> centre(residual.size(), NAN), deviations, tmp;
+  std::vector<bool> edge(residual.size(), false);
   deviations.reserve(residual.size());
   for (const auto& [id, rows] : rows_of) {
     if (static_cast<int>(rows.size()) < rule.min_step_frames) continue;
+    if (rule.local_half_window > 0) {
+      // The median of the frame and its neighbours, as many on each side (up to k) as the step
+      // has: it keeps a step change and anything monotonic exactly, while a spike never is the
+      // median. The deviation of a noise-only frame from such a median is smaller than from the
+      // step's median, by a factor that depends on the window (Gaussian: 0.462, 0.732, 0.817 of
+      // sigma for 3, 5, 7 frames): the robust sigma is taken from deviations divided by it. A frame
+      // is judged by its own deviation (in the tail the median hardly depends on the frame, so the
+      // deviation is as wide as the noise). First and last frames are not judged.
+      const size_t k = static_cast<size_t>(rule.local_half_window);
+      for (size_t q = 0; q < rows.size(); ++q) {
+        const size_t h = std::min({k, q, rows.size() - 1 - q});
+        if (h == 0) {
+          // A step's first or last frame: the line through its k nearest neighbours (Theil-Sen:
+          // the median of their pairwise slopes), extrapolated to it, judged against a limit
+          // widened by the extrapolation's own scatter (x1.5).
+          const size_t m = std::min(k, rows.size() - 1);
+          if (m < 2) continue;
+          std::vector<double> xs, ys, slopes;
+          for (size_t j = 1; j <= m; ++j) {
+            const size_t w = q == 0 ? j : q - j;
+            xs.push_back(q == 0 ? static_cast<double>(j) : -static_cast<double>(j));
+            ys.push_back(residual[rows[w]]);
+          }
+          for (size_t u = 0; u < xs.size(); ++u)
+            for (size_t v = u + 1; v < xs.size(); ++v) slopes.push_back((ys[v] - ys[u]) / (xs[v] - xs[u]));
+          const double slope = median_of(slopes);
+          for (size_t u = 0; u < xs.size(); ++u) ys[u] -= slope * xs[u];
+          centre[rows[q]] = median_of(ys);
+          edge[rows[q]] = true;
+          continue;
+        }
+        tmp.clear();
+        for (size_t w = q - h; w <= q + h; ++w) tmp.push_back(residual[rows[w]]);
+        const double m = median_of(tmp);
+        const double f = h == 1 ? 0.462 : h == 2 ? 0.732 : h == 3 ? 0.817 : 1.0 - 0.183 * 3.0 / static_cast<double>(h);
+        centre[rows[q]] = m;
+        deviations.push_back(std::fabs(residual[rows[q]] - m) / f);
+      }
+      continue;
+    }
     tmp.clear();
     for (size_t i : rows) tmp.push_back(residual[i]);
     const double m = median_of(tmp);
@@ -76,7 +118,7 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
   if (!(out.robust_sigma > 0)) return out;
   const double limit = rule.threshold_sigma * out.robust_sigma;
   for (size_t i = 0; i < residual.size(); ++i) {
-    if (std::isnan(centre[i]) || std::fabs(residual[i] - centre[i]) <= limit) continue;
+    if (std::isnan(centre[i]) || std::fabs(residual[i] - centre[i]) <= (edge[i] ? 1.5 : 1.0) * limit) continue;
     out.outlier[i] = true;
     ++out.count;
     if (out.steps.empty() || out.steps.back() != step[i]) out.steps.push_back(step[i]);

@@ -18,6 +18,12 @@ struct OutlierRule {
   // median absolute deviation of zero, so the caller passes the rounding's own scatter (1/sqrt(12)
   // of a count, in the residual's units) or the expected noise.
   double min_sigma = 0;
+  // 0: the centre is the step's median (a step at rest). k > 0: the centre is the median of the
+  // frame and its neighbours within the same step (in frame order), up to k on each side and as
+  // many on both sides: it follows a step change, a settling decay or a slew's changing residual,
+  // while an isolated spike is never the median. A step's first and last frames are judged against
+  // the line through their nearest neighbours, with a limit 1.5x as wide.
+  int local_half_window = 0;
 };
 
 struct OutlierFlags {

@@ -168,7 +168,9 @@ std::vector<Effect> draw_effects(const std::string& cls, uint64_t seed, const Be
 BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Effect>& effects, uint64_t seed,
                          const std::string& save_dir) {
   BenchConfig cfg = blindtest_bench(seed);
-  const CoefficientSet model = cfg.truth;  // the sim model: the coefficient file the bench used as truth
+  // The sim model: the coefficient file the bench used as truth, with the scatter it expects.
+  CoefficientSet model = cfg.truth;
+  model.extra["expected_scatter_arcsec"] = expected_scatter_arcsec(cfg);
   cfg.effects = effects;
   Bench bench(cfg);
   SampleTable rec = record_session(bench, blindtest_plan());
@@ -537,6 +539,44 @@ std::string BlindTestReport::to_text() const {
       100 * m["param_relative_error"]["max"].get<double>(), m["gap_after_within_1_5_noise"].get<size_t>(), cases.size(),
       m["shrink_gap_after_over_noise"]["median"].get<double>(), m["shrink_gap_after_over_noise"]["max"].get<double>());
   return s;
+}
+
+void write_emitted_bench(const std::string& bench_path, const Diagnosis& d, const std::string& model_path) {
+  namespace fs = std::filesystem;
+  const fs::path bench = fs::absolute(bench_path);
+  fs::path truth = fs::absolute(model_path);
+  std::string y = fmt::format("# Emulator bench file written by `fpss-stand diagnose --emit-bench` from {}\n"
+                              "# verdict: {}; the model as truth, the diagnosed causes as effects.\n",
+                              d.source, d.verdict);
+  y += fmt::format("truth: \"{}\"\n", truth.lexically_relative(bench.parent_path()).string());
+  y += "effects:\n";
+  if (d.causes.empty()) y += "  []\n";
+  for (const auto& c : d.causes) {
+    if (c.name == "coefficients") {
+      CoefficientSet set = load_coefficients(truth);
+      set.alpha = c.params.at("alpha").get<AxisCoeffs>();
+      set.beta = c.params.at("beta").get<AxisCoeffs>();
+      set.extra["source"] = "diagnose --emit-bench: the refitted transfer function";
+      const fs::path cf = bench.parent_path() / (bench.stem().string() + ".coefficients.json");
+      save_coefficients(cf, set);
+      y += fmt::format("  - {{name: coefficients, file: \"{}\"}}\n", cf.filename().string());
+      continue;
+    }
+    std::string line = "  - {name: " + c.name;
+    const auto& keys = effect_catalogue().at(c.name);
+    for (const auto& k : keys) {
+      if (c.params.contains(k)) line += fmt::format(", {}: {:.10g}", k, c.params.at(k).get<double>());
+    }
+    line += "}";
+    if (c.name == "temperature" && c.params.contains("t0_c")) {
+      line += fmt::format("  # diagnosed t0_c {:.4g} C: the bench profile's t0_c", c.params.at("t0_c").get<double>());
+    }
+    y += line + "\n";
+  }
+  std::ofstream out(bench);
+  if (!out) throw std::runtime_error(bench.string() + ": cannot write");
+  out << y;
+  if (!out.flush()) throw std::runtime_error(bench.string() + ": cannot write");
 }
 
 }  // namespace fpss

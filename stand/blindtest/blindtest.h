@@ -77,4 +77,12 @@ BlindTestReport run_blindtest(const BlindTestOptions& opts, const std::function<
 BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Effect>& effects, uint64_t seed,
                          const std::string& save_dir = {});
 
+// Closing the loop: an emulator bench file (the format `emulate --bench` and load_bench_file
+// read) with the model as truth and the diagnosed causes as effects, with their parameters. The
+// truth is `model_path` (written relative to the bench file's folder when it lies inside it); a
+// refitted transfer function is written next to the bench file as <stem>.coefficients.json and
+// named by the coefficients effect's `file`. Catalogued causes only; a temperature's t0_c (the
+// profile's starting temperature on the emulator) is noted in a comment.
+void write_emitted_bench(const std::string& bench_path, const Diagnosis& d, const std::string& model_path);
+
 }  // namespace fpss

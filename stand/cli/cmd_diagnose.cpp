@@ -12,6 +12,7 @@
 #include "calib/text_file.h"
 #include "stand/blindtest/blindtest.h"
 #include "stand/cli/commands.h"
+#include "stand/report/diagnosis_page.h"
 
 namespace fpss::cli {
 namespace fs = std::filesystem;
@@ -24,7 +25,7 @@ void write_json_file(const std::string& path, const nlohmann::ordered_json& j) {
 
 void add_diagnose_command(CLI::App& app, Runner& run) {
   struct Opts {
-    std::string model, data, out, report;
+    std::string model, data, out, report, emit_bench;
     DiagnosisOptions d;
     bool partial = false;
   };
@@ -34,6 +35,8 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   sub->add_option("--data", o->data, "the real recording: a samples CSV (all phases; temperature_c used when present)")->required();
   sub->add_option("--out", o->out, "GAP.json to write")->required();
   sub->add_option("--report", o->report, "GAP.html: residuals against every factor before/after, residual map");
+  sub->add_option("--emit-bench", o->emit_bench,
+                  "write an emulator bench file: the model as truth, the diagnosed causes as effects");
   sub->add_option("--settle-s", o->d.settle_s,
                   "time from a dwell's arrival to its first sample, when no time_since_move_s column says it")
       ->default_val(0.0);
@@ -55,8 +58,9 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
       nlohmann::ordered_json j = d.to_json();
       j["model"] = o->model;
       write_json_file(o->out, j);
-      if (!o->report.empty()) write_diagnosis_report(o->report, data, model, d, o->d);
-      std::printf("cause: %s", d.cause.c_str());
+      if (!o->emit_bench.empty()) write_emitted_bench(o->emit_bench, d, o->model);
+      if (!o->report.empty()) write_diagnosis_page(o->report, d, diagnosis_figures(data, model, d, o->d));
+      std::printf("verdict: %s\n%s\ncause: %s", d.verdict.c_str(), d.verdict_sentence.c_str(), d.cause.c_str());
       for (size_t k = 1; k < d.causes.size(); ++k) std::printf(", then %s", d.causes[k].name.c_str());
       std::printf("\ngap: %.4f arcsec before, %.4f after (noise floor %.4f), held-out rows %zu\n", d.gap_before_arcsec,
                   d.gap_after_all_arcsec, d.noise_floor_arcsec, j["split"]["heldout_rows"].get<size_t>());

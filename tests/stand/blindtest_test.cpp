@@ -15,11 +15,92 @@
 #include <nlohmann/json.hpp>
 
 #include "calib/samples.h"
+#include "stand/report/diagnosis_page.h"
 
 namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
+
+// Closing the loop: a recording with a known effect is diagnosed, the diagnosis emitted as an
+// emulator bench file, the bench re-simulated from that file (load_bench_file, as `emulate
+// --bench` reads it) and diagnosed again: the same cause, parameters within 5 %.
+TEST(EmitBench, RoundTripThroughTheEmulatorsBenchFile) {
+  const fs::path dir = fs::path(::testing::TempDir()) / "emit_bench";
+  fs::create_directories(dir);
+  for (const std::string spec : {"settling:amplitude_arcsec=4,tau_s=0.7", "time_skew:skew_s=0.05"}) {
+    SCOPED_TRACE(spec);
+    BenchConfig cfg = blindtest_bench(77);
+    CoefficientSet model = cfg.truth;
+    model.extra["expected_scatter_arcsec"] = expected_scatter_arcsec(cfg);
+    const fs::path model_path = dir / "model.json";
+    save_coefficients(model_path, model);
+    cfg.effects.push_back(parse_effect(spec));
+    Bench b1(cfg);
+    const Diagnosis d1 = diagnose(record_session(b1, blindtest_plan()), model, blindtest_diagnosis_options());
+    const std::string name = cfg.effects.front().name;
+    ASSERT_EQ(d1.cause, name);
+    const fs::path bench_path = dir / "bench.yaml";
+    write_emitted_bench(bench_path.string(), d1, model_path.string());
+    BenchConfig cfg2 = load_bench_file(bench_path);
+    ASSERT_EQ(cfg2.effects.size(), 1u);
+    EXPECT_EQ(cfg2.effects.front().name, name);
+    EXPECT_NEAR(expected_scatter_arcsec(cfg2), expected_scatter_arcsec(cfg), 1e-9);  // the truth's scatter honoured
+    cfg2.seed = 78;
+    cfg2.temperature = cfg.temperature;
+    Bench b2(cfg2);
+    const Diagnosis d2 = diagnose(record_session(b2, blindtest_plan()), model, blindtest_diagnosis_options());
+    EXPECT_EQ(d2.cause, name);
+    EXPECT_EQ(d2.verdict, "explained");
+    for (const auto& [k, v] : cfg.effects.front().params) {
+      const double p1 = d1.causes.front().params.at(k).get<double>(), p2 = d2.causes.front().params.at(k).get<double>();
+      EXPECT_NEAR(p2, p1, 0.05 * std::abs(p1)) << k;
+      EXPECT_NEAR(p2, v, 0.05 * std::abs(v)) << k;
+    }
+  }
+}
+
+TEST(DiagnosisPage, VerdictFirstThenLimitsFiguresWithGnuplotAndTablesWithout) {
+  BenchConfig cfg = blindtest_bench(111);
+  cfg.effects.push_back(parse_effect("drift:pitch_arcsec_per_s=0.02,yaw_arcsec_per_s=0.01"));
+  Bench bench(cfg);
+  const SampleTable t = record_session(bench, blindtest_plan());
+  const CoefficientSet m = cfg.truth;
+  const Diagnosis d = diagnose(t, m, blindtest_diagnosis_options());
+  const DiagnosisFigures f = diagnosis_figures(t, m, d, blindtest_diagnosis_options());
+  ASSERT_FALSE(f.factors.empty());
+  ASSERT_FALSE(f.map.empty());
+  const std::string dir = ::testing::TempDir();
+  auto read = [](const std::string& p) {
+    std::ifstream in(p);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  };
+  const std::string with = dir + "/diag_with.html", without = dir + "/diag_without.html";
+  write_diagnosis_page(with, d, f);
+  const std::string h = read(with);
+  // The verdict in one sentence opens the page, the detection limits follow.
+  const auto v = h.find("id=verdict"), lim = h.find("id=limits"), where = h.find("Where the gap lies");
+  ASSERT_NE(v, std::string::npos);
+  ASSERT_NE(lim, std::string::npos);
+  EXPECT_LT(v, lim);
+  EXPECT_LT(lim, where);
+  EXPECT_NE(h.find("Explained: drift"), std::string::npos);
+  if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
+    EXPECT_NE(h.find("<svg"), std::string::npos);
+    EXPECT_NE(h.find("Residual map over the field"), std::string::npos);
+    EXPECT_NE(h.find("Residual against slew_rate"), std::string::npos);
+  }
+  const std::string saved = std::getenv("PATH") ? std::getenv("PATH") : "";
+  setenv("PATH", "/nonexistent", 1);
+  write_diagnosis_page(without, d, f);
+  setenv("PATH", saved.c_str(), 1);
+  const std::string h2 = read(without);
+  EXPECT_NE(h2.find("gnuplot is not installed"), std::string::npos);
+  EXPECT_EQ(h2.find("<svg"), std::string::npos);
+  EXPECT_NE(h2.find("Where the gap lies"), std::string::npos);
+}
 
 TEST(BlindCheck, SeededSetCoversEveryEffectAndNoneAndMeetsTheTargets) {
   BlindTestOptions o;
