@@ -16,6 +16,7 @@
 
 #include "calib/samples.h"
 #include "stand/report/diagnosis_page.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
@@ -87,7 +88,7 @@ TEST(DiagnosisPage, VerdictFirstThenLimitsFiguresWithGnuplotAndTablesWithout) {
   EXPECT_LT(v, lim);
   EXPECT_LT(lim, where);
   EXPECT_NE(h.find("Explained: drift"), std::string::npos);
-  if (std::system("command -v gnuplot >/dev/null 2>&1") == 0) {
+  if (!test::find_program("gnuplot").empty()) {
     EXPECT_NE(h.find("<svg"), std::string::npos);
     EXPECT_NE(h.find("Residual map over the field"), std::string::npos);
     EXPECT_NE(h.find("Residual against slew_rate"), std::string::npos);
@@ -165,10 +166,8 @@ class DiagnoseCommand : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
 
   Result run(const std::string& args) const {
-    const std::string out = path("stdout"), err = path("stderr");
-    const std::string cmd = std::string(FPSS_BINARY_DIR) + "/stand/fpss-stand " + args + " >" + out + " 2>" + err;
-    const int status = std::system(cmd.c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
+    const test::CommandResult r = test::run_stand_shell(args, dir_);
+    return {r.code, r.out, r.err};
   }
   static std::string slurp(const fs::path& p) {
     std::ifstream in(p);

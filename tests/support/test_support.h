@@ -32,6 +32,21 @@ namespace fpss::test {
 namespace fs = std::filesystem;
 
 // FPSS_BINARY_DIR comes from fpss_add_test (and the benchmarks that run the binary).
+// A program on PATH, found as exec would find it (no shell); "" when there is none.
+inline std::string find_program(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  std::string dirs = path ? path : "/usr/bin:/bin";
+  size_t start = 0;
+  while (start <= dirs.size()) {
+    const size_t end = std::min(dirs.find(':', start), dirs.size());
+    const std::string d = dirs.substr(start, end - start);
+    const std::string p = (d.empty() ? std::string(".") : d) + "/" + name;
+    if (::access(p.c_str(), X_OK) == 0) return p;
+    start = end + 1;
+  }
+  return "";
+}
+
 inline fs::path stand_binary() { return fs::path(FPSS_BINARY_DIR) / "stand" / "fpss-stand"; }
 inline fs::path source_dir() { return fs::path(FPSS_SOURCE_DIR); }
 
