@@ -13,7 +13,7 @@
 
 namespace fpss {
 
-// The candidate effects, named exactly as the emulator's --effect option (issue 3).
+// The candidate effects, named exactly as the emulator's --effect option (docs/emulator.md).
 const std::vector<std::string>& diagnosis_effect_names();
 
 // One effect with parameters in the emulator's names, conventions and units. The coefficients

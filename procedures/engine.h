@@ -13,6 +13,7 @@
 #include "drivers/sensor.h"
 #include "procedures/settings.h"
 #include "procedures/plan.h"
+#include "procedures/align.h"
 #include "procedures/events.h"
 #include "procedures/recorder.h"
 
@@ -81,6 +82,9 @@ class Engine {
   void do_move(const Action& a);
   void measure_dwell(const Action& a, int session);
   void measure_slew(const Action& a, int session);
+  // Each slew frame's time on the sensor's clock and the same instant on the gimbal's clock.
+  void slew_times(const std::vector<SensorSample>& frames, const std::vector<GimbalFix>& fixes,
+                  std::vector<double>& s_times, std::vector<double>& g_times) const;
   // Runs attempt(1), attempt(2), ... until one succeeds or the stand's re-measurements run out.
   void with_remeasure(const Action& a, const std::function<void(int)>& attempt);
   GimbalState move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing = false);

@@ -95,6 +95,37 @@ void Engine::measure_dwell(const Action& a, int session) {
   });
 }
 
+void Engine::slew_times(const std::vector<SensorSample>& frames, const std::vector<GimbalFix>& fixes,
+                        std::vector<double>& s_times, std::vector<double>& g_times) const {
+  g_times.assign(frames.size(), 0.0);
+  s_times.assign(frames.size(), 0.0);
+  if (b_.clock == ClockSync::shared) {
+    for (size_t i = 0; i < frames.size(); ++i) {
+      // Unwrap against the gimbal time nearest in host time (both on one clock).
+      auto it = std::lower_bound(fixes.begin(), fixes.end(), frames[i].host_time_s,
+                                 [](const GimbalFix& f, double h) { return f.host_time_s < h; });
+      const double ref = (it == fixes.end() ? fixes.back() : *it).gimbal_time_s;
+      s_times[i] = std::round((unwrap_near(frames[i].sensor_time_us, ref) + b_.sensor_time_offset_s) * 1e6) / 1e6;
+      g_times[i] = s_times[i];
+    }
+  } else {
+    std::vector<double> hs, ds, hg, dg;
+    for (const auto& f : frames) {
+      hs.push_back(f.host_time_s);
+      ds.push_back(f.sensor_time_s);
+    }
+    for (const auto& f : fixes) {
+      hg.push_back(f.host_time_s);
+      dg.push_back(f.gimbal_time_s);
+    }
+    const double cs = clock_offset(hs, ds, b_.time_scale), cg = clock_offset(hg, dg, b_.time_scale);
+    for (size_t i = 0; i < frames.size(); ++i) {
+      s_times[i] = frames[i].sensor_time_s + b_.sensor_time_offset_s;
+      g_times[i] = s_times[i] + cs - cg;
+    }
+  }
+}
+
 void Engine::measure_slew(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
     move_and_wait(a.start_pitch_arcsec, a.start_yaw_arcsec, b_.move_timeout_s);
@@ -173,33 +204,8 @@ void Engine::measure_slew(const Action& a, int session) {
     if (frames.empty()) throw SensorFailure("the sensor sent no frame during the slew");
 
     // Sensor time -> gimbal time.
-    std::vector<double> g_times(frames.size());
-    std::vector<double> s_times(frames.size());
-    if (b_.clock == ClockSync::shared) {
-      for (size_t i = 0; i < frames.size(); ++i) {
-        // Unwrap against the gimbal time nearest in host time (both on one clock).
-        auto it = std::lower_bound(fixes.begin(), fixes.end(), frames[i].host_time_s,
-                                   [](const GimbalFix& f, double h) { return f.host_time_s < h; });
-        const double ref = (it == fixes.end() ? fixes.back() : *it).gimbal_time_s;
-        s_times[i] = std::round((unwrap_near(frames[i].sensor_time_us, ref) + b_.sensor_time_offset_s) * 1e6) / 1e6;
-        g_times[i] = s_times[i];
-      }
-    } else {
-      std::vector<double> hs, ds, hg, dg;
-      for (const auto& f : frames) {
-        hs.push_back(f.host_time_s);
-        ds.push_back(f.sensor_time_s);
-      }
-      for (const auto& f : fixes) {
-        hg.push_back(f.host_time_s);
-        dg.push_back(f.gimbal_time_s);
-      }
-      const double cs = clock_offset(hs, ds, b_.time_scale), cg = clock_offset(hg, dg, b_.time_scale);
-      for (size_t i = 0; i < frames.size(); ++i) {
-        s_times[i] = frames[i].sensor_time_s + b_.sensor_time_offset_s;
-        g_times[i] = s_times[i] + cs - cg;
-      }
-    }
+    std::vector<double> s_times, g_times;
+    slew_times(frames, fixes, s_times, g_times);
     const double temp = read_temperature_c(a);
     std::vector<RecordedRow> rows;
     int invalid = 0, gapped = 0;

@@ -16,7 +16,6 @@
 namespace fpss {
 namespace fs = std::filesystem;
 
-// ---------------------------------------------------------------------------------------------
 // Limits
 
 namespace {
@@ -99,7 +98,6 @@ AcceptanceLimits load_acceptance_limits(const fs::path& path) {
   return parse_acceptance_limits(read_text_file(path, "the acceptance limits file"), path.string());
 }
 
-// ---------------------------------------------------------------------------------------------
 // Roles
 
 const char* to_string(PointRole r) {
@@ -158,7 +156,6 @@ std::map<int64_t, PointRole> acceptance_roles(const Procedure& proc, const Plan&
   return roles;
 }
 
-// ---------------------------------------------------------------------------------------------
 // Judging
 
 namespace {

@@ -9,14 +9,10 @@
 #include "calib/coefficients.h"
 #include "calib/errors.h"
 #include "calib/json_file.h"
+#include "tests/support/fuzz_check.h"
 
 namespace {
-void check(bool ok, const char* what) {
-  if (!ok) {
-    std::fprintf(stderr, "coefficient reader invariant violated: %s\n", what);
-    std::abort();
-  }
-}
+void check(bool ok, const char* what) { fpss::test::fuzz_check(ok, "coefficient reader", what); }
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {

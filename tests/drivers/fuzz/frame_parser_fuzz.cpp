@@ -4,15 +4,10 @@
 #include <cstdlib>
 
 #include "drivers/fpss_frame.h"
+#include "tests/support/fuzz_check.h"
 
 namespace {
-
-void check(bool ok, const char* what) {
-  if (!ok) {
-    std::fprintf(stderr, "frame parser invariant violated: %s\n", what);
-    std::abort();
-  }
-}
+void check(bool ok, const char* what) { fpss::test::fuzz_check(ok, "frame parser", what); }
 
 }  // namespace
 

@@ -10,14 +10,10 @@
 #include "calib/errors.h"
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
+#include "tests/support/fuzz_check.h"
 
 namespace {
-void check(bool ok, const char* what) {
-  if (!ok) {
-    std::fprintf(stderr, "procedure reader invariant violated: %s\n", what);
-    std::abort();
-  }
-}
+void check(bool ok, const char* what) { fpss::test::fuzz_check(ok, "procedure reader", what); }
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {

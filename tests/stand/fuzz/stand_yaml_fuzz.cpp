@@ -8,14 +8,10 @@
 
 #include "calib/errors.h"
 #include "stand/config/stand_config.h"
+#include "tests/support/fuzz_check.h"
 
 namespace {
-void check(bool ok, const char* what) {
-  if (!ok) {
-    std::fprintf(stderr, "stand reader invariant violated: %s\n", what);
-    std::abort();
-  }
-}
+void check(bool ok, const char* what) { fpss::test::fuzz_check(ok, "stand reader", what); }
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
