@@ -140,19 +140,43 @@ ojson flexible_shrink(const Recording& r, const std::vector<double> e_in[2], con
   return j;
 }
 
-}  // namespace
+struct Pick {
+  double gain[2] = {0, 0};
+  Eigen::VectorXd x[2];
+};
 
-std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec,
-                                 ojson* flexible) {
-  const std::vector<uint32_t>& F = r.fit_rows;
-  const std::vector<uint32_t>& H = r.heldout_rows;
-  double total = 0;
-  for (uint32_t i : H) total += e_in[0][i] * e_in[0][i] + e_in[1][i] * e_in[1][i];
-  std::vector<WhereEntry> out;
-  if (total <= 0) return out;
-  const char* axis_name[2] = {"pitch", "yaw"};
+// The state the search for where the residual lies shares between its steps. Factors' basis
+// functions refer to its members, so it stays where it was built.
+class WhereSearch {
+ public:
+  WhereSearch(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec)
+      : r(r), e_in(e_in), F(r.fit_rows), H(r.heldout_rows), noise_arcsec(noise_arcsec) {
+    for (uint32_t i : H) total += e_in[0][i] * e_in[0][i] + e_in[1][i] * e_in[1][i];
+  }
+  WhereSearch(const WhereSearch&) = delete;
+  WhereSearch& operator=(const WhereSearch&) = delete;
 
-  auto range = [&](auto&& v) {
+  std::vector<WhereEntry> run(ojson* flexible) {
+    if (total <= 0) return out;
+    build_factors();
+    // Greedy: the factor whose fit (on the fit rows) removes most of what is left on the held-out
+    // rows, less 2 noise variances per parameter so that a flexible factor does not win by noise,
+    // takes its share; its fit is removed and the next is sought. Shares therefore add up.
+    e[0] = e_in[0];
+    e[1] = e_in[1];
+    penalty = 2.0 * noise_arcsec * noise_arcsec;
+    used.assign(factors.size(), false);
+    for (int round = 0; round < 5; ++round) {
+      if (!greedy_round()) break;
+    }
+    std::stable_sort(out.begin(), out.end(), [](const WhereEntry& a, const WhereEntry& b) { return a.share > b.share; });
+    if (flexible) *flexible = flexible_shrink(r, e_in, factors, out);
+    return out;
+  }
+
+ private:
+  template <typename V>
+  Scale range(V&& v) const {
     Scale s{std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
     for (size_t i = 0; i < r.n; ++i) {
       if (r.use[i] == Use::excluded) continue;
@@ -161,19 +185,40 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
     }
     if (!(s.hi >= s.lo)) s = Scale{};
     return s;
-  };
-  const Scale ang[2] = {range([&](size_t i) { return r.ref[0][i]; }), range([&](size_t i) { return r.ref[1][i]; })};
-  auto moving = [&](size_t i, int a) {
+  }
+  bool moving(size_t i, int a) const {
     return r.steps[r.step_of[i]].kind == StepKind::motion && std::abs(r.vel[a][i]) > 1.0;
-  };
-  const Scale rate[2] = {range([&](size_t i) { return moving(i, 0) ? r.vel[0][i] : kNaN; }),
-                         range([&](size_t i) { return moving(i, 1) ? r.vel[1][i] : kNaN; })};
-  const Scale time = range([&](size_t i) { return r.t[i]; });
-  const Scale since = range([&](size_t i) { return r.since_move[i]; });
-  const Scale temp = range([&](size_t i) { return r.temp[i]; });
+  }
+  void build_factors();
+  double fit_factor(const Factor& f, int a, Eigen::VectorXd& x) const;
+  std::string describe(const Factor& f, int a) const;
+  bool greedy_round();
+
+  const Recording& r;
+  const std::vector<double>* e_in;
+  const std::vector<uint32_t>& F;
+  const std::vector<uint32_t>& H;
+  const double noise_arcsec;
+  const char* axis_name[2] = {"pitch", "yaw"};
+  double total = 0;
+  std::vector<WhereEntry> out;
+  Scale ang[2], rate[2], time, since, temp;
+  std::vector<Factor> factors;
+  std::vector<double> e[2];
+  double penalty = 0;
+  std::vector<bool> used;
+};
+
+void WhereSearch::build_factors() {
+  ang[0] = range([&](size_t i) { return r.ref[0][i]; });
+  ang[1] = range([&](size_t i) { return r.ref[1][i]; });
+  rate[0] = range([&](size_t i) { return moving(i, 0) ? r.vel[0][i] : kNaN; });
+  rate[1] = range([&](size_t i) { return moving(i, 1) ? r.vel[1][i] : kNaN; });
+  time = range([&](size_t i) { return r.t[i]; });
+  since = range([&](size_t i) { return r.since_move[i]; });
+  temp = range([&](size_t i) { return r.temp[i]; });
   auto one = [](size_t, int) { return 1.0; };
 
-  std::vector<Factor> factors;
   factors.push_back({"constant", 1, [](size_t, int, double* p) { p[0] = 1; }, [](size_t, int) { return 0.0; }, one, 1,
                      false, ""});
   // Angles: a linear spline (kAngleKnots knots over the range covered), so that a cyclic error
@@ -222,150 +267,147 @@ std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e
                        },
                        [&](size_t i, int) { return r.temp[i]; }, one, 10, false, "without a temperature reading"});
   }
+}
 
-
-  // Greedy: the factor whose fit (on the fit rows) removes most of what is left on the held-out
-  // rows, less 2 noise variances per parameter so that a flexible factor does not win by noise,
-  // takes its share; its fit is removed and the next is sought. Shares therefore add up.
-  std::vector<double> e[2] = {e_in[0], e_in[1]};
-  const double penalty = 2.0 * noise_arcsec * noise_arcsec;
-  std::vector<bool> used(factors.size(), false);
-  struct Pick {
-    double gain[2] = {0, 0};
-    Eigen::VectorXd x[2];
-  };
-  auto fit_factor = [&](const Factor& f, int a, Eigen::VectorXd& x) {
-    Eigen::MatrixXd G = Eigen::MatrixXd::Zero(f.dims, f.dims);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(f.dims), phi(f.dims);
-    for (uint32_t i : F) {
-      f.basis(i, a, phi.data());
-      G.selfadjointView<Eigen::Lower>().rankUpdate(phi);
-      b += phi * e[a][i];
-    }
-    G = G.selfadjointView<Eigen::Lower>();
-    if (f.spline) {
-      // A roughness penalty on the spline's second differences: knots the fit rows barely reach
-      // follow their neighbours instead of swinging (the held-out rows may lie there).
-      const double lam = 1e-3 * (G.diagonal().mean() + 1e-30);
-      for (int k = 0; k + 2 < f.dims; ++k) {
-        const int idx[3] = {k, k + 1, k + 2};
-        const double c[3] = {1, -2, 1};
-        for (int u = 0; u < 3; ++u) for (int v = 0; v < 3; ++v) G(idx[u], idx[v]) += lam * c[u] * c[v];
-      }
-    }
-    G.diagonal().array() += 1e-9 * (G.diagonal().maxCoeff() + 1e-30);
-    x = G.ldlt().solve(b);
-    double before = 0, after = 0;
-    for (uint32_t i : H) {
-      f.basis(i, a, phi.data());
-      const double pred = phi.dot(x);
-      before += e[a][i] * e[a][i];
-      after += (e[a][i] - pred) * (e[a][i] - pred);
-    }
-    return before - after;
-  };
-  auto describe = [&](const Factor& f, int a) {
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (size_t i = 0; i < r.n; ++i) {
-      const double v = f.value(i, a);
-      if (r.use[i] != Use::excluded && std::isfinite(v)) { lo = std::min(lo, v); hi = std::max(hi, v); }
-    }
-    if (f.discrete) { lo = -1.5; hi = 1.5; }
-    const int nb = f.bins;
-    std::vector<double> s2(nb + 1, 0.0), c2(nb + 1, 0.0);
-    for (size_t i = 0; i < r.n; ++i) {
-      if (r.use[i] == Use::excluded) continue;
-      const int bn = bin_of(f.value(i, a), lo, hi, nb);
-      s2[bn] += e[a][i] * f.sign(i, a);
-      c2[bn] += 1;
-    }
-    if (f.name == "constant") return fmt::format("mean residual {} arcsec", signed_num(c2[0] > 0 ? s2[0] / c2[0] : 0.0));
-    auto label = [&](int bn) -> std::string {
-      if (bn == nb) return f.nan_label;
-      if (f.discrete) {
-        const int d = bn - 1;
-        return d == 0 ? "before any move of this axis" : (d > 0 ? "after motion in +" : "after motion in -");
-      }
-      const double w = (hi - lo) / nb, x0 = lo + bn * w, x1 = lo + (bn + 1) * w;
-      if (f.name == "angle" || f.name == "cross_angle") {
-        return fmt::format("at {} {:.0f}..{:.0f} arcsec", axis_name[f.name == "angle" ? a : 1 - a], x0, x1);
-      }
-      if (f.name == "slew_rate") return fmt::format("at {} rates {:+.0f}..{:+.0f} arcsec/s", axis_name[a], x0, x1);
-      if (f.name == "time") return fmt::format("at time {:.1f}..{:.1f} s", x0, x1);
-      if (f.name == "time_since_move") return fmt::format("{:.2f}..{:.2f} s after a move", x0, x1);
-      return fmt::format("at {:.2f}..{:.2f} C", x0, x1);
-    };
-    int bmax = -1, bmin = -1;
-    for (int bn = 0; bn <= nb; ++bn) {
-      if (c2[bn] < 3) continue;
-      const double m = s2[bn] / c2[bn];
-      if (bmax < 0 || m > s2[bmax] / c2[bmax]) bmax = bn;
-      if (bmin < 0 || m < s2[bmin] / c2[bmin]) bmin = bn;
-    }
-    if (bmax < 0) return std::string();
-    return fmt::format("{}mean residual {} arcsec {}, {} {}",
-                       f.name == "time_since_move" ? "in the direction of the move, " : "",
-                       signed_num(s2[bmax] / c2[bmax]), label(bmax), signed_num(s2[bmin] / c2[bmin]), label(bmin));
-  };
-
-  for (int round = 0; round < 5; ++round) {
-    int best = -1;
-    double best_adj = 0.01 * total;  // a factor must take at least 1 % of the gap
-    Pick best_pick;
-    std::vector<std::pair<double, int>> raw;  // for the noise-only case: what comes closest
-    for (size_t k = 0; k < factors.size(); ++k) {
-      if (used[k]) continue;
-      Pick p;
-      for (int a = 0; a < 2; ++a) p.gain[a] = fit_factor(factors[k], a, p.x[a]);
-      const double adj = p.gain[0] + p.gain[1] - penalty * 2 * factors[k].dims;
-      raw.push_back({p.gain[0] + p.gain[1], static_cast<int>(k)});
-      if (adj > best_adj) { best_adj = adj; best = static_cast<int>(k); best_pick = p; }
-    }
-    if (best < 0) {
-      if (out.empty()) {  // nothing stands out: the three that come closest, with their (small) shares
-        std::sort(raw.begin(), raw.end(), std::greater<>());
-        for (size_t q = 0; q < raw.size() && q < 3; ++q) {
-          const Factor& f = factors[raw[q].second];
-          out.push_back({f.name, "both", std::max(0.0, raw[q].first) / total, describe(f, 0) + "; " + describe(f, 1)});
-        }
-      }
-      break;
-    }
-    used[best] = true;
-    const Factor& f = factors[best];
-    const double g0 = std::max(0.0, best_pick.gain[0]), g1 = std::max(0.0, best_pick.gain[1]);
-    const double hi = std::max(g0, g1), lo = std::min(g0, g1);
-    WhereEntry w;
-    w.factor = f.name;
-    if (lo >= 0.01 * total && lo >= 0.25 * hi) {
-      w.axis = "both";
-      w.share = (g0 + g1) / total;
-      w.detail = fmt::format("pitch: {}; yaw: {}", describe(f, 0), describe(f, 1));
-    } else {
-      const int a = g0 >= g1 ? 0 : 1;
-      w.axis = axis_name[a];
-      w.share = (a == 0 ? g0 : g1) / total;
-      w.detail = describe(f, a);
-      // The other axis's (smaller) part of the same factor, when it counts, as its own entry.
-      if (lo >= 0.01 * total) {
-        out.push_back({f.name, axis_name[1 - a], lo / total, describe(f, 1 - a)});
-      }
-    }
-    w.share = std::min(w.share, 1.0);
-    out.push_back(w);
-    // Remove what this factor explains (its fit on the fit rows, applied everywhere).
-    Eigen::VectorXd phi(f.dims);
-    for (int a = 0; a < 2; ++a) {
-      if (best_pick.gain[a] <= 0) continue;
-      for (size_t i = 0; i < r.n; ++i) {
-        f.basis(i, a, phi.data());
-        e[a][i] -= phi.dot(best_pick.x[a]);
-      }
+double WhereSearch::fit_factor(const Factor& f, int a, Eigen::VectorXd& x) const {
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(f.dims, f.dims);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(f.dims), phi(f.dims);
+  for (uint32_t i : F) {
+    f.basis(i, a, phi.data());
+    G.selfadjointView<Eigen::Lower>().rankUpdate(phi);
+    b += phi * e[a][i];
+  }
+  G = G.selfadjointView<Eigen::Lower>();
+  if (f.spline) {
+    // A roughness penalty on the spline's second differences: knots the fit rows barely reach
+    // follow their neighbours instead of swinging (the held-out rows may lie there).
+    const double lam = 1e-3 * (G.diagonal().mean() + 1e-30);
+    for (int k = 0; k + 2 < f.dims; ++k) {
+      const int idx[3] = {k, k + 1, k + 2};
+      const double c[3] = {1, -2, 1};
+      for (int u = 0; u < 3; ++u) for (int v = 0; v < 3; ++v) G(idx[u], idx[v]) += lam * c[u] * c[v];
     }
   }
-  std::stable_sort(out.begin(), out.end(), [](const WhereEntry& a, const WhereEntry& b) { return a.share > b.share; });
-  if (flexible) *flexible = flexible_shrink(r, e_in, factors, out);
-  return out;
+  G.diagonal().array() += 1e-9 * (G.diagonal().maxCoeff() + 1e-30);
+  x = G.ldlt().solve(b);
+  double before = 0, after = 0;
+  for (uint32_t i : H) {
+    f.basis(i, a, phi.data());
+    const double pred = phi.dot(x);
+    before += e[a][i] * e[a][i];
+    after += (e[a][i] - pred) * (e[a][i] - pred);
+  }
+  return before - after;
+}
+
+std::string WhereSearch::describe(const Factor& f, int a) const {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (size_t i = 0; i < r.n; ++i) {
+    const double v = f.value(i, a);
+    if (r.use[i] != Use::excluded && std::isfinite(v)) { lo = std::min(lo, v); hi = std::max(hi, v); }
+  }
+  if (f.discrete) { lo = -1.5; hi = 1.5; }
+  const int nb = f.bins;
+  std::vector<double> s2(nb + 1, 0.0), c2(nb + 1, 0.0);
+  for (size_t i = 0; i < r.n; ++i) {
+    if (r.use[i] == Use::excluded) continue;
+    const int bn = bin_of(f.value(i, a), lo, hi, nb);
+    s2[bn] += e[a][i] * f.sign(i, a);
+    c2[bn] += 1;
+  }
+  if (f.name == "constant") return fmt::format("mean residual {} arcsec", signed_num(c2[0] > 0 ? s2[0] / c2[0] : 0.0));
+  auto label = [&](int bn) -> std::string {
+    if (bn == nb) return f.nan_label;
+    if (f.discrete) {
+      const int d = bn - 1;
+      return d == 0 ? "before any move of this axis" : (d > 0 ? "after motion in +" : "after motion in -");
+    }
+    const double w = (hi - lo) / nb, x0 = lo + bn * w, x1 = lo + (bn + 1) * w;
+    if (f.name == "angle" || f.name == "cross_angle") {
+      return fmt::format("at {} {:.0f}..{:.0f} arcsec", axis_name[f.name == "angle" ? a : 1 - a], x0, x1);
+    }
+    if (f.name == "slew_rate") return fmt::format("at {} rates {:+.0f}..{:+.0f} arcsec/s", axis_name[a], x0, x1);
+    if (f.name == "time") return fmt::format("at time {:.1f}..{:.1f} s", x0, x1);
+    if (f.name == "time_since_move") return fmt::format("{:.2f}..{:.2f} s after a move", x0, x1);
+    return fmt::format("at {:.2f}..{:.2f} C", x0, x1);
+  };
+  int bmax = -1, bmin = -1;
+  for (int bn = 0; bn <= nb; ++bn) {
+    if (c2[bn] < 3) continue;
+    const double m = s2[bn] / c2[bn];
+    if (bmax < 0 || m > s2[bmax] / c2[bmax]) bmax = bn;
+    if (bmin < 0 || m < s2[bmin] / c2[bmin]) bmin = bn;
+  }
+  if (bmax < 0) return std::string();
+  return fmt::format("{}mean residual {} arcsec {}, {} {}",
+                     f.name == "time_since_move" ? "in the direction of the move, " : "",
+                     signed_num(s2[bmax] / c2[bmax]), label(bmax), signed_num(s2[bmin] / c2[bmin]), label(bmin));
+}
+
+// One round of the greedy search; false when no factor stands out any more.
+bool WhereSearch::greedy_round() {
+  int best = -1;
+  double best_adj = 0.01 * total;  // a factor must take at least 1 % of the gap
+  Pick best_pick;
+  std::vector<std::pair<double, int>> raw;  // for the noise-only case: what comes closest
+  for (size_t k = 0; k < factors.size(); ++k) {
+    if (used[k]) continue;
+    Pick p;
+    for (int a = 0; a < 2; ++a) p.gain[a] = fit_factor(factors[k], a, p.x[a]);
+    const double adj = p.gain[0] + p.gain[1] - penalty * 2 * factors[k].dims;
+    raw.push_back({p.gain[0] + p.gain[1], static_cast<int>(k)});
+    if (adj > best_adj) { best_adj = adj; best = static_cast<int>(k); best_pick = p; }
+  }
+  if (best < 0) {
+    if (out.empty()) {  // nothing stands out: the three that come closest, with their (small) shares
+      std::sort(raw.begin(), raw.end(), std::greater<>());
+      for (size_t q = 0; q < raw.size() && q < 3; ++q) {
+        const Factor& f = factors[raw[q].second];
+        out.push_back({f.name, "both", std::max(0.0, raw[q].first) / total, describe(f, 0) + "; " + describe(f, 1)});
+      }
+    }
+    return false;
+  }
+  used[best] = true;
+  const Factor& f = factors[best];
+  const double g0 = std::max(0.0, best_pick.gain[0]), g1 = std::max(0.0, best_pick.gain[1]);
+  const double hi = std::max(g0, g1), lo = std::min(g0, g1);
+  WhereEntry w;
+  w.factor = f.name;
+  if (lo >= 0.01 * total && lo >= 0.25 * hi) {
+    w.axis = "both";
+    w.share = (g0 + g1) / total;
+    w.detail = fmt::format("pitch: {}; yaw: {}", describe(f, 0), describe(f, 1));
+  } else {
+    const int a = g0 >= g1 ? 0 : 1;
+    w.axis = axis_name[a];
+    w.share = (a == 0 ? g0 : g1) / total;
+    w.detail = describe(f, a);
+    // The other axis's (smaller) part of the same factor, when it counts, as its own entry.
+    if (lo >= 0.01 * total) {
+      out.push_back({f.name, axis_name[1 - a], lo / total, describe(f, 1 - a)});
+    }
+  }
+  w.share = std::min(w.share, 1.0);
+  out.push_back(w);
+  // Remove what this factor explains (its fit on the fit rows, applied everywhere).
+  Eigen::VectorXd phi(f.dims);
+  for (int a = 0; a < 2; ++a) {
+    if (best_pick.gain[a] <= 0) continue;
+    for (size_t i = 0; i < r.n; ++i) {
+      f.basis(i, a, phi.data());
+      e[a][i] -= phi.dot(best_pick.x[a]);
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec,
+                                 ojson* flexible) {
+  WhereSearch search(r, e_in, noise_arcsec);
+  return search.run(flexible);
 }
 
 ojson where_json(const std::vector<WhereEntry>& w) {
