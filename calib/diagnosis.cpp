@@ -5,8 +5,6 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
-#include <Eigen/Dense>
-
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -14,6 +12,7 @@
 #include <map>
 #include <numeric>
 
+#include "calib/diagnosis_internal.h"
 #include "calib/diagnosis_model.h"
 #include "calib/errors.h"
 
@@ -25,6 +24,15 @@ using diag::Contribution;
 using diag::Recording;
 using diag::StepKind;
 using diag::Use;
+using diag::mean_square;
+using diag::penalised;
+using diag::Scored;
+using diag::why_alike;
+using diag::where_of;
+using diag::where_json;
+using diag::within_step_scatter;
+using diag::detection_limit;
+using diag::decide_verdict;
 
 const std::vector<std::string>& diagnosis_effect_names() {
   static const std::vector<std::string> k = {"bias",     "drift",    "scale_factor", "boresight_roll", "axis_nonorthogonality",
@@ -32,11 +40,8 @@ const std::vector<std::string>& diagnosis_effect_names() {
   return k;
 }
 
-namespace {
+namespace diag {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-// Mean square over both axes of (residual - contribution) on `rows`.
 double mean_square(const Recording& r, const Contribution* c, const std::vector<uint32_t>& rows) {
   double s = 0;
   for (uint32_t i : rows) {
@@ -47,6 +52,17 @@ double mean_square(const Recording& r, const Contribution* c, const std::vector<
   }
   return rows.empty() ? 0.0 : s / (2.0 * static_cast<double>(rows.size()));
 }
+
+double penalised(double ms, double ms0, int k, double N) {
+  if (ms0 <= 0) return k * std::log(N);
+  return N * std::log(std::max(ms, 1e-300) / ms0) + k * std::log(N);
+}
+
+}  // namespace diag
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Measurement noise from within-step scatter: second differences of the residual between
 // consecutive rows of a dwell (var = 6 sigma^2 for white noise; smooth effects such as settling,
@@ -180,45 +196,6 @@ Observability observability(const Recording& r) {
   return o;
 }
 
-// One effect is a special case of the other: a refitted transfer function contains any bias
-// (C1) and scale factor (C1, C2, C3, C6 scaled together). Such pairs are never fitted.
-bool contained(const std::string& a, const std::string& b) {
-  auto is = [&](const char* x, const char* y) { return (a == x && b == y) || (a == y && b == x); };
-  return is("coefficients", "bias") || is("coefficients", "scale_factor");
-}
-
-// Why two effects can look alike, for the ambiguity note.
-std::string why_alike(const std::string& a, const std::string& b) {
-  auto is = [&](const char* x, const char* y) { return (a == x && b == y) || (a == y && b == x); };
-  if (is("backlash", "settling")) {
-    return "a settling with a time constant much longer than the dwells acts like backlash at rest; slews (moving, "
-           "no settling) or longer dwells tell them apart";
-  }
-  if (is("drift", "temperature") || is("bias", "temperature")) {
-    return "the temperature follows time (or barely changes) in this recording; a non-monotonic temperature profile "
-           "tells them apart";
-  }
-  if (is("scale_factor", "coefficients") || is("bias", "coefficients")) {
-    return "a refitted transfer function absorbs any offset or scale; more offsets or a wider field tell them apart";
-  }
-  if (is("boresight_roll", "axis_nonorthogonality")) {
-    return "both turn pitch into yaw; only a roll also turns yaw into pitch, which needs yaw offsets";
-  }
-  if (a == "none" || b == "none") return "the effect is barely above the noise of this recording";
-  return "the held-out data barely tells them apart";
-}
-
-struct Scored {
-  std::unique_ptr<Candidate> cand;
-  Contribution contrib;
-  EffectResult result;
-};
-
-double penalised(double ms, double ms0, int k, double N) {
-  if (ms0 <= 0) return k * std::log(N);
-  return N * std::log(std::max(ms, 1e-300) / ms0) + k * std::log(N);
-}
-
 Scored fit_one(const Recording& r, const std::string& name, const Contribution& target, double ms0, double N) {
   Scored s;
   s.cand = diag::make_candidate(name);
@@ -237,363 +214,6 @@ Scored fit_one(const Recording& r, const std::string& name, const Contribution& 
   return s;
 }
 
-// ------------------------------------------------------------------ where
-
-// Each factor explains the residual through a few smooth functions of itself (a cubic in the
-// factor, its own constant for rows where it does not apply), fitted on the fit rows and judged
-// on the held-out rows, so a flexible factor cannot claim what it merely memorised.
-struct Factor {
-  std::string name;
-  int dims = 0;
-  // Basis functions of row i for axis a, written to phi[0..dims).
-  std::function<void(size_t i, int a, double* phi)> basis;
-  // For the words: the value binned, NaN for "does not apply", and the sign the residual is read with.
-  std::function<double(size_t i, int a)> value;
-  std::function<double(size_t i, int a)> sign;
-  int bins = 10;
-  bool discrete = false;
-  std::string nan_label;
-  bool spline = false;  // hat functions of a linear spline: fitted with a roughness penalty
-};
-
-std::string signed_num(double v, int prec = 2) { return fmt::format("{:+.{}f}", v, prec); }
-
-int bin_of(double x, double lo, double hi, int bins) {
-  if (!std::isfinite(x)) return bins;
-  if (hi <= lo) return 0;
-  return std::clamp(static_cast<int>((x - lo) / (hi - lo) * bins), 0, bins - 1);
-}
-
-// Scales x from [lo, hi] to [-1, 1].
-struct Scale {
-  double lo = -1, hi = 1;
-  double operator()(double x) const { return hi > lo ? 2 * (x - lo) / (hi - lo) - 1 : 0.0; }
-};
-
-// Hat functions of a linear spline with k knots evenly over [-1, 1].
-constexpr int kAngleKnots = 24;
-void hat(double x, int k, double* phi) {
-  std::fill(phi, phi + k, 0.0);
-  const double u = std::clamp((x + 1) * 0.5 * (k - 1), 0.0, k - 1.0);
-  const int j = std::min(static_cast<int>(u), k - 2);
-  phi[j] = 1 - (u - j);
-  phi[j + 1] = u - j;
-}
-
-void cubic(double x, double* phi) {
-  phi[0] = 1;
-  phi[1] = x;
-  phi[2] = x * x;
-  phi[3] = x * x * x;
-}
-
-// How far a flexible, non-physical model of the leading factor(s) shrinks the held-out
-// remainder: per axis a linear spline (16 knots over the factor's range, its own constant where
-// the factor does not apply) in each of the one or two leading factors, fitted additively on the
-// fit rows, judged on the held-out rows. A large shrink says the remainder is a smooth function
-// of that factor that no catalogued effect has; a small one that it is not (noise, outliers, or
-// a factor the list lacks).
-ojson flexible_shrink(const Recording& r, const std::vector<double> e_in[2], const std::vector<Factor>& factors,
-                      const std::vector<WhereEntry>& lead) {
-  std::vector<const Factor*> use;
-  for (const auto& w : lead) {
-    if (use.size() >= 2 || w.share < 0.05) break;
-    for (const auto& f : factors) {
-      if (f.name == w.factor && std::find(use.begin(), use.end(), &f) == use.end()) use.push_back(&f);
-    }
-  }
-  double before = 0;
-  for (uint32_t i : r.heldout_rows) before += e_in[0][i] * e_in[0][i] + e_in[1][i] * e_in[1][i];
-  const double n_h = 2.0 * static_cast<double>(r.heldout_rows.size());
-  ojson j{{"factors", ojson::array()}, {"model", "additive linear splines, 16 knots per factor and axis, fitted on the "
-                                                 "fit rows"}};
-  if (use.empty() || before <= 0) {
-    j["heldout_rms_arcsec"] = std::sqrt(before / std::max(n_h, 1.0));
-    j["ratio"] = 1.0;
-    return j;
-  }
-  std::vector<double> e[2] = {e_in[0], e_in[1]};
-  constexpr int kKnots = 16;
-  for (const Factor* f : use) {
-    j["factors"].push_back(f->name);
-    for (int a = 0; a < 2; ++a) {
-      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-      for (size_t i = 0; i < r.n; ++i) {
-        const double v = f->value(i, a);
-        if (r.use[i] != Use::excluded && std::isfinite(v)) { lo = std::min(lo, v); hi = std::max(hi, v); }
-      }
-      const int dims = kKnots + 1;
-      auto basis = [&](size_t i, double* phi) {
-        std::fill(phi, phi + dims, 0.0);
-        const double v = f->value(i, a);
-        if (!std::isfinite(v) || !(hi > lo)) { phi[kKnots] = std::isfinite(v) ? 0.0 : 1.0; if (std::isfinite(v)) phi[0] = 1; return; }
-        const double x = std::clamp((v - lo) / (hi - lo) * (kKnots - 1), 0.0, kKnots - 1.0);
-        const int k = std::min(static_cast<int>(x), kKnots - 2);
-        const double w = x - k, sg = f->sign(i, a);
-        phi[k] = (1 - w) * sg;
-        phi[k + 1] = w * sg;
-      };
-      Eigen::MatrixXd G = Eigen::MatrixXd::Zero(dims, dims);
-      Eigen::VectorXd b = Eigen::VectorXd::Zero(dims), phi(dims);
-      for (uint32_t i : r.fit_rows) {
-        basis(i, phi.data());
-        G.selfadjointView<Eigen::Lower>().rankUpdate(phi);
-        b += phi * e[a][i];
-      }
-      G = G.selfadjointView<Eigen::Lower>();
-      const double lam = 1e-3 * (G.diagonal().mean() + 1e-30);  // roughness penalty, as in where_of
-      for (int k = 0; k + 2 < kKnots; ++k) {
-        const int idx[3] = {k, k + 1, k + 2};
-        const double c[3] = {1, -2, 1};
-        for (int u = 0; u < 3; ++u) for (int v = 0; v < 3; ++v) G(idx[u], idx[v]) += lam * c[u] * c[v];
-      }
-      G.diagonal().array() += 1e-6 * (G.diagonal().maxCoeff() + 1e-30);
-      const Eigen::VectorXd x = G.ldlt().solve(b);
-      for (size_t i = 0; i < r.n; ++i) {
-        basis(i, phi.data());
-        e[a][i] -= phi.dot(x);
-      }
-    }
-  }
-  double after = 0;
-  for (uint32_t i : r.heldout_rows) after += e[0][i] * e[0][i] + e[1][i] * e[1][i];
-  j["heldout_rms_arcsec"] = std::sqrt(after / n_h);
-  j["ratio"] = std::sqrt(after / before);
-  return j;
-}
-
-std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec,
-                                 ojson* flexible = nullptr) {
-  const std::vector<uint32_t>& F = r.fit_rows;
-  const std::vector<uint32_t>& H = r.heldout_rows;
-  double total = 0;
-  for (uint32_t i : H) total += e_in[0][i] * e_in[0][i] + e_in[1][i] * e_in[1][i];
-  std::vector<WhereEntry> out;
-  if (total <= 0) return out;
-  const char* axis_name[2] = {"pitch", "yaw"};
-
-  auto range = [&](auto&& v) {
-    Scale s{std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
-    for (size_t i = 0; i < r.n; ++i) {
-      if (r.use[i] == Use::excluded) continue;
-      const double x = v(i);
-      if (std::isfinite(x)) { s.lo = std::min(s.lo, x); s.hi = std::max(s.hi, x); }
-    }
-    if (!(s.hi >= s.lo)) s = Scale{};
-    return s;
-  };
-  const Scale ang[2] = {range([&](size_t i) { return r.ref[0][i]; }), range([&](size_t i) { return r.ref[1][i]; })};
-  auto moving = [&](size_t i, int a) {
-    return r.steps[r.step_of[i]].kind == StepKind::motion && std::abs(r.vel[a][i]) > 1.0;
-  };
-  const Scale rate[2] = {range([&](size_t i) { return moving(i, 0) ? r.vel[0][i] : kNaN; }),
-                         range([&](size_t i) { return moving(i, 1) ? r.vel[1][i] : kNaN; })};
-  const Scale time = range([&](size_t i) { return r.t[i]; });
-  const Scale since = range([&](size_t i) { return r.since_move[i]; });
-  const Scale temp = range([&](size_t i) { return r.temp[i]; });
-  auto one = [](size_t, int) { return 1.0; };
-
-  std::vector<Factor> factors;
-  factors.push_back({"constant", 1, [](size_t, int, double* p) { p[0] = 1; }, [](size_t, int) { return 0.0; }, one, 1,
-                     false, ""});
-  // Angles: a linear spline (kAngleKnots knots over the range covered), so that a cyclic error
-  // of a few hundred arcsec period is as visible as a smooth one.
-  factors.push_back({"angle", kAngleKnots, [&](size_t i, int a, double* p) { hat(ang[a](r.ref[a][i]), kAngleKnots, p); },
-                     [&](size_t i, int a) { return r.ref[a][i]; }, one, 12, false, "", true});
-  factors.push_back({"cross_angle", kAngleKnots, [&](size_t i, int a, double* p) { hat(ang[1 - a](r.ref[1 - a][i]), kAngleKnots, p); },
-                     [&](size_t i, int a) { return r.ref[1 - a][i]; }, one, 12, false, "", true});
-  // Linear in the rate: slews come at few rates (a held-out segment may run at a rate and
-  // direction the fit rows lack), and a straight line is what a few rates support.
-  factors.push_back({"slew_rate", 3,
-                     [&](size_t i, int a, double* p) {
-                       const bool m = moving(i, a);
-                       p[0] = m ? 0.0 : 1.0;
-                       p[1] = m ? 1.0 : 0.0;
-                       p[2] = m ? rate[a](r.vel[a][i]) : 0.0;
-                     },
-                     [&](size_t i, int a) { return moving(i, a) ? r.vel[a][i] : kNaN; }, one, 8, false, "at rest"});
-  factors.push_back({"approach_direction", 3,
-                     [&](size_t i, int a, double* p) {
-                       p[0] = r.dir[a][i] < 0; p[1] = r.dir[a][i] == 0; p[2] = r.dir[a][i] > 0;
-                     },
-                     [&](size_t i, int a) { return static_cast<double>(r.dir[a][i]); }, one, 3, true, ""});
-  factors.push_back({"time", 4, [&](size_t i, int, double* p) { cubic(time(r.t[i]), p); },
-                     [&](size_t i, int) { return r.t[i]; }, one, 10, false, ""});
-  // Settling acts in the direction of the move: the decay is read signed by it.
-  factors.push_back({"time_since_move", 6,
-                     [&](size_t i, int a, double* p) {
-                       const double tm = r.since_move[i];
-                       const bool ok = std::isfinite(tm);
-                       p[0] = ok ? 0.0 : 1.0;
-                       p[1] = ok ? 1.0 : 0.0;
-                       cubic(ok ? since(tm) : 0.0, p + 2);
-                       for (int k = 2; k < 6; ++k) p[k] *= ok ? r.move_dir[a][i] : 0.0;
-                     },
-                     [&](size_t i, int a) { return r.move_dir[a][i] != 0 ? r.since_move[i] : kNaN; },
-                     [&](size_t i, int a) { return r.move_dir[a][i] != 0 ? static_cast<double>(r.move_dir[a][i]) : 1.0; },
-                     8, false, "while moving or before any move"});
-  if (r.has_temperature) {
-    factors.push_back({"temperature", 5,
-                       [&](size_t i, int, double* p) {
-                         const bool ok = std::isfinite(r.temp[i]);
-                         p[0] = ok ? 0.0 : 1.0;
-                         cubic(ok ? temp(r.temp[i]) : 0.0, p + 1);
-                         if (!ok) p[1] = 0;
-                       },
-                       [&](size_t i, int) { return r.temp[i]; }, one, 10, false, "without a temperature reading"});
-  }
-
-
-  // Greedy: the factor whose fit (on the fit rows) removes most of what is left on the held-out
-  // rows, less 2 noise variances per parameter so that a flexible factor does not win by noise,
-  // takes its share; its fit is removed and the next is sought. Shares therefore add up.
-  std::vector<double> e[2] = {e_in[0], e_in[1]};
-  const double penalty = 2.0 * noise_arcsec * noise_arcsec;
-  std::vector<bool> used(factors.size(), false);
-  struct Pick {
-    double gain[2] = {0, 0};
-    Eigen::VectorXd x[2];
-  };
-  auto fit_factor = [&](const Factor& f, int a, Eigen::VectorXd& x) {
-    Eigen::MatrixXd G = Eigen::MatrixXd::Zero(f.dims, f.dims);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(f.dims), phi(f.dims);
-    for (uint32_t i : F) {
-      f.basis(i, a, phi.data());
-      G.selfadjointView<Eigen::Lower>().rankUpdate(phi);
-      b += phi * e[a][i];
-    }
-    G = G.selfadjointView<Eigen::Lower>();
-    if (f.spline) {
-      // A roughness penalty on the spline's second differences: knots the fit rows barely reach
-      // follow their neighbours instead of swinging (the held-out rows may lie there).
-      const double lam = 1e-3 * (G.diagonal().mean() + 1e-30);
-      for (int k = 0; k + 2 < f.dims; ++k) {
-        const int idx[3] = {k, k + 1, k + 2};
-        const double c[3] = {1, -2, 1};
-        for (int u = 0; u < 3; ++u) for (int v = 0; v < 3; ++v) G(idx[u], idx[v]) += lam * c[u] * c[v];
-      }
-    }
-    G.diagonal().array() += 1e-9 * (G.diagonal().maxCoeff() + 1e-30);
-    x = G.ldlt().solve(b);
-    double before = 0, after = 0;
-    for (uint32_t i : H) {
-      f.basis(i, a, phi.data());
-      const double pred = phi.dot(x);
-      before += e[a][i] * e[a][i];
-      after += (e[a][i] - pred) * (e[a][i] - pred);
-    }
-    return before - after;
-  };
-  auto describe = [&](const Factor& f, int a) {
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (size_t i = 0; i < r.n; ++i) {
-      const double v = f.value(i, a);
-      if (r.use[i] != Use::excluded && std::isfinite(v)) { lo = std::min(lo, v); hi = std::max(hi, v); }
-    }
-    if (f.discrete) { lo = -1.5; hi = 1.5; }
-    const int nb = f.bins;
-    std::vector<double> s2(nb + 1, 0.0), c2(nb + 1, 0.0);
-    for (size_t i = 0; i < r.n; ++i) {
-      if (r.use[i] == Use::excluded) continue;
-      const int bn = bin_of(f.value(i, a), lo, hi, nb);
-      s2[bn] += e[a][i] * f.sign(i, a);
-      c2[bn] += 1;
-    }
-    if (f.name == "constant") return fmt::format("mean residual {} arcsec", signed_num(c2[0] > 0 ? s2[0] / c2[0] : 0.0));
-    auto label = [&](int bn) -> std::string {
-      if (bn == nb) return f.nan_label;
-      if (f.discrete) {
-        const int d = bn - 1;
-        return d == 0 ? "before any move of this axis" : (d > 0 ? "after motion in +" : "after motion in -");
-      }
-      const double w = (hi - lo) / nb, x0 = lo + bn * w, x1 = lo + (bn + 1) * w;
-      if (f.name == "angle" || f.name == "cross_angle") {
-        return fmt::format("at {} {:.0f}..{:.0f} arcsec", axis_name[f.name == "angle" ? a : 1 - a], x0, x1);
-      }
-      if (f.name == "slew_rate") return fmt::format("at {} rates {:+.0f}..{:+.0f} arcsec/s", axis_name[a], x0, x1);
-      if (f.name == "time") return fmt::format("at time {:.1f}..{:.1f} s", x0, x1);
-      if (f.name == "time_since_move") return fmt::format("{:.2f}..{:.2f} s after a move", x0, x1);
-      return fmt::format("at {:.2f}..{:.2f} C", x0, x1);
-    };
-    int bmax = -1, bmin = -1;
-    for (int bn = 0; bn <= nb; ++bn) {
-      if (c2[bn] < 3) continue;
-      const double m = s2[bn] / c2[bn];
-      if (bmax < 0 || m > s2[bmax] / c2[bmax]) bmax = bn;
-      if (bmin < 0 || m < s2[bmin] / c2[bmin]) bmin = bn;
-    }
-    if (bmax < 0) return std::string();
-    return fmt::format("{}mean residual {} arcsec {}, {} {}",
-                       f.name == "time_since_move" ? "in the direction of the move, " : "",
-                       signed_num(s2[bmax] / c2[bmax]), label(bmax), signed_num(s2[bmin] / c2[bmin]), label(bmin));
-  };
-
-  for (int round = 0; round < 5; ++round) {
-    int best = -1;
-    double best_adj = 0.01 * total;  // a factor must take at least 1 % of the gap
-    Pick best_pick;
-    std::vector<std::pair<double, int>> raw;  // for the noise-only case: what comes closest
-    for (size_t k = 0; k < factors.size(); ++k) {
-      if (used[k]) continue;
-      Pick p;
-      for (int a = 0; a < 2; ++a) p.gain[a] = fit_factor(factors[k], a, p.x[a]);
-      const double adj = p.gain[0] + p.gain[1] - penalty * 2 * factors[k].dims;
-      raw.push_back({p.gain[0] + p.gain[1], static_cast<int>(k)});
-      if (adj > best_adj) { best_adj = adj; best = static_cast<int>(k); best_pick = p; }
-    }
-    if (best < 0) {
-      if (out.empty()) {  // nothing stands out: the three that come closest, with their (small) shares
-        std::sort(raw.begin(), raw.end(), std::greater<>());
-        for (size_t q = 0; q < raw.size() && q < 3; ++q) {
-          const Factor& f = factors[raw[q].second];
-          out.push_back({f.name, "both", std::max(0.0, raw[q].first) / total, describe(f, 0) + "; " + describe(f, 1)});
-        }
-      }
-      break;
-    }
-    used[best] = true;
-    const Factor& f = factors[best];
-    const double g0 = std::max(0.0, best_pick.gain[0]), g1 = std::max(0.0, best_pick.gain[1]);
-    const double hi = std::max(g0, g1), lo = std::min(g0, g1);
-    WhereEntry w;
-    w.factor = f.name;
-    if (lo >= 0.01 * total && lo >= 0.25 * hi) {
-      w.axis = "both";
-      w.share = (g0 + g1) / total;
-      w.detail = fmt::format("pitch: {}; yaw: {}", describe(f, 0), describe(f, 1));
-    } else {
-      const int a = g0 >= g1 ? 0 : 1;
-      w.axis = axis_name[a];
-      w.share = (a == 0 ? g0 : g1) / total;
-      w.detail = describe(f, a);
-      // The other axis's (smaller) part of the same factor, when it counts, as its own entry.
-      if (lo >= 0.01 * total) {
-        out.push_back({f.name, axis_name[1 - a], lo / total, describe(f, 1 - a)});
-      }
-    }
-    w.share = std::min(w.share, 1.0);
-    out.push_back(w);
-    // Remove what this factor explains (its fit on the fit rows, applied everywhere).
-    Eigen::VectorXd phi(f.dims);
-    for (int a = 0; a < 2; ++a) {
-      if (best_pick.gain[a] <= 0) continue;
-      for (size_t i = 0; i < r.n; ++i) {
-        f.basis(i, a, phi.data());
-        e[a][i] -= phi.dot(best_pick.x[a]);
-      }
-    }
-  }
-  std::stable_sort(out.begin(), out.end(), [](const WhereEntry& a, const WhereEntry& b) { return a.share > b.share; });
-  if (flexible) *flexible = flexible_shrink(r, e_in, factors, out);
-  return out;
-}
-
-ojson where_json(const std::vector<WhereEntry>& w) {
-  ojson a = ojson::array();
-  for (const auto& e : w) a.push_back({{"factor", e.factor}, {"axis", e.axis}, {"share", e.share}, {"detail", e.detail}});
-  return a;
-}
-
 ojson effect_json(const EffectResult& e) {
   ojson j{{"name", e.name}, {"params", e.params}, {"parameters", e.parameters}, {"fit_rms_arcsec", e.fit_rms_arcsec},
           {"heldout_rms_arcsec", e.heldout_rms_arcsec}, {"score", e.score}};
@@ -606,239 +226,202 @@ ojson effect_json(const EffectResult& e) {
   return j;
 }
 
-// Two candidates fitted jointly: alternating least squares (each on the residual less the
-// other) for their nonlinear parameters, then one least-squares solve over the linear columns of
-// both (alternation alone converges slowly when the two are correlated), until the fit rows' sum
-// of squares settles.
-struct JointFit {
-  EffectResult e[2];
-  Contribution sum;
-  double score = 0;
+// The state diagnose's steps share; the steps run in the order their methods are declared.
+class Diagnoser {
+ public:
+  Diagnoser(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts)
+      : data_(data), opts_(opts), r(diag::prepare(data, model, opts)) {}
+
+  Diagnosis run() {
+    fit_singles();
+    pick_cause();
+    find_ambiguous();
+    locate();
+    describe();
+    warn();
+    return std::move(d);
+  }
+
+ private:
+  void fit_singles();
+  void pick_cause();
+  void find_ambiguous();
+  void locate();
+  void describe();
+  void warn();
+
+  const SampleTable& data_;
+  const DiagnosisOptions& opts_;
+  const Recording r;
+  Diagnosis d;
+  double sig[2];
+  double N = 0, ms0 = 0;
+  std::vector<Scored> all;
+  Contribution combined;
+  ojson flexible;
 };
 
-void joint_linear_step(const Recording& r, Candidate* c[2], Contribution* k[2]) {
-  std::vector<Contribution> cols[2];
-  bool has[2];
-  for (int q = 0; q < 2; ++q) has[q] = c[q]->columns(r, cols[q]);
-  if (!has[0] && !has[1]) return;
-  std::vector<const Contribution*> all_cols;
-  for (int q = 0; q < 2; ++q) if (has[q]) for (const auto& col : cols[q]) all_cols.push_back(&col);
-  const int m = static_cast<int>(all_cols.size());
-  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(m, m);
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
-  for (uint32_t i : r.fit_rows) {
-    for (int a = 0; a < 2; ++a) {
-      double target = r.res[a][i];
-      for (int q = 0; q < 2; ++q) if (!has[q]) target -= k[q]->v[a][i];
-      for (int x = 0; x < m; ++x) {
-        const double vx = all_cols[x]->v[a][i];
-        if (vx == 0) continue;
-        b(x) += vx * target;
-        for (int y = 0; y <= x; ++y) G(x, y) += vx * all_cols[y]->v[a][i];
-      }
+void Diagnoser::fit_singles() {
+  d.source = r.origin;
+  d.noise_floor_arcsec = noise_floor(r, sig);
+  const Observability obs = observability(r);
+  d.not_observable = obs.missing;
+
+  N = 2.0 * static_cast<double>(r.heldout_rows.size());
+  ms0 = mean_square(r, nullptr, r.heldout_rows);
+  d.gap_before_arcsec = std::sqrt(ms0);
+  Contribution target;
+  for (int a = 0; a < 2; ++a) target.v[a] = r.res[a];
+
+  {
+    Scored none;
+    none.result.name = "none";
+    none.result.params = ojson::object();
+    none.result.fit_rms_arcsec = std::sqrt(mean_square(r, nullptr, r.fit_rows));
+    none.result.heldout_rms_arcsec = d.gap_before_arcsec;
+    none.result.score = 0;
+    none.contrib.resize(r.n);
+    all.push_back(std::move(none));
+  }
+  for (const auto& name : diagnosis_effect_names()) {
+    if (!obs.ok(name)) continue;
+    all.push_back(fit_one(r, name, target, ms0, N));
+  }
+  std::stable_sort(all.begin(), all.end(), [](const Scored& a, const Scored& b) { return a.result.score < b.result.score; });
+  for (const auto& s : all) d.effects.push_back(s.result);
+}
+
+void Diagnoser::pick_cause() {
+  // No noise floor from the data (dwells of one or two samples, no slews): the best held-out
+  // RMS bounds it from above.
+  if (!std::isfinite(d.noise_floor_arcsec)) {
+    d.noise_floor_arcsec = all.front().result.heldout_rms_arcsec;
+    d.warnings.push_back("dwells too short for within-dwell scatter: the noise floor is the best candidate's held-out "
+                         "RMS (an upper bound)");
+  }
+  // The cause: the best-scoring candidate that is also material, i.e. takes at least a tenth of
+  // the noise variance off the held-out mean square (with very many rows, a statistically
+  // significant but negligible effect would otherwise count); none if no candidate is.
+  const double material = 0.1 * d.noise_floor_arcsec * d.noise_floor_arcsec;
+  size_t pick = 0;
+  for (size_t k = 0; k < all.size(); ++k) {
+    const auto& e = all[k].result;
+    if (e.name == "none") { pick = k; break; }
+    if (!e.degenerate.empty()) continue;  // an ill-conditioned fit is never the cause
+    if (ms0 - e.heldout_rms_arcsec * e.heldout_rms_arcsec >= material) { pick = k; break; }
+  }
+  const Scored& best = all[pick];
+  d.cause = best.result.name;
+  d.gap_after_arcsec = best.result.heldout_rms_arcsec;
+  d.gap_after_all_arcsec = d.gap_after_arcsec;
+  combined.resize(r.n);
+  if (d.cause != "none") {
+    d.causes = {best.result};
+    combined = best.contrib;
+    // A second effect when the first leaves a gap above noise. Pairs are sought around a few
+    // single effects (the best single may be a flexible stand-in for two simpler ones, e.g. a
+    // settling with an endless tau for backlash plus drift): the others are screened on what
+    // that one leaves, the three most promising are fitted jointly with it, and the best pair is
+    // kept when it beats the best single's score.
+    // Also when the cause is the catch-all refitted transfer function: it contains a bias and a
+    // scale factor, and two simple effects may explain the same with far fewer parameters.
+    if (opts_.second_effect &&
+        (d.gap_after_arcsec > opts_.second_effect_gap_ratio * d.noise_floor_arcsec || d.cause == "coefficients")) {
+      diag::second_effect(r, all, best, ms0, N, material, d, combined);
     }
   }
-  G = G.selfadjointView<Eigen::Lower>();
-  G.diagonal().array() += 1e-12 * (G.diagonal().maxCoeff() + 1e-30);
-  const Eigen::VectorXd w = G.ldlt().solve(b);
-  int at = 0;
-  for (int q = 0; q < 2; ++q) {
-    if (!has[q]) continue;
-    std::vector<double> wq(w.data() + at, w.data() + at + cols[q].size());
-    at += static_cast<int>(cols[q].size());
-    c[q]->set_linear(wq);
-    c[q]->contribute(r, *k[q]);
+}
+
+void Diagnoser::find_ambiguous() {
+  // Close competitors of the cause: singles within kAmbiguous score units (a likelihood ratio of
+  // e^5) of its own score.
+  constexpr double kAmbiguous = 10.0;
+  if (d.cause != "none") {
+    double cause_score = 0;
+    for (const auto& s : all) if (s.result.name == d.cause) cause_score = s.result.score;
+    for (const auto& s : all) {
+      const std::string& n = s.result.name;
+      if (std::any_of(d.causes.begin(), d.causes.end(), [&](const EffectResult& c) { return c.name == n; })) continue;
+      const double diff = s.result.score - cause_score;
+      if (std::abs(diff) < kAmbiguous) d.ambiguous_with.push_back({n, diff, why_alike(d.cause, n)});
+    }
   }
 }
 
-JointFit joint_fit(const Recording& r, const Scored& first, const std::string& name2, double ms0, double N) {
-  auto c1 = first.cand->clone();
-  auto c2 = diag::make_candidate(name2);
-  Contribution k1 = first.contrib, k2, t, sum;
-  k2.resize(r.n);
-  t.resize(r.n);
-  sum.resize(r.n);
-  Candidate* c[2] = {c1.get(), c2.get()};
-  Contribution* k[2] = {&k1, &k2};
-  // A temperature's zero point and a constant offset (a bias, or the C1 of a refitted transfer
-  // function) trade against each other: by the emulator's convention the profile starts at t0_c,
-  // so t0_c is held at the first temperature reading.
-  const bool offset = first.result.name == "bias" || name2 == "bias" || first.result.name == "coefficients" ||
-                      name2 == "coefficients";
-  if (offset && r.has_temperature) {
-    double t_first = 0;
-    for (size_t i = 0; i < r.n; ++i) if (std::isfinite(r.temp[i])) { t_first = r.temp[i]; break; }
-    for (Candidate* q : c) if (q->name() == "temperature") q->hold("t0_c", t_first);
+void Diagnoser::locate() {
+  std::vector<double> before[2], after[2];
+  for (int a = 0; a < 2; ++a) {
+    before[a] = r.res[a];
+    after[a].resize(r.n);
+    for (size_t i = 0; i < r.n; ++i) after[a][i] = r.res[a][i] - combined.v[a][i];
   }
-  double prev = std::numeric_limits<double>::infinity();
-  for (int it = 0; it < 20; ++it) {
-    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k1.v[a][i];
-    c2->fit(r, t, r.fit_rows);
-    c2->contribute(r, k2);
-    // The first's single fit had to absorb the second too; once the second is in, it starts
-    // afresh (a refitted transfer function may otherwise stay in a wrong basin).
-    if (it == 0) c1->restart();
-    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k2.v[a][i];
-    c1->fit(r, t, r.fit_rows);
-    c1->contribute(r, k1);
-    joint_linear_step(r, c, k);
-    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) sum.v[a][i] = k1.v[a][i] + k2.v[a][i];
-    const double sse = mean_square(r, &sum, r.fit_rows);
-    if (prev - sse <= 1e-7 * sse) break;
-    prev = sse;
-  }
-  JointFit j;
-  const double ms = mean_square(r, &sum, r.heldout_rows);
-  j.score = penalised(ms, ms0, c1->parameters() + c2->parameters(), N);
-  for (int q = 0; q < 2; ++q) {
-    j.e[q].name = c[q]->name();
-    j.e[q].params = c[q]->params();
-    j.e[q].parameters = c[q]->parameters();
-    j.e[q].notes = c[q]->notes();
-    j.e[q].degenerate = c[q]->degenerate();
-    j.e[q].fit_rms_arcsec = std::sqrt(mean_square(r, &sum, r.fit_rows));  // jointly
-    j.e[q].heldout_rms_arcsec = std::sqrt(ms);
-    j.e[q].score = j.score;
-  }
-  j.sum = std::move(sum);
-  return j;
+  d.where = where_of(r, before, d.noise_floor_arcsec);
+  d.where_after = where_of(r, after, d.noise_floor_arcsec, &flexible);
+
+  // Noise is not structure: the within-step scatter of what the causes leave, against what the
+  // sim expects of one sample about its step mean.
+  d.within_step_scatter_arcsec = within_step_scatter(r, after);
+  d.expected_scatter_arcsec = r.expected_scatter;
+  d.outliers = static_cast<int64_t>(r.outliers);
+  d.outlier_fraction = static_cast<double>(r.outliers) / static_cast<double>(r.n);
+  d.outlier_steps = r.outlier_steps;
+  for (auto& e : d.effects) e.detection_limit = detection_limit(r, e, d.noise_floor_arcsec, N);
+  decide_verdict(r, d, flexible);
 }
 
-// Pooled within-step scatter of one sample about its step mean (dwells with three or more
-// frames, outliers left out), RMS over both axes; NaN when no dwell has three frames.
-double within_step_scatter(const Recording& r, const std::vector<double> e[2]) {
-  double ss[2] = {0, 0};
-  double dof = 0;
+// What the data holds and how it was divided.
+void Diagnoser::describe() {
+  std::vector<int64_t> held_ids;
+  size_t held_d = 0, held_m = 0;
   for (const auto& s : r.steps) {
-    if (s.kind != StepKind::dwell) continue;
-    double sum[2] = {0, 0}, sq[2] = {0, 0}, m = 0;
-    for (size_t i = s.begin; i < s.end; ++i) {
-      if (r.outlier[i]) continue;
-      m += 1;
-      for (int a = 0; a < 2; ++a) { sum[a] += e[a][i]; sq[a] += e[a][i] * e[a][i]; }
-    }
-    if (m < 3) continue;
-    for (int a = 0; a < 2; ++a) ss[a] += sq[a] - sum[a] * sum[a] / m;
-    dof += m - 1;
+    if (!s.heldout) continue;
+    held_ids.push_back(s.id);
+    (s.kind == StepKind::dwell ? held_d : held_m)++;
   }
-  if (dof < 10) return kNaN;
-  return std::sqrt(0.5 * (ss[0] + ss[1]) / dof);
+  d.split = {
+      {"method", fmt::format("by whole steps: of the dwells and of the slew segments, each in recording order, the "
+                             "last of every {} steps is held out (a kind with two steps gives one to each side); rows "
+                             "of one step are never divided",
+                             opts_.heldout_every)},
+      {"fit_rows", r.fit_rows.size()},
+      {"heldout_rows", r.heldout_rows.size()},
+      {"excluded_rows", r.excluded_rows},
+      {"excluded_why", fmt::format("the first and last {} s of every slew segment (the reference outside a segment "
+                                   "is not recorded, so a time shift cannot be predicted there), the rows within the same margin of every reversal inside a step (a time shift moves where the sensor sees the turn), and outlier frames",
+                                   r.guard_s)},
+      {"fit_steps", {{"dwells", r.dwells - held_d}, {"slews", r.motions - held_m}}},
+      {"heldout_steps", {{"dwells", held_d}, {"slews", held_m}}},
+      {"heldout_step_ids", held_ids}};
+  double t_lo = r.t.front(), t_hi = r.t.back();
+  d.recording = {{"rows", r.n},
+                 {"steps", r.steps.size()},
+                 {"dwells", r.dwells},
+                 {"slew_segments", r.motions},
+                 {"time_span_s", {t_lo, t_hi}},
+                 {"noise_floor_per_axis_arcsec", {{"pitch", sig[0]}, {"yaw", sig[1]}}},
+                 {"temperature_c", r.has_temperature},
+                 {"settle_s", opts_.settle_s}};
 }
 
-// The smallest magnitude of each of a candidate's parameters that this recording would have made
-// material: an effect of magnitude m adds m^2 G to the held-out mean square (G the mean square of
-// its contribution per unit, both axes); the candidate is found when that beats both the
-// materiality rule (0.1 noise^2) and the score's penalty (N ln(1 + m^2 G / noise^2) > k ln N).
-// Nonlinear parameters (settling's tau, temperature's t0_c) are held at the fitted values;
-// magnitudes are taken small, where every effect is linear in them.
-ojson detection_limit(const Recording& r, const EffectResult& e, double noise, double N) {
-  ojson out = ojson::object();
-  if (e.name == "none" || e.name == "coefficients" || !std::isfinite(noise) || noise <= 0) return out;
-  static const std::map<std::string, double> unit = {
-      {"pitch_arcsec", 0.01},         {"yaw_arcsec", 0.01},         {"pitch_arcsec_per_s", 1e-5},
-      {"yaw_arcsec_per_s", 1e-5},     {"pitch_ppm", 1.0},           {"yaw_ppm", 1.0},
-      {"roll_arcsec", 0.1},           {"skew_arcsec", 0.1},         {"width_arcsec", 0.01},
-      {"amplitude_arcsec", 0.01},     {"skew_s", 1e-5},             {"pitch_arcsec_per_c", 0.001},
-      {"yaw_arcsec_per_c", 0.001}};
-  const double need = noise * noise * std::max(0.1, std::expm1(e.parameters * std::log(N) / N));
-  for (auto it = e.params.begin(); it != e.params.end(); ++it) {
-    auto u = unit.find(it.key());
-    if (u == unit.end()) continue;
-    EffectParams p;
-    p.name = e.name;
-    for (auto jt = e.params.begin(); jt != e.params.end(); ++jt) {
-      if (jt.value().is_number()) p.params[jt.key()] = unit.count(jt.key()) ? 0.0 : jt.value().get<double>();
-    }
-    if (e.name == "settling" && !(p.params["tau_s"] > 0.02 && p.params["tau_s"] < 29)) p.params["tau_s"] = 0.5;
-    if (e.name == "temperature") {
-      double s = 0, m = 0;
-      for (size_t i = 0; i < r.n; ++i) if (std::isfinite(r.temp[i])) { s += r.temp[i]; m += 1; }
-      if (m > 0) p.params["t0_c"] = s / m;  // only the temperature's variation is told from a bias
-    }
-    p.params[it.key()] = u->second;
-    auto c = diag::make_candidate(e.name);
-    c->set(p);
-    Contribution k;
-    k.resize(r.n);
-    c->contribute(r, k);
-    double g = 0;
-    for (uint32_t i : r.heldout_rows) g += k.v[0][i] * k.v[0][i] + k.v[1][i] * k.v[1][i];
-    g /= N * u->second * u->second;
-    out[it.key()] = g > 0 ? std::sqrt(need / g) : std::numeric_limits<double>::infinity();
+void Diagnoser::warn() {
+  if (!data_.has_column("time_since_move_s")) {
+    d.warnings.push_back(fmt::format(
+        "no time_since_move_s column: dwells are taken to start {} s after their arrival (settle_s); settling "
+        "amplitudes refer to that arrival",
+        opts_.settle_s));
   }
-  return out;
-}
-
-// The verdict (docs/diagnosis.md): no_gap, explained, partly_explained or unexplained, and the
-// remainder when something stays unexplained.
-void decide_verdict(const Recording& r, Diagnosis& d, const ojson& flexible) {
-  const double nf = d.noise_floor_arcsec;
-  const double remainder = d.cause == "none" ? d.gap_before_arcsec : d.gap_after_all_arcsec;
-  const bool held_gap = remainder > 1.5 * nf;
-  const bool scatter = std::isfinite(d.excess_scatter()) && d.excess_scatter() > 2.0;
-  const bool outl = d.outliers > 0;
-  const bool found = d.cause != "none";
-  if (!held_gap && !scatter && !outl) {
-    d.verdict = found ? "explained" : "no_gap";
-  } else {
-    d.verdict = found ? "partly_explained" : "unexplained";
+  if (d.cause != "none" && d.gap_after_all_arcsec > 1.5 * d.noise_floor_arcsec) {
+    d.warnings.push_back(fmt::format(
+        "the cause{} leave{} {:.2f}x the noise floor on the held-out rows: something else is at work too (see "
+        "where_after)",
+        d.causes.size() > 1 ? "s" : "", d.causes.size() > 1 ? "" : "s", d.gap_after_all_arcsec / d.noise_floor_arcsec));
   }
-  std::vector<std::string> why;
-  if (held_gap) {
-    why.push_back(fmt::format("{:.2f}x the noise floor stays on the held-out steps", remainder / nf));
+  for (const auto& m : d.ambiguous_with) {
+    d.warnings.push_back(fmt::format("{} scores within {:.1f} of {}: {}", m.name, m.score_difference, d.cause, m.why));
   }
-  if (scatter) {
-    why.push_back(fmt::format("the scatter within steps is {:.1f}x what the model expects", d.excess_scatter()));
+  for (const auto& n : d.not_observable) {
+    d.warnings.push_back(fmt::format("{} is not observable in this recording: {}", n.name, n.reason));
   }
-  if (outl) {
-    why.push_back(fmt::format("{} outlier frame{} ({:.2f} %)", d.outliers, d.outliers == 1 ? "" : "s",
-                              100 * d.outlier_fraction));
-  }
-  std::string causes;
-  for (size_t k = 0; k < d.causes.size(); ++k) causes += (k ? " and " : "") + d.causes[k].name;
-  if (d.verdict == "no_gap") {
-    d.verdict_sentence = fmt::format("No gap: the recording matches the model within its noise ({:.3f} arcsec held out "
-                                     "against a noise floor of {:.3f}).",
-                                     remainder, nf);
-  } else if (d.verdict == "explained") {
-    d.verdict_sentence = fmt::format("Explained: {} account{} for the gap ({:.3f} -> {:.3f} arcsec held out, noise "
-                                     "floor {:.3f}).",
-                                     causes, d.causes.size() > 1 ? "" : "s", d.gap_before_arcsec, remainder, nf);
-  } else if (d.verdict == "partly_explained") {
-    d.verdict_sentence = fmt::format("Partly explained: {} account{} for part of the gap ({:.3f} -> {:.3f} arcsec "
-                                     "held out), but {}.",
-                                     causes, d.causes.size() > 1 ? "" : "s", d.gap_before_arcsec, remainder,
-                                     fmt::join(why, "; "));
-  } else {
-    d.verdict_sentence = fmt::format("Unexplained: no catalogued effect is material, yet {}.", fmt::join(why, "; "));
-  }
-  if (d.verdict != "partly_explained" && d.verdict != "unexplained") return;
-  Diagnosis::Remainder rem;
-  rem.heldout_rms_arcsec = remainder;
-  rem.flexible_shrink = flexible;
-  std::vector<WhereEntry> extra;
-  if (scatter) {
-    const double x = d.excess_scatter();
-    extra.push_back({"within_step", "both", std::clamp(1.0 - 1.0 / (x * x), 0.0, 1.0),
-                     fmt::format("one sample scatters {:.4f} arcsec about its step mean, {:.1f}x the expected {:.4f} "
-                                 "(vibration, or noise the model does not know)",
-                                 d.within_step_scatter_arcsec, x, d.expected_scatter_arcsec)});
-  }
-  if (outl) {
-    extra.push_back({"outlier_frames", "both", d.outlier_fraction,
-                     fmt::format("{} isolated frame{} more than 6 robust sigmas from their step, in {} step{} (kept out "
-                                 "of every fit)",
-                                 d.outliers, d.outliers == 1 ? "" : "s", d.outlier_steps.size(),
-                                 d.outlier_steps.size() == 1 ? "" : "s")});
-  }
-  if (held_gap) {
-    rem.where = d.where_after;
-    rem.where.insert(rem.where.end(), extra.begin(), extra.end());
-  } else {
-    rem.where = extra;
-  }
-  d.unexplained = std::move(rem);
-  (void)r;
 }
 
 }  // namespace
@@ -907,244 +490,7 @@ ojson Diagnosis::to_json() const {
 }
 
 Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts) {
-  const Recording r = diag::prepare(data, model, opts);
-  Diagnosis d;
-  d.source = r.origin;
-  double sig[2];
-  d.noise_floor_arcsec = noise_floor(r, sig);
-  const Observability obs = observability(r);
-  d.not_observable = obs.missing;
-
-  const double N = 2.0 * static_cast<double>(r.heldout_rows.size());
-  const double ms0 = mean_square(r, nullptr, r.heldout_rows);
-  d.gap_before_arcsec = std::sqrt(ms0);
-  Contribution target;
-  for (int a = 0; a < 2; ++a) target.v[a] = r.res[a];
-
-  std::vector<Scored> all;
-  {
-    Scored none;
-    none.result.name = "none";
-    none.result.params = ojson::object();
-    none.result.fit_rms_arcsec = std::sqrt(mean_square(r, nullptr, r.fit_rows));
-    none.result.heldout_rms_arcsec = d.gap_before_arcsec;
-    none.result.score = 0;
-    none.contrib.resize(r.n);
-    all.push_back(std::move(none));
-  }
-  for (const auto& name : diagnosis_effect_names()) {
-    if (!obs.ok(name)) continue;
-    all.push_back(fit_one(r, name, target, ms0, N));
-  }
-  std::stable_sort(all.begin(), all.end(), [](const Scored& a, const Scored& b) { return a.result.score < b.result.score; });
-  for (const auto& s : all) d.effects.push_back(s.result);
-
-  // No noise floor from the data (dwells of one or two samples, no slews): the best held-out
-  // RMS bounds it from above.
-  if (!std::isfinite(d.noise_floor_arcsec)) {
-    d.noise_floor_arcsec = all.front().result.heldout_rms_arcsec;
-    d.warnings.push_back("dwells too short for within-dwell scatter: the noise floor is the best candidate's held-out "
-                         "RMS (an upper bound)");
-  }
-  // The cause: the best-scoring candidate that is also material, i.e. takes at least a tenth of
-  // the noise variance off the held-out mean square (with very many rows, a statistically
-  // significant but negligible effect would otherwise count); none if no candidate is.
-  const double material = 0.1 * d.noise_floor_arcsec * d.noise_floor_arcsec;
-  size_t pick = 0;
-  for (size_t k = 0; k < all.size(); ++k) {
-    const auto& e = all[k].result;
-    if (e.name == "none") { pick = k; break; }
-    if (!e.degenerate.empty()) continue;  // an ill-conditioned fit is never the cause
-    if (ms0 - e.heldout_rms_arcsec * e.heldout_rms_arcsec >= material) { pick = k; break; }
-  }
-  const Scored& best = all[pick];
-  d.cause = best.result.name;
-  d.gap_after_arcsec = best.result.heldout_rms_arcsec;
-  d.gap_after_all_arcsec = d.gap_after_arcsec;
-  Contribution combined;
-  combined.resize(r.n);
-  if (d.cause != "none") {
-    d.causes = {best.result};
-    combined = best.contrib;
-    // A second effect when the first leaves a gap above noise. Pairs are sought around a few
-    // single effects (the best single may be a flexible stand-in for two simpler ones, e.g. a
-    // settling with an endless tau for backlash plus drift): the others are screened on what
-    // that one leaves, the three most promising are fitted jointly with it, and the best pair is
-    // kept when it beats the best single's score.
-    // Also when the cause is the catch-all refitted transfer function: it contains a bias and a
-    // scale factor, and two simple effects may explain the same with far fewer parameters.
-    if (opts.second_effect &&
-        (d.gap_after_arcsec > opts.second_effect_gap_ratio * d.noise_floor_arcsec || d.cause == "coefficients")) {
-      // Firsts: the three best held-out scores and the two best in-sample fits (with two effects
-      // at once a single fit can be biased by the other effect so that it fails on the held-out
-      // rows while still taking the most off the fit rows).
-      std::vector<const Scored*> firsts;
-      auto add_first = [&](const Scored* f) {
-        if (f->result.name != "none" && std::find(firsts.begin(), firsts.end(), f) == firsts.end()) firsts.push_back(f);
-      };
-      for (size_t k = 0, m = 0; k < all.size() && m < 3; ++k) {
-        if (all[k].result.name == "none" || !all[k].result.degenerate.empty()) continue;
-        add_first(&all[k]);
-        ++m;
-      }
-      std::vector<const Scored*> by_fit;
-      for (const auto& s1 : all) if (s1.result.name != "none" && s1.result.degenerate.empty()) by_fit.push_back(&s1);
-      std::sort(by_fit.begin(), by_fit.end(), [&](const Scored* a, const Scored* b) {
-        return penalised(a->result.fit_rms_arcsec * a->result.fit_rms_arcsec, 1.0, a->result.parameters, N) <
-               penalised(b->result.fit_rms_arcsec * b->result.fit_rms_arcsec, 1.0, b->result.parameters, N);
-      });
-      for (size_t k = 0; k < by_fit.size() && k < 2; ++k) add_first(by_fit[k]);
-      std::optional<JointFit> pair;
-      for (const Scored* fp : firsts) {
-        const Scored& f = *fp;
-        Contribution left, k2;
-        left.resize(r.n);
-        k2.resize(r.n);
-        for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) left.v[a][i] = r.res[a][i] - f.contrib.v[a][i];
-        std::vector<std::pair<double, std::string>> screened;
-        for (const auto& s2 : all) {
-          const std::string& name2 = s2.result.name;
-          if (name2 == "none" || name2 == f.result.name || contained(f.result.name, name2)) continue;
-          // One pass: the other fitted on what the first leaves, then both linear parts solved
-          // together (a single's fit can be a compromise only a joint solve undoes).
-          auto c1 = f.cand->clone();
-          auto c2 = diag::make_candidate(name2);
-          c2->fit(r, left, r.fit_rows);
-          c2->contribute(r, k2);
-          Contribution k1 = f.contrib;
-          Candidate* cc[2] = {c1.get(), c2.get()};
-          Contribution* kk[2] = {&k1, &k2};
-          joint_linear_step(r, cc, kk);
-          double ms = 0;
-          for (uint32_t i : r.heldout_rows) {
-            for (int a = 0; a < 2; ++a) {
-              const double e = r.res[a][i] - k1.v[a][i] - k2.v[a][i];
-              ms += e * e;
-            }
-          }
-          screened.push_back({penalised(ms / N, ms0, c1->parameters() + c2->parameters(), N), name2});
-        }
-        std::sort(screened.begin(), screened.end());
-        if (screened.size() > 3) screened.resize(3);
-        for (const auto& sc : screened) {
-          JointFit j = joint_fit(r, f, sc.second, ms0, N);
-          if (!j.e[0].degenerate.empty() || !j.e[1].degenerate.empty()) continue;
-          if (!pair || j.score < pair->score) pair = std::move(j);
-        }
-      }
-      // Kept when it scores better than the best single and its second member is material: it
-      // takes at least 0.1 x noise floor^2 off the held-out mean square its first leaves alone.
-      auto single = [&](const std::string& n) -> const Scored& {
-        for (const auto& s : all) if (s.result.name == n) return s;
-        return all.front();
-      };
-      bool keep = pair && pair->score < best.result.score;
-      EffectResult e1, e2;
-      if (keep) {
-        // In order: the one that alone explains more first.
-        e1 = pair->e[0];
-        e2 = pair->e[1];
-        if (single(e2.name).result.score < single(e1.name).result.score) std::swap(e1, e2);
-        const double alone = single(e1.name).result.heldout_rms_arcsec;
-        keep = alone * alone - pair->e[1].heldout_rms_arcsec * pair->e[1].heldout_rms_arcsec >= material;
-      }
-      if (keep) {
-        const Scored& lead = single(e1.name);
-        e1.fit_rms_arcsec = lead.result.fit_rms_arcsec;  // the first's own figures, alone
-        e1.heldout_rms_arcsec = lead.result.heldout_rms_arcsec;
-        e1.score = lead.result.score;
-        d.cause = e1.name;
-        d.gap_after_arcsec = lead.result.heldout_rms_arcsec;
-        d.causes = {e1, e2};
-        d.gap_after_all_arcsec = e2.heldout_rms_arcsec;
-        combined = pair->sum;
-      }
-    }
-  }
-  // Close competitors of the cause: singles within kAmbiguous score units (a likelihood ratio of
-  // e^5) of its own score.
-  constexpr double kAmbiguous = 10.0;
-  if (d.cause != "none") {
-    double cause_score = 0;
-    for (const auto& s : all) if (s.result.name == d.cause) cause_score = s.result.score;
-    for (const auto& s : all) {
-      const std::string& n = s.result.name;
-      if (std::any_of(d.causes.begin(), d.causes.end(), [&](const EffectResult& c) { return c.name == n; })) continue;
-      const double diff = s.result.score - cause_score;
-      if (std::abs(diff) < kAmbiguous) d.ambiguous_with.push_back({n, diff, why_alike(d.cause, n)});
-    }
-  }
-
-  std::vector<double> before[2], after[2];
-  for (int a = 0; a < 2; ++a) {
-    before[a] = r.res[a];
-    after[a].resize(r.n);
-    for (size_t i = 0; i < r.n; ++i) after[a][i] = r.res[a][i] - combined.v[a][i];
-  }
-  d.where = where_of(r, before, d.noise_floor_arcsec);
-  ojson flexible;
-  d.where_after = where_of(r, after, d.noise_floor_arcsec, &flexible);
-
-  // Noise is not structure: the within-step scatter of what the causes leave, against what the
-  // sim expects of one sample about its step mean.
-  d.within_step_scatter_arcsec = within_step_scatter(r, after);
-  d.expected_scatter_arcsec = r.expected_scatter;
-  d.outliers = static_cast<int64_t>(r.outliers);
-  d.outlier_fraction = static_cast<double>(r.outliers) / static_cast<double>(r.n);
-  d.outlier_steps = r.outlier_steps;
-  for (auto& e : d.effects) e.detection_limit = detection_limit(r, e, d.noise_floor_arcsec, N);
-  decide_verdict(r, d, flexible);
-
-  // What the data holds and how it was divided.
-  std::vector<int64_t> held_ids;
-  size_t held_d = 0, held_m = 0;
-  for (const auto& s : r.steps) {
-    if (!s.heldout) continue;
-    held_ids.push_back(s.id);
-    (s.kind == StepKind::dwell ? held_d : held_m)++;
-  }
-  d.split = {
-      {"method", fmt::format("by whole steps: of the dwells and of the slew segments, each in recording order, the "
-                             "last of every {} steps is held out (a kind with two steps gives one to each side); rows "
-                             "of one step are never divided",
-                             opts.heldout_every)},
-      {"fit_rows", r.fit_rows.size()},
-      {"heldout_rows", r.heldout_rows.size()},
-      {"excluded_rows", r.excluded_rows},
-      {"excluded_why", fmt::format("the first and last {} s of every slew segment (the reference outside a segment "
-                                   "is not recorded, so a time shift cannot be predicted there), the rows within the same margin of every reversal inside a step (a time shift moves where the sensor sees the turn), and outlier frames",
-                                   r.guard_s)},
-      {"fit_steps", {{"dwells", r.dwells - held_d}, {"slews", r.motions - held_m}}},
-      {"heldout_steps", {{"dwells", held_d}, {"slews", held_m}}},
-      {"heldout_step_ids", held_ids}};
-  double t_lo = r.t.front(), t_hi = r.t.back();
-  d.recording = {{"rows", r.n},
-                 {"steps", r.steps.size()},
-                 {"dwells", r.dwells},
-                 {"slew_segments", r.motions},
-                 {"time_span_s", {t_lo, t_hi}},
-                 {"noise_floor_per_axis_arcsec", {{"pitch", sig[0]}, {"yaw", sig[1]}}},
-                 {"temperature_c", r.has_temperature},
-                 {"settle_s", opts.settle_s}};
-  if (!data.has_column("time_since_move_s")) {
-    d.warnings.push_back(fmt::format(
-        "no time_since_move_s column: dwells are taken to start {} s after their arrival (settle_s); settling "
-        "amplitudes refer to that arrival",
-        opts.settle_s));
-  }
-  if (d.cause != "none" && d.gap_after_all_arcsec > 1.5 * d.noise_floor_arcsec) {
-    d.warnings.push_back(fmt::format(
-        "the cause{} leave{} {:.2f}x the noise floor on the held-out rows: something else is at work too (see "
-        "where_after)",
-        d.causes.size() > 1 ? "s" : "", d.causes.size() > 1 ? "" : "s", d.gap_after_all_arcsec / d.noise_floor_arcsec));
-  }
-  for (const auto& m : d.ambiguous_with) {
-    d.warnings.push_back(fmt::format("{} scores within {:.1f} of {}: {}", m.name, m.score_difference, d.cause, m.why));
-  }
-  for (const auto& n : d.not_observable) {
-    d.warnings.push_back(fmt::format("{} is not observable in this recording: {}", n.name, n.reason));
-  }
-  return d;
+  return Diagnoser(data, model, opts).run();
 }
 
 SensorPrediction predict_sensor(const SampleTable& data, const CoefficientSet& model, const EffectParams& effect,

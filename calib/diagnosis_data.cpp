@@ -24,17 +24,7 @@ constexpr double kReverse_arcsec = 0.5;
 
 int8_t sign_of(double v) { return v > 0 ? 1 : (v < 0 ? -1 : 0); }
 
-}  // namespace
-
-Recording prepare(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts) {
-  Recording r;
-  r.origin = data.origin.empty() ? std::string("recording") : data.origin;
-  r.model = model;
-  r.n = data.size();
-  if (r.n == 0) throw DataError(fmt::format("{}: no rows: nothing to diagnose", r.origin));
-  if (!(opts.max_skew_s >= 0) || !(opts.settle_s >= 0) || opts.heldout_every < 2) {
-    throw InputError("diagnosis options: max_skew_s and settle_s must be >= 0, heldout_every >= 2");
-  }
+void residuals(Recording& r, const SampleTable& data, const CoefficientSet& model) {
   const size_t n = r.n;
   r.t = data.time_s;
   r.ref[0] = data.ref_pitch_arcsec;
@@ -59,9 +49,10 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
     r.temp = data.numeric_column("temperature_c");
     r.has_temperature = std::any_of(r.temp.begin(), r.temp.end(), [](double v) { return std::isfinite(v); });
   }
-  std::vector<double> since_col;
-  if (data.has_column("time_since_move_s")) since_col = data.numeric_column("time_since_move_s");
+}
 
+void find_steps(Recording& r, const SampleTable& data) {
+  const size_t n = r.n;
   // Steps: consecutive rows with one step id (the reader guarantees steps never decrease).
   r.step_of.resize(n);
   for (size_t i = 0; i < n;) {
@@ -85,7 +76,9 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
         "record a null-offset grid (several dwells on both axes)",
         r.origin, r.dwells == 0 ? "no" : "only one", r.dwells == 1 ? "" : "s"));
   }
+}
 
+void expected_scatter(Recording& r, const CoefficientSet& model) {
   // The sim's expected 1-sigma scatter of one sample about its step mean (optional key).
   if (model.extra.contains("expected_scatter_arcsec")) {
     const auto& v = model.extra["expected_scatter_arcsec"];
@@ -94,7 +87,10 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
     }
     r.expected_scatter = v.get<double>();
   }
+}
 
+void flag_outlier_frames(Recording& r, const CoefficientSet& model, const DiagnosisOptions& opts) {
+  const size_t n = r.n;
   // Isolated frames far from a robust local estimate of their step (calib/outliers.h, a running
   // median of 7 frames, so a settling decay or a slew's changing residual is followed): flagged on
   // either axis, they are kept out of every fit, score and noise estimate.
@@ -128,7 +124,10 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
       if (r.outlier_steps.empty() || r.outlier_steps.back() != id) r.outlier_steps.push_back(id);
     }
   }
+}
 
+void rates(Recording& r) {
+  const size_t n = r.n;
   // Rates within motion steps (central differences); dwells are at rest.
   for (int a = 0; a < 2; ++a) r.vel[a].assign(n, 0.0);
   for (const Step& s : r.steps) {
@@ -139,7 +138,10 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
       for (int a = 0; a < 2; ++a) r.vel[a][i] = dt > 0 && s.moves[a] ? (r.ref[a][hi] - r.ref[a][lo]) / dt : 0.0;
     }
   }
+}
 
+void directions(Recording& r, const DiagnosisOptions& opts) {
+  const size_t n = r.n;
   // Direction of motion (backlash), per axis and row, from the reference's own motion and
   // never from step boundaries or labels: a hysteresis on the running extreme, `reverse`
   // arcsec wide (far above the reference's noise). A reversal inside a step is dated back to
@@ -208,7 +210,10 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
       r.dir[a][i] = d;
     }
   }
+}
 
+void settling_clock(Recording& r, const std::vector<double>& since_col, const DiagnosisOptions& opts) {
+  const size_t n = r.n;
   // Settling clock, as docs/diagnosis.md states the physics: every dwell follows an arrival
   // settle_s before its first row (or time_since_move_s). The axes that ring are those that moved
   // in the last move: that jumped between the previous row and the dwell's first row, or that
@@ -232,7 +237,7 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
       const Step& prev = r.steps[r.step_of[s.begin - 1]];
       for (int a = 0; a < 2; ++a) {
         const double jump = r.ref[a][s.begin] - r.ref[a][s.begin - 1];
-        if (std::abs(jump) > reverse) now[a] = sign_of(jump);
+        if (std::abs(jump) > r.reverse_arcsec) now[a] = sign_of(jump);
         else if (prev.kind == StepKind::motion && prev.moves[a]) now[a] = r.dir[a][s.begin - 1];
         moved = moved || now[a] != 0;
       }
@@ -247,7 +252,10 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
       r.since_move[i] = since_col.empty() ? r.t[i] - arrival : since_col[i];
     }
   }
+}
 
+void split_steps(Recording& r, const DiagnosisOptions& opts) {
+  const size_t n = r.n;
   // Split by whole steps: one in `heldout_every` of each kind is held out (a kind with two
   // steps gives one to each side); the ends of slew segments are scored by nobody.
   r.guard_s = opts.max_skew_s;
@@ -273,6 +281,29 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
     throw DataError(fmt::format("{}: the split by steps left no rows to {}: record more dwells", r.origin,
                                 r.fit_rows.empty() ? "fit" : "hold out"));
   }
+}
+
+}  // namespace
+
+Recording prepare(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts) {
+  Recording r;
+  r.origin = data.origin.empty() ? std::string("recording") : data.origin;
+  r.model = model;
+  r.n = data.size();
+  if (r.n == 0) throw DataError(fmt::format("{}: no rows: nothing to diagnose", r.origin));
+  if (!(opts.max_skew_s >= 0) || !(opts.settle_s >= 0) || opts.heldout_every < 2) {
+    throw InputError("diagnosis options: max_skew_s and settle_s must be >= 0, heldout_every >= 2");
+  }
+  residuals(r, data, model);
+  std::vector<double> since_col;
+  if (data.has_column("time_since_move_s")) since_col = data.numeric_column("time_since_move_s");
+  find_steps(r, data);
+  expected_scatter(r, model);
+  flag_outlier_frames(r, model, opts);
+  rates(r);
+  directions(r, opts);
+  settling_clock(r, since_col, opts);
+  split_steps(r, opts);
   return r;
 }
 

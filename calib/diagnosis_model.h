@@ -97,6 +97,8 @@ class Candidate {
 };
 
 std::unique_ptr<Candidate> make_candidate(const std::string& name);
+// The refitted transfer function, which lives in its own file for its size.
+std::unique_ptr<Candidate> make_coefficients_candidate();
 
 // Scalar minimisation on [lo, hi]: a grid of `steps` points (the objective may have several
 // minima), then golden section in the bracket around the best node.

@@ -1,0 +1,240 @@
+// The coefficients candidate: the transfer function refitted to what the residual says each count reads.
+#include <ceres/ceres.h>
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "calib/diagnosis_model.h"
+#include "calib/units.h"
+
+namespace fpss::diag {
+namespace {
+
+using Rows = std::vector<uint32_t>;
+using ojson = nlohmann::ordered_json;
+
+// ------------------------------------------------------------------ coefficients
+// The sensor's transfer function differs from the model's: eq. 1 refitted per axis to what the
+// residual says the angle at each count is. Scaled parameters keep the Jacobian balanced.
+constexpr double kS = 16384.0;  // counts over half the field
+
+struct Eq1Arcsec {  // u: C1 arcsec, C2 arcsec per kS counts, C3 arcsec, C4 rad per kS counts, C5, C6, C7, C8
+  template <typename T>
+  static T eval(const T* u, double n) {
+    using std::sin;
+    const double x = n / kS;
+    return u[0] + u[1] * x + u[2] * sin(u[3] * x + u[4]) + u[5] * sin(u[6] * x + u[7]);
+  }
+};
+
+struct Eq1Residuals {
+  const double* n;
+  const double* y;
+  int count;
+  template <typename T>
+  bool operator()(const T* u, T* out) const {
+    for (int i = 0; i < count; ++i) out[i] = Eq1Arcsec::eval(u, n[i]) - y[i];
+    return true;
+  }
+};
+
+std::array<double, 8> to_u(const AxisCoeffs& c) {
+  return {rad_to_arcsec(c[0]), rad_to_arcsec(c[1]) * kS, rad_to_arcsec(c[2]), c[3] * kS, c[4],
+          rad_to_arcsec(c[5]), c[6] * kS, c[7]};
+}
+AxisCoeffs from_u(const std::array<double, 8>& u) {
+  return {arcsec_to_rad(u[0]), arcsec_to_rad(u[1]) / kS, arcsec_to_rad(u[2]), u[3] / kS, u[4],
+          arcsec_to_rad(u[5]), u[6] / kS, u[7]};
+}
+
+double cost_of(const std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y) {
+  double c = 0;
+  for (size_t i = 0; i < n.size(); ++i) {
+    const double e = Eq1Arcsec::eval(u.data(), n[i]) - y[i];
+    c += e * e;
+  }
+  return c;
+}
+
+void refine(std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y) {
+  ceres::Problem problem;
+  constexpr int kBlock = 256;
+  for (size_t i = 0; i < n.size(); i += kBlock) {
+    const int m = static_cast<int>(std::min<size_t>(kBlock, n.size() - i));
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Eq1Residuals, ceres::DYNAMIC, 8>(
+                                 new Eq1Residuals{n.data() + i, y.data() + i, m}, m),
+                             nullptr, u.data());
+  }
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::DENSE_QR;
+  o.max_num_iterations = 100;
+  o.logging_type = ceres::SILENT;
+  o.minimizer_progress_to_stdout = false;
+  o.function_tolerance = 1e-12;
+  o.parameter_tolerance = 1e-12;
+  ceres::Solver::Summary summary;
+  ceres::Solve(o, &problem, &summary);
+}
+
+// Variable projection: a log grid over both sinusoid frequencies (0.4e-4 .. 8e-4 rad/count, the
+// published sets' span and more) with the linear parameters solved exactly at every node from one
+// Gram matrix, then Ceres from the best node and from the model itself.
+AxisCoeffs refit_axis(const AxisCoeffs& model, const std::vector<double>& n, const std::vector<double>& y) {
+  constexpr int kW = 24;
+  std::vector<double> f(kW);
+  for (int j = 0; j < kW; ++j) f[j] = 0.4e-4 * std::pow(20.0, j / (kW - 1.0)) * kS;
+  const size_t stride = std::max<size_t>(1, n.size() / 4000);
+  const int dim = 2 + 2 * kW;
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(dim, dim);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(dim);
+  Eigen::VectorXd row(dim);
+  double yy = 0;
+  for (size_t i = 0; i < n.size(); i += stride) {
+    const double x = n[i] / kS;
+    row(0) = 1;
+    row(1) = x;
+    for (int j = 0; j < kW; ++j) {
+      row(2 + 2 * j) = std::sin(f[j] * x);
+      row(3 + 2 * j) = std::cos(f[j] * x);
+    }
+    G.selfadjointView<Eigen::Lower>().rankUpdate(row);
+    b += row * y[i];
+    yy += y[i] * y[i];
+  }
+  G = G.selfadjointView<Eigen::Lower>();
+  double best = std::numeric_limits<double>::infinity();
+  std::array<double, 8> best_u = to_u(model);
+  for (int j = 0; j < kW; ++j) {
+    for (int k = j + 2; k < kW; ++k) {
+      const int idx[6] = {0, 1, 2 + 2 * j, 3 + 2 * j, 2 + 2 * k, 3 + 2 * k};
+      Eigen::Matrix<double, 6, 6> g;
+      Eigen::Matrix<double, 6, 1> v;
+      for (int p = 0; p < 6; ++p) {
+        v(p) = b(idx[p]);
+        for (int q = 0; q < 6; ++q) g(p, q) = G(idx[p], idx[q]);
+      }
+      Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(g);
+      if (ldlt.info() != Eigen::Success) continue;
+      const Eigen::Matrix<double, 6, 1> xs = ldlt.solve(v);
+      const double c = yy - xs.dot(v);
+      if (c < best && std::isfinite(c)) {
+        best = c;
+        // a sin + b cos = hypot(a, b) sin(w x + atan2(b, a))
+        best_u = {xs(0), xs(1), std::hypot(xs(2), xs(3)), f[j], std::atan2(xs(3), xs(2)),
+                  std::hypot(xs(4), xs(5)), f[k], std::atan2(xs(5), xs(4))};
+      }
+    }
+  }
+  // The refinement sees at most ~6000 rows (evenly strided): eight coefficients are pinned
+  // far below the noise by that many.
+  const size_t rs = std::max<size_t>(1, n.size() / 6000);
+  std::vector<double> nr, yr;
+  for (size_t i = 0; i < n.size(); i += rs) { nr.push_back(n[i]); yr.push_back(y[i]); }
+  std::array<double, 8> from_model = to_u(model);
+  refine(best_u, nr, yr);
+  refine(from_model, nr, yr);
+  return from_u(cost_of(best_u, nr, yr) <= cost_of(from_model, nr, yr) ? best_u : from_model);
+}
+
+class Coefficients : public Candidate {
+ public:
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Coefficients>(*this); }
+  std::string name() const override { return "coefficients"; }
+  int parameters() const override { return 16; }
+  void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
+    const AxisCoeffs model[2] = {r.model.alpha, r.model.beta};
+    for (int a = 0; a < 2; ++a) {
+      model_amp_[a] = std::max(std::abs(rad_to_arcsec(model[a][2])), std::abs(rad_to_arcsec(model[a][5])));
+      std::vector<double> n, y;
+      n.reserve(rows.size());
+      y.reserve(rows.size());
+      for (uint32_t i : rows) {
+        n.push_back(r.counts[a][i]);
+        y.push_back(r.meas[a][i] - tg.v[a][i]);  // the angle the sensor's true function gives here
+      }
+      if (n.size() < 8) {
+        c_[a] = model[a];
+      } else if (fitted_) {
+        // Refitted again (a joint fit with another effect): the last solution is a good start.
+        const size_t rs = std::max<size_t>(1, n.size() / 6000);
+        std::vector<double> nr, yr;
+        for (size_t i = 0; i < n.size(); i += rs) { nr.push_back(n[i]); yr.push_back(y[i]); }
+        std::array<double, 8> u = to_u(c_[a]);
+        refine(u, nr, yr);
+        c_[a] = from_u(u);
+      } else {
+        c_[a] = refit_axis(model[a], n, y);
+      }
+      const auto [lo, hi] = std::minmax_element(n.begin(), n.end());
+      if (!n.empty()) { lo_[a] = *lo; hi_[a] = *hi; }
+    }
+    fitted_ = true;
+  }
+  void contribute(const Recording& r, Contribution& out) const override {
+    const AxisCoeffs model[2] = {r.model.alpha, r.model.beta};
+    for (int a = 0; a < 2; ++a) {
+      for (size_t i = 0; i < r.n; ++i) {
+        const double nn = r.counts[a][i];
+        out.v[a][i] = rad_to_arcsec(transfer_angle(model[a].data(), nn) - transfer_angle(c_[a].data(), nn));
+      }
+    }
+  }
+  ojson params() const override { return {{"alpha", c_[0]}, {"beta", c_[1]}}; }
+  void restart() override { fitted_ = false; }
+  void set(const EffectParams& p) override {
+    if (p.coefficients) { c_[0] = p.coefficients->alpha; c_[1] = p.coefficients->beta; }
+  }
+  // Ill-conditioned or implausible: sinusoids far beyond any the sensor family shows (10x the
+  // model's largest, at least 200 arcsec), or two that nearly cancel (each more than 10x what the
+  // pair adds up to over the counts fitted): the refit then stands in for something eq. 1 is not.
+  std::string degenerate() const override {
+    if (!fitted_) return {};
+    const char* axis[2] = {"alpha", "beta"};
+    for (int a = 0; a < 2; ++a) {
+      const double a3 = std::abs(rad_to_arcsec(c_[a][2])), a6 = std::abs(rad_to_arcsec(c_[a][5]));
+      const double big = std::max(a3, a6), limit = std::max(200.0, 10.0 * model_amp_[a]);
+      if (big > limit) {
+        return fmt::format("{}: sinusoid amplitudes {:.0f} and {:.0f} arcsec, beyond physical plausibility (> {:.0f})",
+                           axis[a], a3, a6, limit);
+      }
+      double s2 = 0;
+      constexpr int kSteps = 200;
+      for (int k = 0; k <= kSteps; ++k) {
+        const double nn = lo_[a] + (hi_[a] - lo_[a]) * k / kSteps;
+        const double v = rad_to_arcsec(c_[a][2] * std::sin(c_[a][3] * nn + c_[a][4]) +
+                                       c_[a][5] * std::sin(c_[a][6] * nn + c_[a][7]));
+        s2 += v * v;
+      }
+      const double rms = std::sqrt(s2 / (kSteps + 1));
+      if (big > 50.0 && std::min(a3, a6) > 10.0 * rms) {
+        return fmt::format("{}: two nearly cancelling sinusoids ({:.0f} and {:.0f} arcsec, together {:.1f} arcsec RMS): "
+                           "an ill-conditioned refit",
+                           axis[a], a3, a6, rms);
+      }
+    }
+    return {};
+  }
+  ojson notes() const override {
+    if (!fitted_) return ojson::object();
+    return {{"params", "the sensor's transfer function (paper eq. 1) refitted per axis on the fit rows: C1..C8, "
+                       "radians and counts, as in a coefficient file (the emulator's coefficients effect)"},
+            {"counts_range", {{"alpha", {lo_[0], hi_[0]}}, {"beta", {lo_[1], hi_[1]}}}}};
+  }
+
+ private:
+  AxisCoeffs c_[2]{};
+  double lo_[2] = {0, 0}, hi_[2] = {0, 0};
+  double model_amp_[2] = {0, 0};
+  bool fitted_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<Candidate> make_coefficients_candidate() { return std::make_unique<Coefficients>(); }
+
+}  // namespace fpss::diag

@@ -1,0 +1,44 @@
+// The diagnosis's steps shared between its files: scoring, pairs, where, verdict.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/diagnosis.h"
+#include "calib/diagnosis_model.h"
+
+namespace fpss::diag {
+
+// Mean square over both axes of (residual - contribution) on `rows`.
+double mean_square(const Recording& r, const Contribution* c, const std::vector<uint32_t>& rows);
+
+double penalised(double ms, double ms0, int k, double N);
+
+struct Scored {
+  std::unique_ptr<Candidate> cand;
+  Contribution contrib;
+  EffectResult result;
+};
+
+// Why two effects can look alike, for the ambiguity note.
+std::string why_alike(const std::string& a, const std::string& b);
+
+// The second effect around the singles `all` (sorted by score, `best` the cause): when a pair is
+// kept, it becomes d's causes and `combined` their joint contribution.
+void second_effect(const Recording& r, const std::vector<Scored>& all, const Scored& best, double ms0, double N,
+                   double material, Diagnosis& d, Contribution& combined);
+
+std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec,
+                                 nlohmann::ordered_json* flexible = nullptr);
+nlohmann::ordered_json where_json(const std::vector<WhereEntry>& w);
+
+// Pooled within-step scatter of one sample about its step mean (dwells with three or more
+// frames, outliers left out), RMS over both axes; NaN when no dwell has three frames.
+double within_step_scatter(const Recording& r, const std::vector<double> e[2]);
+nlohmann::ordered_json detection_limit(const Recording& r, const EffectResult& e, double noise, double N);
+void decide_verdict(const Recording& r, Diagnosis& d, const nlohmann::ordered_json& flexible);
+
+}  // namespace fpss::diag

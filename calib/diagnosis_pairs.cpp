@@ -1,0 +1,244 @@
+// Two effects at once: joint fits, the search for a second effect, and why two effects look alike.
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <utility>
+
+#include "calib/diagnosis_internal.h"
+
+namespace fpss::diag {
+namespace {
+
+// One effect is a special case of the other: a refitted transfer function contains any bias
+// (C1) and scale factor (C1, C2, C3, C6 scaled together). Such pairs are never fitted.
+bool contained(const std::string& a, const std::string& b) {
+  auto is = [&](const char* x, const char* y) { return (a == x && b == y) || (a == y && b == x); };
+  return is("coefficients", "bias") || is("coefficients", "scale_factor");
+}
+
+// Two candidates fitted jointly: alternating least squares (each on the residual less the
+// other) for their nonlinear parameters, then one least-squares solve over the linear columns of
+// both (alternation alone converges slowly when the two are correlated), until the fit rows' sum
+// of squares settles.
+struct JointFit {
+  EffectResult e[2];
+  Contribution sum;
+  double score = 0;
+};
+
+void joint_linear_step(const Recording& r, Candidate* c[2], Contribution* k[2]) {
+  std::vector<Contribution> cols[2];
+  bool has[2];
+  for (int q = 0; q < 2; ++q) has[q] = c[q]->columns(r, cols[q]);
+  if (!has[0] && !has[1]) return;
+  std::vector<const Contribution*> all_cols;
+  for (int q = 0; q < 2; ++q) if (has[q]) for (const auto& col : cols[q]) all_cols.push_back(&col);
+  const int m = static_cast<int>(all_cols.size());
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(m, m);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
+  for (uint32_t i : r.fit_rows) {
+    for (int a = 0; a < 2; ++a) {
+      double target = r.res[a][i];
+      for (int q = 0; q < 2; ++q) if (!has[q]) target -= k[q]->v[a][i];
+      for (int x = 0; x < m; ++x) {
+        const double vx = all_cols[x]->v[a][i];
+        if (vx == 0) continue;
+        b(x) += vx * target;
+        for (int y = 0; y <= x; ++y) G(x, y) += vx * all_cols[y]->v[a][i];
+      }
+    }
+  }
+  G = G.selfadjointView<Eigen::Lower>();
+  G.diagonal().array() += 1e-12 * (G.diagonal().maxCoeff() + 1e-30);
+  const Eigen::VectorXd w = G.ldlt().solve(b);
+  int at = 0;
+  for (int q = 0; q < 2; ++q) {
+    if (!has[q]) continue;
+    std::vector<double> wq(w.data() + at, w.data() + at + cols[q].size());
+    at += static_cast<int>(cols[q].size());
+    c[q]->set_linear(wq);
+    c[q]->contribute(r, *k[q]);
+  }
+}
+
+JointFit joint_fit(const Recording& r, const Scored& first, const std::string& name2, double ms0, double N) {
+  auto c1 = first.cand->clone();
+  auto c2 = diag::make_candidate(name2);
+  Contribution k1 = first.contrib, k2, t, sum;
+  k2.resize(r.n);
+  t.resize(r.n);
+  sum.resize(r.n);
+  Candidate* c[2] = {c1.get(), c2.get()};
+  Contribution* k[2] = {&k1, &k2};
+  // A temperature's zero point and a constant offset (a bias, or the C1 of a refitted transfer
+  // function) trade against each other: by the emulator's convention the profile starts at t0_c,
+  // so t0_c is held at the first temperature reading.
+  const bool offset = first.result.name == "bias" || name2 == "bias" || first.result.name == "coefficients" ||
+                      name2 == "coefficients";
+  if (offset && r.has_temperature) {
+    double t_first = 0;
+    for (size_t i = 0; i < r.n; ++i) if (std::isfinite(r.temp[i])) { t_first = r.temp[i]; break; }
+    for (Candidate* q : c) if (q->name() == "temperature") q->hold("t0_c", t_first);
+  }
+  double prev = std::numeric_limits<double>::infinity();
+  for (int it = 0; it < 20; ++it) {
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k1.v[a][i];
+    c2->fit(r, t, r.fit_rows);
+    c2->contribute(r, k2);
+    // The first's single fit had to absorb the second too; once the second is in, it starts
+    // afresh (a refitted transfer function may otherwise stay in a wrong basin).
+    if (it == 0) c1->restart();
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k2.v[a][i];
+    c1->fit(r, t, r.fit_rows);
+    c1->contribute(r, k1);
+    joint_linear_step(r, c, k);
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) sum.v[a][i] = k1.v[a][i] + k2.v[a][i];
+    const double sse = mean_square(r, &sum, r.fit_rows);
+    if (prev - sse <= 1e-7 * sse) break;
+    prev = sse;
+  }
+  JointFit j;
+  const double ms = mean_square(r, &sum, r.heldout_rows);
+  j.score = penalised(ms, ms0, c1->parameters() + c2->parameters(), N);
+  for (int q = 0; q < 2; ++q) {
+    j.e[q].name = c[q]->name();
+    j.e[q].params = c[q]->params();
+    j.e[q].parameters = c[q]->parameters();
+    j.e[q].notes = c[q]->notes();
+    j.e[q].degenerate = c[q]->degenerate();
+    j.e[q].fit_rms_arcsec = std::sqrt(mean_square(r, &sum, r.fit_rows));  // jointly
+    j.e[q].heldout_rms_arcsec = std::sqrt(ms);
+    j.e[q].score = j.score;
+  }
+  j.sum = std::move(sum);
+  return j;
+}
+
+// Firsts: the three best held-out scores and the two best in-sample fits (with two effects
+// at once a single fit can be biased by the other effect so that it fails on the held-out
+// rows while still taking the most off the fit rows).
+std::vector<const Scored*> pair_firsts(const std::vector<Scored>& all, double N) {
+  std::vector<const Scored*> firsts;
+  auto add_first = [&](const Scored* f) {
+    if (f->result.name != "none" && std::find(firsts.begin(), firsts.end(), f) == firsts.end()) firsts.push_back(f);
+  };
+  for (size_t k = 0, m = 0; k < all.size() && m < 3; ++k) {
+    if (all[k].result.name == "none" || !all[k].result.degenerate.empty()) continue;
+    add_first(&all[k]);
+    ++m;
+  }
+  std::vector<const Scored*> by_fit;
+  for (const auto& s1 : all) if (s1.result.name != "none" && s1.result.degenerate.empty()) by_fit.push_back(&s1);
+  std::sort(by_fit.begin(), by_fit.end(), [&](const Scored* a, const Scored* b) {
+    return penalised(a->result.fit_rms_arcsec * a->result.fit_rms_arcsec, 1.0, a->result.parameters, N) <
+           penalised(b->result.fit_rms_arcsec * b->result.fit_rms_arcsec, 1.0, b->result.parameters, N);
+  });
+  for (size_t k = 0; k < by_fit.size() && k < 2; ++k) add_first(by_fit[k]);
+  return firsts;
+}
+
+// Around each first, the others screened on what it leaves, the three most promising fitted
+// jointly with it; the best-scoring pair with no degenerate member.
+std::optional<JointFit> best_pair(const Recording& r, const std::vector<Scored>& all,
+                                  const std::vector<const Scored*>& firsts, double ms0, double N) {
+  std::optional<JointFit> pair;
+  for (const Scored* fp : firsts) {
+    const Scored& f = *fp;
+    Contribution left, k2;
+    left.resize(r.n);
+    k2.resize(r.n);
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) left.v[a][i] = r.res[a][i] - f.contrib.v[a][i];
+    std::vector<std::pair<double, std::string>> screened;
+    for (const auto& s2 : all) {
+      const std::string& name2 = s2.result.name;
+      if (name2 == "none" || name2 == f.result.name || contained(f.result.name, name2)) continue;
+      // One pass: the other fitted on what the first leaves, then both linear parts solved
+      // together (a single's fit can be a compromise only a joint solve undoes).
+      auto c1 = f.cand->clone();
+      auto c2 = diag::make_candidate(name2);
+      c2->fit(r, left, r.fit_rows);
+      c2->contribute(r, k2);
+      Contribution k1 = f.contrib;
+      Candidate* cc[2] = {c1.get(), c2.get()};
+      Contribution* kk[2] = {&k1, &k2};
+      joint_linear_step(r, cc, kk);
+      double ms = 0;
+      for (uint32_t i : r.heldout_rows) {
+        for (int a = 0; a < 2; ++a) {
+          const double e = r.res[a][i] - k1.v[a][i] - k2.v[a][i];
+          ms += e * e;
+        }
+      }
+      screened.push_back({penalised(ms / N, ms0, c1->parameters() + c2->parameters(), N), name2});
+    }
+    std::sort(screened.begin(), screened.end());
+    if (screened.size() > 3) screened.resize(3);
+    for (const auto& sc : screened) {
+      JointFit j = joint_fit(r, f, sc.second, ms0, N);
+      if (!j.e[0].degenerate.empty() || !j.e[1].degenerate.empty()) continue;
+      if (!pair || j.score < pair->score) pair = std::move(j);
+    }
+  }
+  return pair;
+}
+
+}  // namespace
+
+// Why two effects can look alike, for the ambiguity note.
+std::string why_alike(const std::string& a, const std::string& b) {
+  auto is = [&](const char* x, const char* y) { return (a == x && b == y) || (a == y && b == x); };
+  if (is("backlash", "settling")) {
+    return "a settling with a time constant much longer than the dwells acts like backlash at rest; slews (moving, "
+           "no settling) or longer dwells tell them apart";
+  }
+  if (is("drift", "temperature") || is("bias", "temperature")) {
+    return "the temperature follows time (or barely changes) in this recording; a non-monotonic temperature profile "
+           "tells them apart";
+  }
+  if (is("scale_factor", "coefficients") || is("bias", "coefficients")) {
+    return "a refitted transfer function absorbs any offset or scale; more offsets or a wider field tell them apart";
+  }
+  if (is("boresight_roll", "axis_nonorthogonality")) {
+    return "both turn pitch into yaw; only a roll also turns yaw into pitch, which needs yaw offsets";
+  }
+  if (a == "none" || b == "none") return "the effect is barely above the noise of this recording";
+  return "the held-out data barely tells them apart";
+}
+
+void second_effect(const Recording& r, const std::vector<Scored>& all, const Scored& best, double ms0, double N,
+                   double material, Diagnosis& d, Contribution& combined) {
+  const std::vector<const Scored*> firsts = pair_firsts(all, N);
+  const std::optional<JointFit> pair = best_pair(r, all, firsts, ms0, N);
+  // Kept when it scores better than the best single and its second member is material: it
+  // takes at least 0.1 x noise floor^2 off the held-out mean square its first leaves alone.
+  auto single = [&](const std::string& n) -> const Scored& {
+    for (const auto& s : all) if (s.result.name == n) return s;
+    return all.front();
+  };
+  bool keep = pair && pair->score < best.result.score;
+  EffectResult e1, e2;
+  if (keep) {
+    // In order: the one that alone explains more first.
+    e1 = pair->e[0];
+    e2 = pair->e[1];
+    if (single(e2.name).result.score < single(e1.name).result.score) std::swap(e1, e2);
+    const double alone = single(e1.name).result.heldout_rms_arcsec;
+    keep = alone * alone - pair->e[1].heldout_rms_arcsec * pair->e[1].heldout_rms_arcsec >= material;
+  }
+  if (keep) {
+    const Scored& lead = single(e1.name);
+    e1.fit_rms_arcsec = lead.result.fit_rms_arcsec;  // the first's own figures, alone
+    e1.heldout_rms_arcsec = lead.result.heldout_rms_arcsec;
+    e1.score = lead.result.score;
+    d.cause = e1.name;
+    d.gap_after_arcsec = lead.result.heldout_rms_arcsec;
+    d.causes = {e1, e2};
+    d.gap_after_all_arcsec = e2.heldout_rms_arcsec;
+    combined = pair->sum;
+  }
+}
+
+}  // namespace fpss::diag
