@@ -13,6 +13,7 @@
 #include <numeric>
 
 #include "calib/diagnosis_internal.h"
+#include "calib/effect_catalogue.h"
 #include "calib/diagnosis_model.h"
 #include "calib/errors.h"
 
@@ -35,8 +36,11 @@ using diag::detection_limit;
 using diag::decide_verdict;
 
 const std::vector<std::string>& diagnosis_effect_names() {
-  static const std::vector<std::string> k = {"bias",     "drift",    "scale_factor", "boresight_roll", "axis_nonorthogonality",
-                                             "backlash", "settling", "time_skew",    "coefficients",   "temperature"};
+  static const std::vector<std::string> k = [] {
+    std::vector<std::string> names;
+    for (const auto& e : effect_specs()) names.push_back(e.name);
+    return names;
+  }();
   return k;
 }
 
