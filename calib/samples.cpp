@@ -267,8 +267,9 @@ namespace {
 size_t for_each_sample_csv(const std::filesystem::path& path, const std::function<void(const Sample&)>& on_row,
                            size_t chunk_lines) {
   const std::string origin = path.string();
+  check_input_file(path, "samples file", kMaxTextFileBytes);
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(fmt::format("{}: cannot open {}", origin, "samples file"));
+  if (!in) throw InputError(fmt::format("{}: cannot open {}: {}", origin, "samples file", std::strerror(errno)));
   std::string line, header;
   size_t line_no = 0, header_line = 0;
   while (std::getline(in, line)) {

@@ -43,7 +43,7 @@ std::string random_hex(size_t digits) {
 
 }  // namespace
 
-std::string read_text_file(const fs::path& path, std::string_view what, std::uintmax_t max_bytes) {
+void check_input_file(const fs::path& path, std::string_view what, std::uintmax_t max_bytes) {
   struct stat st{};
   if (::stat(path.c_str(), &st) != 0) {
     throw InputError(fmt::format("{}: cannot open {}: {}", path.string(), what, std::strerror(errno)));
@@ -55,6 +55,11 @@ std::string read_text_file(const fs::path& path, std::string_view what, std::uin
     throw InputError(fmt::format("{}: {} bytes, more than the {} bytes a {} may have (docs/formats.md, Limits)",
                                  path.string(), st.st_size, max_bytes, what));
   }
+}
+
+std::string read_text_file(const fs::path& path, std::string_view what, std::uintmax_t max_bytes) {
+  check_input_file(path, what, max_bytes);
+  struct stat st{};
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOCTTY | O_NONBLOCK);
   if (fd < 0) throw InputError(fmt::format("{}: cannot open {}: {}", path.string(), what, std::strerror(errno)));
   // Checked again on the open descriptor: the path may have been swapped since stat().

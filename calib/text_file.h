@@ -19,6 +19,10 @@ inline constexpr std::uintmax_t kMaxConfigFileBytes = std::uintmax_t{16} << 20; 
 // The file's bytes. InputError (exit 2) naming the file when it cannot be opened ("<path>: cannot
 // open <what>: <why>"), is not a regular file (a folder, /dev/zero, a FIFO: checked before any
 // read, so nothing blocks or grows without bound), or is larger than max_bytes.
+// The checks every reader of an outside file makes before opening it: it exists, is a regular file
+// (not a folder, FIFO or device, which would hang or exhaust memory) and is at most max_bytes.
+// InputError naming the path otherwise.
+void check_input_file(const std::filesystem::path& path, std::string_view what, std::uintmax_t max_bytes);
 std::string read_text_file(const std::filesystem::path& path, std::string_view what,
                            std::uintmax_t max_bytes = kMaxTextFileBytes);
 
