@@ -2,9 +2,9 @@
 
 #include <fmt/format.h>
 
-#include <fstream>
 
 #include "calib/errors.h"
+#include "calib/text_file.h"
 
 namespace fpss {
 
@@ -23,9 +23,7 @@ nlohmann::json EmulatorSpec::to_json() const {
                    {"effects", effects}, {"faults", faults}, {"truth", truth_file},
                    {"unit_serial", unit_serial}};
   if (!bench_file.empty()) {
-    std::ifstream in(bench_file);
-    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    j["bench_text"] = text;
+    j["bench_text"] = read_text_file(bench_file, "bench file", kMaxConfigFileBytes);
   }
   return j;
 }
