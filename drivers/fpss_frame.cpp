@@ -37,7 +37,7 @@ uint16_t crc16_ccitt_false(const uint8_t* data, std::size_t n, uint16_t crc) {
   return crc;
 }
 
-void append_sample(std::vector<uint8_t>& out, const Sample& s) {
+void append_sample(std::vector<uint8_t>& out, const SampleFrame& s) {
   std::size_t start = out.size();
   out.push_back(kSync0);
   out.push_back(kSync1);
@@ -65,7 +65,7 @@ void append_reply(std::vector<uint8_t>& out, std::string_view text) {
 
 std::vector<uint8_t> encode(const Frame& f) {
   std::vector<uint8_t> out;
-  if (auto* s = std::get_if<Sample>(&f))
+  if (auto* s = std::get_if<SampleFrame>(&f))
     append_sample(out, *s);
   else
     append_reply(out, std::get<Reply>(f).text);
@@ -110,7 +110,7 @@ bool Parser::next(Frame& out) {
       continue;
     }
     if (type == kTypeSample) {
-      Sample s;
+      SampleFrame s;
       s.seq = rd16(f + 3);
       s.sensor_time_us = rd32(f + 5);
       s.counts_alpha = static_cast<int16_t>(rd16(f + 9));

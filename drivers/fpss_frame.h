@@ -18,12 +18,12 @@ inline constexpr std::size_t kMaxReplyText = 255;
 // CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, no xorout; "123456789" -> 0x29B1.
 uint16_t crc16_ccitt_false(const uint8_t* data, std::size_t n, uint16_t crc = 0xFFFF);
 
-struct Sample {
+struct SampleFrame {
   uint16_t seq = 0;
   uint32_t sensor_time_us = 0;
   int16_t counts_alpha = 0, counts_beta = 0;
   uint8_t status = 0;
-  bool operator==(const Sample&) const = default;
+  bool operator==(const SampleFrame&) const = default;
 };
 
 struct Reply {
@@ -31,9 +31,9 @@ struct Reply {
   bool operator==(const Reply&) const = default;
 };
 
-using Frame = std::variant<Sample, Reply>;
+using Frame = std::variant<SampleFrame, Reply>;
 
-void append_sample(std::vector<uint8_t>& out, const Sample& s);
+void append_sample(std::vector<uint8_t>& out, const SampleFrame& s);
 // Throws std::length_error for text longer than 255 bytes.
 void append_reply(std::vector<uint8_t>& out, std::string_view text);
 std::vector<uint8_t> encode(const Frame& f);
@@ -53,7 +53,7 @@ struct ParserStats {
 // noise can never swallow a real frame.
 class Parser {
  public:
-  template <class Sink>  // void(const Frame&) or void(Sample&&/Reply&&) via std::visit in the caller
+  template <class Sink>  // void(const Frame&) or void(SampleFrame&&/Reply&&) via std::visit in the caller
   void feed(const uint8_t* data, std::size_t n, Sink&& sink) {
     buf_.insert(buf_.end(), data, data + n);
     stats_.bytes_fed += n;

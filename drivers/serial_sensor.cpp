@@ -151,7 +151,7 @@ void SerialSensor::fail(std::string why) {
 
 // Called with mu_ held.
 void SerialSensor::on_frame(const frame::Frame& f, double host_time_s) {
-  if (const auto* s = std::get_if<frame::Sample>(&f)) {
+  if (const auto* s = std::get_if<frame::SampleFrame>(&f)) {
     auto step = tracker_.observe(s->seq, s->sensor_time_us);
     SensorSample out;
     out.seq = s->seq;

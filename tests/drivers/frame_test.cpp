@@ -24,8 +24,8 @@ std::vector<Frame> parse_all(const std::vector<uint8_t>& bytes, Parser& p, std::
   return out;
 }
 
-Sample sample(uint16_t seq, uint32_t t = 0) {
-  Sample s;
+SampleFrame sample(uint16_t seq, uint32_t t = 0) {
+  SampleFrame s;
   s.seq = seq;
   s.sensor_time_us = t;
   s.counts_alpha = static_cast<int16_t>(seq * 7 - 1000);
@@ -71,7 +71,7 @@ TEST(Crc16, TableMatchesBitwiseDefinitionOnRandomData) {
 }
 
 TEST(Encode, SampleLayoutIsLittleEndianAsTheIcd) {
-  Sample s{0x0102, 0x03040506, -2, 0x1234, 0x0F};
+  SampleFrame s{0x0102, 0x03040506, -2, 0x1234, 0x0F};
   auto b = encode(s);
   ASSERT_EQ(b.size(), kSampleSize);
   std::vector<uint8_t> head{0xA5, 0x5A, 0x01, 0x02, 0x01, 0x06, 0x05, 0x04, 0x03, 0xFE, 0xFF, 0x34, 0x12, 0x0F};
@@ -95,8 +95,8 @@ TEST(Encode, ReplyLayoutAndLengthLimit) {
 }
 
 TEST(Parser, RoundTripsSamplesAndRepliesIncludingEdgeLengths) {
-  std::vector<Frame> frames{Sample{65535, 0xFFFFFFFF, -32768, 32767, 0xFF}, Reply{""}, Reply{std::string(255, 'Z')},
-                            Sample{0, 0, 0, 0, 0}};
+  std::vector<Frame> frames{SampleFrame{65535, 0xFFFFFFFF, -32768, 32767, 0xFF}, Reply{""}, Reply{std::string(255, 'Z')},
+                            SampleFrame{0, 0, 0, 0, 0}};
   Parser p;
   EXPECT_EQ(parse_all(encode_all(frames), p), frames);
   EXPECT_EQ(p.stats().samples, 2u);
@@ -154,8 +154,8 @@ TEST(Parser, GarbageBeforeAndBetweenFramesIsCountedAndSkipped) {
   Parser p;
   auto out = parse_all(b, p);
   ASSERT_EQ(out.size(), 2u);
-  EXPECT_EQ(std::get<Sample>(out[0]), sample(1));
-  EXPECT_EQ(std::get<Sample>(out[1]), sample(2));
+  EXPECT_EQ(std::get<SampleFrame>(out[0]), sample(1));
+  EXPECT_EQ(std::get<SampleFrame>(out[1]), sample(2));
   EXPECT_EQ(p.stats().garbage_bytes, 7u);
   EXPECT_EQ(p.stats().crc_errors, 0u);
 }
@@ -202,8 +202,8 @@ TEST(Parser, CorruptedCrcBytesAndTruncatedFrameAreDropped) {
   // The truncated frame's sync makes the parser read 16 bytes that include the start of frame 3:
   // that CRC fails, the parser resyncs from the next byte and still finds frame 3.
   ASSERT_EQ(out.size(), 2u);
-  EXPECT_EQ(std::get<Sample>(out[0]), sample(1));
-  EXPECT_EQ(std::get<Sample>(out[1]), sample(3));
+  EXPECT_EQ(std::get<SampleFrame>(out[0]), sample(1));
+  EXPECT_EQ(std::get<SampleFrame>(out[1]), sample(3));
   EXPECT_EQ(p.stats().crc_errors, 2u);
   EXPECT_EQ(p.stats().garbage_bytes, 16u + 9u);
 }

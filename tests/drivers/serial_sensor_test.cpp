@@ -40,8 +40,8 @@ SensorOptions options_for(const std::string& endpoint) {
   return o;
 }
 
-frame::Sample sample(uint16_t seq, uint32_t t_us, int16_t a = 100, int16_t b = -100) {
-  return frame::Sample{seq, t_us, a, b, 0x07};
+frame::SampleFrame sample(uint16_t seq, uint32_t t_us, int16_t a = 100, int16_t b = -100) {
+  return frame::SampleFrame{seq, t_us, a, b, 0x07};
 }
 
 struct SensorOnPty : testing::Test {

@@ -21,19 +21,24 @@ namespace {
 using test::TempDir;
 namespace fs = std::filesystem;
 
-// One simulated bench and both fake devices on it, with the event stream a run publishes to.
+std::shared_ptr<spdlog::logger> quiet_log() {
+  return std::make_shared<spdlog::logger>("test", std::make_shared<spdlog::sinks::null_sink_mt>());
+}
+
+Plan plan_of(const Procedure& p, const EngineSettings& b);
+Procedure grid();
+
+// One simulated bench and both fake devices on it, the grid's plan, the event stream a run
+// publishes to with a recorder of `run_dir` subscribed, and the operator's controls.
 struct Bench {
-  explicit Bench(const fs::path& dir) {
+  explicit Bench(const fs::path& run_dir) {
     settings.clock = ClockSync::shared;
     settings.time_scale = 20;
     gimbal.connect();
     sensor.connect();
-  }
-  // Subscribes a recorder of `dir`'s folder; returns it.
-  RunRecorder& record(const fs::path& dir) {
-    recorders.push_back(std::make_unique<RunRecorder>(dir));
-    record_with(bus, *recorders.back());
-    return *recorders.back();
+    plan = plan_of(grid(), settings);
+    recorder = std::make_unique<RunRecorder>(run_dir);
+    record_with(bus, *recorder);
   }
   // Calls `f(point_done)` for every PointDone.
   void on_point_done(std::function<void(const PointDone&)> f) {
@@ -41,12 +46,18 @@ struct Bench {
       if (const auto* p = std::get_if<PointDone>(&e)) f(*p);
     });
   }
+  std::unique_ptr<Engine> engine(ResumePoint from = {}) {
+    return std::make_unique<Engine>(gimbal, sensor, settings, plan, bus, *log, ctl, EngineHooks{}, from);
+  }
   EngineSettings settings;
   test::FakeBench fake{default_bench_config(), 20};
   test::FakeGimbal gimbal{fake};
   test::FakeSensor sensor{fake};
   EventBus bus;
-  std::vector<std::unique_ptr<RunRecorder>> recorders;
+  Plan plan;
+  std::unique_ptr<RunRecorder> recorder;
+  RunControl ctl;
+  std::shared_ptr<spdlog::logger> log = quiet_log();
 };
 
 Plan plan_of(const Procedure& p, const EngineSettings& b) {
@@ -65,31 +76,23 @@ Procedure grid() {
   return p;
 }
 
-std::shared_ptr<spdlog::logger> quiet_log() {
-  return std::make_shared<spdlog::logger>("test", std::make_shared<spdlog::sinks::null_sink_mt>());
-}
-
 TEST(Engine, RunsAPlanAndRecordsEveryPoint) {
   TempDir tmp("engine-run");
-  Bench bench(tmp.path());
-  const Procedure p = grid();
-  const Plan plan = plan_of(p, bench.settings);
-  bench.record(tmp / "run");
-  RunControl ctl;
-  auto log = quiet_log();
+  Bench bench(tmp / "run");
+  const Plan& plan = bench.plan;
   int done_hooks = 0;
   bench.on_point_done([&](const PointDone& p) {
     ++done_hooks;
     EXPECT_EQ(p.rows->size(), 4u);
     EXPECT_EQ(p.rows->front().sample.step, p.action->point + 1);
   });
-  Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
-  const EngineResult r = engine.run();
+  const auto engine = bench.engine();
+  const EngineResult r = engine->run();
   EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
   EXPECT_TRUE(r.safe_state);
   EXPECT_EQ(r.points_done, static_cast<int64_t>(plan.points));
   EXPECT_EQ(done_hooks, static_cast<int>(plan.points));
-  EXPECT_EQ(engine.stats().points, static_cast<int64_t>(plan.points));
+  EXPECT_EQ(engine->stats().points, static_cast<int64_t>(plan.points));
   const SampleTable t = read_samples_csv(tmp / "run" / "samples.csv");
   EXPECT_EQ(t.size(), plan.points * 4);
   // Each dwell's reference is where the gimbal was, within the in-position tolerance of the target.
@@ -106,12 +109,9 @@ TEST(Engine, RunsAPlanAndRecordsEveryPoint) {
 
 TEST(Engine, AbortStopsReturnsToNullAndKeepsTheRecording) {
   TempDir tmp("engine-abort");
-  Bench bench(tmp.path());
-  const Procedure p = grid();
-  const Plan plan = plan_of(p, bench.settings);
-  bench.record(tmp / "run");
-  RunControl ctl;
-  auto log = quiet_log();
+  Bench bench(tmp / "run");
+  const Plan& plan = bench.plan;
+  RunControl& ctl = bench.ctl;
   // Abort while the gimbal is away from null: after the first offset point.
   bool abort_armed = true;
   bench.on_point_done([&](const PointDone& p) {
@@ -120,8 +120,8 @@ TEST(Engine, AbortStopsReturnsToNullAndKeepsTheRecording) {
       ctl.abort = true;
     }
   });
-  Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
-  const EngineResult r = engine.run();
+  const auto engine = bench.engine();
+  const EngineResult r = engine->run();
   EXPECT_EQ(r.outcome, RunOutcome::interrupted);
   EXPECT_NE(r.reason.find("signal 2"), std::string::npos) << r.reason;
   EXPECT_TRUE(r.safe_state);
@@ -136,13 +136,13 @@ TEST(Engine, AbortStopsReturnsToNullAndKeepsTheRecording) {
   // The same recorder folder picks up where it stopped: no point twice, none lost.
   ctl.abort = false;
   abort_armed = false;
-  Bench bench2(tmp.path());
-  RunRecorder& rec2 = bench2.record(tmp / "run");
+  Bench bench2(tmp / "run");
+  RunRecorder& rec2 = *bench2.recorder;
   EXPECT_EQ(rec2.next_point(), 2);
-  Engine again(bench2.gimbal, bench2.sensor, bench2.settings, plan, bench2.bus, *log, ctl, {}, rec2.resume_point());
-  const EngineResult r2 = again.run(2);
+  const auto again = bench2.engine(rec2.resume_point());
+  const EngineResult r2 = again->run(2);
   EXPECT_EQ(r2.outcome, RunOutcome::completed) << r2.reason;
-  EXPECT_EQ(again.stats().points, static_cast<int64_t>(plan.points) - 2);
+  EXPECT_EQ(again->stats().points, static_cast<int64_t>(plan.points) - 2);
   const SampleTable t = read_samples_csv(tmp / "run" / "samples.csv");
   EXPECT_EQ(t.size(), plan.points * 4);
   for (size_t i = 1; i < t.size(); ++i) EXPECT_TRUE(t.step[i] == t.step[i - 1] || t.step[i] == t.step[i - 1] + 1);
@@ -150,12 +150,9 @@ TEST(Engine, AbortStopsReturnsToNullAndKeepsTheRecording) {
 
 TEST(Engine, PauseHoldsBetweenPoints) {
   TempDir tmp("engine-pause");
-  Bench bench(tmp.path());
-  const Procedure p = grid();
-  const Plan plan = plan_of(p, bench.settings);
-  bench.record(tmp / "run");
-  RunControl ctl;
-  auto log = quiet_log();
+  Bench bench(tmp / "run");
+  const Plan& plan = bench.plan;
+  RunControl& ctl = bench.ctl;
   std::atomic<int64_t> done{0};
   std::atomic<int64_t> done_while_paused{-1};
   std::thread releaser;
@@ -177,8 +174,8 @@ TEST(Engine, PauseHoldsBetweenPoints) {
       });
     }
   });
-  Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
-  const EngineResult r = engine.run();
+  const auto engine = bench.engine();
+  const EngineResult r = engine->run();
   if (releaser.joinable()) releaser.join();
   EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
   EXPECT_EQ(done_while_paused.load(), 3);
@@ -190,20 +187,16 @@ TEST(Engine, PauseHoldsBetweenPoints) {
 TEST(Engine, FollowingErrorIsClearedAndThePointMeasuredAgain) {
   TempDir tmp("engine-fe");
   // The fault fires at the gimbal's 40th request: in the middle of the grid.
-  Bench bench(tmp.path());
+  Bench bench(tmp / "run");
   bench.fake.following_error_at_request = 40;
-  const Procedure p = grid();
-  const Plan plan = plan_of(p, bench.settings);
-  bench.record(tmp / "run");
-  RunControl ctl;
-  auto log = quiet_log();
+  const Plan& plan = bench.plan;
   int warnings = 0;
   bench.bus.subscribe([&](const Event& e) { warnings += std::holds_alternative<Fault>(e); });
-  Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
-  const EngineResult r = engine.run();
+  const auto engine = bench.engine();
+  const EngineResult r = engine->run();
   EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
-  EXPECT_GE(engine.stats().remeasured, 1);
-  EXPECT_GE(engine.stats().recoveries, 1);
+  EXPECT_GE(engine->stats().remeasured, 1);
+  EXPECT_GE(engine->stats().recoveries, 1);
   const auto journal = RunRecorder::read_journal(tmp / "run" / "points.jsonl");
   ASSERT_EQ(journal.size(), plan.points);
   int retried = 0;
@@ -214,18 +207,14 @@ TEST(Engine, FollowingErrorIsClearedAndThePointMeasuredAgain) {
 
 TEST(Engine, PublishesOneOrderedStreamAndATypedStopCause) {
   TempDir tmp("engine-events");
-  Bench bench(tmp.path());
+  Bench bench(tmp / "run");
   // No Sun from bench second 3 on: the dwells there see only invalid frames.
   bench.fake.invalid_frames_from_s = 3.0;
-  const Procedure p = grid();
-  const Plan plan = plan_of(p, bench.settings);
-  bench.record(tmp / "run");
+  const Plan& plan = bench.plan;
   std::vector<std::string> types;
   bench.bus.subscribe([&](const Event& e) { types.push_back(to_json(e)["type"].get<std::string>()); });
-  RunControl ctl;
-  auto log = quiet_log();
-  Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
-  const EngineResult r = engine.run();
+  const auto engine = bench.engine();
+  const EngineResult r = engine->run();
   EXPECT_EQ(r.outcome, RunOutcome::failed);
   EXPECT_EQ(r.cause, StopCause::sensor_invalid) << r.reason;
   EXPECT_TRUE(r.safe_state);
@@ -247,14 +236,10 @@ TEST(Engine, PublishesOneOrderedStreamAndATypedStopCause) {
 
 TEST(Engine, AGimbalCommandedByAnotherClientIsNoticedAndThePointMeasuredAgainOrTheRunStopped) {
   TempDir tmp("engine-foreign");
-  const Procedure p = grid();
-  auto log = quiet_log();
   // Once: another client writes the max rate before point 3; that point is measured again (the
   // recovery writes the stand's settings back).
   {
-    Bench bench(tmp.path());
-    const Plan plan = plan_of(p, bench.settings);
-    bench.record(tmp / "once");
+    Bench bench(tmp / "once");
     bool done = false;
     bench.on_point_done([&](const PointDone& pd) {
       if (pd.action->point == 2 && !done) {
@@ -266,26 +251,21 @@ TEST(Engine, AGimbalCommandedByAnotherClientIsNoticedAndThePointMeasuredAgainOrT
     bench.bus.subscribe([&](const Event& e) {
       if (const auto* f = std::get_if<Fault>(&e)) warnings.push_back(f->message);
     });
-    RunControl ctl;
-    Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
-    const EngineResult r = engine.run();
+    const auto engine = bench.engine();
+    const EngineResult r = engine->run();
     EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
     ASSERT_FALSE(warnings.empty());
     EXPECT_NE(warnings.front().find("gimbal commanded by another client"), std::string::npos) << warnings.front();
-    EXPECT_GE(engine.stats().remeasured, 1);
+    EXPECT_GE(engine->stats().remeasured, 1);
   }
   // Always: every attempt of point 3 sees a foreign rate; the run stops safely with that cause.
   {
-    Bench bench(tmp.path());
-    const Plan plan = plan_of(p, bench.settings);
-    bench.record(tmp / "always");
+    Bench bench(tmp / "always");
     bench.bus.subscribe([&](const Event& e) {
       if (const auto* ps = std::get_if<PointStarted>(&e); ps && ps->action->point >= 2)
         bench.gimbal.foreign_max_rate(1000 + ps->attempt);
     });
-    RunControl ctl;
-    Engine engine(bench.gimbal, bench.sensor, bench.settings, plan, bench.bus, *log, ctl);
-    const EngineResult r = engine.run();
+    const EngineResult r = bench.engine()->run();
     EXPECT_EQ(r.outcome, RunOutcome::failed);
     EXPECT_EQ(r.cause, StopCause::commanded_elsewhere) << r.reason;
     EXPECT_NE(r.reason.find("gimbal commanded by another client"), std::string::npos) << r.reason;

@@ -42,7 +42,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
     std::vector<Frame> back;
     p.feed(e.data(), e.size(), back);
     check(back.size() == 1 && back[0] == f, "re-encoded frame does not parse back to itself");
-    if (const auto* s = std::get_if<Sample>(&f)) {
+    if (const auto* s = std::get_if<SampleFrame>(&f)) {
       auto st = tracker.observe(s->seq, s->sensor_time_us);
       check(st.sensor_time_s >= 0, "negative sensor time");
     }
