@@ -1,22 +1,17 @@
 // libFuzzer harness for the JSON coefficient reader (calib/json_file.cpp, calib/coefficients.cpp):
 // any input is a coefficient set that survives a write/read round trip, or an InputError.
 #include <cmath>
-#include <cstdint>
 #include <cstdio>
-#include <cstdlib>
-#include <string_view>
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
 #include "calib/json_file.h"
 #include "tests/support/fuzz_check.h"
 
-namespace {
-void check(bool ok, const char* what) { fpss::test::fuzz_check(ok, "coefficient reader", what); }
-}  // namespace
+const fpss::test::Invariants check{"coefficient reader"};
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
-  const std::string_view text(reinterpret_cast<const char*>(data), size);
+  const std::string_view text = fpss::test::fuzz_text(data, size);
   fpss::CoefficientSet set;
   try {
     set = fpss::parse_coefficients(fpss::parse_json_text(text, "fuzz.json"), "fuzz.json");

@@ -1,21 +1,15 @@
 // libFuzzer harness for the samples CSV reader (calib/samples.cpp): any input either parses into a
 // table that keeps the format's promises or is an InputError; nothing else may escape.
 #include <cmath>
-#include <cstdint>
-#include <cstdio>
-#include <cstdlib>
-#include <string_view>
 
 #include "calib/errors.h"
 #include "calib/samples.h"
 #include "tests/support/fuzz_check.h"
 
-namespace {
-void check(bool ok, const char* what) { fpss::test::fuzz_check(ok, "samples reader", what); }
-}  // namespace
+const fpss::test::Invariants check{"samples reader"};
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
-  const std::string_view text(reinterpret_cast<const char*>(data), size);
+  const std::string_view text = fpss::test::fuzz_text(data, size);
   fpss::SampleTable t;
   try {
     t = fpss::parse_samples_csv(text, "fuzz.csv");

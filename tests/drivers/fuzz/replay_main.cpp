@@ -3,7 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <string>
@@ -11,8 +11,7 @@
 #include <vector>
 
 #include "drivers/fpss_frame.h"
-
-extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size);
+#include "tests/support/fuzz_replay.h"
 
 int main(int argc, char** argv) {
   if (argc != 3) {
@@ -32,17 +31,9 @@ int main(int argc, char** argv) {
   long inputs = 0;
   for (const auto& entry : std::filesystem::directory_iterator(argv[1])) {
     if (!entry.is_regular_file()) continue;
-    std::ifstream in(entry.path(), std::ios::binary);
-    std::vector<uint8_t> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    auto data = fpss::test::read_corpus_file(entry.path());
     ++files;
-    LLVMFuzzerTestOneInput(data.data(), data.size());
-    ++inputs;
-    for (std::size_t bit = 0; bit < data.size() * 8; ++bit) {
-      data[bit / 8] ^= static_cast<uint8_t>(1u << (bit % 8));
-      LLVMFuzzerTestOneInput(data.data(), data.size());
-      data[bit / 8] ^= static_cast<uint8_t>(1u << (bit % 8));
-      ++inputs;
-    }
+    inputs += fpss::test::replay_with_bit_flips(data, std::numeric_limits<std::size_t>::max());
     auto it = expected.find(entry.path().filename().string());
     if (it != expected.end()) {
       fpss::frame::Parser p;

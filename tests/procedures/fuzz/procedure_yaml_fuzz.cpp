@@ -2,23 +2,17 @@
 // expansion (plan.cpp): any text gives diagnostics with places, or a procedure whose plan stays
 // within the documented limits (docs/procedures.md, Limits). Nothing but InputError may escape.
 #include <cmath>
-#include <cstdint>
-#include <cstdio>
-#include <cstdlib>
-#include <string_view>
 
 #include "calib/errors.h"
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
 #include "tests/support/fuzz_check.h"
 
-namespace {
-void check(bool ok, const char* what) { fpss::test::fuzz_check(ok, "procedure reader", what); }
-}  // namespace
+const fpss::test::Invariants check{"procedure reader"};
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
   using namespace fpss;
-  const std::string_view text(reinterpret_cast<const char*>(data), size);
+  const std::string_view text = fpss::test::fuzz_text(data, size);
   Diagnostics d("fuzz.yaml");
   try {
     const Procedure p = parse_procedure(text, "fuzz.yaml", d);

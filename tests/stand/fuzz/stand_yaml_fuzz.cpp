@@ -1,22 +1,16 @@
 // libFuzzer harness for the stand-file reader (stand/config/stand_config.cpp through yaml_diag's
 // MapReader): any text gives diagnostics or a stand whose numbers are finite; only InputError escapes.
 #include <cmath>
-#include <cstdint>
-#include <cstdio>
-#include <cstdlib>
-#include <string_view>
 
 #include "calib/errors.h"
 #include "stand/config/stand_config.h"
 #include "tests/support/fuzz_check.h"
 
-namespace {
-void check(bool ok, const char* what) { fpss::test::fuzz_check(ok, "stand reader", what); }
-}  // namespace
+const fpss::test::Invariants check{"stand reader"};
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
   using namespace fpss;
-  const std::string_view text(reinterpret_cast<const char*>(data), size);
+  const std::string_view text = fpss::test::fuzz_text(data, size);
   Diagnostics d("fuzz.yaml");
   try {
     const StandConfig c = parse_stand(text, "fuzz.yaml", d);
