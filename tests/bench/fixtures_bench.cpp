@@ -22,6 +22,7 @@
 #include "fixtures/emulator.h"
 #include "tests/fixtures/wire_util.h"
 #include "tests/support/test_support.h"
+#include "tests/support/emulator_options.h"
 
 namespace {
 
@@ -39,10 +40,7 @@ void BM_SensorStream(benchmark::State& state) {
   const int rate_hz = static_cast<int>(state.range(0));
   const double speed = static_cast<double>(state.range(1));
   const double seconds = 3.0;
-  fpss::EmulatorOptions o;
-  o.modbus_port = 0;
-  o.speed = speed;
-  fpss::Emulator emu(o);
+    fpss::Emulator emu(fpss::test::running_emulator_options(speed));
   emu.start();
   fpss::wiretest::PtyHost host(emu.endpoints().sensor_pty);
   if (host.ask("RATE " + std::to_string(rate_hz)) != "OK" || host.ask("START") != "OK") {
@@ -80,10 +78,7 @@ BENCHMARK(BM_SensorStream)->Args({200, 50})->Args({50, 20})->Iterations(1)->UseM
 
 // A bare libmodbus read of the 15 input registers against the emulated gimbal on loopback.
 void BM_ModbusReadState(benchmark::State& state) {
-  fpss::EmulatorOptions o;
-  o.modbus_port = 0;
-  o.speed = 20;
-  fpss::Emulator emu(o);
+    fpss::Emulator emu(fpss::test::running_emulator_options(20));
   emu.start();
   fpss::wiretest::ModbusClient c(emu.endpoints().modbus_port);
   for (auto _ : state) benchmark::DoNotOptimize(c.input(0, 15));

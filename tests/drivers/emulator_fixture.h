@@ -12,39 +12,15 @@
 #include "drivers/serial_sensor.h"
 #include "fixtures/emulator.h"
 #include "test_util.h"
+#include "tests/drivers/driver_options.h"
+#include "tests/support/emulator_options.h"
 
 namespace fpss::e2e {
 
 // Emulator options for a test: ephemeral Modbus port, a bench clock fast enough that moves of
 // a few hundred arcsec take a few wall milliseconds.
 inline EmulatorOptions emulator_options(double speed = 20.0) {
-  EmulatorOptions o;
-  o.modbus_port = 0;
-  o.speed = speed;
-  return o;
-}
-
-// Generous timeouts: a loaded machine must never cause a retry or a timeout the test does not
-// provoke on purpose. Tests about timeouts pass shorter ones.
-inline GimbalOptions gimbal_options(const std::string& endpoint, double response_timeout_s = 5.0) {
-  GimbalOptions o;
-  o.endpoint = endpoint;
-  o.response_timeout_s = response_timeout_s;
-  o.retries = 2;
-  o.backoff_s = 0.01;
-  o.max_backoff_s = 0.05;
-  o.poll_interval_s = 0.005;
-  return o;
-}
-
-inline SensorOptions sensor_options(const std::string& endpoint, double command_timeout_s = 5.0) {
-  SensorOptions o;
-  o.endpoint = endpoint;
-  o.command_timeout_s = command_timeout_s;
-  o.command_retries = 1;
-  o.reconnects = 2;
-  o.reconnect_backoff_s = 0.02;
-  return o;
+  return test::running_emulator_options(speed);
 }
 
 // What the emulator's gimbal holds in its target registers (ground truth, not over the wire).

@@ -11,6 +11,7 @@
 #include "drivers/endpoints.h"
 #include "modbus_test_server.h"
 #include "test_util.h"
+#include "tests/drivers/driver_options.h"
 
 using fpss::test::ModbusTestServer;
 using testing::HasSubstr;
@@ -20,18 +21,6 @@ namespace {
 
 using test::error_of;
 
-// A generous response timeout so that a loaded machine never causes a retry the test does not
-// expect; tests that provoke timeouts on purpose pass a shorter one.
-GimbalOptions fast_options(const std::string& endpoint, double response_timeout_s = 5.0) {
-  GimbalOptions o;
-  o.endpoint = endpoint;
-  o.response_timeout_s = response_timeout_s;
-  o.retries = 2;
-  o.backoff_s = 0.01;
-  o.poll_interval_s = 0.005;
-  return o;
-}
-
 int count_function(const std::vector<ModbusTestServer::Request>& rs, int fc) {
   int n = 0;
   for (const auto& r : rs) n += r.function == fc;
@@ -40,7 +29,7 @@ int count_function(const std::vector<ModbusTestServer::Request>& rs, int fc) {
 
 TEST(ModbusGimbal, ConstructorTouchesNoHardware) {
   ModbusTestServer server;
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
   EXPECT_FALSE(g.connected());
   EXPECT_EQ(server.connections(), 0);
   EXPECT_THAT(error_of([&] { g.read_state(); }), HasSubstr("before connect()"));
@@ -60,7 +49,7 @@ TEST(ModbusGimbal, ReadStateDecodesNegativeAnglesAndU64TimeInOneRequest) {
   server.set_input(9, 0);
   server.set_input_u64(10, 0x0123'4567'89AB'CDEFull);
   server.set_input(14, 65535);
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
   g.connect();
   GimbalState s = g.read_state();
   EXPECT_DOUBLE_EQ(s.pitch_arcsec, -1234.567);
@@ -83,7 +72,7 @@ TEST(ModbusGimbal, ReadStateDecodesNegativeAnglesAndU64TimeInOneRequest) {
 TEST(ModbusGimbal, MoveWritesTargetsWithFunction16ThenCommand1AndWaits) {
   ModbusTestServer server;
   server.set_move_reads(3);
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
   g.connect();
   g.move_to(-1000.5, 2000.25);
   auto rs = server.requests();
@@ -112,7 +101,7 @@ TEST(ModbusGimbal, MoveWritesTargetsWithFunction16ThenCommand1AndWaits) {
 
 TEST(ModbusGimbal, SoftLimitsRefuseBeforeAnythingIsSent) {
   ModbusTestServer server;
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
   g.connect();
   std::string msg = error_of([&] { g.move_to(3000, 0); });
   EXPECT_THAT(msg, HasSubstr("pitch"));
@@ -135,7 +124,7 @@ TEST(ModbusGimbal, SoftLimitsRefuseBeforeAnythingIsSent) {
 
 TEST(ModbusGimbal, Exception03NamesTheRegistersAndIsNotRetried) {
   ModbusTestServer server;
-  GimbalOptions o = fast_options(server.endpoint());
+  GimbalOptions o = e2e::gimbal_options(server.endpoint());
   o.limits.pitch_max_arcsec = 10'000;  // soft limits wider than the device's hard limits
   ModbusGimbal g(o);
   g.connect();
@@ -152,7 +141,7 @@ TEST(ModbusGimbal, Exception03NamesTheRegistersAndIsNotRetried) {
 
 TEST(ModbusGimbal, Exception02NamesTheUnmappedAddress) {
   ModbusTestServer server;
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
   g.connect();
   std::string msg = error_of([&] { g.read_input_registers(20, 2); });
   EXPECT_THAT(msg, HasSubstr("input registers 20..21"));
@@ -166,7 +155,7 @@ TEST(ModbusGimbal, Exception02NamesTheUnmappedAddress) {
 
 TEST(ModbusGimbal, UnknownCommandIsException03OnTheCommandRegister) {
   ModbusTestServer server;
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
   g.connect();
   std::string msg = error_of([&] { g.write_holding_registers(11, {9}); });
   EXPECT_THAT(msg, HasSubstr("holding register 11 (command)"));
@@ -178,7 +167,7 @@ TEST(ModbusGimbal, TimeoutsAreRetriedOnAFreshConnectionThenSucceed) {
   server.set_hook([](const ModbusTestServer::Request&, std::size_t i) {
     return ModbusTestServer::Decision{i < 2 ? Action::drop : Action::reply, 0};
   });
-  ModbusGimbal g(fast_options(server.endpoint(), 1.0));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint(), 1.0));
   g.connect();
   server.set_input_i32(0, 42'000);
   EXPECT_DOUBLE_EQ(g.read_state().pitch_arcsec, 42.0);
@@ -193,7 +182,7 @@ TEST(ModbusGimbal, PersistentTimeoutEndsInAClearError) {
   server.set_hook([](const ModbusTestServer::Request&, std::size_t) {
     return ModbusTestServer::Decision{Action::drop, 0};
   });
-  ModbusGimbal g(fast_options(server.endpoint(), 1.0));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint(), 1.0));
   g.connect();
   std::string msg = error_of([&] { g.read_state(); });
   EXPECT_THAT(msg, HasSubstr("input registers 0..14"));
@@ -213,7 +202,7 @@ TEST(ModbusGimbal, AReplyDribbledByteByByteIsATimeoutWithinTheDeadline) {
   server.set_hook([](const ModbusTestServer::Request&, std::size_t) {
     return ModbusTestServer::Decision{Action::dribble, 0, 0.1};  // 39 bytes: 3.9 s for one reply
   });
-  GimbalOptions o = fast_options(server.endpoint(), 0.5);
+  GimbalOptions o = e2e::gimbal_options(server.endpoint(), 0.5);
   o.retries = 2;
   ModbusGimbal g(o);
   g.connect();
@@ -233,7 +222,7 @@ TEST(ModbusGimbal, AReplyDribbledByteByByteIsATimeoutWithinTheDeadline) {
   server.set_hook([](const ModbusTestServer::Request&, std::size_t) {
     return ModbusTestServer::Decision{Action::dribble, 0, 0.001};
   });
-  GimbalOptions patient = fast_options(server.endpoint(), 2.0);
+  GimbalOptions patient = e2e::gimbal_options(server.endpoint(), 2.0);
   ModbusGimbal g2(patient);
   g2.connect();
   server.set_input_i32(0, 42'000);
@@ -245,7 +234,7 @@ TEST(ModbusGimbal, DroppedConnectionIsReconnected) {
   server.set_hook([](const ModbusTestServer::Request&, std::size_t i) {
     return ModbusTestServer::Decision{i == 1 ? Action::close : Action::reply, 0};
   });
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
   g.connect();
   g.read_state();
   server.set_input_i32(2, -5'000);
@@ -260,7 +249,7 @@ TEST(ModbusGimbal, BusyIsRetriedOtherExceptionsAreNot) {
   server.set_hook([](const ModbusTestServer::Request&, std::size_t i) {
     return ModbusTestServer::Decision{i == 0 ? Action::exception : Action::reply, MODBUS_EXCEPTION_SLAVE_OR_SERVER_BUSY};
   });
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
   g.connect();
   g.read_state();
   EXPECT_EQ(g.counters().retries, 1u);
@@ -276,7 +265,7 @@ TEST(ModbusGimbal, BusyIsRetriedOtherExceptionsAreNot) {
 
 TEST(ModbusGimbal, NoServerGivesConnectionRefusedWithErrno) {
   test::RefusingPort refusing;
-  GimbalOptions o = fast_options("modbus-tcp:127.0.0.1:" + std::to_string(refusing.port()));
+  GimbalOptions o = e2e::gimbal_options("modbus-tcp:127.0.0.1:" + std::to_string(refusing.port()));
   ModbusGimbal g(o);
   std::string msg = error_of([&] { g.connect(); });
   EXPECT_THAT(msg, HasSubstr("cannot connect"));
@@ -288,7 +277,7 @@ TEST(ModbusGimbal, NoServerGivesConnectionRefusedWithErrno) {
 TEST(ModbusGimbal, FaultWhileWaitingNamesTheFaultCode) {
   ModbusTestServer server;
   server.set_fault_on_move(static_cast<uint16_t>(GimbalFault::following_error));
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
   g.connect();
   g.move_to(10, 10);
   std::string msg = error_of([&] { g.wait_in_position(30.0); });
@@ -301,7 +290,7 @@ TEST(ModbusGimbal, FaultWhileWaitingNamesTheFaultCode) {
 TEST(ModbusGimbal, WaitInPositionTimesOutWhileStillMoving) {
   ModbusTestServer server;
   server.set_move_reads(1'000'000);
-  GimbalOptions o = fast_options(server.endpoint());
+  GimbalOptions o = e2e::gimbal_options(server.endpoint());
   o.poll_interval_s = 0.01;
   ModbusGimbal g(o);
   g.connect();
@@ -313,7 +302,7 @@ TEST(ModbusGimbal, WaitInPositionTimesOutWhileStillMoving) {
 
 TEST(ModbusGimbal, RateMaxRateAndWatchdogRegisters) {
   ModbusTestServer server;
-  ModbusGimbal g(fast_options(server.endpoint()));
+  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
   g.connect();
   g.set_max_rate(3000.5);
   EXPECT_EQ((static_cast<uint32_t>(server.holding(8)) << 16) | server.holding(9), 3'000'500u);
@@ -339,7 +328,7 @@ TEST(ModbusGimbal, RtuOverARealPty) {
   ModbusTestServer server(ModbusTestServer::Transport::rtu_pty);
   server.set_input_i32(0, -900'000);
   server.set_input_u64(10, 123'456'789'012ull);
-  auto gimbal = make_gimbal(fast_options(server.endpoint()));
+  auto gimbal = make_gimbal(e2e::gimbal_options(server.endpoint()));
   gimbal->connect();
   GimbalState s = gimbal->read_state();
   EXPECT_DOUBLE_EQ(s.pitch_arcsec, -900.0);
