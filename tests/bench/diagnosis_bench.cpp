@@ -13,16 +13,23 @@
 namespace fpss {
 namespace {
 
-// ------------------------------------------------------------------ 200-case blind check
-
-void BM_BlindTest200(benchmark::State& state) {
+// The blind check of `cases` cases (pairs of effects when `pairs`), seeded by the benchmark's arg.
+BlindTestReport blindtest_of(benchmark::State& state, int cases, bool pairs) {
   BlindTestReport rep;
   for (auto _ : state) {
     BlindTestOptions o;
-    o.cases = 200;
+    o.cases = cases;
     o.seed = static_cast<uint64_t>(state.range(0));
+    o.pairs = pairs;
     rep = run_blindtest(o);
   }
+  return rep;
+}
+
+// ------------------------------------------------------------------ 200-case blind check
+
+void BM_BlindTest200(benchmark::State& state) {
+  const BlindTestReport rep = blindtest_of(state, 200, false);
   const auto j = rep.to_json();
   const auto& s = j["summary"];
   state.counters["accuracy"] = s["accuracy"].get<double>();
@@ -43,14 +50,7 @@ BENCHMARK(BM_BlindTest200)->Arg(7)->Iterations(1)->Unit(benchmark::kSecond)->Use
 
 // Two effects per case: every distinguishable pair twice (86 cases).
 void BM_BlindTestPairs(benchmark::State& state) {
-  BlindTestReport rep;
-  for (auto _ : state) {
-    BlindTestOptions o;
-    o.cases = 86;
-    o.seed = static_cast<uint64_t>(state.range(0));
-    o.pairs = true;
-    rep = run_blindtest(o);
-  }
+  const BlindTestReport rep = blindtest_of(state, 86, true);
   const auto j = rep.to_json();
   const auto& s = j["summary"];
   state.counters["both_found"] = s["both_found"].get<double>();

@@ -47,6 +47,12 @@ std::vector<uint8_t> random_bytes(std::size_t n, unsigned seed) {
   return b;
 }
 
+// What opening `endpoint` throws.
+std::string open_error(const std::string& endpoint) {
+  auto s = make_byte_stream(endpoint);
+  return error_of([&] { s->open(); });
+}
+
 TEST(PtyStream, RawBytesBothWaysOverARealPty) {
   test::PtyPair pty;
   auto s = make_byte_stream("pty:" + pty.slave_path());
@@ -90,15 +96,13 @@ TEST(PtyStream, ReadTimesOutWithZeroAndHangupIsAnError) {
 }
 
 TEST(PtyStream, MissingDeviceNamesThePathAndErrno) {
-  auto s = make_byte_stream("pty:/dev/pts/does-not-exist");
-  std::string msg = error_of([&] { s->open(); });
+  const std::string msg = open_error("pty:/dev/pts/does-not-exist");
   EXPECT_THAT(msg, HasSubstr("/dev/pts/does-not-exist"));
   EXPECT_THAT(msg, HasSubstr("errno 2"));
 }
 
 TEST(PtyStream, ARegularFileIsNotATerminal) {
-  auto s = make_byte_stream("pty:/dev/null");
-  EXPECT_THAT(error_of([&] { s->open(); }), HasSubstr("not a terminal"));
+  EXPECT_THAT(open_error("pty:/dev/null"), HasSubstr("not a terminal"));
 }
 
 TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
@@ -144,15 +148,13 @@ TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
 
 TEST(TcpStream, ConnectionRefusedNamesErrno) {
   test::RefusingPort refusing;
-  auto s = make_byte_stream("tcp:127.0.0.1:" + std::to_string(refusing.port()));
-  std::string msg = error_of([&] { s->open(); });
+  const std::string msg = open_error("tcp:127.0.0.1:" + std::to_string(refusing.port()));
   EXPECT_THAT(msg, HasSubstr("cannot connect"));
   EXPECT_THAT(msg, HasSubstr("errno 111"));
 }
 
 TEST(TcpStream, UnknownHostIsAClearError) {
-  auto s = make_byte_stream("tcp:no-such-host.invalid:4000");
-  EXPECT_THAT(error_of([&] { s->open(); }), HasSubstr("no-such-host.invalid"));
+  EXPECT_THAT(open_error("tcp:no-such-host.invalid:4000"), HasSubstr("no-such-host.invalid"));
 }
 
 TEST(SerialStream, ListingWorksAndNeverShowsPtys) {

@@ -144,6 +144,13 @@ TEST(Parser, RandomChunkSizes) {
   EXPECT_EQ(out, frames);
 }
 
+// `out` is exactly the sample frames sample(seq) for these sequence numbers, in order.
+void expect_samples(const std::vector<Frame>& out, std::initializer_list<uint16_t> seqs) {
+  ASSERT_EQ(out.size(), seqs.size());
+  std::size_t i = 0;
+  for (uint16_t seq : seqs) EXPECT_EQ(std::get<SampleFrame>(out[i++]), sample(seq));
+}
+
 TEST(Parser, GarbageBeforeAndBetweenFramesIsCountedAndSkipped) {
   std::vector<uint8_t> b{0x00, 0x11, 0x5A, 0x01};  // 4 bytes of noise, no sync
   auto f1 = encode(sample(1));
@@ -153,9 +160,7 @@ TEST(Parser, GarbageBeforeAndBetweenFramesIsCountedAndSkipped) {
   b.insert(b.end(), f2.begin(), f2.end());
   Parser p;
   auto out = parse_all(b, p);
-  ASSERT_EQ(out.size(), 2u);
-  EXPECT_EQ(std::get<SampleFrame>(out[0]), sample(1));
-  EXPECT_EQ(std::get<SampleFrame>(out[1]), sample(2));
+  expect_samples(out, {1, 2});
   EXPECT_EQ(p.stats().garbage_bytes, 7u);
   EXPECT_EQ(p.stats().crc_errors, 0u);
 }
@@ -201,9 +206,7 @@ TEST(Parser, CorruptedCrcBytesAndTruncatedFrameAreDropped) {
   auto out = parse_all(b, p);
   // The truncated frame's sync makes the parser read 16 bytes that include the start of frame 3:
   // that CRC fails, the parser resyncs from the next byte and still finds frame 3.
-  ASSERT_EQ(out.size(), 2u);
-  EXPECT_EQ(std::get<SampleFrame>(out[0]), sample(1));
-  EXPECT_EQ(std::get<SampleFrame>(out[1]), sample(3));
+  expect_samples(out, {1, 3});
   EXPECT_EQ(p.stats().crc_errors, 2u);
   EXPECT_EQ(p.stats().garbage_bytes, 16u + 9u);
 }

@@ -60,15 +60,18 @@ TEST(Recorder, PointsAreDurableAndReadableInTheSamplesContract) {
   EXPECT_DOUBLE_EQ(journal.back().last_time_s, 3.04);
 }
 
+// Appends points 0..n-1 of `rows` rows each, first attempt of session 1; returns the size of
+// samples.csv after them (all durable).
+uint64_t append_points(RunRecorder& rec, int64_t n, int rows) {
+  for (int64_t p = 0; p < n; ++p) rec.append_point(p, point_rows(p, rows, static_cast<double>(p)), 1, 1);
+  return fs::file_size(rec.dir() / "samples.csv");
+}
+uint64_t append_points(RunRecorder&& rec, int64_t n, int rows) { return append_points(rec, n, rows); }
+
 TEST(Recorder, ResumeCutsATornPointAndATornJournalLine) {
   TempDir tmp("recorder-torn");
   const fs::path dir = tmp / "run";
-  uint64_t synced = 0;
-  {
-    RunRecorder rec(dir);
-    for (int64_t p = 0; p < 3; ++p) rec.append_point(p, point_rows(p, 5, p * 1.0), 1, 1);
-    synced = fs::file_size(dir / "samples.csv");
-  }
+  const uint64_t synced = append_points(RunRecorder(dir), 3, 5);
   // A crash in the middle of point 3: two of its rows reached the disk, its journal line half.
   {
     std::ofstream s(dir / "samples.csv", std::ios::app);
@@ -100,8 +103,7 @@ TEST(Recorder, AnUnreadableLastJournalLineIsAPointNotYetDone) {
   uint64_t synced = 0;
   {
     RunRecorder rec(dir);
-    for (int64_t p = 0; p < 2; ++p) rec.append_point(p, point_rows(p, 2, p), 1, 1);
-    synced = fs::file_size(dir / "samples.csv");
+    synced = append_points(rec, 2, 2);
     rec.append_point(2, point_rows(2, 2, 2), 1, 1);
   }
   // A power cut can leave the unsynced journal's last line as zeros.
