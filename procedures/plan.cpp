@@ -176,7 +176,7 @@ class Expander {
         }
       }
     } else {
-      for (auto ax : s.axes) for (double o : offs) pts.push_back(on_axis(ax, o));
+      for (auto ax : s.axes) for (double o : s.offsets_arcsec(ax)) pts.push_back(on_axis(ax, o));
       if (s.layout == GridStep::Layout::diagonals) {
         for (double o : offs) pts.emplace_back(o, o);
         for (double o : offs) pts.emplace_back(o, -o);

@@ -43,6 +43,11 @@ std::vector<double> GridStep::offsets_arcsec() const {
   return out;
 }
 
+std::vector<double> GridStep::offsets_arcsec(StandAxis axis) const {
+  if (!listed()) return offsets_arcsec();
+  return axis == StandAxis::pitch ? pitch_offsets_arcsec : yaw_offsets_arcsec;
+}
+
 const std::vector<std::string_view>& step_types() {
   static const std::vector<std::string_view> t{"home", "move", "settle", "sample", "null_offset_grid",
                                                "continuous_slew", "calibrate", "check"};
@@ -82,6 +87,56 @@ std::optional<StandAxis> parse_axis(const YAML::Node& n, const std::string& what
   return std::nullopt;
 }
 
+// The numbers listed under the first of `keys` present (each key with its factor to the base
+// unit), each passing `valid` (else an error naming `rule`); empty when none is present. A present
+// key that is not a non-empty list is an error.
+std::vector<double> read_number_list(MapReader& r, std::initializer_list<std::pair<const char*, double>> keys,
+                                     const char* noun, bool (*valid)(double), const char* rule) {
+  Diagnostics& d = r.diagnostics();
+  std::vector<double> out;
+  for (auto [key, factor] : keys) {
+    YAML::Node n = r.node(key);
+    if (!n.IsDefined()) continue;
+    const std::string what = fmt::format("{}: field {}", r.where(), key);
+    if (!n.IsSequence() || n.size() == 0) {
+      d.error(n, fmt::format("{}: expected a list of {}, got {}", what, noun, describe_node(n)));
+      continue;
+    }
+    if (n.size() > static_cast<std::size_t>(kMaxPlanPoints)) {
+      d.error(n, fmt::format("{}: {} {} listed; at most {} (docs/procedures.md, Limits)", what, n.size(), noun,
+                             kMaxPlanPoints));
+      continue;
+    }
+    for (const auto& e : n) {
+      if (auto v = MapReader::as_number(e, what, d, key)) {
+        if (!valid(*v * factor)) d.error(e, fmt::format("{}: {}, got {}", what, rule, *v));
+        else out.push_back(*v * factor);
+      }
+    }
+  }
+  return out;
+}
+
+// Offsets listed one by one (`pitch_offsets_deg: [...]`, `yaw_offsets_arcsec: [...]`): non-zero,
+// within the gimbal's +-180 deg.
+void read_listed_offsets(MapReader& r, GridStep& s) {
+  auto offset_ok = [](double a) { return a != 0 && std::fabs(a) <= 648000; };
+  const char* rule = "an offset must be non-zero and within +-180 deg";
+  s.pitch_offsets_arcsec = read_number_list(r, {{"pitch_offsets_arcsec", 1.0}, {"pitch_offsets_deg", 3600.0}},
+                                            "offsets", +offset_ok, rule);
+  s.yaw_offsets_arcsec = read_number_list(r, {{"yaw_offsets_arcsec", 1.0}, {"yaw_offsets_deg", 3600.0}},
+                                          "offsets", +offset_ok, rule);
+  if (!s.listed()) return;
+  s.axes.clear();
+  if (!s.pitch_offsets_arcsec.empty()) s.axes.push_back(StandAxis::pitch);
+  if (!s.yaw_offsets_arcsec.empty()) s.axes.push_back(StandAxis::yaw);
+  for (const char* k : {"extent_deg", "extent_arcsec", "step_deg", "step_arcsec", "axes", "order", "layout"}) {
+    if (r.has(k)) {
+      r.diagnostics().error(r.node(k), fmt::format("{}: {} does not go with listed offsets", r.where(), k));
+    }
+  }
+}
+
 StepBody parse_home(MapReader& r) {
   HomeStep s;
   s.timeout_s = r.positive("timeout_s");
@@ -119,6 +174,12 @@ StepBody parse_sample(MapReader& r) {
 StepBody parse_grid(MapReader& r) {
   GridStep s;
   Diagnostics& d = r.diagnostics();
+  read_listed_offsets(r, s);
+  if (s.listed()) {
+    if (auto v = r.non_negative("settle_s")) s.settle_s = *v;
+    if (auto f = read_frames(r, true)) s.frames = *f;
+    return s;
+  }
   YAML::Node axes = r.node("axes");
   if (axes.IsDefined()) {
     const std::string what = fmt::format("{}: field axes", r.where());
@@ -208,20 +269,10 @@ StepBody parse_slew(MapReader& r) {
     d.error(r.mark(), fmt::format("{}: give rate_* or rates_*, not both", r.where()));
   }
   if (auto v = r.rate_arcsec_s("rate")) s.rates_arcsec_s.push_back(*v);
-  for (auto [key, factor] : {std::pair{"rates_arcsec_s", 1.0}, std::pair{"rates_deg_s", 3600.0}}) {
-    YAML::Node n = r.node(key);
-    if (!n.IsDefined()) continue;
-    const std::string what = fmt::format("{}: field {}", r.where(), key);
-    if (!n.IsSequence() || n.size() == 0) {
-      d.error(n, fmt::format("{}: expected a list of rates, got {}", what, describe_node(n)));
-      continue;
-    }
-    for (const auto& e : n) {
-      if (auto v = MapReader::as_number(e, what, d, key)) {
-        if (*v <= 0) d.error(e, fmt::format("{}: a rate must be > 0, got {}", what, *v));
-        else s.rates_arcsec_s.push_back(*v * factor);
-      }
-    }
+  auto rate_ok = [](double v) { return v > 0; };
+  for (double v : read_number_list(r, {{"rates_arcsec_s", 1.0}, {"rates_deg_s", 3600.0}}, "rates", +rate_ok,
+                                   "a rate must be > 0")) {
+    s.rates_arcsec_s.push_back(v);
   }
   if (!one && !many && r.ok()) {
     d.error(r.mark(), fmt::format("{}: missing field rate_arcsec_s or rates_arcsec_s (or _deg_s)", r.where()));

@@ -61,7 +61,12 @@ struct GridStep {
   FrameSpec frames;          // samples per dwell
   Order order = Order::outward;
   Layout layout = Layout::axes;
-  std::vector<double> offsets_arcsec() const;  // ordered, zero excluded
+  // Offsets listed one by one, in recording order (a design from `fpss-stand design`): when one is
+  // given, extent and step are not, and `axes` are the listed ones (pitch first).
+  std::vector<double> pitch_offsets_arcsec, yaw_offsets_arcsec;
+  std::vector<double> offsets_arcsec() const;  // ordered, zero excluded (extent and step)
+  std::vector<double> offsets_arcsec(StandAxis axis) const;  // the list of that axis, or the above
+  bool listed() const { return !pitch_offsets_arcsec.empty() || !yaw_offsets_arcsec.empty(); }
 };
 
 // Bang-bang slews along one axis between -amplitude and +amplitude, one segment per rate and direction.
