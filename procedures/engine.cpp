@@ -442,6 +442,17 @@ void Engine::do_action(size_t i) {
         }
       }
       break;
+    case Action::Kind::diagnose:
+      log_.info("step {}: diagnose", a.step_index);
+      if (hooks_.diagnose) {
+        Timed t(stats_.calibrate_s);
+        try {
+          hooks_.diagnose(a);
+        } catch (const std::exception& e) {
+          throw PointFailure(e.what(), StopCause::diagnosis_failed);
+        }
+      }
+      break;
     case Action::Kind::check: {
       log_.info("step {}: check", a.step_index);
       const std::string broken = hooks_.check ? hooks_.check(a) : std::string();

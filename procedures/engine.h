@@ -54,6 +54,8 @@ struct EngineHooks {
   std::function<void(const Action&)> calibrate;
   // A check action: returns an empty string when the limits hold, else what broke them.
   std::function<std::string(const Action&)> check;
+  // A diagnose action: the sim-to-real diagnosis of what was recorded before it. Throwing fails the run.
+  std::function<void(const Action&)> diagnose;
 };
 
 class Engine {

@@ -36,6 +36,7 @@ const char* to_string(StopCause c) {
     case StopCause::commanded_elsewhere: return "commanded_elsewhere";
     case StopCause::check_failed: return "check_failed";
     case StopCause::calibration_failed: return "calibration_failed";
+    case StopCause::diagnosis_failed: return "diagnosis_failed";
     case StopCause::storage: return "storage";
     case StopCause::unsafe: return "unsafe";
     case StopCause::other: return "other";

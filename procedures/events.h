@@ -30,6 +30,7 @@ enum class StopCause {
   commanded_elsewhere,  // the gimbal was commanded by another client
   check_failed,         // a check step's limits were broken
   calibration_failed,   // a calibrate step could not fit
+  diagnosis_failed,     // a diagnose step could not diagnose
   storage,              // the recording could not be made durable
   unsafe,               // the run ended but the gimbal could not be returned to null
   other,                // anything else (the reason says what)

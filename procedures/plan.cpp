@@ -239,6 +239,12 @@ class Expander {
     push(a);
   }
 
+  void add(const DiagnoseStep& s) {
+    Action a = base(Action::Kind::diagnose);
+    a.diagnose = &s;
+    push(a);
+  }
+
   const Procedure& proc_;
   const EngineSettings& b_;
   Diagnostics& d_;
@@ -278,6 +284,9 @@ std::string Action::describe() const {
     case Kind::calibrate:
       return fmt::format("calibrate ({}) on the points so far", calibrate ? calibrate->method : "?");
     case Kind::check: return "check the calibration's residuals against limits";
+    case Kind::diagnose:
+      return fmt::format("diagnose the points so far against {} (GAP.json, GAP.html)",
+                         diagnose ? diagnose->model.filename().string() : "?");
   }
   return "?";
 }

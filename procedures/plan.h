@@ -13,7 +13,7 @@ namespace fpss {
 // resumed run measure exactly the points an uninterrupted one would: their index in this plan,
 // which depends only on the procedure text and the stand's sample rate.
 struct Action {
-  enum class Kind { home, move, settle, dwell, slew, calibrate, check };
+  enum class Kind { home, move, settle, dwell, slew, calibrate, check, diagnose };
   Kind kind = Kind::move;
   size_t step_index = 0;     // the procedure step it came from (1-based)
   TextMark mark;             // where that step is written
@@ -33,6 +33,7 @@ struct Action {
   StandAxis axis = StandAxis::pitch;
   const CalibrateStep* calibrate = nullptr;  // into the Procedure, which must outlive the plan
   const CheckStep* check = nullptr;
+  const DiagnoseStep* diagnose = nullptr;
 
   bool is_point() const { return kind == Kind::dwell || kind == Kind::slew; }
   std::string describe() const;  // one line for --dry-run and the log

@@ -50,7 +50,8 @@ std::vector<double> GridStep::offsets_arcsec(StandAxis axis) const {
 
 const std::vector<std::string_view>& step_types() {
   static const std::vector<std::string_view> t{"home", "move", "settle", "sample", "null_offset_grid",
-                                               "continuous_slew", "calibrate", "check"};
+                                               "continuous_slew", "calibrate", "check",
+                                               "diagnose"};
   return t;
 }
 
@@ -286,19 +287,35 @@ StepBody parse_slew(MapReader& r) {
   return s;
 }
 
+// A coefficient file named in a step, relative to the procedure file, read now (before anything
+// moves); nullopt with an error at the field when it cannot be read.
+std::optional<std::filesystem::path> coefficient_file(MapReader& r, const std::string& key, const std::string& origin,
+                                                      bool required) {
+  auto p = r.string(key, required);
+  if (!p) return std::nullopt;
+  std::filesystem::path f(*p);
+  if (f.is_relative()) f = std::filesystem::path(origin).parent_path() / f;
+  try {
+    load_coefficients(f);
+    return f;
+  } catch (const InputError& e) {
+    r.diagnostics().error(r.node(key), fmt::format("{}: field {}: {}", r.where(), key, e.what()));
+  }
+  return std::nullopt;
+}
+
+StepBody parse_diagnose(MapReader& r, const std::string& origin) {
+  DiagnoseStep s;
+  if (auto f = coefficient_file(r, "model", origin, true)) s.model = *f;
+  if (auto v = r.boolean("partial")) s.partial = *v;
+  if (auto v = r.non_negative("settle_s")) s.settle_s = *v;
+  return s;
+}
+
 StepBody parse_calibrate(MapReader& r, const std::string& origin) {
   CalibrateStep s;
   if (auto m = r.choice("method", {"differences", "absolute"})) s.method = *m;
-  if (auto p = r.string("init")) {
-    std::filesystem::path f(*p);
-    if (f.is_relative()) f = std::filesystem::path(origin).parent_path() / f;
-    try {
-      load_coefficients(f);  // checked now, before anything moves
-      s.init = f;
-    } catch (const InputError& e) {
-      r.diagnostics().error(r.node("init"), fmt::format("{}: field init: {}", r.where(), e.what()));
-    }
-  }
+  s.init = coefficient_file(r, "init", origin, false);
   if (auto v = r.integer("max_iterations", false, 1, 100000)) s.max_iterations = static_cast<int>(*v);
   if (auto v = r.integer("refine_nodes", false, 1, 1000)) s.refine_nodes = static_cast<int>(*v);
   if (auto v = r.integer("threads", false, 0, 256)) s.threads = static_cast<int>(*v);
@@ -390,6 +407,7 @@ Procedure parse_procedure(std::string_view text, const std::string& origin, Diag
     else if (type == "null_offset_grid") st.body = parse_grid(r);
     else if (type == "continuous_slew") st.body = parse_slew(r);
     else if (type == "calibrate") { st.body = parse_calibrate(r, origin); calibrated = true; }
+    else if (type == "diagnose") st.body = parse_diagnose(r, origin);
     else if (type == "check") {
       st.body = parse_check(r);
       if (!calibrated) d.error(mark, fmt::format("{}: a check needs a calibrate step before it", where));

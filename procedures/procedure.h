@@ -100,7 +100,16 @@ struct CheckStep {
   ResidualLimits pitch, yaw;
 };
 
-using StepBody = std::variant<HomeStep, MoveStep, SettleStep, SampleStep, GridStep, SlewStep, CalibrateStep, CheckStep>;
+// The sim-to-real diagnosis (calib/diagnosis.h) of every point recorded before it, against a model:
+// GAP.json and GAP.html in the run folder.
+struct DiagnoseStep {
+  std::filesystem::path model;  // the sim's coefficient file (relative to the procedure)
+  bool partial = false;         // a recording that cannot tell every effect apart is not a warning
+  double settle_s = 0;          // time from a dwell's arrival to its first sample (diagnose --settle-s)
+};
+
+using StepBody = std::variant<HomeStep, MoveStep, SettleStep, SampleStep, GridStep, SlewStep, CalibrateStep, CheckStep,
+                              DiagnoseStep>;
 
 struct Step {
   std::string type;  // as written: home, move, ...

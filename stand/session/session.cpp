@@ -21,6 +21,7 @@
 #include "calib/streaming.h"
 #include "drivers/endpoints.h"
 #include "stand/catalogue/catalogue.h"
+#include "stand/session/diagnose_step.h"
 #include "stand/session/emulator_process.h"
 #include "stand/session/progress.h"
 #include "stand/session/run_folder.h"
@@ -168,7 +169,9 @@ class Session {
   void start_catalogue_record();
   void subscribe();
   void on_point_done(const PointDone& p);
+  int64_t points_before(const Action& a) const;  // points planned before a computation step
   void on_calibrate(const Action& a);
+  void on_diagnose(const Action& a);
   std::string on_check(const Action& a) const;
   void finish(const EngineResult& er);
   void write_report();
@@ -201,6 +204,7 @@ class Session {
   std::unique_ptr<Progress> progress_;
   std::optional<CalibrationReport> last_cal_;
   int calibrations_ = 0;
+  int diagnoses_ = 0;
 };
 
 void Session::make_logger() {
@@ -379,14 +383,18 @@ void Session::on_point_done(const PointDone& p) {
   progress_->point_done(live_text_);
 }
 
-void Session::on_calibrate(const Action& a) {
-  progress_->clear();
-  int64_t points_before = 0;
+int64_t Session::points_before(const Action& a) const {
+  int64_t n = 0;
   for (const auto& x : plan_.actions) {
     if (&x == &a) break;
-    if (x.is_point()) ++points_before;
+    if (x.is_point()) ++n;
   }
-  const SampleTable rows = rows_up_to(recorded_, points_before);
+  return n;
+}
+
+void Session::on_calibrate(const Action& a) {
+  progress_->clear();
+  const SampleTable rows = rows_up_to(recorded_, points_before(a));
   CalibrationOptions o;
   o.method = parse_method(a.calibrate->method).value_or(Method::differences);
   if (a.calibrate->init) o.init = load_coefficients(*a.calibrate->init);
@@ -400,7 +408,7 @@ void Session::on_calibrate(const Action& a) {
   const fs::path out = res_.run_dir / (calibrations_ == 1 ? std::string("calibration.json")
                                                           : fmt::format("calibration-{}.json", calibrations_));
   save_coefficients(out, rep.coefficients());
-  log_->info("calibrated on {} rows of {} points in {:.2f} s -> {}\n{}", rows.size(), points_before,
+  log_->info("calibrated on {} rows of {} points in {:.2f} s -> {}\n{}", rows.size(), points_before(a),
              seconds_since(t0), out.filename().string(), summary_text(rep));
   res_.calibration = out;
   last_cal_ = rep;
@@ -413,6 +421,20 @@ void Session::on_calibrate(const Action& a) {
     cr.date_utc = utc_now_iso();
     cat.record_calibration(cr);
   });
+}
+
+void Session::on_diagnose(const Action& a) {
+  progress_->clear();
+  // From samples.csv, not the rows in memory: the diagnosis reads every column the recording has
+  // (temperature, the slews' gimbal times), exactly as `fpss-stand diagnose --data` would.
+  const SampleTable rows = rows_up_to(read_samples_csv(rec_->samples_path()), points_before(a));
+  const DiagnoseStepResult r = run_diagnose_step(rows, *a.diagnose, res_.run_dir, ++diagnoses_);
+  log_->info("diagnosis -> {}, {}: verdict {}, cause {}: {}", r.json.filename().string(),
+             r.html.filename().string(), r.verdict, r.cause, r.sentence);
+  if (r.incomplete && !a.diagnose->partial) {
+    log_->warn("diagnosis: this recording cannot tell every effect apart (GAP.json, not_observable)");
+  }
+  if (diagnoses_ == 1) doc_["files"]["gap"] = r.json.filename().string();
 }
 
 std::string Session::on_check(const Action& a) const {
@@ -508,6 +530,7 @@ SessionResult Session::run() {
   EngineHooks hooks;
   hooks.calibrate = [this](const Action& a) { on_calibrate(a); };
   hooks.check = [this](const Action& a) { return on_check(a); };
+  hooks.diagnose = [this](const Action& a) { on_diagnose(a); };
   EngineResult er;
   {
     Engine engine(*gimbal_, *sensor_, stand_.bench, plan_, bus_, *log_, control, hooks, rec_->resume_point());
