@@ -428,6 +428,12 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
   const std::string page = read_file(dir / "report.html");
   EXPECT_NE(page.find("id=\"acceptance\""), std::string::npos);
   EXPECT_NE(page.find("Acceptance: PASS"), std::string::npos);
+  // The banner on top, and Table 1 on the rows the certificate judged (the calibration's, not the
+  // verification's): no note that the two disagree.
+  EXPECT_LT(page.find("id=\"verdict\""), page.find("<nav>"));
+  EXPECT_NE(page.find(">PASS<"), std::string::npos);
+  EXPECT_EQ(page.find("differs from the residuals recomputed here"), std::string::npos);
+  EXPECT_NE(page.find("steps 1 to "), std::string::npos);
   EXPECT_EQ(nlohmann::json::parse(read_file(dir / "run.json"))["acceptance"]["verdict"], "pass");
   {
     Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
