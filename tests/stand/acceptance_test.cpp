@@ -436,6 +436,14 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
   EXPECT_NE(page.find("steps 1 to "), std::string::npos);
   EXPECT_EQ(nlohmann::json::parse(read_file(dir / "run.json"))["acceptance"]["verdict"], "pass");
   {
+    // `runs` carries the acceptance's verdict.
+    const CommandResult listed = test::run_stand({"runs", "--runs-dir", runs().string(), "--json"}, scratch_.path(), "runs");
+    ASSERT_EQ(listed.code, 0) << listed.err;
+    const auto list = nlohmann::json::parse(listed.out);
+    ASSERT_EQ(list.size(), 1u);
+    EXPECT_EQ(list[0]["verdict"], "pass");
+  }
+  {
     Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
     const auto acc = cat.unit_acceptances("EMU-0001");
     ASSERT_EQ(acc.size(), 1u);

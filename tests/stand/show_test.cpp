@@ -139,6 +139,26 @@ TEST_F(ShowCli, RunsShowsOutcomesAndVerdictColumns) {
   EXPECT_TRUE(list[0]["verdict"].is_null());  // not an acceptance
 }
 
+// A run in progress: `runs` and `show` give its points done so far (from its journal) and its pid.
+TEST(ShowLive, RunsAndShowGiveALiveRunsProgress) {
+  test::TempDir tmp("show-live");
+  const fs::path runs = tmp / "runs";
+  test::Child run = test::start_stand({"run", grid(), "--emulate", "--speed", "2", "--runs-dir", runs.string()}, tmp.path(), "live");
+  ASSERT_TRUE(test::wait_until([&] { return test::journaled_points(runs) >= 2; }, 120)) << run.err();
+  const CommandResult listed = test::run_stand({"runs", "--runs-dir", runs.string()}, tmp.path(), "runs");
+  ASSERT_EQ(listed.code, 0) << listed.err;
+  EXPECT_THAT(listed.out, testing::ContainsRegex("running [0-9]+/113 points \\(pid " + std::to_string(run.pid()) + "\\)"));
+  const CommandResult shown = test::run_stand({"show", test::run_dirs(runs).at(0).string(), "--json"}, tmp.path(), "show");
+  ASSERT_EQ(shown.code, 0) << shown.err;
+  const auto j = nlohmann::json::parse(shown.out);
+  EXPECT_EQ(j["outcome"], "running");
+  EXPECT_EQ(j["verdict"], "running");
+  EXPECT_GE(j["points"]["done"].get<int64_t>(), 2);
+  EXPECT_EQ(j["points"]["total"], 113);
+  run.signal(SIGTERM);
+  EXPECT_EQ(run.wait(60), 1);
+}
+
 TEST_F(ShowCli, PointsAreNumberedFromOneInTheJournalTheEventsAndRunJson) {
   std::ifstream journal(good_ / "points.jsonl");
   std::string line;

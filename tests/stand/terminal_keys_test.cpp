@@ -157,6 +157,20 @@ TEST(TerminalKeys, PauseResumeAndAbortFromTheKeyboard) {
   EXPECT_NE(out.find("resume with: fpss-stand run --resume"), std::string::npos) << out;  // points are missing
 }
 
+// `accept` takes the same keys: an abort stops the run with no verdict.
+TEST(TerminalKeys, AcceptTakesTheKeysToo) {
+  TempDir tmp("keys-accept");
+  const fs::path runs = tmp / "runs";
+  PtyRun run({"accept", "--emulate", "--runs-dir", runs.string()});
+  ASSERT_TRUE(test::wait_until([&] { return points_of(runs) >= 2 && run.keys_mode(); }, 120)) << run.output();
+  run.type("a");
+  EXPECT_EQ(run.wait(), 1) << run.output();
+  EXPECT_NE(run.output().find("no verdict"), std::string::npos) << run.output();
+  const nlohmann::json doc = nlohmann::json::parse(test::read_file(the_run(runs) / "run.json"));
+  EXPECT_EQ(doc["stop_cause"], "aborted");
+  EXPECT_TRUE(run.cooked_mode()) << "lflag " << run.lflag();
+}
+
 // Ctrl-C on the terminal interrupts as before (the line discipline's SIGINT), and the terminal
 // comes back; a signal that ends the process outright (SIGQUIT) restores it too.
 TEST(TerminalKeys, CtrlCInterruptsAndEveryEndRestoresTheTerminal) {
