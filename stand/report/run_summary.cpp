@@ -130,7 +130,7 @@ RunSummary read_run_summary(const fs::path& run_dir) {
   s.reason = str(doc, "reason");
   s.started_utc = str(doc, "started_utc");
   s.ended_utc = str(doc, "ended_utc");
-  s.emulated = doc.value("emulated", false);
+  s.emulated = doc.contains("emulated") && doc["emulated"].is_boolean() && doc["emulated"].get<bool>();
   if (doc.contains("points") && doc["points"].is_object()) {
     const auto& pts = doc["points"];
     if (pts.contains("total") && pts["total"].is_number_integer()) s.points_total = pts["total"].get<int64_t>();

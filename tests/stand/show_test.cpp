@@ -185,6 +185,36 @@ TEST_F(ShowCli, CalibrateJsonIsMachineReadable) {
   EXPECT_TRUE(j["calibration"]["residuals"]["pitch"]["mean_abs_arcsec"].is_number());
 }
 
+// A folder that is not a run folder, or whose files do not parse, is bad input (exit 2, the file named).
+TEST(ShowHostile, BadRunFoldersAreExitTwoNamingTheFile) {
+  test::TempDir tmp("show-hostile");
+  const fs::path dir = tmp / "run";
+  fs::create_directories(dir);
+  auto show = [&](const std::string& tag) { return test::run_stand({"show", dir.string(), "--json"}, tmp.path(), tag); };
+  CommandResult r = show("none");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_THAT(r.err, HasSubstr("not a run folder"));
+  test::write_file(dir / "run.json", "{\"outcome\": ");
+  r = show("torn");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_THAT(r.err, HasSubstr("run.json"));
+  // Wrong types where a summary reads them: ignored, not a crash; a calibration out of its folder: not followed.
+  test::write_file(dir / "run.json", "{\"outcome\": 3, \"emulated\": \"yes\", \"points\": {\"total\": \"many\"},"
+                                     " \"files\": {\"calibration\": \"../../etc/passwd\"}}");
+  r = show("types");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["emulated"], false);
+  EXPECT_EQ(j["points"]["total"], 0);
+  EXPECT_TRUE(j["calibration"].is_null());
+  EXPECT_EQ(j["verdict"], "incomplete");
+  test::write_file(dir / "calibration.json", "{\"residuals\": {\"pitch\": {\"mean_abs_arcsec\": \"small\"}}}");
+  r = show("cal");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_THAT(r.err, HasSubstr("calibration.json"));
+  EXPECT_THAT(r.err, HasSubstr("mean_abs_arcsec"));
+}
+
 TEST(Cli, AnUnknownCommandNamesItself) {
   test::TempDir tmp("unknown");
   const CommandResult r = test::run_stand({"frobnicate", "x"}, tmp.path(), "unknown");
