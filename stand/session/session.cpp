@@ -532,7 +532,7 @@ SessionResult Session::run() {
   EngineResult er;
   {
     std::optional<TerminalKeys> keys;
-    if (req_.keys_fd >= 0) {
+    if (req_.keys_fd >= 0 && TerminalKeys::foreground(req_.keys_fd)) {
       keys.emplace(req_.keys_fd, control, [this](const std::string& what) {
         if (req_.tty) log_->info("operator: {}", what);  // events.log; the console shows the note
         progress_->note("operator: " + what);

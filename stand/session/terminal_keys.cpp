@@ -39,8 +39,9 @@ extern "C" void on_terminal_signal(int sig) {
   const int saved_errno = errno;
   if (g_fd < 0) return;
   if (sig == SIGCONT) {
-    // Back from a stop (fg): keys again, and the next Ctrl-Z is caught again.
-    ::tcsetattr(g_fd, TCSANOW, &g_keys);
+    // Back from a stop: the next Ctrl-Z is caught again, and keys again when in the foreground
+    // (`fg`; after `bg` a terminal change would stop the process with SIGTTOU).
+    if (::tcgetpgrp(g_fd) == ::getpgrp()) ::tcsetattr(g_fd, TCSANOW, &g_keys);
     install(SIGTSTP);
   } else {
     ::tcsetattr(g_fd, TCSANOW, &g_saved);
@@ -112,14 +113,20 @@ TerminalKeys::~TerminalKeys() {
   ::close(wake_[1]);
 }
 
+bool TerminalKeys::foreground(int fd) { return ::isatty(fd) && ::tcgetpgrp(fd) == ::getpgrp(); }
+
 void TerminalKeys::read_keys() {
   for (;;) {
-    pollfd p[2] = {{fd_, POLLIN, 0}, {wake_[0], POLLIN, 0}};
-    if (::poll(p, 2, -1) < 0) {
+    // A job put in the background must not read (SIGTTIN would stop it): look at the terminal
+    // only while in the foreground, and again every 200 ms.
+    const bool fg = foreground(fd_);
+    pollfd p[2] = {{fg ? fd_ : -1, POLLIN, 0}, {wake_[0], POLLIN, 0}};
+    if (::poll(p, 2, 200) < 0) {
       if (errno == EINTR) continue;
       return;
     }
     if (p[1].revents) return;
+    if (!fg || p[0].revents == 0) continue;
     if (p[0].revents & (POLLERR | POLLHUP | POLLNVAL)) return;  // the terminal went away: Ctrl-C and signals remain
     char buf[16];
     const ssize_t n = ::read(fd_, buf, sizeof buf);

@@ -23,6 +23,9 @@ class TerminalKeys {
   TerminalKeys(const TerminalKeys&) = delete;
   TerminalKeys& operator=(const TerminalKeys&) = delete;
 
+  // `fd` is a terminal and this process is its foreground job (keys make sense; a background
+  // job that changed the terminal or read from it would be stopped by SIGTTOU or SIGTTIN).
+  static bool foreground(int fd);
   // What a key asks for, "" for keys that mean nothing; applies it to `control`.
   static std::string apply_key(char key, RunControl& control);
 

@@ -24,7 +24,9 @@ using test::TempDir;
 // master drained (the run writes its progress there) and keeps what it read.
 class PtyRun {
  public:
-  explicit PtyRun(const std::vector<std::string>& args) {
+  // `own_terminal`: the pty is the child's controlling terminal and it is the foreground job;
+  // false: its stdin is a terminal it does not own (as for a job in the background).
+  explicit PtyRun(const std::vector<std::string>& args, bool own_terminal = true) {
     master_ = ::posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
     if (master_ < 0 || ::grantpt(master_) != 0 || ::unlockpt(master_) != 0) throw std::runtime_error("no pty");
     slave_path_ = ::ptsname(master_);
@@ -33,10 +35,10 @@ class PtyRun {
     if (slave_ < 0) throw std::runtime_error("cannot open " + slave_path_);
     posix_spawnattr_t attr;
     posix_spawnattr_init(&attr);
-    posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSID);  // before the opens: the pty becomes its terminal
+    if (own_terminal) posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSID);  // before the opens: the pty becomes its terminal
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 0, slave_path_.c_str(), O_RDWR, 0);
+    posix_spawn_file_actions_addopen(&fa, 0, slave_path_.c_str(), own_terminal ? O_RDWR : O_RDWR | O_NOCTTY, 0);
     posix_spawn_file_actions_adddup2(&fa, 0, 1);
     posix_spawn_file_actions_adddup2(&fa, 0, 2);
     std::vector<std::string> argv = test::stand_argv(args);
@@ -193,6 +195,20 @@ TEST(TerminalKeys, CtrlCInterruptsAndEveryEndRestoresTheTerminal) {
     EXPECT_EQ(run.wait(), 128 + SIGQUIT) << run.output();
     EXPECT_TRUE(run.cooked_mode()) << "lflag " << run.lflag();
   }
+}
+
+// A terminal on stdin that is not the run's own foreground terminal (a job in the background)
+// is left alone: no key mode (which would stop the job with SIGTTOU), nothing read from it.
+TEST(TerminalKeys, ATerminalThatIsNotTheRunsForegroundIsLeftAlone) {
+  TempDir tmp("keys-bg");
+  const fs::path runs = tmp / "runs";
+  PtyRun run({"run", grid(), "--emulate", "--speed", "50", "--runs-dir", runs.string()}, false);
+  ASSERT_TRUE(test::wait_until([&] { return points_of(runs) >= 3; }, 120)) << run.output();
+  EXPECT_TRUE(run.cooked_mode()) << "lflag " << run.lflag();
+  run.type("a\n");  // not read: the run goes on to its end
+  EXPECT_EQ(run.wait(), 0) << run.output();
+  EXPECT_EQ(run.output().find("keys: p pause"), std::string::npos) << run.output();
+  EXPECT_EQ(test::journaled_points(runs), 113u);
 }
 
 // On a terminal the log lines are hidden behind the live line; Table 1 and the check result are
