@@ -123,6 +123,16 @@ TEST_F(ShowCli, ReportDrawsTheReportAgain) {
   EXPECT_THAT(r.out, HasSubstr("report.html"));
   ASSERT_TRUE(fs::exists(page));
   EXPECT_THAT(test::read_file(page), HasSubstr("Calibration summary (Table 1 form)"));
+  EXPECT_THAT(test::read_file(page), HasSubstr("method: differences"));
+  // A re-calibration (here by the absolute method) then `report`: the page is the new calibration's.
+  const fs::path cal = good_ / "calibration.json";
+  const CommandResult recal = test::run_stand(
+      {"calibrate", "--data", (good_ / "samples.csv").string(), "--out", cal.string(), "--method", "absolute"},
+      tmp_->path(), "recal");
+  ASSERT_EQ(recal.code, 0) << recal.err;
+  const CommandResult again = test::run_stand({"report", good_.string()}, tmp_->path(), "report2");
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_THAT(test::read_file(page), HasSubstr("method: absolute"));
 }
 
 TEST_F(ShowCli, RunsShowsOutcomesAndVerdictColumns) {
