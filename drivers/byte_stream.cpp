@@ -8,6 +8,8 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -17,6 +19,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 
 #include "drivers/endpoints.h"
 
@@ -220,6 +223,14 @@ struct PortDeleter {
 };
 using PortPtr = std::unique_ptr<sp_port, PortDeleter>;
 
+// Unix 98 pseudo-terminal slaves: /dev/pts/N, character devices of majors 136..143.
+bool is_pseudo_terminal(const std::string& device) {
+  if (device.rfind("/dev/pts/", 0) == 0) return true;
+  struct stat st {};
+  if (::stat(device.c_str(), &st) != 0 || !S_ISCHR(st.st_mode)) return false;
+  return major(st.st_rdev) >= 136 && major(st.st_rdev) <= 143;
+}
+
 // A real serial port through libserialport: 8N1, no flow control.
 class SerialPortStream final : public ByteStream {
  public:
@@ -229,10 +240,19 @@ class SerialPortStream final : public ByteStream {
 
   void open() override {
     close();
+    // Ports are often named by links (udev's /dev/serial/by-id/..., an emulator's --serial-link);
+    // libserialport looks the name up in /sys and wants the device itself.
+    std::error_code ec;
+    const std::filesystem::path real = std::filesystem::canonical(path_, ec);
+    const std::string device = ec ? path_ : real.string();
+    const std::string shown = device == path_ ? path_ : fmt::format("{} (-> {})", path_, device);
+    if (is_pseudo_terminal(device)) {
+      throw DeviceError(fmt::format("{}: {} is a pseudo-terminal, which libserialport cannot open: use the endpoint "
+                                    "pty:{}", endpoint_, shown, path_));
+    }
     sp_port* raw = nullptr;
-    if (sp_return rc = sp_get_port_by_name(path_.c_str(), &raw); rc != SP_OK) {
-      std::string hint = path_.rfind("/dev/pts/", 0) == 0 ? "; pseudo-terminals need the pty: endpoint" : "";
-      throw DeviceError(fmt::format("{}: no serial port {}: {}{}", endpoint_, path_, sp_text(rc), hint));
+    if (sp_return rc = sp_get_port_by_name(device.c_str(), &raw); rc != SP_OK) {
+      throw DeviceError(fmt::format("{}: no serial port {}: {}", endpoint_, shown, sp_text(rc)));
     }
     PortPtr port(raw);
     if (sp_return rc = sp_open(port.get(), SP_MODE_READ_WRITE); rc != SP_OK)

@@ -145,7 +145,7 @@ void Engine::sleep_physical(double physical_s) {
 
 void Engine::wait_while_paused() {
   if (!ctl_.pause.load()) return;
-  log_.info("paused at the last point; the gimbal holds (send SIGUSR1 again to continue)");
+  log_.info("paused at the last point; the gimbal holds (the key r, or SIGUSR1 again, continues)");
   events_.publish(Paused{next_point_});
   while (ctl_.pause.load()) {
     check_abort();

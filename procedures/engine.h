@@ -21,8 +21,8 @@ namespace fpss {
 
 // Set from signal handlers or another thread; the engine looks at them between and inside waits.
 struct RunControl {
-  std::atomic<bool> abort{false};   // SIGINT/SIGTERM: stop, return to null, mark interrupted
-  std::atomic<bool> pause{false};   // hold between points (gimbal at the last point) until cleared
+  std::atomic<bool> abort{false};   // SIGINT/SIGTERM or the operator: stop, return to null, mark interrupted
+  std::atomic<bool> pause{false};   // hold between points (gimbal at the last point) until cleared (SIGUSR1, keys)
   std::atomic<int> signal{0};       // the signal that asked for the abort, for the log
 };
 

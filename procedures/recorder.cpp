@@ -123,8 +123,14 @@ std::vector<JournalEntry> RunRecorder::read_journal(const fs::path& path) {
     JournalEntry je;
     try {
       auto j = nlohmann::json::parse(line);
-      je.point = j.at("point").get<int64_t>();
+      // The file numbers points from 1, as the step column does; an older journal numbered them
+      // from 0 (point = step - 1). Either way the plan index is step - 1.
+      const int64_t number = j.at("point").get<int64_t>();
       je.step = j.at("step").get<int64_t>();
+      if (number != je.step && number != je.step - 1) {
+        throw InputError(fmt::format("{}:{}: point {} does not match step {}", path.string(), line_no, number, je.step));
+      }
+      je.point = je.step - 1;
       je.rows = j.at("rows").get<size_t>();
       je.bytes = j.at("bytes").get<uint64_t>();
       je.last_time_s = j.at("last_time_s").get<double>();
@@ -140,7 +146,7 @@ std::vector<JournalEntry> RunRecorder::read_journal(const fs::path& path) {
     const int64_t expected = out.empty() ? 0 : out.back().point + 1;
     if (je.point != expected) {
       throw InputError(fmt::format("{}:{}: point {} follows point {}: the journal has a gap or a repeat",
-                                   path.string(), line_no, je.point, expected - 1));
+                                   path.string(), line_no, je.point + 1, expected));
     }
     out.push_back(je);
   }
@@ -211,7 +217,7 @@ RunRecorder::~RunRecorder() {
 
 void RunRecorder::append_point(int64_t point, const std::vector<RecordedRow>& rows, int attempts, int session) {
   if (point != next_point()) {
-    throw std::logic_error(fmt::format("recorder: point {} out of order (next is {})", point, next_point()));
+    throw std::logic_error(fmt::format("recorder: point {} out of order (next is {})", point + 1, next_point() + 1));
   }
   for (const auto& r : rows) {
     writer_->append(r.sample, r.extras());
@@ -227,7 +233,7 @@ void RunRecorder::append_point(int64_t point, const std::vector<RecordedRow>& ro
   je.utc = utc_now_iso();
   je.session = session;
   je.attempts = attempts;
-  const std::string line = nlohmann::json{{"point", je.point},     {"step", je.step},
+  const std::string line = nlohmann::json{{"point", je.point + 1}, {"step", je.step},
                                           {"rows", je.rows},       {"bytes", je.bytes},
                                           {"last_time_s", je.last_time_s}, {"utc", je.utc},
                                           {"session", je.session}, {"attempts", je.attempts}}

@@ -33,7 +33,7 @@ struct RecordedRow {
 
 // What the journal says about one completed point.
 struct JournalEntry {
-  int64_t point = 0;     // plan index
+  int64_t point = 0;     // plan index (0-based); points.jsonl writes it 1-based, as `point`
   int64_t step = 0;      // the samples file's step column (point + 1)
   size_t rows = 0;       // rows of this point
   uint64_t bytes = 0;    // samples.csv size once this point was synced

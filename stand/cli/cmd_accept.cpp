@@ -277,6 +277,7 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   req.runs_dir = a.runs_dir;
   req.catalogue = a.catalogue;
   req.quiet = a.quiet;
+  if (::isatty(STDIN_FILENO)) req.keys_fd = STDIN_FILENO;  // p pause, r resume, a abort
   req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
   const std::string proc = p.procedure_path.string();
   Diagnostics dp(proc);
@@ -352,18 +353,21 @@ std::string write_acceptance_files(const fs::path& run_dir, const nlohmann::orde
   write_text_atomic(run_dir / "certificate.txt", text);
   // The page: the run's report with the certificate as a section, or the certificate alone.
   const std::string section = certificate_html(cert);
-  try {
-    ReportOptions ro;
-    ro.extra_sections.push_back({"acceptance", "Acceptance", section});
-    write_report(run_dir, ro);
-  } catch (const std::exception& e) {
-    write_text_atomic(run_dir / "report.html",
-                      standalone_page(title, section, fmt::format("The run's report could not be drawn: {}", e.what())));
-  }
   run_doc["acceptance"] = {{"file", "acceptance.json"}, {"certificate", "certificate.txt"},
                            {"verdict", j.passed ? "pass" : "fail"}, {"failed", j.failed()},
                            {"limits", {{"file", limits.origin}, {"sha256", limits.sha256}}}};
   write_json_atomic(run_dir / "run.json", run_doc);
+  const RunVerdict verdict = run_verdict(run_doc);
+  try {
+    ReportOptions ro;
+    ro.extra_sections.push_back({"acceptance", "Acceptance", section});
+    ro.verdict = verdict;
+    write_report(run_dir, ro);
+  } catch (const std::exception& e) {
+    write_text_atomic(run_dir / "report.html",
+                      standalone_page(title, verdict_banner_html(verdict) + section,
+                                      fmt::format("The run's report could not be drawn: {}", e.what())));
+  }
   return text;
 }
 

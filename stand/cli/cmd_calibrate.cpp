@@ -20,6 +20,7 @@ void add_calibrate(CLI::App& app, Runner& run) {
   struct Opts {
     std::string data, out, init, method = "differences", truth, unit;
     std::optional<double> count_noise;
+    bool json = false;
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand(
@@ -41,6 +42,8 @@ void add_calibrate(CLI::App& app, Runner& run) {
                   "file's count_noise_counts, else estimated from the within-dwell scatter)")
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--unit", o->unit, "unit name written to the coefficient file (default: from --init or --truth)");
+  sub->add_flag("--json", o->json,
+                "print {\"file\": OUT, \"calibration\": <the coefficient file's content>} instead of the summary");
   sub->callback([o, &run] {
     run = [o] {
       check_output_path(o->out, {o->data, o->init, o->truth});
@@ -73,6 +76,11 @@ void add_calibrate(CLI::App& app, Runner& run) {
       }
       save_coefficients(o->out, set);
 
+      if (o->json) {
+        const nlohmann::json j = {{"file", o->out}, {"calibration", to_json(set)}};
+        std::printf("%s\n", j.dump(1).c_str());
+        return 0;
+      }
       std::string text = summary_text(rep);
       if (cmp) text += truth_text(*cmp, o->truth);
       text += fmt::format("\nwrote {}\n", o->out);

@@ -11,9 +11,11 @@
 
 #include "calib/compare.h"
 #include "calib/errors.h"
+#include "calib/json_file.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/catalogue/rebuild.h"
 #include "stand/cli/commands.h"
+#include "stand/report/run_summary.h"
 
 namespace fpss::cli {
 namespace {
@@ -76,6 +78,30 @@ nlohmann::json run_json(const RunRecord& r) {
           {"resumes", r.resumes}};
 }
 
+// What the run folder adds to the catalogue's row: a live run's progress (its journal), an
+// acceptance's verdict (run.json). Nothing when the folder is gone or unreadable.
+struct FolderStatus {
+  int64_t done = 0, total = 0;
+  std::string verdict;  // "pass" / "fail" for an acceptance, "" otherwise
+};
+FolderStatus folder_status(const RunRecord& r) {
+  FolderStatus st;
+  try {
+    const nlohmann::json doc = read_json_file(std::filesystem::path(r.run_dir) / "run.json", "run.json");
+    if (doc.contains("points") && doc["points"].is_object()) st.total = doc["points"].value("total", int64_t{0});
+    if (doc.contains("acceptance") && doc["acceptance"].is_object()) st.verdict = doc["acceptance"].value("verdict", "");
+    st.done = journal_points(r.run_dir);
+  } catch (const std::exception&) {
+    // the folder moved or is being written: the catalogue's row alone
+  }
+  return st;
+}
+
+std::string status_text(const RunRecord& r, const FolderStatus& st) {
+  if (r.outcome == "running" && !r.stale()) return fmt::format("running {}/{} points (pid {})", st.done, st.total, r.pid);
+  return outcome_text(r);
+}
+
 int list_runs(const DbOpts& o, const std::string& unit, size_t limit) {
   Catalogue cat(o.path(), Catalogue::Mode::read_only);
   RunFilter f;
@@ -84,7 +110,13 @@ int list_runs(const DbOpts& o, const std::string& unit, size_t limit) {
   const auto runs = cat.list_runs(f);
   if (o.json) {
     nlohmann::json j = nlohmann::json::array();
-    for (const auto& r : runs) j.push_back(run_json(r));
+    for (const auto& r : runs) {
+      const FolderStatus st = folder_status(r);
+      nlohmann::json row = run_json(r);
+      row["points"] = {{"done", st.done}, {"total", st.total}};
+      row["verdict"] = st.verdict.empty() ? nlohmann::json(nullptr) : nlohmann::json(st.verdict);
+      j.push_back(std::move(row));
+    }
     std::printf("%s\n", j.dump(1).c_str());
     return 0;
   }
@@ -95,10 +127,12 @@ int list_runs(const DbOpts& o, const std::string& unit, size_t limit) {
   }
   std::vector<std::vector<std::string>> rows;
   for (const auto& r : runs) {
+    const FolderStatus st = folder_status(r);
     rows.push_back({r.run_id, r.unit, r.procedure, r.started_utc, r.ended_utc.value_or("-"),
-                    r.emulated ? "emulated" : (r.stand.empty() ? "bench" : r.stand), outcome_text(r)});
+                    r.emulated ? "emulated" : (r.stand.empty() ? "bench" : r.stand),
+                    st.verdict.empty() ? "-" : st.verdict, status_text(r, st)});
   }
-  print_table({"RUN", "UNIT", "PROCEDURE", "STARTED (UTC)", "ENDED (UTC)", "BENCH", "OUTCOME"}, rows);
+  print_table({"RUN", "UNIT", "PROCEDURE", "STARTED (UTC)", "ENDED (UTC)", "BENCH", "VERDICT", "OUTCOME"}, rows);
   return 0;
 }
 

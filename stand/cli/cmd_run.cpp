@@ -37,6 +37,7 @@ int run_command(const RunArgs& a) {
   req.catalogue = a.catalogue;
   req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
   req.quiet = a.quiet;
+  if (::isatty(STDIN_FILENO)) req.keys_fd = STDIN_FILENO;  // p pause, r resume, a abort
 
   if (!a.resume.empty()) {
     if (!a.procedure.empty() || !a.stand_file.empty() || a.emulate || a.dry_run) {

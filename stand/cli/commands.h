@@ -20,5 +20,6 @@ void add_catalogue(CLI::App& app, Runner& run);  // runs, history, catalogue reb
 void add_diagnose(CLI::App& app, Runner& run);  // diagnose, blindtest
 void add_accept(CLI::App& app, Runner& run);    // accept, compare, import
 void add_design(CLI::App& app, Runner& run);
+void add_show(CLI::App& app, Runner& run);      // show, report
 
 }  // namespace fpss::cli

@@ -3,6 +3,7 @@
 
 #include <cstdio>
 #include <exception>
+#include <string>
 
 #include "calib/errors.h"
 #include "stand/cli/commands.h"
@@ -21,6 +22,16 @@ int main(int argc, char** argv) {
   fpss::cli::add_diagnose(app, run);
   fpss::cli::add_accept(app, run);
   fpss::cli::add_design(app, run);
+  fpss::cli::add_show(app, run);
+  // CLI11 reports a mistyped sub-command as "A subcommand is required": name it instead.
+  if (argc > 1 && argv[1][0] != '-') {
+    const std::string name = argv[1];
+    const auto known = app.get_subcommands([&](const CLI::App* s) { return s->check_name(name); });
+    if (known.empty()) {
+      std::fprintf(stderr, "fpss-stand: unknown command '%s'; see --help\n", name.c_str());
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -114,6 +114,10 @@ void summary_section(std::string& h, const ReportInput& in) {
             "dwell and a neighbouring null dwell, for every change null&nbsp;&rarr;&nbsp;offset and "
             "offset&nbsp;&rarr;&nbsp;null (the paper's method)."
           : "Each residual is the model's angle minus the reference angle of one dwell.");
+  if (in.fit_last_step) {
+    h += fmt::format("<p>The rows the calibration was fitted on: steps 1 to {}. Points measured after the calibrate "
+                     "step (verification, rest dwells) are not in this table.</p>\n", *in.fit_last_step);
+  }
   h += "<table>\n<tr><th class=\"l\">axis</th><th class=\"l\">from</th><th>range (deg)</th>"
        "<th>mean |residual| &plusmn; sd (arcsec)</th><th>max |residual| (arcsec)</th><th>rms (arcsec)</th>"
        "<th>points</th></tr>\n";
@@ -442,7 +446,9 @@ ReportInput load_report_input(const fs::path& run_dir) {
       throw InputError(fmt::format("{}: \"method\" is \"{}\", expected differences or absolute", cal_path.string(), method));
     }
   }
-  const SampleTable samples = read_samples_csv(samples_path);
+  SampleTable samples = read_samples_csv(samples_path);
+  in.fit_last_step = fit_last_step(in.calibration, cal_path.string());
+  if (in.fit_last_step) samples = rows_up_to_step(samples, *in.fit_last_step);
   in.samples_origin = samples_path.filename().string();
   in.samples = samples.size();
   in.residuals = compute_residuals(samples, in.calibration, method);
@@ -470,6 +476,7 @@ std::string render_report(const ReportInput& in, const ReportOptions& opts) {
   h += fmt::format("<h1>{}</h1>\n<p class=\"sub\">Report written {} by fpss-stand {}. Angles in arcsec unless "
                    "marked deg; pitch from alpha (counts_alpha), yaw from beta (counts_beta).</p>\n",
                    html_escape(in.title), utc_now_iso(), FPSS_VERSION);
+  h += verdict_banner_html(opts.verdict ? *opts.verdict : run_verdict(in.run));
   h += "<nav><a href=\"#summary\">summary</a> &middot; <a href=\"#plots\">residuals against angle</a> &middot; "
        "<a href=\"#map\">residual map</a> &middot; <a href=\"#coefficients\">coefficients</a> &middot; "
        "<a href=\"#run\">run</a>";

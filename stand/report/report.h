@@ -11,6 +11,7 @@
 #include "calib/coefficients.h"
 #include "calib/samples.h"
 #include "stand/catalogue/catalogue.h"
+#include "stand/report/run_summary.h"
 
 namespace fpss {
 
@@ -53,6 +54,7 @@ struct ReportSection {
 struct ReportOptions {
   std::string gnuplot;  // program; empty: $FPSS_GNUPLOT, else "gnuplot"
   std::vector<ReportSection> extra_sections;
+  std::optional<RunVerdict> verdict;  // the banner at the top; empty: run_verdict of run.json
 };
 
 // Everything the page shows, for callers that already hold it in memory.
@@ -61,6 +63,7 @@ struct ReportInput {
   nlohmann::json run = nlohmann::json::object();  // run.json's content; may be empty
   std::string samples_origin;                     // file the samples came from
   size_t samples = 0;
+  std::optional<int64_t> fit_last_step;  // the calibration saw steps 1..this; Table 1 counts those rows only
   CoefficientSet calibration;
   std::string calibration_origin;
   RunResiduals residuals;

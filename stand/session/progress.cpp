@@ -28,6 +28,7 @@ std::string Progress::line(const std::string& live) const {
 }
 
 void Progress::point_done(const std::string& live) {
+  std::lock_guard lock(mu_);
   ++done_;
   const auto now = std::chrono::steady_clock::now();
   if (tty_) {
@@ -43,6 +44,7 @@ void Progress::point_done(const std::string& live) {
 }
 
 void Progress::clear() {
+  std::lock_guard lock(mu_);
   if (tty_ && drawn_) {
     std::fprintf(out_, "\r\033[K");
     std::fflush(out_);
@@ -51,11 +53,24 @@ void Progress::clear() {
 }
 
 void Progress::finish() {
+  std::lock_guard lock(mu_);
   if (tty_ && drawn_) {
     std::fprintf(out_, "\n");
     std::fflush(out_);
     drawn_ = false;
   }
+}
+
+void Progress::note(const std::string& text) {
+  std::lock_guard lock(mu_);
+  if (!tty_) {
+    log_.info("{}", text);
+    return;
+  }
+  std::fprintf(out_, "%s%s\n", drawn_ ? "\r\033[K" : "", text.c_str());
+  std::fflush(out_);
+  drawn_ = false;
+  last_draw_ = {};  // the next point draws the live line again at once
 }
 
 }  // namespace fpss

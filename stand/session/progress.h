@@ -2,6 +2,7 @@
 #pragma once
 #include <chrono>
 #include <cstdio>
+#include <mutex>
 #include <string>
 
 #include <spdlog/logger.h>
@@ -18,6 +19,9 @@ class Progress {
   // Removes the live line before other output (a terminal only).
   void clear();
   void finish();
+  // A line for the operator among the progress (a terminal: the live line is redrawn at the next
+  // point; otherwise a log line). Safe from another thread (the keys).
+  void note(const std::string& text);
 
   size_t done() const { return done_; }
   std::string line(const std::string& live) const;  // the text shown, for tests and logs
@@ -30,6 +34,7 @@ class Progress {
   std::chrono::steady_clock::time_point t0_;
   std::chrono::steady_clock::time_point last_draw_{};
   bool drawn_ = false;
+  std::mutex mu_;
 };
 
 // "1:05", "12:03:09"

@@ -25,6 +25,7 @@
 #include "stand/session/emulator_process.h"
 #include "stand/session/progress.h"
 #include "stand/session/run_folder.h"
+#include "stand/session/terminal_keys.h"
 #include "stand/report/report.h"
 #include "procedures/recorder.h"
 
@@ -110,6 +111,14 @@ std::string check_limits(const ResidualLimits& lim, const ResidualStats& r, cons
   return broken;
 }
 
+// Residuals a hundred times the limit are not a worn sensor: the recording and the model disagree
+// about which way the axes point, or the model is not this sensor's.
+bool absurd(const ResidualLimits& lim, const ResidualStats& r) {
+  auto over = [](const std::optional<double>& limit, double value) { return limit && value > 100 * *limit; };
+  return over(lim.mean_abs_arcsec, r.mean_abs_arcsec) || over(lim.sd_arcsec, r.sd_arcsec) ||
+         over(lim.max_abs_arcsec, r.max_abs_arcsec);
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -172,7 +181,7 @@ class Session {
   int64_t points_before(const Action& a) const;  // points planned before a computation step
   void on_calibrate(const Action& a);
   void on_diagnose(const Action& a);
-  std::string on_check(const Action& a) const;
+  std::string on_check(const Action& a);
   void finish(const EngineResult& er);
   void write_report();
   template <typename F>
@@ -205,6 +214,7 @@ class Session {
   std::optional<CalibrationReport> last_cal_;
   int calibrations_ = 0;
   int diagnoses_ = 0;
+  std::vector<std::string> after_progress_;  // a terminal: Table 1 and the check, shown once the live line is done
 };
 
 void Session::make_logger() {
@@ -290,7 +300,7 @@ void Session::write_start_record() {
   doc_.erase("ended_utc");
   doc_.erase("reason");
   doc_.erase("stop_cause");
-  nlohmann::json sess{{"session", session_}, {"started_utc", now_utc}, {"first_point", rec_->next_point()},
+  nlohmann::json sess{{"session", session_}, {"started_utc", now_utc}, {"first_point", rec_->next_point() + 1},
                       {"pid", ::getpid()}};
   if (bench_.emu) {
     sess["emulator"] = {{"command", bench_.emu->command()}, {"gimbal", stand_.gimbal.endpoint},
@@ -407,9 +417,13 @@ void Session::on_calibrate(const Action& a) {
   ++calibrations_;
   const fs::path out = res_.run_dir / (calibrations_ == 1 ? std::string("calibration.json")
                                                           : fmt::format("calibration-{}.json", calibrations_));
-  save_coefficients(out, rep.coefficients());
+  // The report's Table 1 counts the rows this fit saw, not the points measured after it (verification).
+  CoefficientSet fitted = rep.coefficients();
+  fitted.extra["fit_last_step"] = points_before(a);
+  save_coefficients(out, fitted);
   log_->info("calibrated on {} rows of {} points in {:.2f} s -> {}\n{}", rows.size(), points_before(a),
              seconds_since(t0), out.filename().string(), summary_text(rep));
+  if (req_.tty) after_progress_.push_back(summary_text(rep));
   res_.calibration = out;
   last_cal_ = rep;
   with_catalogue("calibration", [&](Catalogue& cat) {
@@ -437,12 +451,19 @@ void Session::on_diagnose(const Action& a) {
   if (diagnoses_ == 1) doc_["files"]["gap"] = r.json.filename().string();
 }
 
-std::string Session::on_check(const Action& a) const {
+std::string Session::on_check(const Action& a) {
   if (!last_cal_) return "no calibration to check";
   std::string broken = check_limits(a.check->pitch, last_cal_->pitch.residuals, "pitch");
   const std::string y = check_limits(a.check->yaw, last_cal_->yaw.residuals, "yaw");
   if (!y.empty()) broken += (broken.empty() ? "" : "; ") + y;
-  log_->info("check: {}", broken.empty() ? "residuals within the limits" : broken);
+  if (absurd(a.check->pitch, last_cal_->pitch.residuals) || absurd(a.check->yaw, last_cal_->yaw.residuals)) {
+    broken += ". Residuals over 100x the limit: the likely cause is the stand file's axis mapping (axes:, which "
+              "must match how the sensor is mounted) or the coefficients (the calibrate step's init); see "
+              "docs/procedures.md, \"Axis mapping\"";
+  }
+  const std::string line = fmt::format("check: {}", broken.empty() ? "residuals within the limits" : broken);
+  log_->info("{}", line);
+  if (req_.tty) after_progress_.push_back(line);
   return broken;
 }
 
@@ -533,11 +554,20 @@ SessionResult Session::run() {
   hooks.diagnose = [this](const Action& a) { on_diagnose(a); };
   EngineResult er;
   {
+    std::optional<TerminalKeys> keys;
+    if (req_.keys_fd >= 0 && TerminalKeys::foreground(req_.keys_fd)) {
+      keys.emplace(req_.keys_fd, control, [this](const std::string& what) {
+        if (req_.tty) log_->info("operator: {}", what);  // events.log; the console shows the note
+        progress_->note("operator: " + what);
+      });
+      progress_->note("keys: p pause, r resume, a abort to the safe state; Ctrl-C interrupts");
+    }
     Engine engine(*gimbal_, *sensor_, stand_.bench, plan_, bus_, *log_, control, hooks, rec_->resume_point());
     er = engine.run(session_);
     res_.stats = engine.stats();
   }
   progress_->finish();
+  for (const auto& text : after_progress_) std::fprintf(stderr, "%s\n", text.c_str());
   try {
     sensor_->disconnect();
     gimbal_->disconnect();

@@ -27,6 +27,7 @@ struct SessionRequest {
   bool tty = false;                  // draw the progress line
   bool quiet = false;                // no console log lines (tests)
   RunControl* control = nullptr;     // null: the session's own, driven by SIGINT/SIGTERM/SIGUSR1
+  int keys_fd = -1;                  // a terminal (stdin): keys p pause, r resume, a abort (terminal_keys.h)
 };
 
 struct SessionResult {

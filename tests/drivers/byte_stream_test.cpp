@@ -177,6 +177,24 @@ TEST(SerialStream, MissingPortAndPtyGiveClearErrors) {
   EXPECT_THAT(error_of([&] { p->open(); }), HasSubstr("pty:"));
 }
 
+// An emulator's --serial-link (or any link) to a pty: the link is followed and the message says
+// which device it is and that pty: is the endpoint for it, instead of libserialport's SP_ERR_ARG.
+TEST(SerialStream, ALinkToAPtyIsFollowedAndNamesThePtyEndpoint) {
+  test::PtyPair pty;
+  test::TempDir tmp("serial-link");
+  const auto link = tmp / "fpss-sensor";
+  std::filesystem::create_symlink(pty.slave_path(), link);
+  auto s = make_byte_stream("serial:" + link.string());
+  const std::string msg = error_of([&] { s->open(); });
+  EXPECT_THAT(msg, HasSubstr(link.string() + " (-> " + pty.slave_path() + ") is a pseudo-terminal"));
+  EXPECT_THAT(msg, HasSubstr("use the endpoint pty:" + link.string()));
+  EXPECT_THAT(msg, testing::Not(HasSubstr("SP_ERR_ARG")));
+  // What the message says works.
+  auto p = make_byte_stream("pty:" + link.string());
+  ASSERT_NO_THROW(p->open());
+  EXPECT_TRUE(p->is_open());
+}
+
 TEST(ByteStreamFactory, RefusesNonStreamAndBadEndpoints) {
   EXPECT_THROW(make_byte_stream("modbus-tcp:127.0.0.1:1502"), EndpointError);
   EXPECT_THROW(make_byte_stream("usb:/dev/ttyUSB0"), EndpointError);

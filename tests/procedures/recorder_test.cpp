@@ -58,6 +58,27 @@ TEST(Recorder, PointsAreDurableAndReadableInTheSamplesContract) {
   EXPECT_EQ(journal.back().step, 4);
   EXPECT_EQ(journal.back().bytes, fs::file_size(dir / "samples.csv"));
   EXPECT_DOUBLE_EQ(journal.back().last_time_s, 3.04);
+  // The file numbers points from 1, as the step column, the logs and the report do.
+  const std::string text = test::read_file(dir / "points.jsonl");
+  EXPECT_NE(text.find("\"point\":1,\"rows\":3,\"session\":1,\"step\":1,"), std::string::npos) << text;
+  EXPECT_NE(text.find("\"point\":4,\"rows\":3,\"session\":1,\"step\":4,"), std::string::npos) << text;
+  EXPECT_EQ(text.find("\"point\":0,"), std::string::npos) << text;
+}
+
+TEST(Recorder, AJournalOfAnEarlierVersionNumberedFromZeroStillResumes) {
+  TempDir tmp("recorder-legacy");
+  const fs::path dir = tmp / "run";
+  fs::create_directories(dir);
+  test::write_file(dir / "points.jsonl",
+                   "{\"point\":0,\"step\":1,\"rows\":1,\"bytes\":10,\"last_time_s\":0}\n"
+                   "{\"point\":1,\"step\":2,\"rows\":1,\"bytes\":20,\"last_time_s\":1}\n");
+  const auto journal = RunRecorder::read_journal(dir / "points.jsonl");
+  ASSERT_EQ(journal.size(), 2u);
+  EXPECT_EQ(journal.back().point, 1);
+  // A point that matches neither numbering is a broken journal, named by line.
+  test::write_file(dir / "points.jsonl", "{\"point\":5,\"step\":1,\"rows\":1,\"bytes\":10,\"last_time_s\":0}\n"
+                                         "{\"point\":2,\"step\":2,\"rows\":1,\"bytes\":20,\"last_time_s\":1}\n");
+  EXPECT_THROW(RunRecorder::read_journal(dir / "points.jsonl"), InputError);
 }
 
 // Appends points 0..n-1 of `rows` rows each, first attempt of session 1; returns the size of
@@ -148,7 +169,7 @@ TEST(Recorder, DamagedRecordingsAreRefused) {
     RunRecorder::read_journal(dir2 / "points.jsonl");
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("points.jsonl:2: point 2 follows point 0"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("points.jsonl:2: point 3 follows point 1"), std::string::npos) << e.what();
   }
 }
 

@@ -428,7 +428,21 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
   const std::string page = read_file(dir / "report.html");
   EXPECT_NE(page.find("id=\"acceptance\""), std::string::npos);
   EXPECT_NE(page.find("Acceptance: PASS"), std::string::npos);
+  // The banner on top, and Table 1 on the rows the certificate judged (the calibration's, not the
+  // verification's): no note that the two disagree.
+  EXPECT_LT(page.find("id=\"verdict\""), page.find("<nav>"));
+  EXPECT_NE(page.find(">PASS<"), std::string::npos);
+  EXPECT_EQ(page.find("differs from the residuals recomputed here"), std::string::npos);
+  EXPECT_NE(page.find("steps 1 to "), std::string::npos);
   EXPECT_EQ(nlohmann::json::parse(read_file(dir / "run.json"))["acceptance"]["verdict"], "pass");
+  {
+    // `runs` carries the acceptance's verdict.
+    const CommandResult listed = test::run_stand({"runs", "--runs-dir", runs().string(), "--json"}, scratch_.path(), "runs");
+    ASSERT_EQ(listed.code, 0) << listed.err;
+    const auto list = nlohmann::json::parse(listed.out);
+    ASSERT_EQ(list.size(), 1u);
+    EXPECT_EQ(list[0]["verdict"], "pass");
+  }
   {
     Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
     const auto acc = cat.unit_acceptances("EMU-0001");

@@ -268,6 +268,61 @@ TEST(Report, ACalibrationMadeOnOtherDataIsPointedOut) {
   EXPECT_NE(html.find("pitch: 10 points, mean 0.500 arcsec"), std::string::npos);
 }
 
+// A calibration fitted on the first steps only (points measured after a calibrate step, such as an
+// acceptance's verification): Table 1 counts the rows it saw, so it equals the calibrator's block.
+TEST(Report, TableOneCountsOnlyTheStepsTheCalibrationWasFittedOn) {
+  TempDir dir;
+  make_run_folder(dir.path());
+  const auto all = compute_residuals(read_samples_csv(dir.path() / "samples.csv"), perturbed(), "differences");
+  auto cal = to_json(perturbed());
+  cal["fit_last_step"] = 11;  // 6 null and 5 offset dwells: 10 changes
+  std::ofstream(dir.path() / "calibration.json") << cal.dump();
+  const ReportInput in = load_report_input(dir.path());
+  EXPECT_EQ(in.fit_last_step.value(), 11);
+  EXPECT_EQ(in.residuals.offset_dwells, 5u);
+  EXPECT_EQ(in.residuals.points.size(), 10u);
+  EXPECT_LT(in.residuals.points.size(), all.points.size());
+  for (const auto& p : in.residuals.points) EXPECT_LE(p.step, 11);
+  ReportOptions opts;
+  opts.gnuplot = (dir.path() / "none").string();
+  EXPECT_NE(render_report(in, opts).find("steps 1 to 11"), std::string::npos);
+  cal["fit_last_step"] = "eleven";
+  std::ofstream(dir.path() / "calibration.json") << cal.dump();
+  EXPECT_NE(fpss::test::error_of<InputError>([&] { load_report_input(dir.path()); }).find("fit_last_step"), std::string::npos);
+}
+
+// The verdict sits on top of the page: PASS for a completed run, FAIL with the broken limit for a
+// failed check, an acceptance's own verdict, and no verdict for a run that stopped early.
+TEST(Report, APassOrFailBannerOpensThePage) {
+  TempDir dir;
+  make_run_folder(dir.path());
+  ReportOptions opts;
+  opts.gnuplot = (dir.path() / "none").string();
+  auto banner = [&](const nlohmann::json& run) {
+    std::ofstream(dir.path() / "run.json") << run.dump();
+    const std::string html = render_report(load_report_input(dir.path()), opts);
+    const auto at = html.find("<div id=\"verdict\"");
+    EXPECT_LT(at, html.find("<nav>"));
+    return at == std::string::npos ? std::string() : html.substr(at, html.find("</div>", at) - at);
+  };
+  auto run = run_json();
+  EXPECT_NE(banner(run).find(">PASS<"), std::string::npos);
+  run["outcome"] = "failed";
+  run["stop_cause"] = "check_failed";
+  run["reason"] = "step 4 (check): pitch mean |residual| 405.000 arcsec > 0.8 arcsec";
+  const std::string fail = banner(run);
+  EXPECT_NE(fail.find(">FAIL<"), std::string::npos);
+  EXPECT_NE(fail.find("405.000 arcsec &gt; 0.8 arcsec"), std::string::npos);
+  run["stop_cause"] = "aborted";
+  run["outcome"] = "interrupted";
+  EXPECT_NE(banner(run).find(">INCOMPLETE<"), std::string::npos);
+  run["outcome"] = "completed";
+  run["acceptance"] = {{"verdict", "fail"}, {"failed", {"jitter_pitch"}}};
+  const std::string acc = banner(run);
+  EXPECT_NE(acc.find(">FAIL<"), std::string::npos);
+  EXPECT_NE(acc.find("jitter_pitch"), std::string::npos);
+}
+
 TEST(Report, UsesTheCalibrationRunJsonNames) {
   TempDir dir;
   make_run_folder(dir.path());

@@ -67,7 +67,7 @@ TEST(Run, SigkillThenResumeGivesTheSamePoints) {
   const auto doc = run_json(run_b);
   EXPECT_EQ(doc["outcome"], "completed");
   ASSERT_EQ(doc["sessions"].size(), 2u);
-  EXPECT_EQ(doc["sessions"][1]["first_point"], done_before);
+  EXPECT_EQ(doc["sessions"][1]["first_point"], done_before + 1);  // 1-based, as everywhere
   EXPECT_TRUE(fs::exists(run_b / "calibration.json"));
   // A completed run cannot be resumed again.
   EXPECT_EQ(run_stand({"run", "--resume", run_b.string(), "--quiet"}, tmp.path(), "again").code, 2);

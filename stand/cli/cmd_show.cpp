@@ -1,0 +1,89 @@
+// fpss-stand show RUN / report RUN: a run's summary (outcome, verdict, points, residuals, files), and its report drawn again.
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/errors.h"
+#include "calib/json_file.h"
+#include "calib/text_file.h"
+#include "stand/acceptance/acceptance.h"
+#include "stand/cli/commands.h"
+#include "stand/report/report.h"
+#include "stand/report/run_summary.h"
+
+namespace fpss::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ShowArgs {
+  std::string run, runs_dir = "runs";
+  bool json = false;
+};
+
+// RUN is a run folder's path, or a run id within --runs-dir.
+fs::path find_run(const ShowArgs& a) {
+  if (a.run.empty()) throw InputError("give RUN: a run folder or a run id within --runs-dir");
+  const fs::path as_path = a.run;
+  if (fs::is_directory(as_path) && fs::exists(as_path / "run.json")) return as_path;
+  // An id is one folder name: no separators, no "." or "..", so it cannot leave the runs folder.
+  if (a.run.find('/') == std::string::npos && a.run != "." && a.run != "..") {
+    const fs::path in_runs = fs::path(a.runs_dir) / a.run;
+    if (fs::is_directory(in_runs)) return in_runs;
+  }
+  if (fs::is_directory(as_path)) throw InputError(fmt::format("{}: not a run folder (no run.json)", a.run));
+  throw InputError(fmt::format("{}: no such run folder, and no run with that id in {}", a.run, a.runs_dir));
+}
+
+int show_command(const ShowArgs& a) {
+  const RunSummary s = read_run_summary(find_run(a));
+  if (a.json) {
+    std::printf("%s\n", s.to_json().dump(1).c_str());
+  } else {
+    std::fputs(s.text().c_str(), stdout);
+  }
+  return 0;
+}
+
+// A re-drawn report keeps the acceptance certificate of an acceptance run.
+int report_command(const ShowArgs& a) {
+  const fs::path dir = find_run(a);
+  ReportOptions ro;
+  if (fs::exists(dir / "acceptance.json")) {
+    // Checked with the limits of every JSON reader, then read again keeping the certificate's key order.
+    const fs::path path = dir / "acceptance.json";
+    const std::string text = read_text_file(path, "acceptance certificate", kMaxConfigFileBytes);
+    parse_json_text(text, path.string());
+    ro.extra_sections.push_back({"acceptance", "Acceptance", certificate_html(nlohmann::ordered_json::parse(text))});
+  }
+  const fs::path out = write_report(dir, ro);
+  std::printf("report: %s\n", out.c_str());
+  return 0;
+}
+
+void add_run_options(CLI::App* sub, ShowArgs& a) {
+  sub->add_option("run", a.run, "RUN: a run folder, or a run id within --runs-dir")->required();
+  sub->add_option("--runs-dir", a.runs_dir, "Where run folders are (for a run id)")->capture_default_str();
+}
+
+}  // namespace
+
+void add_show(CLI::App& app, Runner& run) {
+  auto a = std::make_shared<ShowArgs>();
+  auto* show = app.add_subcommand("show", "A run's summary: outcome, verdict, points, residuals, files");
+  add_run_options(show, *a);
+  show->add_flag("--json", a->json, "Print the summary as JSON");
+  show->callback([&run, a] { run = [a] { return show_command(*a); }; });
+
+  auto b = std::make_shared<ShowArgs>();
+  auto* report = app.add_subcommand("report", "Draw a run's report.html again (after a re-calibration, ...)");
+  add_run_options(report, *b);
+  report->callback([&run, b] { run = [b] { return report_command(*b); }; });
+}
+
+}  // namespace fpss::cli

@@ -1,0 +1,208 @@
+#include "stand/report/run_summary.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cctype>
+#include <fstream>
+
+#include "calib/errors.h"
+#include "calib/json_file.h"
+
+namespace fpss {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string str(const nlohmann::json& doc, const char* key) {
+  return doc.is_object() && doc.contains(key) && doc[key].is_string() ? doc[key].get<std::string>() : std::string();
+}
+
+std::string escape(const std::string& text) {
+  std::string o;
+  for (char c : text) {
+    switch (c) {
+      case '&': o += "&amp;"; break;
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '"': o += "&quot;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
+
+std::string stats_text(const std::optional<AxisResidualStats>& s) {
+  if (!s || !s->mean_abs_arcsec) return "-";
+  std::string t = fmt::format("mean |r| {:.3f}", *s->mean_abs_arcsec);
+  if (s->sd_arcsec) t += fmt::format(" +- {:.3f}", *s->sd_arcsec);
+  if (s->max_abs_arcsec) t += fmt::format(", max {:.3f}", *s->max_abs_arcsec);
+  if (s->rms_arcsec) t += fmt::format(", rms {:.3f}", *s->rms_arcsec);
+  t += " arcsec";
+  if (s->points) t += fmt::format(", {} points", *s->points);
+  if (s->range_lo_deg && s->range_hi_deg) t += fmt::format(", range {:+.2f}..{:+.2f} deg", *s->range_lo_deg, *s->range_hi_deg);
+  return t;
+}
+
+}  // namespace
+
+RunVerdict run_verdict(const nlohmann::json& doc) {
+  const std::string outcome = str(doc, "outcome"), cause = str(doc, "stop_cause"), reason = str(doc, "reason");
+  if (doc.is_object() && doc.contains("acceptance") && doc["acceptance"].is_object()) {
+    const auto& acc = doc["acceptance"];
+    const std::string v = str(acc, "verdict");
+    if (v == "pass") return {"pass", "acceptance passed: every criterion within its limit"};
+    if (v == "fail") {
+      std::string failed;
+      if (acc.contains("failed") && acc["failed"].is_array()) {
+        for (const auto& f : acc["failed"]) {
+          if (f.is_string()) failed += (failed.empty() ? "" : ", ") + f.get<std::string>();
+        }
+      }
+      return {"fail", failed.empty() ? "acceptance failed" : "acceptance failed: " + failed};
+    }
+  }
+  if (outcome == "running") return {"running", "the run is in progress"};
+  if (outcome == "completed") return {"pass", "the run completed and every check step held"};
+  if (outcome == "failed" && (cause == "check_failed" || cause == "calibration_failed")) {
+    return {"fail", reason.empty() ? cause : reason};
+  }
+  if (outcome.empty()) return {"incomplete", "run.json does not say how the run ended"};
+  return {"incomplete", fmt::format("the run {}{} before a verdict{}", outcome, cause.empty() ? "" : " (" + cause + ")",
+                                    reason.empty() ? "" : ": " + reason)};
+}
+
+std::string verdict_banner_html(const RunVerdict& v) {
+  const char* colour = v.verdict == "pass" ? "#1e7d32" : v.verdict == "fail" ? "#c0392b" : "#8a6d00";
+  std::string word = v.verdict;
+  std::transform(word.begin(), word.end(), word.begin(), [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+  return fmt::format(
+      "<div id=\"verdict\" class=\"verdict {0}\" style=\"background:{1};color:#fff;padding:0.6em 1em;margin:0.8em 0;"
+      "border-radius:4px\"><strong style=\"font-size:1.6em\">{2}</strong> <span>{3}</span></div>\n",
+      escape(v.verdict), colour, escape(word), escape(v.why));
+}
+
+std::optional<int64_t> fit_last_step(const CoefficientSet& cal, const std::string& origin) {
+  if (!cal.extra.is_object() || !cal.extra.contains("fit_last_step")) return std::nullopt;
+  const auto& v = cal.extra["fit_last_step"];
+  if (!v.is_number_integer() || v.get<int64_t>() < 0) {
+    throw InputError(fmt::format("{}: \"fit_last_step\" must be a whole number >= 0", origin));
+  }
+  return v.get<int64_t>();
+}
+
+SampleTable rows_up_to_step(const SampleTable& all, int64_t last_step) {
+  SampleTable t;
+  t.origin = all.origin;
+  for (size_t i = 0; i < all.size(); ++i) {
+    if (all.step[i] <= last_step) t.push_back(all.row(i));
+  }
+  return t;
+}
+
+int64_t journal_points(const fs::path& run_dir) {
+  const fs::path p = run_dir / "points.jsonl";
+  std::error_code ec;
+  if (!fs::is_regular_file(p, ec)) return 0;
+  std::ifstream in(p, std::ios::binary);
+  int64_t lines = 0;
+  char buf[65536];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+    lines += std::count(buf, buf + in.gcount(), '\n');
+  }
+  return lines;
+}
+
+RunSummary read_run_summary(const fs::path& run_dir) {
+  const fs::path run_json = run_dir / "run.json";
+  if (!fs::is_directory(run_dir)) throw InputError(fmt::format("{}: not a run folder (no such folder)", run_dir.string()));
+  if (!fs::exists(run_json)) throw InputError(fmt::format("{}: missing: not a run folder", run_json.string()));
+  const nlohmann::json doc = read_json_file(run_json, "run.json");
+  if (!doc.is_object()) throw InputError(fmt::format("{}: expected a JSON object", run_json.string()));
+  RunSummary s;
+  s.dir = run_dir;
+  s.run_id = str(doc, "run_id").empty() ? run_dir.filename().string() : str(doc, "run_id");
+  s.unit = str(doc, "unit");
+  if (doc.contains("procedure") && doc["procedure"].is_object()) s.procedure = str(doc["procedure"], "name");
+  s.outcome = str(doc, "outcome");
+  s.stop_cause = str(doc, "stop_cause");
+  s.reason = str(doc, "reason");
+  s.started_utc = str(doc, "started_utc");
+  s.ended_utc = str(doc, "ended_utc");
+  s.emulated = doc.contains("emulated") && doc["emulated"].is_boolean() && doc["emulated"].get<bool>();
+  if (doc.contains("points") && doc["points"].is_object()) {
+    const auto& pts = doc["points"];
+    if (pts.contains("total") && pts["total"].is_number_integer()) s.points_total = pts["total"].get<int64_t>();
+  }
+  s.points_done = journal_points(run_dir);
+  s.verdict = run_verdict(doc);
+  std::string cal = "calibration.json";
+  if (doc.contains("files") && doc["files"].is_object()) {
+    const std::string named = str(doc["files"], "calibration");
+    if (!named.empty() && fs::path(named).filename() == named) cal = named;
+  }
+  if (fs::is_regular_file(run_dir / cal)) {
+    s.calibration = cal;
+    const nlohmann::json c = read_json_file(run_dir / cal, "calibration file");
+    if (c.is_object() && c.contains("residuals") && c["residuals"].is_object()) {
+      const std::string where = (run_dir / cal).string() + " residuals";
+      if (c["residuals"].contains("pitch")) s.pitch = AxisResidualStats::from_json(c["residuals"]["pitch"], where);
+      if (c["residuals"].contains("yaw")) s.yaw = AxisResidualStats::from_json(c["residuals"]["yaw"], where);
+    }
+  }
+  for (const auto& e : fs::directory_iterator(run_dir)) {
+    const std::string name = e.path().filename().string();
+    if (!name.empty() && name[0] != '.') s.files.push_back(name);
+  }
+  std::sort(s.files.begin(), s.files.end());
+  return s;
+}
+
+nlohmann::ordered_json RunSummary::to_json() const {
+  auto opt = [](const std::string& v) { return v.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(v); };
+  auto axis = [](const std::optional<AxisResidualStats>& a) {
+    return a ? nlohmann::ordered_json(a->to_json()) : nlohmann::ordered_json(nullptr);
+  };
+  nlohmann::ordered_json j;
+  j["run_id"] = run_id;
+  j["run_dir"] = fs::absolute(dir).lexically_normal().string();
+  j["unit"] = unit;
+  j["procedure"] = procedure;
+  j["emulated"] = emulated;
+  j["started_utc"] = opt(started_utc);
+  j["ended_utc"] = opt(ended_utc);
+  j["outcome"] = outcome;
+  j["stop_cause"] = opt(stop_cause);
+  j["reason"] = opt(reason);
+  j["verdict"] = verdict.verdict;
+  j["verdict_reason"] = verdict.why;
+  j["points"] = {{"done", points_done}, {"total", points_total}};
+  j["calibration"] = opt(calibration);
+  j["residuals"] = {{"pitch", axis(pitch)}, {"yaw", axis(yaw)}};
+  j["files"] = files;
+  return j;
+}
+
+std::string RunSummary::text() const {
+  std::string verdict_word = verdict.verdict;
+  std::transform(verdict_word.begin(), verdict_word.end(), verdict_word.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+  std::string t = fmt::format("run {}\n", run_id);
+  t += fmt::format("  folder     {}\n", fs::absolute(dir).lexically_normal().string());
+  t += fmt::format("  unit       {}   procedure {}   bench {}\n", unit.empty() ? "-" : unit,
+                   procedure.empty() ? "-" : procedure, emulated ? "emulated" : "stand");
+  t += fmt::format("  started    {}   ended {}\n", started_utc.empty() ? "-" : started_utc,
+                   ended_utc.empty() ? "-" : ended_utc);
+  t += fmt::format("  outcome    {}{}{}\n", outcome.empty() ? "-" : outcome,
+                   stop_cause.empty() || stop_cause == "none" ? "" : " (" + stop_cause + ")",
+                   reason.empty() ? "" : ": " + reason);
+  t += fmt::format("  verdict    {}: {}\n", verdict_word, verdict.why);
+  t += fmt::format("  points     {}/{}\n", points_done, points_total);
+  t += fmt::format("  residuals  pitch {}\n             yaw   {}\n", stats_text(pitch), stats_text(yaw));
+  t += fmt::format("  calibration {}\n", calibration.empty() ? "none" : calibration);
+  t += fmt::format("  files      {}\n", fmt::join(files, " "));
+  return t;
+}
+
+}  // namespace fpss

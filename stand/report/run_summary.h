@@ -1,0 +1,57 @@
+// What a run folder says about its run, read without changing it: the verdict (the report's
+// banner), the live progress, and the summary `fpss-stand show` and `runs` print.
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/coefficients.h"
+#include "calib/samples.h"
+#include "stand/catalogue/catalogue.h"
+
+namespace fpss {
+
+// A run's verdict: an acceptance's when the run was one (run.json "acceptance".verdict), else
+// the run's own: "pass" when it completed (every check step held), "fail" when a check or the
+// calibration failed, "running" while it runs, "incomplete" when it stopped before a verdict.
+struct RunVerdict {
+  std::string verdict;  // pass | fail | running | incomplete
+  std::string why;      // one sentence for people (the stop reason, the failed limits)
+};
+RunVerdict run_verdict(const nlohmann::json& run_doc);
+
+// The banner at the top of report.html: PASS / FAIL / RUNNING / INCOMPLETE in a coloured box.
+std::string verdict_banner_html(const RunVerdict& v);
+
+// The last step a calibration was fitted on (calibration.json "fit_last_step", written by the run);
+// empty for a calibration that does not say. InputError naming `origin` for a wrong value.
+std::optional<int64_t> fit_last_step(const CoefficientSet& cal, const std::string& origin);
+// The rows of steps 1..last_step.
+SampleTable rows_up_to_step(const SampleTable& all, int64_t last_step);
+
+struct RunSummary {
+  std::filesystem::path dir;
+  std::string run_id, unit, procedure, outcome, stop_cause, reason, started_utc, ended_utc;
+  bool emulated = false;
+  int64_t points_total = 0, points_done = 0;  // done: the journal's lines, so live while it runs
+  RunVerdict verdict;
+  std::string calibration;                    // file name in the folder, "" for none
+  std::optional<AxisResidualStats> pitch, yaw;  // the calibration's residuals (Table 1 form)
+  std::vector<std::string> files;             // what the folder holds, by name
+
+  nlohmann::ordered_json to_json() const;
+  std::string text() const;  // the lines `fpss-stand show` prints
+};
+
+// Reads run.json, points.jsonl and the calibration's residuals block; InputError naming the file
+// for a folder that is not a run folder or a file that does not parse.
+RunSummary read_run_summary(const std::filesystem::path& run_dir);
+
+// Completed points in <run_dir>/points.jsonl (whole lines), 0 when there is none.
+int64_t journal_points(const std::filesystem::path& run_dir);
+
+}  // namespace fpss
