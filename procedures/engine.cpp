@@ -322,6 +322,18 @@ void Engine::with_remeasure(const Action& a, const std::function<void(int)>& att
                      cause);
 }
 
+void Engine::compute(const Action& a, const char* what, const std::function<void(const Action&)>& hook,
+                     StopCause cause) {
+  log_.info("step {}: {}", a.step_index, what);
+  if (!hook) return;
+  Timed t(stats_.calibrate_s);
+  try {
+    hook(a);
+  } catch (const std::exception& e) {
+    throw PointFailure(e.what(), cause);
+  }
+}
+
 void Engine::do_home(const Action& a) {
   const double timeout = a.timeout_s > 0 ? a.timeout_s : b_.home_timeout_s;
   with_remeasure(a, [&](int) { move_and_wait(0, 0, timeout, true); });
@@ -432,26 +444,10 @@ void Engine::do_action(size_t i) {
       measure_slew(a, cursor_.session);
       break;
     case Action::Kind::calibrate:
-      log_.info("step {}: calibrate", a.step_index);
-      if (hooks_.calibrate) {
-        Timed t(stats_.calibrate_s);
-        try {
-          hooks_.calibrate(a);
-        } catch (const std::exception& e) {
-          throw PointFailure(e.what(), StopCause::calibration_failed);
-        }
-      }
+      compute(a, "calibrate", hooks_.calibrate, StopCause::calibration_failed);
       break;
     case Action::Kind::diagnose:
-      log_.info("step {}: diagnose", a.step_index);
-      if (hooks_.diagnose) {
-        Timed t(stats_.calibrate_s);
-        try {
-          hooks_.diagnose(a);
-        } catch (const std::exception& e) {
-          throw PointFailure(e.what(), StopCause::diagnosis_failed);
-        }
-      }
+      compute(a, "diagnose", hooks_.diagnose, StopCause::diagnosis_failed);
       break;
     case Action::Kind::check: {
       log_.info("step {}: check", a.step_index);

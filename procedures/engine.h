@@ -81,6 +81,8 @@ class Engine {
   void prepare();
   void do_action(size_t index);  // plan_.actions[index], skipping what a resumed run did before
   void do_home(const Action& a);
+  // A computation step (calibrate, diagnose) through its hook; what it throws stops the run with `cause`.
+  void compute(const Action& a, const char* what, const std::function<void(const Action&)>& hook, StopCause cause);
   void do_move(const Action& a);
   void measure_dwell(const Action& a, int session);
   void measure_slew(const Action& a, int session);

@@ -97,21 +97,18 @@ nlohmann::ordered_json paper_grid(const DesignInputs& in) {
 }
 
 nlohmann::ordered_json design_json(const ExperimentDesign& d, const DesignInputs& in, const Sources& src) {
-  nlohmann::ordered_json j;
-  j["reached"] = d.reached;
+  nlohmann::ordered_json inputs = {
+      {"bench", src.bench},          {"rate_deg_s", in.rate_deg_s},
+      {"accel_deg_s2", in.accel_deg_s2}, {"settle_s", in.settle_s},
+      {"frame_rate_hz", in.frame_rate_hz}, {"count_noise_counts", in.count_noise_counts},
+      {"count_noise_source", src.count_noise}, {"ref_noise_arcsec", in.ref_noise_arcsec},
+      {"prior", src.prior},          {"extent_deg", in.extent_deg}};
+  nlohmann::ordered_json j = {{"reached", d.reached}, {"target_sigma_arcsec", in.target_sigma_arcsec},
+                              {"bench_time_s", d.bench_time_s}, {"max_sigma_arcsec_pitch", d.max_sigma_arcsec_pitch},
+                              {"max_sigma_arcsec_yaw", d.max_sigma_arcsec_yaw},
+                              {"samples_per_dwell", d.samples_per_dwell}, {"offsets", d.offsets.size()},
+                              {"inputs", inputs}, {"paper_grid", paper_grid(in)}};
   if (!d.note.empty()) j["note"] = d.note;
-  j["target_sigma_arcsec"] = in.target_sigma_arcsec;
-  j["bench_time_s"] = d.bench_time_s;
-  j["max_sigma_arcsec_pitch"] = d.max_sigma_arcsec_pitch;
-  j["max_sigma_arcsec_yaw"] = d.max_sigma_arcsec_yaw;
-  j["samples_per_dwell"] = d.samples_per_dwell;
-  j["offsets"] = d.offsets.size();
-  j["inputs"] = {{"bench", src.bench},         {"rate_deg_s", in.rate_deg_s},
-                 {"accel_deg_s2", in.accel_deg_s2}, {"settle_s", in.settle_s},
-                 {"frame_rate_hz", in.frame_rate_hz}, {"count_noise_counts", in.count_noise_counts},
-                 {"count_noise_source", src.count_noise}, {"ref_noise_arcsec", in.ref_noise_arcsec},
-                 {"prior", src.prior},        {"extent_deg", in.extent_deg}};
-  j["paper_grid"] = paper_grid(in);
   return j;
 }
 

@@ -8,6 +8,7 @@
 
 #include "calib/errors.h"
 #include "calib/json_file.h"
+#include "stand/report/report.h"
 
 namespace fpss {
 
@@ -17,20 +18,6 @@ namespace {
 
 std::string str(const nlohmann::json& doc, const char* key) {
   return doc.is_object() && doc.contains(key) && doc[key].is_string() ? doc[key].get<std::string>() : std::string();
-}
-
-std::string escape(const std::string& text) {
-  std::string o;
-  for (char c : text) {
-    switch (c) {
-      case '&': o += "&amp;"; break;
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
 }
 
 std::string stats_text(const std::optional<AxisResidualStats>& s) {
@@ -80,7 +67,7 @@ std::string verdict_banner_html(const RunVerdict& v) {
   return fmt::format(
       "<div id=\"verdict\" class=\"verdict {0}\" style=\"background:{1};color:#fff;padding:0.6em 1em;margin:0.8em 0;"
       "border-radius:4px\"><strong style=\"font-size:1.6em\">{2}</strong> <span>{3}</span></div>\n",
-      escape(v.verdict), colour, escape(word), escape(v.why));
+      html_escape(v.verdict), colour, html_escape(word), html_escape(v.why));
 }
 
 std::optional<int64_t> fit_last_step(const CoefficientSet& cal, const std::string& origin) {
