@@ -423,11 +423,7 @@ Procedure parse_procedure(std::string_view text, const std::string& origin, Diag
 }
 
 Procedure load_procedure(const std::filesystem::path& path) {
-  const std::string text = read_text_file(path, "procedure file", kMaxConfigFileBytes);
-  Diagnostics d(path.string());
-  Procedure p = parse_procedure(text, path.string(), d);
-  d.throw_if_any();
-  return p;
+  return load_yaml_file(path, "procedure file", parse_procedure);
 }
 
 std::string sha256_hex(std::string_view text) {

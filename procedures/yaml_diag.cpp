@@ -243,17 +243,15 @@ std::optional<std::pair<std::string, double>> MapReader::pick_unit(
 std::optional<double> MapReader::angle_arcsec(const std::string& base, bool required) {
   auto k = pick_unit(base, {{"_deg", 3600.0}, {"_arcsec", 1.0}}, required);
   if (!k) return std::nullopt;
-  auto v = number(k->first);
-  if (!v) return std::nullopt;
-  return *v * k->second;
+  const auto v = number(k->first);
+  return v ? std::optional(*v * k->second) : std::nullopt;
 }
 
 std::optional<double> MapReader::rate_arcsec_s(const std::string& base, bool required) {
   auto k = pick_unit(base, {{"_arcsec_s", 1.0}, {"_deg_s", 3600.0}}, required);
   if (!k) return std::nullopt;
-  auto v = positive(k->first);
-  if (!v) return std::nullopt;
-  return *v * k->second;
+  const auto v = positive(k->first);
+  return v ? std::optional(*v * k->second) : std::nullopt;
 }
 
 std::optional<std::pair<double, double>> MapReader::angle_range_arcsec(const std::string& base, bool required) {

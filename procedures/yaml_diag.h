@@ -1,6 +1,7 @@
 // Validation of YAML inputs that reports every problem at once, each with file:line:column.
 #pragma once
 #include <cstdint>
+#include <filesystem>
 #include <initializer_list>
 #include <optional>
 #include <set>
@@ -9,6 +10,8 @@
 #include <vector>
 
 #include <yaml-cpp/yaml.h>
+
+#include "calib/text_file.h"
 
 namespace fpss {
 
@@ -118,5 +121,16 @@ class MapReader {
   bool ok_ = true;
   std::set<std::string> known_;
 };
+
+// Reads a YAML file of ours (procedure, stand) through `parse(text, origin, diagnostics)`: a
+// regular file of at most kMaxConfigFileBytes; throws InputError listing every error.
+template <class Parse>
+auto load_yaml_file(const std::filesystem::path& path, std::string_view what, Parse parse) {
+  const std::string text = read_text_file(path, what, kMaxConfigFileBytes);
+  Diagnostics d(path.string());
+  auto value = parse(text, path.string(), d);
+  d.throw_if_any();
+  return value;
+}
 
 }  // namespace fpss

@@ -164,11 +164,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
 }
 
 StandConfig load_stand_file(const std::filesystem::path& path) {
-  const std::string text = read_text_file(path, "stand file", kMaxConfigFileBytes);
-  Diagnostics d(path.string());
-  StandConfig c = parse_stand(text, path.string(), d);
-  d.throw_if_any();
-  return c;
+  return load_yaml_file(path, "stand file", parse_stand);
 }
 
 StandConfig stand_for_run(const std::string& stand_file, bool emulate, double speed, Diagnostics& d) {
