@@ -19,5 +19,6 @@ void add_run(CLI::App& app, Runner& run);        // run
 void add_catalogue(CLI::App& app, Runner& run);  // runs, history, catalogue rebuild
 void add_diagnose(CLI::App& app, Runner& run);  // diagnose, blindtest
 void add_accept(CLI::App& app, Runner& run);    // accept, compare, import
+void add_serve(CLI::App& app, Runner& run);     // serve (the web console)
 
 }  // namespace fpss::cli

@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   fpss::cli::add_catalogue(app, run);
   fpss::cli::add_diagnose(app, run);
   fpss::cli::add_accept(app, run);
+  fpss::cli::add_serve(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

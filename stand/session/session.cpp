@@ -19,6 +19,7 @@
 #include "calib/errors.h"
 #include "calib/report.h"
 #include "calib/streaming.h"
+#include "calib/transfer_function.h"
 #include "drivers/endpoints.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/session/emulator_process.h"
@@ -168,6 +169,7 @@ class Session {
   void start_catalogue_record();
   void subscribe();
   void on_point_done(const PointDone& p);
+  void ask_prompts(ControlPoller& poller, RunControl& control);
   void on_calibrate(const Action& a);
   std::string on_check(const Action& a) const;
   void finish(const EngineResult& er);
@@ -198,6 +200,7 @@ class Session {
   std::unique_ptr<StreamingCalibrator> live_;
   std::chrono::steady_clock::time_point last_estimate_ = std::chrono::steady_clock::now() - std::chrono::seconds(10);
   std::string live_text_;
+  std::optional<StreamingCalibrator::Estimate> live_est_;
   std::unique_ptr<Progress> progress_;
   std::optional<CalibrationReport> last_cal_;
   int calibrations_ = 0;
@@ -282,6 +285,7 @@ void Session::write_start_record() {
     doc_["files"] = {{"samples", "samples.csv"}, {"journal", "points.jsonl"}, {"events", "events.log"},
                      {"event_stream", "events.jsonl"}};
   }
+  if (!req_.operator_name.empty()) doc_["operator"] = req_.operator_name;
   doc_["outcome"] = "running";
   doc_.erase("ended_utc");
   doc_.erase("reason");
@@ -359,6 +363,7 @@ void Session::on_point_done(const PointDone& p) {
       if (last || std::chrono::steady_clock::now() - last_estimate_ > std::chrono::milliseconds(500)) {
         last_estimate_ = std::chrono::steady_clock::now();
         const auto est = live_->current();
+        if (est.valid) live_est_ = est;
         if (est.valid) {
           live_text_ = fmt::format("live residual rms pitch {:.2f} yaw {:.2f} arcsec ({} pairs)", est.rms_pitch_arcsec,
                                    est.rms_yaw_arcsec, est.pairs);
@@ -375,6 +380,15 @@ void Session::on_point_done(const PointDone& p) {
       log_->warn("live residual off: {}", e.what());
       live_.reset();
     }
+  }
+  // The point against the latest live fit, for the console's residual chart and map.
+  if (live_est_ && p.stats.rows > 0) {
+    event_log_->write_note("point_residual",
+                           {{"point", p.action->point + 1},
+                            {"ref_pitch_arcsec", p.stats.ref_pitch_arcsec},
+                            {"ref_yaw_arcsec", p.stats.ref_yaw_arcsec},
+                            {"residual_pitch_arcsec", rad_to_arcsec(transfer_angle(live_est_->alpha.data(), p.stats.counts_alpha)) - p.stats.ref_pitch_arcsec},
+                            {"residual_yaw_arcsec", rad_to_arcsec(transfer_angle(live_est_->beta.data(), p.stats.counts_beta)) - p.stats.ref_yaw_arcsec}});
   }
   progress_->point_done(live_text_);
 }
@@ -469,6 +483,43 @@ void Session::write_report() {
   }
 }
 
+// Each prompt is an event in events.jsonl; the answer comes through control.json. A wrong serial
+// is asked again (id "serial-2", ...); a "no" to a confirmation aborts the run before it moves.
+void Session::ask_prompts(ControlPoller& poller, RunControl& control) {
+  for (const OperatorPrompt& p : req_.prompts) {
+    for (int attempt = 1;; ++attempt) {
+      const std::string id = attempt == 1 ? p.id : fmt::format("{}-{}", p.id, attempt);
+      event_log_->write_note("prompt", {{"id", id}, {"text", p.text}, {"kind", p.kind}});
+      log_->info("operator prompt {}: {}", id, p.text);
+      const auto answer = poller.wait_answer(id);
+      if (!answer) return;  // aborted while waiting
+      event_log_->write_note("prompt_answered", {{"id", id}, {"value", *answer}});
+      std::string problem;
+      if (p.kind == "serial" && *answer != unit_) {
+        problem = fmt::format("the sensor reports serial \"{}\", not \"{}\"", unit_, *answer);
+      } else if (p.kind == "text" && answer->empty()) {
+        problem = "an answer is needed";
+      }
+      if (!problem.empty() && attempt < 5) {
+        event_log_->write_note("prompt_rejected", {{"id", id}, {"message", problem}});
+        continue;
+      }
+      if (!problem.empty() || (p.kind == "confirm" && *answer != "yes")) {
+        log_->warn("operator prompt {}: {}; the run is aborted", id, problem.empty() ? "answered " + *answer : problem);
+        control.abort.store(true);
+        return;
+      }
+      res_.answers[p.id] = *answer;
+      break;
+    }
+  }
+  if (req_.prompts.empty()) return;
+  res_.signed_off_utc = utc_now_iso();
+  if (res_.answers.count("operator")) doc_["operator"] = res_.answers["operator"];
+  doc_["signed_off_utc"] = res_.signed_off_utc;
+  write_json_atomic(res_.run_dir / "run.json", doc_);
+}
+
 SessionResult Session::run() {
   const auto t_start = std::chrono::steady_clock::now();
   // From here on SIGINT/SIGTERM ask for a clean stop rather than killing the process, so a run
@@ -505,6 +556,9 @@ SessionResult Session::run() {
   write_start_record();
   start_catalogue_record();
   subscribe();
+  // The console's pause/resume/abort and prompt answers (RUN_DIR/control.json).
+  ControlPoller poller(res_.run_dir, control);
+  ask_prompts(poller, control);
   EngineHooks hooks;
   hooks.calibrate = [this](const Action& a) { on_calibrate(a); };
   hooks.check = [this](const Action& a) { return on_check(a); };

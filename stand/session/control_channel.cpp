@@ -1,0 +1,84 @@
+#include "stand/session/control_channel.h"
+
+#include <sys/stat.h>
+
+#include <chrono>
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/text_file.h"
+
+namespace fpss {
+
+namespace fs = std::filesystem;
+
+std::optional<ControlRequest> read_control(const fs::path& run_dir) {
+  const fs::path p = run_dir / kControlFile;
+  struct stat st {};
+  if (::lstat(p.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || static_cast<std::uintmax_t>(st.st_size) > kMaxControlFileBytes) {
+    return std::nullopt;
+  }
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const auto j = nlohmann::json::parse(ss.str(), nullptr, false);
+  if (!j.is_object()) return std::nullopt;
+  ControlRequest c;
+  if (j.contains("pause") && j["pause"].is_boolean()) c.pause = j["pause"].get<bool>();
+  if (j.contains("abort") && j["abort"].is_boolean()) c.abort = j["abort"].get<bool>();
+  if (j.contains("answers") && j["answers"].is_object()) {
+    for (const auto& [k, v] : j["answers"].items()) {
+      if (v.is_string()) c.answers[k] = v.get<std::string>();
+    }
+  }
+  return c;
+}
+
+void write_control(const fs::path& run_dir, const ControlRequest& c) {
+  nlohmann::json j{{"pause", c.pause}, {"abort", c.abort}, {"answers", c.answers}};
+  write_text_atomic(run_dir / kControlFile, j.dump(1) + "\n");
+}
+
+ControlPoller::ControlPoller(fs::path run_dir, RunControl& control)
+    : dir_(std::move(run_dir)), control_(control) {
+  // A request left by an earlier session (a resumed run) is history, not a new request.
+  if (auto c = read_control(dir_)) {
+    last_ = *c;
+    last_.abort = false;
+    last_.pause = false;
+  }
+  thread_ = std::thread([this] { loop(); });
+}
+
+ControlPoller::~ControlPoller() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+}
+
+void ControlPoller::loop() {
+  while (!stop_) {
+    if (auto c = read_control(dir_)) {
+      std::lock_guard<std::mutex> g(m_);
+      if (c->pause != last_.pause) control_.pause.store(c->pause);
+      if (c->abort && !last_.abort) control_.abort.store(true);
+      last_ = *c;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
+std::optional<std::string> ControlPoller::wait_answer(const std::string& id) {
+  while (!control_.abort.load()) {
+    {
+      std::lock_guard<std::mutex> g(m_);
+      auto it = last_.answers.find(id);
+      if (it != last_.answers.end()) return it->second;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return std::nullopt;
+}
+
+}  // namespace fpss
