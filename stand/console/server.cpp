@@ -1,9 +1,11 @@
 #include "stand/console/server.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <stdexcept>
 #include <thread>
@@ -140,6 +142,7 @@ void ConsoleServer::bind() {
     return authorised(req, res) ? httplib::Server::HandlerResponse::Unhandled : httplib::Server::HandlerResponse::Handled;
   });
   s.Get("/", [](const httplib::Request&, httplib::Response& res) { res.set_redirect("/index.html"); });
+  s.Get("/favicon.ico", [](const httplib::Request&, httplib::Response& res) { res.status = 204; });
   for (const Asset& a : assets()) {
     const std::string path(a.path), body(a.body), type = content_type(a.path);
     s.Get(path, [body, type](const httplib::Request&, httplib::Response& res) { res.set_content(body, type); });
@@ -190,13 +193,12 @@ void add_streams(httplib::Server& s, Context& c) {
       from = 0;
     }
     const fs::path dir = run->dir;
-    const std::string run_id = run->run_id;
     auto offset = std::make_shared<uint64_t>(from);
-    auto idle = std::make_shared<int>(0);
+    const pid_t pid = run->pid;
     res.set_header("X-Accel-Buffering", "no");
     res.set_chunked_content_provider(
         "text/event-stream",
-        [&c, dir, run_id, offset, idle](size_t, httplib::DataSink& sink) {
+        [&c, dir, pid, offset](size_t, httplib::DataSink& sink) {
           for (int i = 0; i < 300 && !c.stopping; ++i) {  // 15 s at most per call, then a keep-alive
             if (sink.is_writable && !sink.is_writable()) return false;
             const EventChunk ch = read_events(dir, *offset);
@@ -207,6 +209,11 @@ void add_streams(httplib::Server& s, Context& c) {
               return sink.write(out.data(), out.size());
             }
             *offset = ch.next;
+            // A run that has ended and has nothing more to send ends its stream.
+            if (i % 40 == 39 && !(::kill(pid, 0) == 0 || errno == EPERM)) {
+              sink.done();
+              return true;
+            }
             std::this_thread::sleep_for(std::chrono::milliseconds(25));
           }
           if (c.stopping) return false;

@@ -6,9 +6,11 @@
 #include <fstream>
 #include <sstream>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "calib/text_file.h"
+#include "procedures/recorder.h"
 
 namespace fpss {
 
@@ -79,6 +81,41 @@ std::optional<std::string> ControlPoller::wait_answer(const std::string& id) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   return std::nullopt;
+}
+
+OperatorAnswers ask_operator(const std::vector<OperatorPrompt>& prompts, const std::string& unit_serial,
+                             ControlPoller& poller, RunControl& control, EventLog& events, spdlog::logger& log) {
+  OperatorAnswers out;
+  for (const OperatorPrompt& p : prompts) {
+    for (int attempt = 1;; ++attempt) {
+      const std::string id = attempt == 1 ? p.id : fmt::format("{}-{}", p.id, attempt);
+      events.write_note("prompt", {{"id", id}, {"text", p.text}, {"kind", p.kind}});
+      log.info("operator prompt {}: {}", id, p.text);
+      const auto answer = poller.wait_answer(id);
+      if (!answer) return out;  // aborted while waiting
+      events.write_note("prompt_answered", {{"id", id}, {"value", *answer}});
+      std::string problem;
+      if (p.kind == "serial" && *answer != unit_serial) {
+        problem = fmt::format("the sensor reports serial \"{}\", not \"{}\"", unit_serial, *answer);
+      } else if (p.kind == "text" && answer->empty()) {
+        problem = "an answer is needed";
+      }
+      if (!problem.empty() && attempt < 5) {
+        events.write_note("prompt_rejected", {{"id", id}, {"message", problem}});
+        continue;
+      }
+      if (!problem.empty() || (p.kind == "confirm" && *answer != "yes")) {
+        log.warn("operator prompt {}: {}; the run is aborted", id, problem.empty() ? "answered " + *answer : problem);
+        control.abort.store(true);
+        return out;
+      }
+      out.answers[p.id] = *answer;
+      break;
+    }
+  }
+  out.complete = true;
+  out.signed_off_utc = utc_now_iso();
+  return out;
 }
 
 }  // namespace fpss

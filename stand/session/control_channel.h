@@ -7,8 +7,12 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
+
+#include <spdlog/logger.h>
 
 #include "procedures/engine.h"
+#include "procedures/events.h"
 
 namespace fpss {
 
@@ -55,5 +59,17 @@ class ControlPoller {
   ControlRequest last_;
   std::thread thread_;
 };
+
+// Asks each prompt (an event in events.jsonl: "prompt", then "prompt_answered" or
+// "prompt_rejected") and waits for its answer in control.json. Kind "serial" must equal
+// `unit_serial` (asked again as "serial-2", ... up to 5 times), "confirm" must be "yes", "text" must
+// not be empty; otherwise control.abort is set and `complete` is false.
+struct OperatorAnswers {
+  bool complete = false;
+  std::map<std::string, std::string> answers;
+  std::string signed_off_utc;  // when the last answer came
+};
+OperatorAnswers ask_operator(const std::vector<OperatorPrompt>& prompts, const std::string& unit_serial,
+                             ControlPoller& poller, RunControl& control, EventLog& events, spdlog::logger& log);
 
 }  // namespace fpss

@@ -201,6 +201,7 @@ class Session {
   std::chrono::steady_clock::time_point last_estimate_ = std::chrono::steady_clock::now() - std::chrono::seconds(10);
   std::string live_text_;
   std::optional<StreamingCalibrator::Estimate> live_est_;
+  std::vector<std::pair<int64_t, PointStats>> unplotted_;  // points done before the first valid live fit
   std::unique_ptr<Progress> progress_;
   std::optional<CalibrationReport> last_cal_;
   int calibrations_ = 0;
@@ -381,14 +382,18 @@ void Session::on_point_done(const PointDone& p) {
       live_.reset();
     }
   }
-  // The point against the latest live fit, for the console's residual chart and map.
-  if (live_est_ && p.stats.rows > 0) {
-    event_log_->write_note("point_residual",
-                           {{"point", p.action->point + 1},
-                            {"ref_pitch_arcsec", p.stats.ref_pitch_arcsec},
-                            {"ref_yaw_arcsec", p.stats.ref_yaw_arcsec},
-                            {"residual_pitch_arcsec", rad_to_arcsec(transfer_angle(live_est_->alpha.data(), p.stats.counts_alpha)) - p.stats.ref_pitch_arcsec},
-                            {"residual_yaw_arcsec", rad_to_arcsec(transfer_angle(live_est_->beta.data(), p.stats.counts_beta)) - p.stats.ref_yaw_arcsec}});
+  // Each point against the latest live fit, for the console's residual chart and map; the points
+  // before the first valid fit are written once it exists.
+  if (p.stats.rows > 0) unplotted_.push_back({p.action->point + 1, p.stats});
+  if (live_est_) {
+    for (const auto& [point, st] : unplotted_) {
+      const double rp = rad_to_arcsec(transfer_angle(live_est_->alpha.data(), st.counts_alpha)) - st.ref_pitch_arcsec;
+      const double ry = rad_to_arcsec(transfer_angle(live_est_->beta.data(), st.counts_beta)) - st.ref_yaw_arcsec;
+      event_log_->write_note("point_residual", {{"point", point}, {"ref_pitch_arcsec", st.ref_pitch_arcsec},
+                                                {"ref_yaw_arcsec", st.ref_yaw_arcsec}, {"residual_pitch_arcsec", rp},
+                                                {"residual_yaw_arcsec", ry}});
+    }
+    unplotted_.clear();
   }
   progress_->point_done(live_text_);
 }
@@ -483,38 +488,12 @@ void Session::write_report() {
   }
 }
 
-// Each prompt is an event in events.jsonl; the answer comes through control.json. A wrong serial
-// is asked again (id "serial-2", ...); a "no" to a confirmation aborts the run before it moves.
 void Session::ask_prompts(ControlPoller& poller, RunControl& control) {
-  for (const OperatorPrompt& p : req_.prompts) {
-    for (int attempt = 1;; ++attempt) {
-      const std::string id = attempt == 1 ? p.id : fmt::format("{}-{}", p.id, attempt);
-      event_log_->write_note("prompt", {{"id", id}, {"text", p.text}, {"kind", p.kind}});
-      log_->info("operator prompt {}: {}", id, p.text);
-      const auto answer = poller.wait_answer(id);
-      if (!answer) return;  // aborted while waiting
-      event_log_->write_note("prompt_answered", {{"id", id}, {"value", *answer}});
-      std::string problem;
-      if (p.kind == "serial" && *answer != unit_) {
-        problem = fmt::format("the sensor reports serial \"{}\", not \"{}\"", unit_, *answer);
-      } else if (p.kind == "text" && answer->empty()) {
-        problem = "an answer is needed";
-      }
-      if (!problem.empty() && attempt < 5) {
-        event_log_->write_note("prompt_rejected", {{"id", id}, {"message", problem}});
-        continue;
-      }
-      if (!problem.empty() || (p.kind == "confirm" && *answer != "yes")) {
-        log_->warn("operator prompt {}: {}; the run is aborted", id, problem.empty() ? "answered " + *answer : problem);
-        control.abort.store(true);
-        return;
-      }
-      res_.answers[p.id] = *answer;
-      break;
-    }
-  }
   if (req_.prompts.empty()) return;
-  res_.signed_off_utc = utc_now_iso();
+  const OperatorAnswers got = ask_operator(req_.prompts, unit_, poller, control, *event_log_, *log_);
+  if (!got.complete) return;  // aborted: the engine stops before it moves
+  res_.answers = got.answers;
+  res_.signed_off_utc = got.signed_off_utc;
   if (res_.answers.count("operator")) doc_["operator"] = res_.answers["operator"];
   doc_["signed_off_utc"] = res_.signed_off_utc;
   write_json_atomic(res_.run_dir / "run.json", doc_);

@@ -180,7 +180,7 @@ function onEvent(e) {
   } else if (e.type === 'prompt_answered') {
     $('prompt-box').hidden = true;
   } else if (e.type === 'prompt_rejected') {
-    $('prompt-note').textContent = e.message;
+    live.rejected = e.message;
   } else if (e.type === 'run_stopped') {
     $('live-state').textContent = e.cause === 'aborted' ? 'aborted' : e.outcome;
     $('live-state').dataset.cause = e.cause;
@@ -207,7 +207,8 @@ function showPrompt(e) {
   $('prompt-box').dataset.id = e.id;
   $('prompt-box').dataset.kind = e.kind;
   $('prompt-text').textContent = e.text;
-  $('prompt-note').textContent = '';
+  $('prompt-note').textContent = live.rejected || '';
+  live.rejected = '';
   $('prompt-input').value = '';
   const confirm = e.kind === 'confirm';
   $('prompt-input').hidden = confirm; $('prompt-send').hidden = confirm;
