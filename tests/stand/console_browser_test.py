@@ -201,6 +201,11 @@ def main():
         assert any(a["operator"] == "Ada Operator" and a["passed"] for a in hist["acceptances"]), hist
         shot("8-acceptance")
         check_console()
+    except BaseException:
+        driver.save_screenshot(os.path.join(OUT, "failure.png"))
+        with open(os.path.join(OUT, "failure.html"), "w") as f:
+            f.write(driver.page_source)
+        raise
     finally:
         driver.quit()
         console.stop()

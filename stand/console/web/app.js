@@ -97,6 +97,7 @@ function resetLive(runId) {
   if (state.es) state.es.close();
   Object.assign(live, { total: 0, done: 0, t0: 0, res: [], targets: [], pendingDone: {} });
   $('event-log').textContent = '';
+  Object.assign(frame, { lines: [], chart: false, done: [] });
   $('live-run-id').textContent = runId;
   $('live-state').textContent = '';
   $('live-report').hidden = true;
@@ -132,20 +133,44 @@ function drawMap(u) {
 }
 function redrawCharts() {
   const xs = [...new Set(live.res.flatMap((r) => [r.p, r.y]))].sort((a, b) => a - b);
+  const at = new Map(xs.map((x, i) => [x, i]));
   const yp = xs.map(() => null), yy = xs.map(() => null);
-  for (const r of live.res) { yp[xs.indexOf(r.p)] = r.rp; yy[xs.indexOf(r.y)] = r.ry; }
+  for (const r of live.res) { yp[at.get(r.p)] = r.rp; yy[at.get(r.y)] = r.ry; }
   live.chart.setData([xs, yp, yy]);
   const tx = live.targets.map((t) => t[1]).sort((a, b) => a - b);
   const ty = live.targets.map((t) => t[2]);
   if (tx.length) live.map.setData([tx, ty.sort((a, b) => a - b)]);
   else live.map.redraw();
 }
+// Log lines and chart points are drawn once per animation frame, however many events arrive.
+const frame = { lines: [], chart: false, done: [], queued: false };
+function schedule() {
+  if (frame.queued) return;
+  frame.queued = true;
+  requestAnimationFrame(() => {
+    frame.queued = false;
+    if (frame.lines.length) {
+      const el = $('event-log');
+      let t = el.textContent + frame.lines.join('');
+      if (t.length > 60000) t = t.slice(-40000);
+      el.textContent = t;
+      el.scrollTop = el.scrollHeight;
+      frame.lines = [];
+    }
+    if (frame.chart) {
+      redrawCharts();
+      frame.chart = false;
+      const now = Date.now();
+      for (const t of frame.done) window.fpssLatencies.push(now - t);
+      frame.done = [];
+      $('chart-residual').dataset.points = live.res.length;
+    }
+  });
+}
 function logLine(e) {
-  const el = $('event-log');
   const { type, utc, ...rest } = e;
-  el.textContent += utc + ' ' + type + ' ' + JSON.stringify(rest).slice(0, 200) + '\n';
-  if (el.textContent.length > 60000) el.textContent = el.textContent.slice(-40000);
-  el.scrollTop = el.scrollHeight;
+  frame.lines.push(utc + ' ' + type + ' ' + JSON.stringify(rest).slice(0, 200) + '\n');
+  schedule();
 }
 function onEvent(e) {
   if (e.type !== 'samples') logLine(e);
@@ -164,10 +189,12 @@ function onEvent(e) {
     $('live-eta').textContent = p > 0 && p < 1 ? Math.round(el / p - el) + ' s' : '-';
   } else if (e.type === 'point_residual') {
     live.res.push({ p: e.ref_pitch_arcsec, y: e.ref_yaw_arcsec, rp: e.residual_pitch_arcsec, ry: e.residual_yaw_arcsec });
-    redrawCharts();
+    frame.chart = true;
+    // Point done -> chart, for points whose residual was written with them (those before the first
+    // valid live fit are written when it comes, and are not a measure of the console).
     const t = live.pendingDone[e.point];
-    if (t) window.fpssLatencies.push(Date.now() - t);
-    $('chart-residual').dataset.points = live.res.length;
+    if (t && Date.parse(e.utc) - t < 100) frame.done.push(t);
+    schedule();
   } else if (e.type === 'fit_updated') {
     $('live-fit').textContent = 'rms pitch ' + fmt(e.rms_pitch_arcsec) + ', yaw ' + fmt(e.rms_yaw_arcsec) + ' arcsec; 1-sigma ' +
       fmt(e.sigma_max_pitch_arcsec) + ' / ' + fmt(e.sigma_max_yaw_arcsec) + ' (' + e.pairs + ' pairs)';
