@@ -211,6 +211,12 @@ void add_streams(httplib::Server& s, Context& c) {
             *offset = ch.next;
             // A run that has ended and has nothing more to send ends its stream.
             if (i % 40 == 39 && !(::kill(pid, 0) == 0 || errno == EPERM)) {
+              // What it wrote just before it ended is sent first.
+              const EventChunk last = read_events(dir, *offset);
+              std::string out;
+              for (size_t k = 0; k < last.lines.size(); ++k) out += fmt::format("id: {}\ndata: {}\n\n", last.ends[k], last.lines[k]);
+              *offset = last.next;
+              if (!out.empty() && !sink.write(out.data(), out.size())) return false;
               sink.done();
               return true;
             }

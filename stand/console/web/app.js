@@ -253,8 +253,15 @@ $('prompt-yes').onclick = () => answer('yes');
 $('prompt-no').onclick = () => answer('no');
 async function control(action) {
   const run = $('live-run-id').textContent;
-  await api('POST', '/api/runs/' + encodeURIComponent(run) + '/control', { action })
-    .catch((e) => logLine({ type: 'error', utc: new Date().toISOString(), message: e.message }));
+  for (let attempt = 1; attempt <= 3; attempt++) {
+    try {
+      await api('POST', '/api/runs/' + encodeURIComponent(run) + '/control', { action });
+      return;
+    } catch (e) {
+      logLine({ type: 'control_error', utc: new Date().toISOString(), message: action + ': ' + e.message });
+      await new Promise((ok) => setTimeout(ok, 300));
+    }
+  }
 }
 $('btn-pause').onclick = () => control('pause');
 $('btn-resume').onclick = () => control('resume');
