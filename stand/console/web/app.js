@@ -100,6 +100,8 @@ function resetLive(runId) {
   Object.assign(frame, { lines: [], chart: false, done: [] });
   $('live-run-id').textContent = runId;
   $('live-state').textContent = '';
+  $('live-progress').value = 0;
+  for (const id of ['live-progress-text', 'live-point', 'live-eta', 'live-fit']) $(id).textContent = '-';
   $('live-report').hidden = true;
   $('prompt-box').hidden = true;
   makeCharts();
