@@ -146,6 +146,12 @@ def main():
         run2 = live_run_of(job2)
         driver.get(console.url + "index.html#live/" + run2)
         wait_for("run 2 progress", lambda: progress() >= 3)
+        # the stand page while a run holds the bench: connected, position and stream health
+        driver.get(console.url + "index.html#stand")
+        wait_for("the stand page live", lambda: "connected" in text("stand-table") and "point" in text("stand-table"))
+        shot("6-stand-live")
+        driver.get(console.url + "index.html#live/" + run2)
+        wait_for("run 2 progress again", lambda: progress() >= 3)
         driver.find_element(By.ID, "btn-abort").click()
         wait_for("aborted", lambda: text("live-state") == "aborted", timeout=60)
         st = driver.find_element(By.ID, "live-state")
@@ -166,7 +172,7 @@ def main():
         assert run1 in driver.page_source or "FPSS-B1" in driver.page_source
         shot("7-report")
         # 8. an acceptance, answering the prompts
-        job3 = queue("accept", "", "FPSS-B3", "")
+        job3 = queue("accept", "", "FPSS-B1", "")
         run3 = live_run_of(job3)
         driver.get(console.url + "index.html#live/" + run3)
 
@@ -186,7 +192,7 @@ def main():
         answer("serial", "FPSS-WRONG")
         wait_for("the wrong serial refused", lambda: "not" in text("prompt-note"))
         shot("8-serial-refused")
-        answer("serial", "FPSS-B3")
+        answer("serial", "FPSS-B1")
         answer("lamp", yes=True)
         answer("name", "Ada Operator")
         wait_for("acceptance run completed", lambda: text("live-state") == "completed", timeout=120)
@@ -197,9 +203,17 @@ def main():
         job = wait_for("the acceptance's exit", lambda: (lambda j: j if j["state"] == "finished" else None)(
             driver.execute_script("return fetch('/api/jobs/%d').then(r => r.json())" % job3)), timeout=60)
         assert job["exit_code"] == 0, job
-        hist = driver.execute_script("return fetch('/api/units/FPSS-B3/history').then(r => r.json())")
+        hist = driver.execute_script("return fetch('/api/units/FPSS-B1/history').then(r => r.json())")
         assert any(a["operator"] == "Ada Operator" and a["passed"] for a in hist["acceptances"]), hist
         shot("8-acceptance")
+        # the unit's history: two calibrations (run 1 and the acceptance) and their difference
+        driver.get(console.url + "index.html#units")
+        wait_for("the unit's calibrations", lambda: len(driver.find_elements(By.CSS_SELECTOR, "#unit-table tr")) >= 3)
+        assert "pass Ada Operator" in text("unit-table")
+        driver.find_element(By.ID, "cmp-go").click()
+        wait_for("the difference B - A", lambda: "alpha: max" in text("cmp-summary"))
+        assert len(driver.find_elements(By.CSS_SELECTOR, "#chart-compare canvas")) == 2
+        shot("9-unit-history")
         check_console()
     except BaseException:
         driver.save_screenshot(os.path.join(OUT, "failure.png"))
