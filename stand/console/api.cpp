@@ -1,6 +1,8 @@
 // The console's JSON API (docs/console.md): status, stand, procedures, jobs, runs, control, prompts, units, compare.
 #include <algorithm>
 #include <fstream>
+#include <memory>
+#include <vector>
 
 #include <fmt/format.h>
 #include <httplib.h>
@@ -206,12 +208,11 @@ void add_run_routes(httplib::Server& s, Context& c) {
     const auto run = find_run(c.opt.runs_dir, req.matches[1]);
     const auto file = run ? run_file(run->dir, req.matches[2]) : std::nullopt;
     if (!file) return fail(res, 404, "no such file");
-    std::string body;
-    try {
-      body = read_text_file(*file, "run file", 512ull * 1024 * 1024);
-    } catch (const std::exception& e) {
-      return fail(res, 404, e.what());
-    }
+    // Streamed in 64 KiB pieces: a samples.csv of millions of rows is never held whole.
+    auto in = std::make_shared<std::ifstream>(*file, std::ios::binary);
+    std::error_code ec;
+    const auto size = fs::file_size(*file, ec);
+    if (!*in || ec) return fail(res, 404, "cannot read the file");
     const std::string ext = file->extension().string();
     const std::string type = ext == ".html" ? "text/html; charset=utf-8"
                              : ext == ".json" || ext == ".jsonl" ? "application/json"
@@ -219,7 +220,13 @@ void add_run_routes(httplib::Server& s, Context& c) {
                              : ext == ".png" ? "image/png"
                              : ext == ".csv" ? "text/csv" : "text/plain; charset=utf-8";
     if (ext == ".csv") res.set_header("Content-Disposition", "attachment; filename=\"" + file->filename().string() + "\"");
-    res.set_content(std::move(body), type);
+    res.set_content_provider(static_cast<size_t>(size), type, [in](size_t offset, size_t length, httplib::DataSink& sink) {
+      std::vector<char> buf(std::min<size_t>(length, 64 * 1024));
+      in->seekg(static_cast<std::streamoff>(offset));
+      in->read(buf.data(), static_cast<std::streamsize>(buf.size()));
+      const auto n = in->gcount();
+      return n > 0 && sink.write(buf.data(), static_cast<size_t>(n));
+    });
   });
 }
 

@@ -45,12 +45,9 @@ void write_control(const fs::path& run_dir, const ControlRequest& c) {
 
 ControlPoller::ControlPoller(fs::path run_dir, RunControl& control)
     : dir_(std::move(run_dir)), control_(control) {
-  // A request left by an earlier session (a resumed run) is history, not a new request.
-  if (auto c = read_control(dir_)) {
-    last_ = *c;
-    last_.abort = false;
-    last_.pause = false;
-  }
+  // A request left by an earlier session (a resumed run) is history, not a new request: the
+  // session starts from a clean channel.
+  write_control(dir_, last_);
   thread_ = std::thread([this] { loop(); });
 }
 

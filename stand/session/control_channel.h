@@ -37,7 +37,7 @@ struct OperatorPrompt {
   std::string kind;    // "text" or "confirm" (yes/no)
 };
 
-// Polls RUN_DIR/control.json every 50 ms on its own thread and applies changes to `control`:
+// Writes a clean RUN_DIR/control.json, then polls it every 50 ms on its own thread and applies changes to `control`:
 // pause and resume when the console's pause flips, abort (StopCause::aborted: no signal) once.
 // Other pausers (SIGUSR1, a terminal key) keep working: only a change in the file acts.
 class ControlPoller {
