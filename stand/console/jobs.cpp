@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "calib/text_file.h"
 #include "procedures/recorder.h"
 #include "stand/console/run_files.h"
 
@@ -37,7 +38,47 @@ nlohmann::json Job::to_json() const {
           {"pid", pid},         {"exit_code", exit_code}, {"message", message},   {"created_utc", created_utc}};
 }
 
+// The jobs still queued are kept in RUNS_DIR/.console/queue.json (written whole at every change),
+// so a restarted console keeps its queue; an entry that no longer validates is dropped.
+void JobQueue::save() const {
+  nlohmann::json a = nlohmann::json::array();
+  for (const auto& j : jobs_) {
+    if (j.state == "queued") a.push_back(j.to_json());
+  }
+  try {
+    std::error_code ec;
+    fs::create_directories(o_.runs_dir / ".console", ec);
+    write_text_atomic(o_.runs_dir / ".console" / "queue.json", nlohmann::json{{"next_id", next_id_}, {"queued", a}}.dump(1));
+  } catch (const std::exception& e) {
+    spdlog::warn("job queue: cannot save: {}", e.what());
+  }
+}
+
+void JobQueue::load() {
+  const fs::path p = o_.runs_dir / ".console" / "queue.json";
+  if (!fs::exists(p)) return;
+  try {
+    const auto doc = nlohmann::json::parse(read_text_file(p, "console queue", 1024 * 1024));
+    next_id_ = std::max<int64_t>(1, doc.value("next_id", int64_t{1}));
+    for (const auto& x : doc.at("queued")) {
+      Job j;
+      j.kind = x.value("kind", "run");
+      j.procedure = x.value("procedure", "");
+      j.unit = x.value("unit", "");
+      j.operator_name = x.value("operator", "");
+      try {
+        add(j);
+      } catch (const std::invalid_argument& e) {
+        spdlog::warn("{}: a queued job dropped: {}", p.string(), e.what());
+      }
+    }
+  } catch (const std::exception& e) {
+    spdlog::warn("{}: not read: {}", p.string(), e.what());
+  }
+}
+
 JobQueue::JobQueue(const ConsoleOptions& o) : o_(o) {
+  load();
   thread_ = std::thread([this] { loop(); });
 }
 
@@ -67,6 +108,7 @@ Job JobQueue::add(Job j) {
   j.state = "queued";
   j.created_utc = utc_now_iso();
   jobs_.push_back(j);
+  save();
   cv_.notify_all();
   return j;
 }
@@ -76,6 +118,7 @@ bool JobQueue::remove(int64_t id) {
   auto it = std::find_if(jobs_.begin(), jobs_.end(), [&](const Job& x) { return x.id == id && x.state == "queued"; });
   if (it == jobs_.end()) return false;
   jobs_.erase(it);
+  save();
   return true;
 }
 
@@ -90,6 +133,7 @@ bool JobQueue::move(int64_t id, size_t to) {
   queued.insert(queued.begin() + static_cast<std::ptrdiff_t>(std::min(to, queued.size())), j);
   jobs_ = other;
   jobs_.insert(jobs_.end(), queued.begin(), queued.end());
+  save();
   return true;
 }
 
@@ -192,6 +236,7 @@ void JobQueue::tick() {
   // One stand: a run started by another console (or by hand) holds it too.
   if (!live_runs(o_.runs_dir).empty()) return;
   start(*next);
+  save();
 }
 
 void JobQueue::loop() {

@@ -63,6 +63,8 @@ class JobQueue {
  private:
   void loop();
   void tick();
+  void save() const;  // under m_
+  void load();
   void start(Job& j);
   ConsoleOptions o_;
   mutable std::mutex m_;

@@ -1,6 +1,6 @@
 // `fpss-stand serve` over real HTTP on loopback: the token guards control (401), bounded requests,
 // no CORS, the live-client cap; a run outlives its console (serve killed mid-run) and a restarted
-// console shows it live and lets its stream catch up. ~25 s (two emulated grid runs at --speed 20).
+// console shows it live, lets its stream catch up and keeps the queue. ~25 s (two emulated grid runs at --speed 20).
 #include <sys/stat.h>
 
 #include <regex>
@@ -170,6 +170,9 @@ TEST(Console, ARunOutlivesItsConsoleAndARestartedConsoleShowsItLive) {
   }, 60));
   const fs::path dir = t / "runs" / run_id;
   ASSERT_TRUE(wait_until([&] { return read_file(dir / "events.jsonl").find("\"point\":5,") != std::string::npos; }, 60));
+  // A second job waits in the queue; it is kept across the console's restart.
+  r = c.Post("/api/jobs", auth, R"({"procedure":"discrete_grid.yaml","unit":"FPSS-K2"})", "application/json");
+  ASSERT_EQ(r->status, 201);
   s.child->signal(SIGKILL);
   s.child->wait(10);
 
@@ -180,6 +183,11 @@ TEST(Console, ARunOutlivesItsConsoleAndARestartedConsoleShowsItLive) {
   auto st = json::parse(c2.Get("/api/status")->body);
   ASSERT_EQ(st["live_runs"].size(), 1u) << st.dump();
   EXPECT_EQ(st["live_runs"][0], run_id);
+  const json jobs = json::parse(c2.Get("/api/jobs")->body);
+  ASSERT_EQ(jobs.size(), 1u) << jobs.dump();
+  EXPECT_EQ(jobs[0]["unit"], "FPSS-K2");
+  EXPECT_EQ(jobs[0]["state"], "queued");
+  EXPECT_EQ(c2.Delete(("/api/jobs/" + std::to_string(jobs[0]["id"].get<int64_t>())).c_str(), auth)->status, 200);
   std::string stream;
   httplib::Client cs("127.0.0.1", again.port);
   cs.Get(("/api/runs/" + run_id + "/stream").c_str(), {{"Last-Event-ID", "0"}}, [&](const char* d, size_t n) {
