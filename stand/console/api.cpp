@@ -9,6 +9,7 @@
 
 #include "calib/coefficients.h"
 #include "calib/compare.h"
+#include "calib/json_file.h"
 #include "calib/text_file.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/console/run_files.h"
@@ -30,12 +31,14 @@ void fail(httplib::Response& res, int status, const std::string& why) { reply(re
 
 // A request body as a JSON object (bounded by the server's payload limit and nlohmann's parser).
 std::optional<json> body_object(const httplib::Request& req, httplib::Response& res) {
-  auto j = json::parse(req.body, nullptr, false);
-  if (j.is_discarded() || !j.is_object()) {
+  try {
+    json j = parse_json_text(req.body, "request body", 4);  // the project's one JSON reader: depth, duplicates
+    if (j.is_object()) return j;
     fail(res, 400, "the body must be a JSON object");
-    return std::nullopt;
+  } catch (const std::exception& e) {
+    fail(res, 400, e.what());
   }
-  return j;
+  return std::nullopt;
 }
 
 std::string str(const json& j, const char* key) {

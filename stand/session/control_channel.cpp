@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "calib/json_file.h"
 #include "calib/text_file.h"
 #include "procedures/recorder.h"
 
@@ -25,7 +26,12 @@ std::optional<ControlRequest> read_control(const fs::path& run_dir) {
   std::ifstream in(p, std::ios::binary);
   std::stringstream ss;
   ss << in.rdbuf();
-  const auto j = nlohmann::json::parse(ss.str(), nullptr, false);
+  nlohmann::json j;
+  try {
+    j = parse_json_text(ss.str(), p.string(), 4);  // depth, duplicate keys
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
   if (!j.is_object()) return std::nullopt;
   ControlRequest c;
   if (j.contains("pause") && j["pause"].is_boolean()) c.pause = j["pause"].get<bool>();

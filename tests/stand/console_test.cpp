@@ -88,6 +88,10 @@ TEST(Console, ControlNeedsTheTokenAndRequestsAreBounded) {
   EXPECT_EQ(r->status, 400);
   r = c.Post("/api/jobs", auth, "not json", "application/json");
   EXPECT_EQ(r->status, 400);
+  r = c.Post("/api/jobs", auth, std::string(30000, '[') + std::string(30000, ']'), "application/json");
+  EXPECT_EQ(r->status, 400) << "nesting is bounded";
+  r = c.Post("/api/jobs", auth, R"({"unit":"A","unit":"B"})", "application/json");
+  EXPECT_EQ(r->status, 400) << "a key given twice";
   // A file outside a run folder is never served.
   r = c.Get("/runs/x/..%2f..%2fconsole.token");
   EXPECT_EQ(r->status, 404);
