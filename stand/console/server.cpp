@@ -156,7 +156,12 @@ void ConsoleServer::bind() {
   } else if (!s.bind_to_port(ctx_.opt.host, port_)) {
     port_ = -1;
   }
-  if (port_ <= 0) throw std::runtime_error(fmt::format("cannot listen on {}:{}", ctx_.opt.host, ctx_.opt.port));
+  if (port_ <= 0) {
+    // A token made by this start was never printed: the next start makes (and prints) a new one.
+    std::error_code ec;
+    if (token_.created) fs::remove(ctx_.opt.runs_dir / "console.token", ec);
+    throw std::runtime_error(fmt::format("cannot listen on {}:{}", ctx_.opt.host, ctx_.opt.port));
+  }
 }
 
 void ConsoleServer::serve() { svr_->listen_after_bind(); }
