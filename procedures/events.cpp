@@ -137,6 +137,7 @@ struct ToJson {
     j["sd_counts_beta"] = e.stats.sd_counts_beta;
     j["attempts"] = e.attempts;
     j["invalid_frames"] = e.invalid_frames;
+    j["temperature_c"] = e.rows && !e.rows->empty() ? finite_or_null(e.rows->front().temperature_c) : ojson(nullptr);
     j["valid"] = true;
     return j;
   }
@@ -189,7 +190,16 @@ EventLog::~EventLog() {
 }
 
 void EventLog::write(const Event& e) {
-  const std::string line = to_json(e).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
+  append(to_json(e).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+}
+
+void EventLog::write_note(const std::string& type, const nlohmann::ordered_json& body) {
+  ojson j{{"type", type}, {"utc", utc_now_ms()}};
+  j.update(body);
+  append(j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+}
+
+void EventLog::append(const std::string& line) {
   // One write per line on an O_APPEND descriptor: a reader never sees two events interleaved.
   size_t off = 0;
   while (off < line.size()) {

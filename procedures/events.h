@@ -129,8 +129,12 @@ class EventLog {
   EventLog(const EventLog&) = delete;
   EventLog& operator=(const EventLog&) = delete;
   void write(const Event& e);
+  // A line that is not an engine event (an operator prompt and its answer, docs/console.md):
+  // {"type": type, "utc": ..., ...body}.
+  void write_note(const std::string& type, const nlohmann::ordered_json& body);
 
  private:
+  void append(const std::string& line);
   int fd_ = -1;
   std::filesystem::path path_;
 };

@@ -105,6 +105,10 @@ std::string certificate_text(const nlohmann::ordered_json& c) {
   if (!c["run"]["reason"].get<std::string>().empty()) {
     s += fmt::format("            stopped: {}\n", c["run"]["reason"].get<std::string>());
   }
+  if (c.contains("operator")) {
+    s += fmt::format("Operator:   {} (signed off {})\n", c["operator"].get<std::string>(),
+                     c.value("signed_off_utc", std::string()));
+  }
   s += fmt::format("Date (UTC): {}\n\n", c["date_utc"].get<std::string>());
   s += fmt::format("{:<28} {:>22} {:>10} {:<8} {}\n", "criterion", "measured (+- 1 sigma)", "limit", "unit", "result");
   for (const auto& k : c["criteria"]) {
@@ -129,6 +133,10 @@ std::string certificate_html(const nlohmann::ordered_json& c) {
     h += fmt::format("<tr><th style=\"text-align:left\">{}</th><td>{}</td></tr>\n", k, html_escape(v));
   };
   row("Unit", c["unit"].get<std::string>());
+  if (c.contains("operator")) {
+    row("Operator", fmt::format("{} (signed off {})", c["operator"].get<std::string>(),
+                                c.value("signed_off_utc", std::string())));
+  }
   row("Stand", c["stand"]["identity"].get<std::string>());
   row("Software", "fpss-stand " + c["software"]["version"].get<std::string>());
   row("Procedure", fmt::format("{} ({}), sha256 {}", c["procedure"]["name"].get<std::string>(),

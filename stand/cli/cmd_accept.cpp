@@ -239,7 +239,7 @@ void add_import(CLI::App& app, Runner& run) {
 
 struct AcceptArgs {
   std::string stand_file, unit, procedure, limits, runs_dir = "runs", catalogue;
-  bool emulate = false, json = false, quiet = false, no_progress = false;
+  bool emulate = false, json = false, quiet = false, no_progress = false, operator_prompts = false;
   EmulatedBenchArgs emu;
 };
 
@@ -292,6 +292,12 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   all.throw_if_any();
   p.roles = acceptance_roles(req.procedure, p.plan);
   if (a.emulate) req.emulator = emulator_spec(a.emu, a.unit);
+  // The operator's prompts, answered through the run folder's control channel (docs/console.md).
+  if (a.operator_prompts) {
+    req.prompts = {{"serial", "Mount the unit, then scan or type its serial", "serial"},
+                   {"lamp", "Sun simulator lamp on and stable?", "confirm"},
+                   {"operator", "Your name (operator)", "text"}};
+  }
   return p;
 }
 
@@ -400,7 +406,11 @@ int accept_command(const AcceptArgs& a) {
 
   const Judgement j = judge(data, p.limits);
   const CertificateInfo info = certificate_info(p, r, run_doc, unit);
-  const nlohmann::ordered_json cert = certificate_json(j, p.limits, info);
+  nlohmann::ordered_json cert = certificate_json(j, p.limits, info);
+  if (r.answers.count("operator")) {
+    cert["operator"] = r.answers.at("operator");
+    cert["signed_off_utc"] = r.signed_off_utc;
+  }
   const std::string text = write_acceptance_files(run_dir, cert, j, p.limits, run_doc,
                                                   fmt::format("Acceptance of {} ({})", unit, run_id));
   int64_t acc_id = 0;
@@ -447,6 +457,8 @@ void add_accept_command(CLI::App& app, Runner& run) {
   sub->add_flag("--json", a->json, "Print acceptance.json instead of the certificate text");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
   sub->add_flag("--no-progress", a->no_progress, "No live progress line");
+  sub->add_flag("--operator-prompts", a->operator_prompts,
+                "Ask the operator (unit serial, lamp, name) through the run folder's control channel: the web console");
   add_emulated_bench_options(sub, a->emu);
   sub->callback([&run, a] { run = [a] { return accept_command(*a); }; });
 }

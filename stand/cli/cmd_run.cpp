@@ -27,7 +27,7 @@ namespace fs = std::filesystem;
 struct RunArgs {
   std::string procedure, stand_file, runs_dir = "runs", resume, catalogue;
   bool emulate = false, dry_run = false, no_progress = false, quiet = false;
-  std::string unit_serial;
+  std::string unit_serial, operator_name;
   EmulatedBenchArgs emu;
 };
 
@@ -38,6 +38,7 @@ int run_command(const RunArgs& a) {
   req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
   req.quiet = a.quiet;
   if (::isatty(STDIN_FILENO)) req.keys_fd = STDIN_FILENO;  // p pause, r resume, a abort
+  req.operator_name = a.operator_name;
 
   if (!a.resume.empty()) {
     if (!a.procedure.empty() || !a.stand_file.empty() || a.emulate || a.dry_run) {
@@ -132,6 +133,7 @@ void add_run(CLI::App& app, Runner& run) {
   sub->add_option("--catalogue", a->catalogue, "SQLite catalogue (default <runs-dir>/stand.db)");
   sub->add_flag("--no-progress", a->no_progress, "No live progress line, even on a terminal");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
+  sub->add_option("--operator", a->operator_name, "Who runs it (recorded in run.json)");
   add_emulated_bench_options(sub, a->emu);
   a->emu.options.push_back(sub->add_option("--unit-serial", a->unit_serial, "Emulator: serial number the sensor reports"));
   sub->callback([&run, a] { run = [a] { return run_command(*a); }; });

@@ -21,5 +21,6 @@ void add_diagnose(CLI::App& app, Runner& run);  // diagnose, blindtest
 void add_accept(CLI::App& app, Runner& run);    // accept, compare, import
 void add_design(CLI::App& app, Runner& run);
 void add_show(CLI::App& app, Runner& run);      // show, report
+void add_serve(CLI::App& app, Runner& run);     // serve (the web console)
 
 }  // namespace fpss::cli

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   fpss::cli::add_catalogue(app, run);
   fpss::cli::add_diagnose(app, run);
   fpss::cli::add_accept(app, run);
+  fpss::cli::add_serve(app, run);
   fpss::cli::add_design(app, run);
   fpss::cli::add_show(app, run);
   // CLI11 reports a mistyped sub-command as "A subcommand is required": name it instead.

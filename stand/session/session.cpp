@@ -19,6 +19,7 @@
 #include "calib/errors.h"
 #include "calib/report.h"
 #include "calib/streaming.h"
+#include "calib/transfer_function.h"
 #include "drivers/endpoints.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/session/diagnose_step.h"
@@ -179,6 +180,7 @@ class Session {
   void subscribe();
   void on_point_done(const PointDone& p);
   int64_t points_before(const Action& a) const;  // points planned before a computation step
+  void ask_prompts(ControlPoller& poller, RunControl& control);
   void on_calibrate(const Action& a);
   void on_diagnose(const Action& a);
   std::string on_check(const Action& a);
@@ -210,6 +212,8 @@ class Session {
   std::unique_ptr<StreamingCalibrator> live_;
   std::chrono::steady_clock::time_point last_estimate_ = std::chrono::steady_clock::now() - std::chrono::seconds(10);
   std::string live_text_;
+  std::optional<StreamingCalibrator::Estimate> live_est_;
+  std::vector<std::pair<int64_t, PointStats>> unplotted_;  // points done before the first valid live fit
   std::unique_ptr<Progress> progress_;
   std::optional<CalibrationReport> last_cal_;
   int calibrations_ = 0;
@@ -296,6 +300,7 @@ void Session::write_start_record() {
     doc_["files"] = {{"samples", "samples.csv"}, {"journal", "points.jsonl"}, {"events", "events.log"},
                      {"event_stream", "events.jsonl"}};
   }
+  if (!req_.operator_name.empty()) doc_["operator"] = req_.operator_name;
   doc_["outcome"] = "running";
   doc_.erase("ended_utc");
   doc_.erase("reason");
@@ -373,6 +378,7 @@ void Session::on_point_done(const PointDone& p) {
       if (last || std::chrono::steady_clock::now() - last_estimate_ > std::chrono::milliseconds(500)) {
         last_estimate_ = std::chrono::steady_clock::now();
         const auto est = live_->current();
+        if (est.valid) live_est_ = est;
         if (est.valid) {
           live_text_ = fmt::format("live residual rms pitch {:.2f} yaw {:.2f} arcsec ({} pairs)", est.rms_pitch_arcsec,
                                    est.rms_yaw_arcsec, est.pairs);
@@ -389,6 +395,19 @@ void Session::on_point_done(const PointDone& p) {
       log_->warn("live residual off: {}", e.what());
       live_.reset();
     }
+  }
+  // Each point against the latest live fit, for the console's residual chart and map; the points
+  // before the first valid fit are written once it exists.
+  if (p.stats.rows > 0) unplotted_.push_back({p.action->point + 1, p.stats});
+  if (live_est_) {
+    for (const auto& [point, st] : unplotted_) {
+      const double rp = rad_to_arcsec(transfer_angle(live_est_->alpha.data(), st.counts_alpha)) - st.ref_pitch_arcsec;
+      const double ry = rad_to_arcsec(transfer_angle(live_est_->beta.data(), st.counts_beta)) - st.ref_yaw_arcsec;
+      event_log_->write_note("point_residual", {{"point", point}, {"ref_pitch_arcsec", st.ref_pitch_arcsec},
+                                                {"ref_yaw_arcsec", st.ref_yaw_arcsec}, {"residual_pitch_arcsec", rp},
+                                                {"residual_yaw_arcsec", ry}});
+    }
+    unplotted_.clear();
   }
   progress_->point_done(live_text_);
 }
@@ -512,6 +531,17 @@ void Session::write_report() {
   }
 }
 
+void Session::ask_prompts(ControlPoller& poller, RunControl& control) {
+  if (req_.prompts.empty()) return;
+  const OperatorAnswers got = ask_operator(req_.prompts, unit_, poller, control, *event_log_, *log_);
+  if (!got.complete) return;  // aborted: the engine stops before it moves
+  res_.answers = got.answers;
+  res_.signed_off_utc = got.signed_off_utc;
+  if (res_.answers.count("operator")) doc_["operator"] = res_.answers["operator"];
+  doc_["signed_off_utc"] = res_.signed_off_utc;
+  write_json_atomic(res_.run_dir / "run.json", doc_);
+}
+
 SessionResult Session::run() {
   const auto t_start = std::chrono::steady_clock::now();
   // From here on SIGINT/SIGTERM ask for a clean stop rather than killing the process, so a run
@@ -548,6 +578,9 @@ SessionResult Session::run() {
   write_start_record();
   start_catalogue_record();
   subscribe();
+  // The console's pause/resume/abort and prompt answers (RUN_DIR/control.json).
+  ControlPoller poller(res_.run_dir, control);
+  ask_prompts(poller, control);
   EngineHooks hooks;
   hooks.calibrate = [this](const Action& a) { on_calibrate(a); };
   hooks.check = [this](const Action& a) { return on_check(a); };

@@ -2,6 +2,7 @@
 #pragma once
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -11,6 +12,7 @@
 #include "procedures/settings.h"
 #include "stand/cli/emulator_contract.h"
 #include "stand/session/run_folder.h"
+#include "stand/session/control_channel.h"
 #include "stand/config/stand_config.h"
 #include "procedures/engine.h"
 #include "procedures/procedure.h"
@@ -28,6 +30,11 @@ struct SessionRequest {
   bool quiet = false;                // no console log lines (tests)
   RunControl* control = nullptr;     // null: the session's own, driven by SIGINT/SIGTERM/SIGUSR1
   int keys_fd = -1;                  // a terminal (stdin): keys p pause, r resume, a abort (terminal_keys.h)
+  // Asked through the run folder's control channel once the folder exists, before anything
+  // moves; the run waits for the answers (docs/console.md). Kind "serial" must match the serial
+  // the sensor reports, "confirm" must be yes (else the run is aborted), "text" must not be empty.
+  std::vector<OperatorPrompt> prompts;
+  std::string operator_name;  // recorded in run.json when given
 };
 
 struct SessionResult {
@@ -41,6 +48,8 @@ struct SessionResult {
   int64_t points_done = 0, points_total = 0;
   EngineStats stats;
   double wall_s = 0;  // whole session, emulator start to report
+  std::map<std::string, std::string> answers;  // the prompts' answers, by id
+  std::string signed_off_utc;                  // when the last prompt was answered
 };
 
 // Throws InputError for bad input found before anything moved (invalid procedure or stand, a

@@ -1,0 +1,306 @@
+// The console's JSON API (docs/console.md): status, stand, procedures, jobs, runs, control, prompts, units, compare.
+#include <algorithm>
+#include <fstream>
+#include <memory>
+#include <vector>
+
+#include <fmt/format.h>
+#include <httplib.h>
+
+#include "calib/coefficients.h"
+#include "calib/compare.h"
+#include "calib/json_file.h"
+#include "calib/text_file.h"
+#include "stand/catalogue/catalogue.h"
+#include "stand/console/run_files.h"
+#include "stand/console/server.h"
+#include "stand/session/control_channel.h"
+
+namespace fpss::console {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+void reply(httplib::Response& res, const json& j, int status = 200) {
+  res.status = status;
+  res.set_content(j.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
+}
+void fail(httplib::Response& res, int status, const std::string& why) { reply(res, {{"error", why}}, status); }
+
+// A request body as a JSON object (bounded by the server's payload limit and nlohmann's parser).
+std::optional<json> body_object(const httplib::Request& req, httplib::Response& res) {
+  try {
+    json j = parse_json_text(req.body, "request body", 4);  // the project's one JSON reader: depth, duplicates
+    if (j.is_object()) return j;
+    fail(res, 400, "the body must be a JSON object");
+  } catch (const std::exception& e) {
+    fail(res, 400, e.what());
+  }
+  return std::nullopt;
+}
+
+std::string str(const json& j, const char* key) {
+  return j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : std::string();
+}
+
+// What the stand page shows, from the newest lines of the live (or latest) run's events.jsonl.
+json stand_state(const Context& c) {
+  json s{{"mode", c.opt.emulate ? "emulated" : "stand"},
+         {"stand_file", c.opt.stand_file.string()},
+         {"emulator_args", c.opt.emulator_args},
+         {"connected", false},
+         {"state", "idle"}};
+  const auto live = live_runs(c.opt.runs_dir);
+  if (live.empty()) return s;
+  const RunRef& r = live.front();
+  s["run_id"] = r.run_id;
+  s["connected"] = true;
+  s["state"] = "running";
+  std::error_code ec;
+  const uint64_t size = fs::file_size(r.dir / "events.jsonl", ec);
+  if (ec) return s;
+  const EventChunk ch = read_events(r.dir, size > 65536 ? size - 65536 : 0, 65536);
+  for (const auto& line : ch.lines) {
+    const json e = json::parse(line, nullptr, false);
+    if (!e.is_object()) continue;
+    const std::string t = str(e, "type");
+    if (t == "point_done") {
+      s["gimbal"] = {{"pitch_arcsec", e.value("ref_pitch_arcsec", 0.0)}, {"yaw_arcsec", e.value("ref_yaw_arcsec", 0.0)},
+                     {"point", e.value("point", 0)}};
+      s["sensor"] = {{"rows", e.value("rows", 0)}, {"invalid_frames", e.value("invalid_frames", 0)},
+                     {"attempts", e.value("attempts", 1)}};
+      if (e.contains("temperature_c")) s["temperature_c"] = e["temperature_c"];
+      if (s["state"] != "faulted") s["state"] = "running";
+    } else if (t == "paused") {
+      s["state"] = "paused";
+    } else if (t == "resumed") {
+      s["state"] = "running";
+    } else if (t == "fault") {
+      s["state"] = "faulted";
+      s["last_fault"] = e.value("message", "");
+    } else if (t == "warning") {
+      s["last_warning"] = e.value("message", "");
+    } else if (t == "prompt") {
+      s["state"] = "waiting for the operator";
+    }
+  }
+  return s;
+}
+
+json procedures(const Context& c) {
+  json out = json::array();
+  std::error_code ec;
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(c.opt.procedures_dir, ec)) {
+    const std::string n = e.path().filename().string();
+    if (e.path().extension() != ".yaml" || !safe_name(n) || !e.is_regular_file()) continue;
+    try {
+      const std::string text = read_text_file(e.path(), "procedure", 1024 * 1024);
+      if (text.find("steps:") != std::string::npos) names.push_back(n);
+    } catch (const std::exception&) {
+    }
+  }
+  std::sort(names.begin(), names.end());
+  for (const auto& n : names) out.push_back(n);
+  return out;
+}
+
+void add_job_routes(httplib::Server& s, Context& c) {
+  s.Get("/api/jobs", [&c](const httplib::Request&, httplib::Response& res) {
+    json a = json::array();
+    for (const auto& j : c.jobs->list()) a.push_back(j.to_json());
+    reply(res, a);
+  });
+  s.Get(R"(/api/jobs/(\d{1,12}))", [&c](const httplib::Request& req, httplib::Response& res) {
+    const auto j = c.jobs->find(std::stoll(req.matches[1]));
+    j ? reply(res, j->to_json()) : fail(res, 404, "no such job");
+  });
+  s.Post("/api/jobs", [&c](const httplib::Request& req, httplib::Response& res) {
+    const auto b = body_object(req, res);
+    if (!b) return;
+    Job j;
+    j.kind = b->contains("kind") ? str(*b, "kind") : "run";
+    j.procedure = str(*b, "procedure");
+    j.unit = str(*b, "unit");
+    j.operator_name = str(*b, "operator");
+    try {
+      reply(res, c.jobs->add(j).to_json(), 201);
+    } catch (const std::invalid_argument& e) {
+      fail(res, 400, e.what());
+    }
+  });
+  s.Delete(R"(/api/jobs/(\d{1,12}))", [&c](const httplib::Request& req, httplib::Response& res) {
+    c.jobs->remove(std::stoll(req.matches[1])) ? reply(res, {{"removed", true}}) : fail(res, 404, "no queued job with that id");
+  });
+  s.Post(R"(/api/jobs/(\d{1,12})/move)", [&c](const httplib::Request& req, httplib::Response& res) {
+    const auto b = body_object(req, res);
+    if (!b) return;
+    if (!b->contains("to") || !(*b)["to"].is_number_unsigned()) return fail(res, 400, "to: the new 0-based place");
+    c.jobs->move(std::stoll(req.matches[1]), (*b)["to"].get<size_t>()) ? reply(res, {{"moved", true}})
+                                                                       : fail(res, 404, "no queued job with that id");
+  });
+}
+
+// Pause, resume, abort and prompt answers go to RUN_DIR/control.json, which the run polls.
+void add_control_routes(httplib::Server& s, Context& c) {
+  s.Post(R"(/api/runs/([A-Za-z0-9._-]+)/control)", [&c](const httplib::Request& req, httplib::Response& res) {
+    const auto b = body_object(req, res);
+    if (!b) return;
+    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    if (!run) return fail(res, 404, "no such run");
+    if (!run->live) return fail(res, 409, "the run is not running");
+    const std::string action = str(*b, "action");
+    std::lock_guard<std::mutex> g(c.control_mutex);
+    ControlRequest cr = read_control(run->dir).value_or(ControlRequest{});
+    if (action == "pause") cr.pause = true;
+    else if (action == "resume") cr.pause = false;
+    else if (action == "abort") cr.abort = true;
+    else return fail(res, 400, "action: pause, resume or abort");
+    write_control(run->dir, cr);
+    reply(res, {{"run_id", run->run_id}, {"action", action}, {"accepted", true}});
+  });
+  s.Post(R"(/api/runs/([A-Za-z0-9._-]+)/answer)", [&c](const httplib::Request& req, httplib::Response& res) {
+    const auto b = body_object(req, res);
+    if (!b) return;
+    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    if (!run) return fail(res, 404, "no such run");
+    if (!run->live) return fail(res, 409, "the run is not running");
+    const std::string id = str(*b, "id"), value = str(*b, "value");
+    if (!safe_name(id) || value.size() > 200) return fail(res, 400, "id: a prompt id; value: at most 200 characters");
+    std::lock_guard<std::mutex> g(c.control_mutex);
+    ControlRequest cr = read_control(run->dir).value_or(ControlRequest{});
+    if (cr.answers.size() >= 50) return fail(res, 400, "too many answers");
+    cr.answers[id] = value;
+    write_control(run->dir, cr);
+    reply(res, {{"run_id", run->run_id}, {"id", id}, {"accepted", true}});
+  });
+}
+
+void add_run_routes(httplib::Server& s, Context& c) {
+  s.Get("/api/runs", [&c](const httplib::Request& req, httplib::Response& res) {
+    size_t limit = 200;
+    try {
+      if (req.has_param("limit")) limit = std::min<size_t>(std::stoul(req.get_param_value("limit")), 5000);
+    } catch (const std::exception&) {
+      return fail(res, 400, "limit: a number");
+    }
+    reply(res, runs_json(c.opt.runs_dir, req.get_param_value("unit"), req.get_param_value("outcome"),
+                         req.get_param_value("from"), req.get_param_value("to"), limit));
+  });
+  s.Get(R"(/api/runs/([A-Za-z0-9._-]+))", [&c](const httplib::Request& req, httplib::Response& res) {
+    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    run ? reply(res, run_json(*run)) : fail(res, 404, "no such run");
+  });
+  s.Get(R"(/api/runs/([A-Za-z0-9._-]+)/events)", [&c](const httplib::Request& req, httplib::Response& res) {
+    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    if (!run) return fail(res, 404, "no such run");
+    uint64_t from = 0;
+    try {
+      if (req.has_param("from")) from = std::stoull(req.get_param_value("from"));
+    } catch (const std::exception&) {
+      return fail(res, 400, "from: a byte offset");
+    }
+    const EventChunk ch = read_events(run->dir, from);
+    json lines = json::array();
+    for (const auto& l : ch.lines) lines.push_back(json::parse(l, nullptr, false));
+    reply(res, {{"events", lines}, {"next", ch.next}, {"live", run->live}});
+  });
+  s.Get(R"(/runs/([A-Za-z0-9._-]+)/(.+))", [&c](const httplib::Request& req, httplib::Response& res) {
+    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    const auto file = run ? run_file(run->dir, req.matches[2]) : std::nullopt;
+    if (!file) return fail(res, 404, "no such file");
+    // Streamed in 64 KiB pieces: a samples.csv of millions of rows is never held whole.
+    auto in = std::make_shared<std::ifstream>(*file, std::ios::binary);
+    std::error_code ec;
+    const auto size = fs::file_size(*file, ec);
+    if (!*in || ec) return fail(res, 404, "cannot read the file");
+    const std::string ext = file->extension().string();
+    const std::string type = ext == ".html" ? "text/html; charset=utf-8"
+                             : ext == ".json" || ext == ".jsonl" ? "application/json"
+                             : ext == ".svg" ? "image/svg+xml"
+                             : ext == ".png" ? "image/png"
+                             : ext == ".csv" ? "text/csv" : "text/plain; charset=utf-8";
+    if (ext == ".csv") res.set_header("Content-Disposition", "attachment; filename=\"" + file->filename().string() + "\"");
+    res.set_content_provider(static_cast<size_t>(size), type, [in](size_t offset, size_t length, httplib::DataSink& sink) {
+      std::vector<char> buf(std::min<size_t>(length, 64 * 1024));
+      in->seekg(static_cast<std::streamoff>(offset));
+      in->read(buf.data(), static_cast<std::streamsize>(buf.size()));
+      const auto n = in->gcount();
+      return n > 0 && sink.write(buf.data(), static_cast<size_t>(n));
+    });
+  });
+}
+
+void add_unit_routes(httplib::Server& s, Context& c) {
+  s.Get(R"(/api/units/([A-Za-z0-9._-]+)/history)", [&c](const httplib::Request& req, httplib::Response& res) {
+    json cals = json::array(), accs = json::array();
+    try {
+      Catalogue cat(Catalogue::default_path(c.opt.runs_dir), Catalogue::Mode::read_only);
+      for (const auto& h : cat.unit_history(req.matches[1])) {
+        json j{{"id", h.id}, {"date_utc", h.date_utc}, {"source", h.source}, {"label", h.label}, {"method", h.method},
+               {"run_id", h.run_id ? json(*h.run_id) : json()}};
+        if (h.pitch) j["pitch"] = h.pitch->to_json();
+        if (h.yaw) j["yaw"] = h.yaw->to_json();
+        cals.push_back(j);
+      }
+      for (const auto& a : cat.unit_acceptances(req.matches[1])) {
+        accs.push_back({{"id", a.id}, {"date_utc", a.date_utc}, {"passed", a.passed},
+                        {"run_id", a.run_id ? json(*a.run_id) : json()},
+                        {"operator", a.certificate.value("operator", "")}});
+      }
+    } catch (const std::exception& e) {
+      return fail(res, 404, e.what());
+    }
+    reply(res, {{"unit", std::string(req.matches[1])}, {"calibrations", cals}, {"acceptances", accs}});
+  });
+  s.Get("/api/units", [&c](const httplib::Request&, httplib::Response& res) {
+    try {
+      Catalogue cat(Catalogue::default_path(c.opt.runs_dir), Catalogue::Mode::read_only);
+      reply(res, cat.units());
+    } catch (const std::exception&) {
+      reply(res, json::array());
+    }
+  });
+  // B - A over the field (the paper's Figures 1-2), both from the catalogue.
+  s.Get("/api/compare", [&c](const httplib::Request& req, httplib::Response& res) {
+    try {
+      Catalogue cat(Catalogue::default_path(c.opt.runs_dir), Catalogue::Mode::read_only);
+      const auto a = cat.find_calibration(std::stoll(req.get_param_value("a")));
+      const auto b = cat.find_calibration(std::stoll(req.get_param_value("b")));
+      if (!a || !b) return fail(res, 404, "no such calibration");
+      const CalibrationComparison cc = compare_calibrations(parse_coefficients(a->coefficients, "calibration a"),
+                                                            parse_coefficients(b->coefficients, "calibration b"));
+      json out = json::parse(cc.detail_json().dump());
+      for (const auto* ax : {&cc.alpha, &cc.beta}) {
+        out[ax->axis]["angle_a_arcsec"] = ax->angle_a_arcsec;
+        out[ax->axis]["diff_arcsec"] = ax->diff_arcsec;
+      }
+      reply(res, out);
+    } catch (const std::exception& e) {
+      fail(res, 400, e.what());
+    }
+  });
+}
+
+}  // namespace
+
+void add_api(httplib::Server& s, Context& c) {
+  s.Get("/api/status", [&c](const httplib::Request&, httplib::Response& res) {
+    json live = json::array();
+    for (const auto& r : live_runs(c.opt.runs_dir)) live.push_back(r.run_id);
+    json jobs = json::array();
+    for (const auto& j : c.jobs->list()) jobs.push_back(j.to_json());
+    reply(res, {{"live_runs", live}, {"jobs", jobs}, {"emulate", c.opt.emulate},
+                {"reads_need_token", !is_loopback(c.opt.host)}, {"version", FPSS_VERSION}});
+  });
+  s.Get("/api/stand", [&c](const httplib::Request&, httplib::Response& res) { reply(res, stand_state(c)); });
+  s.Get("/api/procedures", [&c](const httplib::Request&, httplib::Response& res) { reply(res, procedures(c)); });
+  add_job_routes(s, c);
+  add_control_routes(s, c);
+  add_run_routes(s, c);
+  add_unit_routes(s, c);
+}
+
+}  // namespace fpss::console

@@ -1,0 +1,174 @@
+#include "stand/console/run_files.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <memory>
+
+#include "calib/text_file.h"
+#include "stand/catalogue/catalogue.h"
+#include "stand/console/jobs.h"
+
+namespace fpss::console {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::unique_ptr<Catalogue> open_catalogue(const fs::path& runs_dir) {
+  const fs::path p = Catalogue::default_path(runs_dir);
+  if (!fs::exists(p)) return nullptr;
+  try {
+    return std::make_unique<Catalogue>(p, Catalogue::Mode::read_only);
+  } catch (const std::exception&) {
+    return nullptr;
+  }
+}
+
+bool alive(int64_t pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
+
+RunRef ref_of(const RunRecord& r) {
+  RunRef x;
+  x.run_id = r.run_id;
+  x.dir = r.run_dir;
+  x.pid = static_cast<int>(r.pid);
+  x.live = r.outcome == "running" && alive(r.pid);
+  return x;
+}
+
+nlohmann::json read_run_doc(const fs::path& dir) {
+  try {
+    return nlohmann::json::parse(read_text_file(dir / "run.json", "run.json", 16 * 1024 * 1024));
+  } catch (const std::exception&) {
+    return nlohmann::json::object();
+  }
+}
+
+}  // namespace
+
+std::optional<RunRef> find_run(const fs::path& runs_dir, const std::string& run_id) {
+  if (!safe_name(run_id, 200)) return std::nullopt;
+  auto cat = open_catalogue(runs_dir);
+  if (!cat) return std::nullopt;
+  auto r = cat->find_run(run_id);
+  if (!r) return std::nullopt;
+  return ref_of(*r);
+}
+
+std::vector<RunRef> live_runs(const fs::path& runs_dir) {
+  std::vector<RunRef> out;
+  auto cat = open_catalogue(runs_dir);
+  if (!cat) return out;
+  RunFilter f;
+  f.limit = 50;
+  for (const auto& r : cat->list_runs(f)) {
+    if (r.outcome == "running" && alive(r.pid)) out.push_back(ref_of(r));
+  }
+  return out;
+}
+
+std::optional<RunRef> run_of_pid(const fs::path& runs_dir, int pid) {
+  auto cat = open_catalogue(runs_dir);
+  if (!cat) return std::nullopt;
+  RunFilter f;
+  f.limit = 20;
+  for (const auto& r : cat->list_runs(f)) {
+    if (r.pid == pid) return ref_of(r);
+  }
+  return std::nullopt;
+}
+
+nlohmann::json runs_json(const fs::path& runs_dir, const std::string& unit, const std::string& outcome,
+                         const std::string& from_date, const std::string& to_date, size_t limit) {
+  nlohmann::json out = nlohmann::json::array();
+  auto cat = open_catalogue(runs_dir);
+  if (!cat) return out;
+  RunFilter f;
+  if (!unit.empty()) f.unit = unit;
+  for (const auto& r : cat->list_runs(f)) {
+    const RunRef ref = ref_of(r);
+    std::string oc = r.outcome == "running" && !ref.live ? "stale" : r.outcome;
+    const nlohmann::json doc = read_run_doc(r.run_dir);
+    if (doc.contains("stop_cause") && doc["stop_cause"] == "aborted") oc = "aborted";
+    if (!outcome.empty() && oc != outcome && r.outcome != outcome) continue;
+    const std::string day = r.started_utc.substr(0, 10);
+    if (!from_date.empty() && day < from_date) continue;
+    if (!to_date.empty() && day > to_date) continue;
+    nlohmann::json j{{"run_id", r.run_id}, {"unit", r.unit},        {"procedure", r.procedure},
+                     {"started_utc", r.started_utc}, {"ended_utc", r.ended_utc ? nlohmann::json(*r.ended_utc) : nlohmann::json()},
+                     {"outcome", oc},   {"live", ref.live},       {"emulated", r.emulated}};
+    if (doc.contains("points")) j["points"] = doc["points"];
+    if (doc.contains("acceptance")) j["verdict"] = doc["acceptance"].value("verdict", "");
+    if (doc.contains("operator")) j["operator"] = doc["operator"];
+    out.push_back(j);
+    if (limit && out.size() >= limit) break;
+  }
+  return out;
+}
+
+nlohmann::json run_json(const RunRef& r) {
+  nlohmann::json doc = read_run_doc(r.dir);
+  nlohmann::json j{{"run_id", r.run_id}, {"live", r.live}};
+  for (const char* k : {"unit", "procedure", "outcome", "stop_cause", "reason", "started_utc", "ended_utc", "points",
+                        "safe_state", "operator", "signed_off_utc", "acceptance", "emulated"}) {
+    if (doc.contains(k)) j[k] = doc[k];
+  }
+  if (j.contains("procedure") && j["procedure"].is_object()) j["procedure"].erase("text");
+  nlohmann::json files = nlohmann::json::object();
+  for (const char* f : {"report.html", "GAP.html", "certificate.txt", "acceptance.json", "samples.csv", "calibration.json",
+                        "events.jsonl", "run.json"}) {
+    if (run_file(r.dir, f)) files[f] = "/runs/" + r.run_id + "/" + f;
+  }
+  j["files"] = files;
+  return j;
+}
+
+EventChunk read_events(const fs::path& run_dir, uint64_t offset, size_t max_bytes) {
+  EventChunk c;
+  c.next = offset;
+  const int fd = ::open((run_dir / "events.jsonl").c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
+  if (fd < 0) return c;
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) || static_cast<uint64_t>(st.st_size) <= offset) {
+    ::close(fd);
+    return c;
+  }
+  std::string buf(std::min<uint64_t>(max_bytes, static_cast<uint64_t>(st.st_size) - offset), '\0');
+  const ssize_t n = ::pread(fd, buf.data(), buf.size(), static_cast<off_t>(offset));
+  ::close(fd);
+  if (n <= 0) return c;
+  buf.resize(static_cast<size_t>(n));
+  size_t start = 0;
+  for (size_t nl = buf.find('\n'); nl != std::string::npos; nl = buf.find('\n', start)) {
+    c.lines.push_back(buf.substr(start, nl - start));
+    start = nl + 1;
+    c.ends.push_back(offset + start);
+  }
+  // A line longer than the whole chunk can never complete here: skip it rather than stall.
+  if (c.lines.empty() && buf.size() == max_bytes) c.next = offset + buf.size();
+  else c.next = offset + start;
+  return c;
+}
+
+std::optional<fs::path> run_file(const fs::path& run_dir, const std::string& rel) {
+  if (rel.empty() || rel.size() > 300) return std::nullopt;
+  fs::path p = run_dir;
+  size_t start = 0;
+  while (start <= rel.size()) {
+    const size_t slash = rel.find('/', start);
+    const std::string seg = rel.substr(start, slash == std::string::npos ? std::string::npos : slash - start);
+    if (!safe_name(seg, 128)) return std::nullopt;
+    p /= seg;
+    if (slash == std::string::npos) break;
+    start = slash + 1;
+  }
+  struct stat st {};
+  if (::lstat(p.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return std::nullopt;
+  return p;
+}
+
+}  // namespace fpss::console

@@ -1,0 +1,47 @@
+// What the console reads of the runs folder: live runs, a run's folder and files, its events.jsonl from an offset.
+#pragma once
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace fpss::console {
+
+// A run the catalogue knows: its folder (from the catalogue, never from the request) and whether
+// its process is alive on this host.
+struct RunRef {
+  std::string run_id;
+  std::filesystem::path dir;
+  bool live = false;
+  int pid = 0;
+};
+std::optional<RunRef> find_run(const std::filesystem::path& runs_dir, const std::string& run_id);
+// Runs whose process is alive (at most one on a stand, but any number is listed).
+std::vector<RunRef> live_runs(const std::filesystem::path& runs_dir);
+// The run started by process `pid` (a job's child), once it is in the catalogue.
+std::optional<RunRef> run_of_pid(const std::filesystem::path& runs_dir, int pid);
+
+// The catalogue's runs, most recent first, filtered (empty filter: all); run.json's outcome,
+// points and acceptance verdict added for each.
+nlohmann::json runs_json(const std::filesystem::path& runs_dir, const std::string& unit, const std::string& outcome,
+                         const std::string& from_date, const std::string& to_date, size_t limit);
+// run.json with the files present and links.
+nlohmann::json run_json(const RunRef& r);
+
+// Complete lines of events.jsonl from byte `offset`, at most `max_bytes`; `next` is the offset
+// after the last complete line returned (a line being written is left for next time).
+struct EventChunk {
+  std::vector<std::string> lines;
+  std::vector<uint64_t> ends;  // offset after each line (the SSE id)
+  uint64_t next = 0;
+};
+EventChunk read_events(const std::filesystem::path& run_dir, uint64_t offset, size_t max_bytes = 256 * 1024);
+
+// A file of a run folder by its relative path: segments of [A-Za-z0-9._-] not starting with a
+// dot, a regular file (no symlink) inside the folder. nullopt otherwise.
+std::optional<std::filesystem::path> run_file(const std::filesystem::path& run_dir, const std::string& rel);
+
+}  // namespace fpss::console

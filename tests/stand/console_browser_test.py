@@ -1,0 +1,268 @@
+#!/usr/bin/python3
+"""The web console in a real browser (headless Chromium via chromedriver and Selenium) against
+`fpss-stand serve --emulate`: load, start procedures/discrete_grid.yaml, watch progress and the
+chart, pause (progress stops for 2 s), resume, abort a second run (gimbal at null, run aborted),
+open the report, and go through an acceptance answering its prompts. Any JavaScript console error
+fails. Screenshots go to OUT_DIR (build/tests/console_browser/). Also writes OUT_DIR/latency.json:
+point done (events.jsonl) to the residual chart drawn, ms, for docs/console.md.
+
+usage: console_browser_test.py FPSS_STAND_BINARY OUT_DIR"""
+import json
+import math
+import os
+import re
+import shutil
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+from selenium import webdriver
+from selenium.webdriver.chrome.options import Options
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select
+
+BIN, OUT = sys.argv[1], sys.argv[2]
+os.makedirs(OUT, exist_ok=True)
+
+
+def wait_for(what, cond, timeout=60.0, step=0.1):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        v = cond()
+        if v:
+            return v
+        time.sleep(step)
+    raise AssertionError("timed out waiting for " + what)
+
+
+class Console:
+    def __init__(self, runs):
+        self.runs = runs
+        self.proc = subprocess.Popen([BIN, "serve", "--emulate", "--runs-dir", runs, "--listen", "127.0.0.1:0"],
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        first = self.proc.stdout.readline()
+        m = re.search(r"http://127\.0\.0\.1:(\d+)/", first)
+        assert m, "serve did not print its address: " + first
+        self.url = "http://127.0.0.1:%s/" % m.group(1)
+        second = self.proc.stdout.readline()
+        m = re.search(r"#token=([0-9a-f]+)", self.proc.stdout.readline() + second)
+        assert m, "serve did not print the token once"
+        self.token = m.group(1)
+
+    def stop(self):
+        self.proc.send_signal(signal.SIGTERM)
+        self.proc.wait(timeout=20)
+
+
+def run_json(runs, run_id):
+    with open(os.path.join(runs, run_id, "run.json")) as f:
+        return json.load(f)
+
+
+class Browser:
+    """Headless Chromium on the console, with the helpers every step uses."""
+
+    def __init__(self, console):
+        self.console = console
+        self.runs = console.runs
+        opts = Options()
+        for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                  "--window-size=1280,1400"):
+            opts.add_argument(a)
+        opts.binary_location = "/usr/bin/chromium"
+        opts.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+        self.driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=opts)
+        self.errors = []
+
+    def check_console(self):
+        for e in self.driver.get_log("browser"):
+            if e["level"] == "SEVERE":
+                self.errors.append(e["message"])
+        assert not self.errors, "JavaScript console errors: %s" % self.errors
+
+    def shot(self, name):
+        self.driver.save_screenshot(os.path.join(OUT, name + ".png"))
+        self.check_console()
+
+    def go(self, where):
+        self.driver.get(self.console.url + where)
+
+    def text(self, i):
+        return self.driver.find_element(By.ID, i).text
+
+    def click(self, i):
+        self.driver.find_element(By.ID, i).click()
+
+    def fetch(self, path):
+        return self.driver.execute_script("return fetch('%s').then(r => r.json())" % path)
+
+    def progress(self):
+        m = re.match(r"(\d+) / (\d+)", self.text("live-progress-text"))
+        return int(m.group(1)) if m else -1
+
+    def queue(self, kind, procedure, unit, operator):
+        d = self.driver
+        self.go("index.html#start")
+        wait_for("procedures", lambda: len(Select(d.find_element(By.ID, "start-procedure")).options) > 0)
+        Select(d.find_element(By.ID, "start-kind")).select_by_value(kind)
+        if procedure:
+            Select(d.find_element(By.ID, "start-procedure")).select_by_visible_text(procedure)
+        d.find_element(By.ID, "start-unit").send_keys(unit)
+        d.find_element(By.ID, "start-operator").send_keys(operator)
+        self.click("start-submit")
+        m = wait_for("the job queued", lambda: re.search(r"queued job (\d+)", self.text("start-message")))
+        return int(m.group(1))
+
+    def watch(self, job):
+        """Opens the live page of job's run once it exists; returns the run id."""
+        self.go("index.html#live")
+        run = wait_for("job %d's run" % job, lambda: self.fetch("/api/jobs/%d" % job).get("run_id"), timeout=60)
+        self.go("index.html#live/" + run)
+        return run
+
+    def answer(self, expect, value=None, yes=False):
+        d = self.driver
+        wait_for("prompt: " + expect, lambda: d.find_element(By.ID, "prompt-box").is_displayed()
+                 and expect in self.text("prompt-text"))
+        if yes:
+            self.click("prompt-yes")
+        else:
+            box = d.find_element(By.ID, "prompt-input")
+            box.clear()
+            box.send_keys(value)
+            self.click("prompt-send")
+        wait_for("prompt answered", lambda: not d.find_element(By.ID, "prompt-box").is_displayed()
+                 or expect not in self.text("prompt-text") or self.text("prompt-note"))
+
+
+def first_run(b):
+    """Steps 1-5: load, start discrete_grid.yaml, progress and chart, pause 2 s, resume, completion."""
+    b.go("#token=" + b.console.token)  # the token arrives in the URL's fragment, as serve prints it
+    wait_for("the stand page", lambda: "emulated" in b.text("stand-table"))
+    b.shot("1-stand")
+    job = b.queue("run", "discrete_grid.yaml", "FPSS-B1", "Browser Test")
+    b.shot("2-start")
+    run = b.watch(job)
+    wait_for("progress", lambda: b.progress() >= 5)
+    p1 = b.progress()
+    wait_for("progress to advance", lambda: b.progress() > p1)
+    b.click("btn-pause")
+    wait_for("paused", lambda: b.text("live-state") == "paused")
+    held = b.progress()
+    time.sleep(2.0)
+    assert b.progress() == held, "progress moved while paused: %d -> %d" % (held, b.progress())
+    assert '"paused"' in open(os.path.join(b.runs, run, "events.jsonl")).read()
+    b.shot("4-paused")
+    b.click("btn-resume")
+    wait_for("progress after resume", lambda: b.progress() > held)
+    wait_for("points on the chart",
+             lambda: int(b.driver.find_element(By.ID, "chart-residual").get_attribute("data-points") or 0) >= 3)
+    b.shot("3-5-running-chart")
+    wait_for("run 1 completed", lambda: b.text("live-state") == "completed", timeout=120)
+    wait_for("the report link", lambda: b.driver.find_element(By.ID, "live-report").is_displayed(), timeout=60)
+    b.shot("5-completed")
+    return run, b.driver.execute_script("return window.fpssLatencies")
+
+
+def aborted_run(b):
+    """Step 6: the stand page during a run; abort: the gimbal is at null and the run is marked aborted."""
+    run = b.watch(b.queue("run", "discrete_grid.yaml", "FPSS-B2", "Browser Test"))
+    wait_for("run 2 progress", lambda: b.progress() >= 3)
+    b.go("index.html#stand")
+    wait_for("the stand page live", lambda: "connected" in b.text("stand-table") and "point" in b.text("stand-table"))
+    b.shot("6-stand-live")
+    b.go("index.html#live/" + run)
+    wait_for("run 2 progress again", lambda: b.progress() >= 3)
+    b.click("btn-abort")
+    wait_for("aborted", lambda: b.text("live-state") == "aborted", timeout=60)
+    assert b.driver.find_element(By.ID, "live-state").get_attribute("data-safe") == "true", "gimbal not at null"
+    doc = wait_for("run.json's outcome",
+                   lambda: (lambda d: d if d.get("outcome") != "running" else None)(run_json(b.runs, run)))
+    assert doc["stop_cause"] == "aborted" and doc["safe_state"] is True, doc
+    lines = open(os.path.join(b.runs, run, "events.jsonl")).read().splitlines()
+    stopped = [json.loads(x) for x in lines if '"run_stopped"' in x][-1]
+    assert stopped["cause"] == "aborted" and stopped["safe_state"] is True
+    b.go("index.html#runs")
+    wait_for("aborted in the runs list", lambda: "aborted" in b.text("runs-table"))
+    b.shot("6-aborted")
+
+
+def open_report(b, run):
+    """Step 7: the run's page links its report, which opens."""
+    b.go("index.html#runs/" + run)
+    link = wait_for("the report link", lambda: [a for a in b.driver.find_elements(By.CSS_SELECTOR, "a.run-file")
+                                                if a.text == "report"])
+    b.shot("7-run")
+    b.driver.get(link[0].get_attribute("href"))
+    wait_for("the report page", lambda: "calibration" in b.driver.page_source.lower())
+    assert run in b.driver.page_source or "FPSS-B1" in b.driver.page_source
+    b.shot("7-report")
+
+
+def acceptance(b):
+    """Step 8: an acceptance answering its prompts (a wrong serial first); then the unit's history."""
+    job = b.queue("accept", "", "FPSS-B1", "")
+    run = b.watch(job)
+    b.answer("serial", "FPSS-WRONG")
+    wait_for("the wrong serial refused", lambda: "not" in b.text("prompt-note"))
+    b.shot("8-serial-refused")
+    b.answer("serial", "FPSS-B1")
+    b.answer("lamp", yes=True)
+    b.answer("name", "Ada Operator")
+    wait_for("acceptance run completed", lambda: b.text("live-state") == "completed", timeout=120)
+    done = wait_for("the acceptance's exit", lambda: (lambda j: j if j["state"] == "finished" else None)(
+        b.fetch("/api/jobs/%d" % job)), timeout=60)
+    assert done["exit_code"] == 0, done
+    cert = json.load(open(os.path.join(b.runs, run, "acceptance.json")))
+    assert cert["operator"] == "Ada Operator" and cert["signed_off_utc"], cert
+    assert "Ada Operator" in open(os.path.join(b.runs, run, "certificate.txt")).read()
+    hist = b.fetch("/api/units/FPSS-B1/history")
+    assert any(a["operator"] == "Ada Operator" and a["passed"] for a in hist["acceptances"]), hist
+    b.shot("8-acceptance")
+    # two calibrations of the unit (run 1 and the acceptance) and their difference over the field
+    b.go("index.html#units")
+    wait_for("the unit's calibrations", lambda: len(b.driver.find_elements(By.CSS_SELECTOR, "#unit-table tr")) >= 3)
+    assert "pass Ada Operator" in b.text("unit-table")
+    b.click("cmp-go")
+    wait_for("the difference B - A", lambda: "alpha: max" in b.text("cmp-summary"))
+    assert len(b.driver.find_elements(By.CSS_SELECTOR, "#chart-compare canvas")) == 2
+    b.shot("9-unit-history")
+
+
+def main():
+    tmp = tempfile.mkdtemp(prefix="fpss-console-browser-")
+    console = Console(os.path.join(tmp, "runs"))
+    b = Browser(console)
+    t0 = time.monotonic()
+    try:
+        run1, lat = first_run(b)
+        aborted_run(b)
+        open_report(b, run1)
+        acceptance(b)
+        b.check_console()
+    except BaseException:
+        b.driver.save_screenshot(os.path.join(OUT, "failure.png"))
+        with open(os.path.join(OUT, "failure.html"), "w") as f:
+            f.write(b.driver.page_source)
+        raise
+    finally:
+        b.driver.quit()
+        console.stop()
+    lat = sorted(x for x in (lat or []) if x is not None)
+    out = {"points": len(lat), "median_ms": statistics.median(lat) if lat else None,
+           "p99_ms": lat[math.ceil(0.99 * len(lat)) - 1] if lat else None, "all_ms": lat,
+           "wall_s": time.monotonic() - t0}
+    with open(os.path.join(OUT, "latency.json"), "w") as f:
+        json.dump(out, f, indent=1)
+    print("point done -> chart: %d points, median %s ms, p99 (nearest rank) %s ms; test wall %.1f s" %
+          (out["points"], out["median_ms"], out["p99_ms"], out["wall_s"]))
+    assert lat, "no point reached the chart"
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

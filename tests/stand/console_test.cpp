@@ -1,0 +1,230 @@
+// `fpss-stand serve` over real HTTP on loopback: the token guards control (401), bounded requests,
+// no CORS, the live-client cap; a run outlives its console (serve killed mid-run) and a restarted
+// console shows it live, lets its stream catch up and keeps the queue. ~25 s (two emulated grid runs at --speed 20).
+#include <sys/stat.h>
+
+#include <regex>
+
+#include <gtest/gtest.h>
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+
+#include "tests/support/test_support.h"
+
+namespace {
+
+using namespace fpss::test;
+using json = nlohmann::json;
+
+struct Serve {
+  std::unique_ptr<Child> child;
+  int port = 0;
+  std::string banner;
+  Serve(const TempDir& t, const std::vector<std::string>& extra, const std::string& tag) {
+    std::vector<std::string> args{"serve", "--emulate", "--runs-dir", (t / "runs").string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    child = std::make_unique<Child>(stand_argv(args), fs::path(), t / (tag + ".err"));
+    const auto first = child->line(30);
+    EXPECT_TRUE(first) << read_file(t / (tag + ".err"));
+    banner = first.value_or("");
+    for (int i = 0; i < 2; ++i) {
+      if (auto l = child->line(2)) banner += "\n" + *l;
+    }
+    std::smatch m;
+    if (std::regex_search(banner, m, std::regex(R"(:(\d+)/)"))) port = std::stoi(m[1]);
+  }
+  httplib::Client client() const {
+    httplib::Client c("127.0.0.1", port);
+    c.set_read_timeout(10, 0);
+    return c;
+  }
+};
+
+std::string token_of(const TempDir& t) {
+  std::string s = read_file(t / "runs" / "console.token");
+  while (!s.empty() && s.back() == '\n') s.pop_back();
+  return s;
+}
+
+TEST(Console, ControlNeedsTheTokenAndRequestsAreBounded) {
+  TempDir t;
+  Serve s(t, {"--listen", "127.0.0.1:0", "--max-clients", "1"}, "serve1");
+  ASSERT_GT(s.port, 0) << s.banner;
+  const std::string tok = token_of(t);
+  ASSERT_EQ(tok.size(), 64u);
+  EXPECT_NE(s.banner.find(tok), std::string::npos) << "the token is printed on first start";
+  struct stat st {};
+  ASSERT_EQ(::stat((t / "runs" / "console.token").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+
+  auto c = s.client();
+  const std::string job = R"({"procedure":"discrete_grid.yaml","unit":"FPSS-S1"})";
+  auto r = c.Post("/api/jobs", job, "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 401);
+  r = c.Post("/api/jobs", {{"Authorization", "Bearer " + std::string(64, '0')}}, job, "application/json");
+  EXPECT_EQ(r->status, 401);
+  r = c.Post("/api/runs/any/control", R"({"action":"abort"})", "application/json");
+  EXPECT_EQ(r->status, 401);
+  r = c.Delete("/api/jobs/1");
+  EXPECT_EQ(r->status, 401);
+  // Reads on loopback need no token; no wildcard (or any) CORS header.
+  r = c.Get("/api/status", {{"Origin", "http://evil.example"}});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 200);
+  EXPECT_FALSE(r->has_header("Access-Control-Allow-Origin"));
+  // A rebound DNS name on loopback is refused.
+  r = c.Get("/api/status", {{"Host", "evil.example:80"}});
+  EXPECT_EQ(r->status, 403);
+  // Bounded bodies and headers.
+  const httplib::Headers auth{{"Authorization", "Bearer " + tok}};
+  r = c.Post("/api/jobs", auth, std::string(200 * 1024, ' '), "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 413);
+  r = c.Get("/api/status", {{"X-Big", std::string(20000, 'x')}});
+  EXPECT_TRUE(!r || r->status >= 400);
+  // Bad input is 400 with a reason; a procedure outside the folder is refused.
+  r = c.Post("/api/jobs", auth, R"({"procedure":"../../etc/passwd"})", "application/json");
+  EXPECT_EQ(r->status, 400);
+  r = c.Post("/api/jobs", auth, "not json", "application/json");
+  EXPECT_EQ(r->status, 400);
+  r = c.Post("/api/jobs", auth, std::string(30000, '[') + std::string(30000, ']'), "application/json");
+  EXPECT_EQ(r->status, 400) << "nesting is bounded";
+  r = c.Post("/api/jobs", auth, R"({"unit":"A","unit":"B"})", "application/json");
+  EXPECT_EQ(r->status, 400) << "a key given twice";
+  // A file outside a run folder is never served.
+  r = c.Get("/runs/x/..%2f..%2fconsole.token");
+  EXPECT_EQ(r->status, 404);
+
+  // The live-client cap (1 here): a second event stream is refused while the first is open.
+  r = c.Post("/api/jobs", auth, job, "application/json");
+  ASSERT_EQ(r->status, 201) << r->body;
+  std::string run_id;
+  ASSERT_TRUE(wait_until([&] {
+    auto j = json::parse(c.Get("/api/jobs/1")->body);
+    if (j["run_id"].is_string()) run_id = j["run_id"];
+    return !run_id.empty();
+  }, 60));
+  std::atomic<bool> got{false};
+  std::thread first([&] {
+    httplib::Client c1("127.0.0.1", s.port);
+    c1.Get(("/api/runs/" + run_id + "/stream").c_str(), [&](const char*, size_t) {
+      got = true;
+      return false;  // one chunk is enough
+    });
+  });
+  ASSERT_TRUE(wait_until([&] { return got.load(); }, 30));
+  first.join();
+  // The first stream is closed by now; hold one open and ask for another.
+  std::atomic<bool> hold{true}, holding{false};
+  std::thread holder([&] {
+    httplib::Client c2("127.0.0.1", s.port);
+    c2.Get(("/api/runs/" + run_id + "/stream").c_str(), [&](const char*, size_t) {
+      holding = true;
+      return hold.load();
+    });
+  });
+  ASSERT_TRUE(wait_until([&] { return holding.load(); }, 30));
+  r = c.Get(("/api/runs/" + run_id + "/events?from=0").c_str());
+  EXPECT_EQ(r->status, 200);
+  int status = 0;
+  s.client().Get(("/api/runs/" + run_id + "/stream").c_str(), [&](const httplib::Response& x) {
+    status = x.status;
+    return false;
+  }, [](const char*, size_t) { return false; });
+  EXPECT_EQ(status, 503);
+  hold = false;
+  holder.join();
+  // Abort the run (with the token) so the test ends soon.
+  r = c.Post(("/api/runs/" + run_id + "/control").c_str(), auth, R"({"action":"abort"})", "application/json");
+  EXPECT_EQ(r->status, 200) << r->body;
+  EXPECT_TRUE(wait_until([&] {
+    auto j = c.Get(("/api/runs/" + run_id).c_str());
+    return j && json::parse(j->body).value("stop_cause", "") == "aborted";
+  }, 60));
+  s.child->signal(SIGTERM);
+  EXPECT_EQ(s.child->wait(20), 0);
+
+  // A second start does not print the token again; off loopback reads need it too.
+  Serve again(t, {"--listen", "0.0.0.0:0"}, "serve2");
+  ASSERT_GT(again.port, 0) << again.banner;
+  EXPECT_EQ(again.banner.find(tok), std::string::npos);
+  auto c3 = again.client();
+  r = c3.Get("/api/status");
+  EXPECT_EQ(r->status, 401);
+  r = c3.Get("/api/status", auth);
+  EXPECT_EQ(r->status, 200);
+  r = c3.Get("/index.html");
+  EXPECT_EQ(r->status, 200) << "the page itself (no data) loads, so the token can be given";
+}
+
+TEST(Console, ARunOutlivesItsConsoleAndARestartedConsoleShowsItLive) {
+  TempDir t;
+  Serve s(t, {"--listen", "127.0.0.1:0"}, "serve1");
+  ASSERT_GT(s.port, 0);
+  const httplib::Headers auth{{"Authorization", "Bearer " + token_of(t)}};
+  auto c = s.client();
+  auto r = c.Post("/api/jobs", auth, R"({"procedure":"discrete_grid.yaml","unit":"FPSS-K1"})", "application/json");
+  ASSERT_EQ(r->status, 201);
+  std::string run_id;
+  ASSERT_TRUE(wait_until([&] {
+    auto j = json::parse(c.Get("/api/jobs/1")->body);
+    if (j["run_id"].is_string()) run_id = j["run_id"];
+    return !run_id.empty();
+  }, 60));
+  const fs::path dir = t / "runs" / run_id;
+  ASSERT_TRUE(wait_until([&] { return read_file(dir / "events.jsonl").find("\"point\":5,") != std::string::npos; }, 60));
+  // A second job waits in the queue; it is kept across the console's restart.
+  r = c.Post("/api/jobs", auth, R"({"procedure":"discrete_grid.yaml","unit":"FPSS-K2"})", "application/json");
+  ASSERT_EQ(r->status, 201);
+  s.child->signal(SIGKILL);
+  s.child->wait(10);
+
+  // A restarted console shows the run live, and its stream catches up from any offset.
+  Serve again(t, {"--listen", "127.0.0.1:0"}, "serve2");
+  ASSERT_GT(again.port, 0);
+  auto c2 = again.client();
+  auto st = json::parse(c2.Get("/api/status")->body);
+  ASSERT_EQ(st["live_runs"].size(), 1u) << st.dump();
+  EXPECT_EQ(st["live_runs"][0], run_id);
+  const json jobs = json::parse(c2.Get("/api/jobs")->body);
+  ASSERT_EQ(jobs.size(), 1u) << jobs.dump();
+  EXPECT_EQ(jobs[0]["unit"], "FPSS-K2");
+  EXPECT_EQ(jobs[0]["state"], "queued");
+  EXPECT_EQ(c2.Delete(("/api/jobs/" + std::to_string(jobs[0]["id"].get<int64_t>())).c_str(), auth)->status, 200);
+  std::string stream;
+  httplib::Client cs("127.0.0.1", again.port);
+  cs.Get(("/api/runs/" + run_id + "/stream").c_str(), {{"Last-Event-ID", "0"}}, [&](const char* d, size_t n) {
+    stream.append(d, n);
+    return stream.find("\"run_stopped\"") == std::string::npos;
+  });
+  EXPECT_NE(stream.find("\"run_started\""), std::string::npos);
+  EXPECT_NE(stream.find("\"run_stopped\""), std::string::npos);
+  // Resuming from an id continues after it: the first event is not sent again.
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(stream, m, std::regex(R"(id: (\d+))")));
+  std::string tail;
+  cs.Get(("/api/runs/" + run_id + "/stream").c_str(), {{"Last-Event-ID", m[1].str()}}, [&](const char* d, size_t n) {
+    tail.append(d, n);
+    return false;
+  });
+  EXPECT_EQ(tail.find("\"run_started\""), std::string::npos);
+
+  // The run completed although its console was killed.
+  ASSERT_TRUE(wait_until([&] { return json::parse(read_file(dir / "run.json")).value("outcome", "") != "running"; }, 120));
+  const json doc = json::parse(read_file(dir / "run.json"));
+  EXPECT_EQ(doc["outcome"], "completed");
+  EXPECT_EQ(doc["points"]["completed"], doc["points"]["total"]);
+  EXPECT_TRUE(wait_until([&] { return fs::exists(dir / "report.html"); }, 60));
+  json run;
+  EXPECT_TRUE(wait_until([&] {
+    run = json::parse(c2.Get(("/api/runs/" + run_id).c_str())->body);
+    return !run["live"].get<bool>();
+  }, 60));
+  EXPECT_EQ(run["outcome"], "completed");
+  EXPECT_TRUE(run["files"].contains("report.html"));
+  again.child->signal(SIGTERM);
+  EXPECT_EQ(again.child->wait(20), 0);
+}
+
+}  // namespace
