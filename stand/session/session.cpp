@@ -21,6 +21,7 @@
 #include "calib/streaming.h"
 #include "drivers/endpoints.h"
 #include "stand/catalogue/catalogue.h"
+#include "stand/session/catch_up.h"
 #include "stand/session/emulator_process.h"
 #include "stand/session/progress.h"
 #include "stand/session/run_folder.h"
@@ -192,8 +193,9 @@ class Session {
   EventBus bus_;
   nlohmann::json doc_;
   int session_ = 1;
-  fs::path catalogue_path_;
+  std::string catalogue_url_;
   std::string catalogue_error_;
+  bool catalogue_away_ = false;  // the server was unreachable (worth waiting for), not a refusal
   SampleTable recorded_;  // every row so far, old (a resume) and new: what calibrate steps fit
   std::unique_ptr<StreamingCalibrator> live_;
   std::chrono::steady_clock::time_point last_estimate_ = std::chrono::steady_clock::now() - std::chrono::seconds(10);
@@ -243,7 +245,8 @@ void Session::open_folder() {
     lock_.emplace(res_.run_dir);
     bench_.settle_log(res_.run_dir);
   }
-  run_id_ = res_.run_dir.filename().string();
+  // A fleet-wide id (UUIDv7); a run made before ids were one keeps its folder's name.
+  run_id_ = resuming_ ? doc_.value("run_id", res_.run_dir.filename().string()) : new_run_id();
   auto file_sink = std::make_shared<spdlog::sinks::basic_file_sink_mt>((res_.run_dir / "events.log").string());
   file_sink->set_pattern("%Y-%m-%dT%H:%M:%S.%e [%l] %v");
   log_->sinks().push_back(file_sink);
@@ -298,21 +301,28 @@ void Session::write_start_record() {
 
 // A catalogue that cannot record never loses the run (the folder is complete), but the command
 // says so and ends with exit 1; `fpss-stand catalogue rebuild` re-indexes the folder later.
+// A catalogue that is away marks the folder pending; the run end catches up (catch_up.h).
 template <typename F>
 void Session::with_catalogue(const char* what, F&& f) {
   try {
-    Catalogue cat(catalogue_path_);
-    f(cat);
+    auto cat = open_catalogue(catalogue_url_);
+    f(*cat);
   } catch (const std::exception& e) {
-    log_->error("catalogue {}: {}: {}", catalogue_path_.string(), what, e.what());
-    if (catalogue_error_.empty()) catalogue_error_ = fmt::format("catalogue {}: {}: {}", catalogue_path_.string(), what, e.what());
+    catalogue_away_ |= dynamic_cast<const CatalogueUnavailable*>(&e) != nullptr;
+    log_->error("catalogue {}: {}: {}", catalogue_url_, what, e.what());
+    if (catalogue_error_.empty()) catalogue_error_ = fmt::format("catalogue {}: {}: {}", catalogue_url_, what, e.what());
+    try {
+      mark_catalogue_pending(res_.run_dir, catalogue_url_, what, e.what());
+    } catch (const std::exception& m) {
+      log_->error("{}: {}", kCataloguePending, m.what());
+    }
   }
 }
 
 void Session::start_catalogue_record() {
-  catalogue_path_ = !req_.catalogue.empty() ? req_.catalogue
-                    : resuming_            ? res_.run_dir.parent_path() / "stand.db"
-                                           : Catalogue::default_path(req_.runs_dir);
+  catalogue_url_ = !req_.catalogue.empty() ? req_.catalogue
+                   : resuming_            ? (res_.run_dir.parent_path() / "stand.db").string()
+                                          : Catalogue::default_path(req_.runs_dir).string();
   with_catalogue("run start", [&](Catalogue& cat) {
     RunStart rs;
     rs.run_id = run_id_;
@@ -322,7 +332,7 @@ void Session::start_catalogue_record() {
     rs.started_utc = doc_["started_utc"].get<std::string>();
     rs.run_dir = fs::absolute(res_.run_dir);
     rs.emulated = req_.emulator.has_value();
-    rs.stand = req_.emulator ? "" : (stand_.stand_id.empty() ? stand_.origin : stand_.stand_id);
+    rs.stand = !stand_.stand_id.empty() ? stand_.stand_id : req_.emulator ? "" : stand_.origin;
     cat.record_run_start(rs);
   });
 }
@@ -411,6 +421,7 @@ void Session::on_calibrate(const Action& a) {
     cr.run_id = run_id_;
     cr.source_ref = run_id_;
     cr.date_utc = utc_now_iso();
+    cr.stand = !stand_.stand_id.empty() ? stand_.stand_id : req_.emulator ? "" : stand_.origin;
     cat.record_calibration(cr);
   });
 }
@@ -454,6 +465,18 @@ void Session::finish(const EngineResult& er) {
   if (res_.calibration) doc_["files"]["calibration"] = res_.calibration->filename().string();
   write_json_atomic(res_.run_dir / "run.json", doc_);
   with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, to_string(er.outcome), end_utc); });
+  if (!catalogue_error_.empty()) {
+    // The entry catches up from the folder, which holds everything, once the catalogue is back.
+    const double window_s = catalogue_away_ ? req_.catch_up_s : 0;
+    log_->warn("catalogue {}: catching up with the run folder (up to {:.0f} s)", catalogue_url_, window_s);
+    const std::string err = catch_up_run(catalogue_url_, res_.run_dir, window_s);
+    if (err.empty()) {
+      log_->info("catalogue {}: the run's entry caught up", catalogue_url_);
+      catalogue_error_.clear();
+    } else {
+      catalogue_error_ += fmt::format("; still failing after {:.0f} s: {}", window_s, err);
+    }
+  }
 }
 
 // The report needs a calibration (this session's or an earlier one's); a failure to draw it
@@ -504,6 +527,10 @@ SessionResult Session::run() {
 
   write_start_record();
   start_catalogue_record();
+  if (catalogue_error_.empty() && !resuming_) {
+    const int n = catch_up_pending(catalogue_url_, req_.runs_dir);  // earlier runs the catalogue missed
+    if (n > 0) log_->info("catalogue {}: {} earlier run folder(s) caught up", catalogue_url_, n);
+  }
   subscribe();
   EngineHooks hooks;
   hooks.calibrate = [this](const Action& a) { on_calibrate(a); };
