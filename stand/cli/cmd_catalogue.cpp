@@ -74,6 +74,7 @@ nlohmann::json run_json(const RunRecord& r) {
           {"run_dir", r.run_dir},
           {"emulated", r.emulated},
           {"stand", r.stand},
+          {"host", r.host},
           {"software_version", r.software_version},
           {"resumes", r.resumes}};
 }
