@@ -135,10 +135,10 @@ BENCHMARK(BM_CatalogueWrite)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);
 
-// `fpss-stand history SERIAL --json` on a unit with 1,000 calibrations, as a user runs it (each
-// calibration compared with the one before it).
-void BM_History1000(benchmark::State& state) {
-  const int backend = static_cast<int>(state.range(0));
+// A unit with 1,000 calibrations (each of its own run), made once per backend.
+std::string history_catalogue(int backend) {
+  static std::string made[2];
+  if (!made[backend].empty()) return made[backend];
   const std::string url = fresh_catalogue(backend, fmt::format("hist_{}", backend));
   {
     auto cat = fpss::open_catalogue(url);
@@ -153,6 +153,27 @@ void BM_History1000(benchmark::State& state) {
       cat->record_calibration(calibration(rs.unit, rs.run_id, i));
     }
   }
+  return made[backend] = url;
+}
+
+// The catalogue's part: reading the 1,000 calibrations (coefficients JSON and residuals) in-process.
+void BM_UnitHistory1000(benchmark::State& state) {
+  const int backend = static_cast<int>(state.range(0));
+  const auto cat = fpss::open_catalogue(history_catalogue(backend), fpss::Catalogue::Mode::read_only);
+  for (auto _ : state) {
+    const auto h = cat->unit_history("SN-HIST");
+    if (h.size() != 1000) return state.SkipWithError("not 1000 calibrations");
+    benchmark::DoNotOptimize(h.data());
+  }
+  state.SetLabel(backend == 0 ? "sqlite" : "postgresql");
+}
+BENCHMARK(BM_UnitHistory1000)->ArgName("pg")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// `fpss-stand history SERIAL --json` on that unit, as a user runs it: the read above plus each
+// calibration compared with the one before it (999 comparisons of transfer functions).
+void BM_History1000(benchmark::State& state) {
+  const int backend = static_cast<int>(state.range(0));
+  const std::string url = history_catalogue(backend);
   for (auto _ : state) {
     const auto t0 = Clock::now();
     const auto r = fpss::test::run_stand({"history", "SN-HIST", "--catalogue", url, "--json"}, tmp().path(), "hist", 300);
