@@ -33,6 +33,7 @@ bool is_postgres_url(const std::string& url) {
 
 std::unique_ptr<Catalogue> open_catalogue(const std::string& url, Catalogue::Mode mode) {
   if (url.empty()) throw InputError("--catalogue: empty");
+  if (url.size() > 4096) throw InputError(fmt::format("--catalogue: {} characters, more than 4096", url.size()));
   if (is_postgres_url(url)) return std::make_unique<PostgresCatalogue>(url, mode);
   std::string path = url;
   if (url.rfind("sqlite:", 0) == 0) {

@@ -172,7 +172,7 @@ void add_import(CLI::App& app, Runner& run) {
       const std::string date = checked_date(o->date);
       const std::string url = catalogue_url(o->db, o->runs_dir);
       const fs::path db_path = sqlite_file_of(url);
-      if (!db_path.empty() && fs::exists(db_path)) check_output_path(db_path, {o->file}, "--catalogue");
+      if (!db_path.empty() && fs::exists(db_path)) check_output_path(db_path, {o->file}, "--db");
       const nlohmann::json j = read_json_file(o->file, "coefficient file");
       CalibrationRecord rec = CalibrationRecord::from_calibration_json(j, o->file);  // validates C1..C8
       if (!rec.unit.empty() && rec.unit != o->unit) {

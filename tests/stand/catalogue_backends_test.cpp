@@ -374,6 +374,33 @@ TEST_P(Backends, CopiesToTheOtherBackendIdempotently) {
   EXPECT_EQ(dst->unit_acceptances("SN-1").size(), 1u);
 }
 
+// The commands over either backend through --catalogue URL, its alias --db, and FPSS_CATALOGUE.
+TEST_P(Backends, CommandsTakeTheCatalogueUrlTheAliasAndTheEnvironment) {
+  const fs::path coeffs = test::write_file(dir_.path() / "vi.json", to_json(load_published("a-6-fpss1")).dump());
+  auto r = test::run_stand({"import", coeffs.string(), "--unit", "SN-7", "--date", "2024-02-03", "--catalogue", url_,
+                            "--json"},
+                           dir_.path(), "import");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const int64_t id = nlohmann::json::parse(r.out)["id"].get<int64_t>();
+  r = test::run_stand({"compare", fmt::format("cal:{}", id), "a-6-fpss1", "--db", url_, "--json"}, dir_.path(),
+                      "compare");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_LT(nlohmann::json::parse(r.out)["alpha"]["max_abs_arcsec"].get<double>(), 1e-9);  // itself
+  ::setenv("FPSS_CATALOGUE", url_.c_str(), 1);
+  r = test::run_stand({"history", "SN-7", "--json"}, dir_.path(), "history");
+  ::unsetenv("FPSS_CATALOGUE");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["calibrations"].size(), 1u);
+  // Without it, the default (RUNS_DIR/stand.db) does not exist: exit 2 naming it.
+  r = test::run_stand({"history", "SN-7", "--runs-dir", (dir_.path() / "none").string()}, dir_.path(), "none");
+  EXPECT_EQ(r.code, 2);
+  const std::string copy = "sqlite:" + (dir_.path() / "copied.db").string();
+  r = test::run_stand({"catalogue", "copy", "--from", url_, "--to", copy, "--json"}, dir_.path(), "copy");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["calibrations_added"], 1);
+  EXPECT_EQ(open_catalogue(copy, Catalogue::Mode::read_only)->unit_history("SN-7").at(0).label, "V");
+}
+
 INSTANTIATE_TEST_SUITE_P(Catalogue, Backends, ::testing::Values(Backend::sqlite, Backend::postgresql),
                          [](const auto& info) { return info.param == Backend::sqlite ? "sqlite" : "postgresql"; });
 
