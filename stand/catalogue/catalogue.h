@@ -178,6 +178,9 @@ class Catalogue {
 // schema's migrations on first use; both modes refuse a newer schema with InputError.
 std::unique_ptr<Catalogue> open_catalogue(const std::string& url, Catalogue::Mode mode = Catalogue::Mode::read_write);
 
+// The URL without its password (user:password@ or password=), for messages and files.
+std::string url_for_messages(const std::string& url);
+
 // True for a postgresql:// or postgres:// URL.
 bool is_postgres_url(const std::string& url);
 

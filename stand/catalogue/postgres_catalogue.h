@@ -70,7 +70,4 @@ class PostgresCatalogue final : public Catalogue {
   mutable int64_t retries_ = 0;
 };
 
-// The URL without its password, for messages.
-std::string url_for_messages(const std::string& url);
-
 }  // namespace fpss

@@ -414,11 +414,12 @@ int accept_command(const AcceptArgs& a) {
   } catch (const std::exception& e) {
     // The folder holds the verdict; its mark lets the next run or `catalogue rebuild` index it.
     try {
-      mark_catalogue_pending(run_dir, cat_url, "acceptance", e.what());
+      mark_catalogue_pending(run_dir, url_for_messages(cat_url), "acceptance", e.what());
     } catch (const std::exception&) {
     }
     std::fprintf(stderr, "fpss-stand accept: verdict %s written to %s, but the catalogue %s could not record it: %s\n",
-                 j.passed ? "pass" : "fail", (run_dir / "acceptance.json").c_str(), cat_url.c_str(), e.what());
+                 j.passed ? "pass" : "fail", (run_dir / "acceptance.json").c_str(), url_for_messages(cat_url).c_str(),
+                 e.what());
     return 1;
   }
 
@@ -428,7 +429,7 @@ int accept_command(const AcceptArgs& a) {
     std::printf("%s\n", text.c_str());
     std::printf("acceptance %s: %s\ncertificate: %s\nreport: %s\ncatalogue: %s (acceptance %lld)\n",
                 j.passed ? "PASSED" : "FAILED", (run_dir / "acceptance.json").c_str(),
-                (run_dir / "certificate.txt").c_str(), (run_dir / "report.html").c_str(), cat_url.c_str(),
+                (run_dir / "certificate.txt").c_str(), (run_dir / "report.html").c_str(), url_for_messages(cat_url).c_str(),
                 static_cast<long long>(acc_id));
   }
   std::fflush(stdout);

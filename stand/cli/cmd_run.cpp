@@ -14,6 +14,7 @@
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
 #include "stand/session/session.h"
+#include "stand/catalogue/catalogue.h"
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/emulated_bench.h"
@@ -112,7 +113,8 @@ int run_command(const RunArgs& a) {
                  "fpss-stand run: %s\nfpss-stand run: the run folder %s is complete; re-index it with: fpss-stand "
                  "catalogue rebuild --runs-dir %s --catalogue %s\n",
                  r.catalogue_error.c_str(), dir.c_str(), r.run_dir.parent_path().c_str(),
-                 req.catalogue.empty() ? (r.run_dir.parent_path() / "stand.db").c_str() : req.catalogue.c_str());
+                 req.catalogue.empty() ? (r.run_dir.parent_path() / "stand.db").c_str()
+                                       : url_for_messages(req.catalogue).c_str());
   }
   if (r.calibration) std::printf("calibration: %s\n", r.calibration->string().c_str());
   if (r.report) std::printf("report: %s\n", r.report->string().c_str());

@@ -309,10 +309,11 @@ void Session::with_catalogue(const char* what, F&& f) {
     f(*cat);
   } catch (const std::exception& e) {
     catalogue_away_ |= dynamic_cast<const CatalogueUnavailable*>(&e) != nullptr;
-    log_->error("catalogue {}: {}: {}", catalogue_url_, what, e.what());
-    if (catalogue_error_.empty()) catalogue_error_ = fmt::format("catalogue {}: {}: {}", catalogue_url_, what, e.what());
+    const std::string shown = url_for_messages(catalogue_url_);
+    log_->error("catalogue {}: {}: {}", shown, what, e.what());
+    if (catalogue_error_.empty()) catalogue_error_ = fmt::format("catalogue {}: {}: {}", shown, what, e.what());
     try {
-      mark_catalogue_pending(res_.run_dir, catalogue_url_, what, e.what());
+      mark_catalogue_pending(res_.run_dir, shown, what, e.what());
     } catch (const std::exception& m) {
       log_->error("{}: {}", kCataloguePending, m.what());
     }
@@ -468,10 +469,10 @@ void Session::finish(const EngineResult& er) {
   if (!catalogue_error_.empty()) {
     // The entry catches up from the folder, which holds everything, once the catalogue is back.
     const double window_s = catalogue_away_ ? req_.catch_up_s : 0;
-    log_->warn("catalogue {}: catching up with the run folder (up to {:.0f} s)", catalogue_url_, window_s);
+    log_->warn("catalogue {}: catching up with the run folder (up to {:.0f} s)", url_for_messages(catalogue_url_), window_s);
     const std::string err = catch_up_run(catalogue_url_, res_.run_dir, window_s);
     if (err.empty()) {
-      log_->info("catalogue {}: the run's entry caught up", catalogue_url_);
+      log_->info("catalogue {}: the run's entry caught up", url_for_messages(catalogue_url_));
       catalogue_error_.clear();
     } else {
       catalogue_error_ += fmt::format("; still failing after {:.0f} s: {}", window_s, err);
@@ -529,7 +530,7 @@ SessionResult Session::run() {
   start_catalogue_record();
   if (catalogue_error_.empty() && !resuming_) {
     const int n = catch_up_pending(catalogue_url_, req_.runs_dir);  // earlier runs the catalogue missed
-    if (n > 0) log_->info("catalogue {}: {} earlier run folder(s) caught up", catalogue_url_, n);
+    if (n > 0) log_->info("catalogue {}: {} earlier run folder(s) caught up", url_for_messages(catalogue_url_), n);
   }
   subscribe();
   EngineHooks hooks;

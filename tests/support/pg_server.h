@@ -47,7 +47,10 @@ inline int free_loopback_port() {
 class PgServer {
  public:
   PgServer() {
-    std::string tmpl = (fs::temp_directory_path() / "fpss-pg-XXXXXX").string();
+    // Under root, /tmp itself: the postgres user must traverse every folder above (a TMPDIR under
+    // /root would not do), and the socket's path must stay short.
+    const fs::path base = ::geteuid() == 0 ? fs::path("/tmp") : fs::temp_directory_path();
+    std::string tmpl = (base / "fpss-pg-XXXXXX").string();
     if (::mkdtemp(tmpl.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
     root_ = tmpl;
     data_ = root_ / "data";
