@@ -14,6 +14,14 @@ CLI::Option* add_catalogue_option(CLI::App* sub, std::string& url) {
                          "file's catalogue:");
 }
 
+CLI::Option* add_catalogue_wait_option(CLI::App* sub, double& seconds) {
+  return sub
+      ->add_option("--catalogue-wait", seconds,
+                   "seconds the end of a run waits for a catalogue server that was away (docs/fleet.md)")
+      ->check(CLI::Range(0.0, 86400.0))
+      ->capture_default_str();
+}
+
 std::string chosen_catalogue(const std::string& flag, const std::string& stand_value) {
   if (!flag.empty()) return flag;
   if (const char* env = std::getenv("FPSS_CATALOGUE"); env != nullptr && *env != '\0') return env;

@@ -10,6 +10,10 @@ namespace fpss::cli {
 // Adds `--catalogue,--db URL` to `sub`, stored in `url`.
 CLI::Option* add_catalogue_option(CLI::App* sub, std::string& url);
 
+// Adds `--catalogue-wait S` (run, accept): how long the end of a run waits for a catalogue server
+// that was away before it gives up (the run folder keeps its pending mark).
+CLI::Option* add_catalogue_wait_option(CLI::App* sub, double& seconds);
+
 // The catalogue a command uses, first that is set: the command line's URL, the FPSS_CATALOGUE
 // environment variable, the stand file's `catalogue:`, else "" (the command's default,
 // RUNS_DIR/stand.db). A plain path is SQLite, as `sqlite:PATH` is.

@@ -240,6 +240,7 @@ void add_import(CLI::App& app, Runner& run) {
 struct AcceptArgs {
   std::string stand_file, unit, procedure, limits, runs_dir = "runs", catalogue;
   bool emulate = false, json = false, quiet = false, no_progress = false;
+  double catalogue_wait_s = 120;
   EmulatedBenchArgs emu;
 };
 
@@ -284,6 +285,7 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   req.stand = stand_for_run(a.stand_file, a.emulate, a.emu.speed, ds);
   if (!a.unit.empty() && !a.emulate) req.stand.unit_serial = a.unit;
   req.catalogue = catalogue_url(a.catalogue, a.runs_dir, req.stand.catalogue);
+  req.catch_up_s = a.catalogue_wait_s;
   if (dp.empty() && ds.empty()) p.plan = expand(req.procedure, req.stand.bench, dp);
   Diagnostics all(proc);
   all.merge(ds);
@@ -448,6 +450,7 @@ void add_accept_command(CLI::App& app, Runner& run) {
   sub->add_option("--limits", a->limits, "Acceptance limits (default procedures/acceptance_limits.yaml)");
   sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made")->capture_default_str();
   add_catalogue_option(sub, a->catalogue);
+  add_catalogue_wait_option(sub, a->catalogue_wait_s);
   sub->add_flag("--json", a->json, "Print acceptance.json instead of the certificate text");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
   sub->add_flag("--no-progress", a->no_progress, "No live progress line");

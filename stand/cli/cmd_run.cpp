@@ -30,6 +30,7 @@ struct RunArgs {
   std::string procedure, stand_file, runs_dir = "runs", resume, catalogue;
   bool emulate = false, dry_run = false, no_progress = false, quiet = false;
   std::string unit_serial;
+  double catalogue_wait_s = 120;
   EmulatedBenchArgs emu;
 };
 
@@ -94,6 +95,7 @@ int run_command(const RunArgs& a) {
   }
   // "" keeps the session's default: RUNS_DIR/stand.db, or the run folder's parent on a resume.
   req.catalogue = chosen_catalogue(a.catalogue, req.stand.catalogue);
+  req.catch_up_s = a.catalogue_wait_s;
   // A resumed run's bench is served by the binary running now, not the one recorded.
   if (req.emulator) req.emulator->exe = this_binary();
 
@@ -134,6 +136,7 @@ void add_run(CLI::App& app, Runner& run) {
   sub->add_option("--resume", a->resume, "Continue an interrupted run from its folder");
   sub->add_flag("--dry-run", a->dry_run, "Validate, print the expanded steps, points and duration; move nothing");
   add_catalogue_option(sub, a->catalogue);
+  add_catalogue_wait_option(sub, a->catalogue_wait_s);
   sub->add_flag("--no-progress", a->no_progress, "No live progress line, even on a terminal");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
   add_emulated_bench_options(sub, a->emu);

@@ -262,5 +262,59 @@ TEST(Fleet, TheDatabaseAwayMidRunTheEntryCatchesUp) {
   EXPECT_EQ(after->unit_acceptances("RESTART-2").size(), 1u);
 }
 
+// The database down for a whole run and beyond its wait: the run completes on its folder (exit 1,
+// the folder marked), the next run on the folder catches it up, and `catalogue rebuild` does the
+// same by hand.
+TEST(Fleet, ARunTheDatabaseMissedCatchesUpOnTheNextRunOrARebuild) {
+  test::PgServer pg;
+  const std::string url = pg.create_database("missed");
+  open_catalogue(url);  // the schema
+  test::TempDir tmp;
+  const fs::path runs = tmp.path() / "runs";
+  // A short grid (the shipped one, coarser): enough for a calibration, a few seconds per run.
+  const std::string grid = test::write_file(tmp.path() / "short_grid.yaml",
+                                            "name: short_grid\nsteps:\n  - home\n  - null_offset_grid:\n"
+                                            "      axes: [pitch, yaw]\n      extent_deg: 0.42\n      step_deg: 0.06\n"
+                                            "      settle_s: 0.2\n      frames: 5\n  - calibrate:\n"
+                                            "      method: differences\n")
+                               .string();
+  auto run = [&](const std::string& tag) {
+    return test::run_stand({"run", grid, "--emulate", "--speed", kSpeed, "--quiet", "--runs-dir", runs.string(),
+                            "--catalogue", url, "--catalogue-wait", "1"},
+                           tmp.path(), tag, 240);
+  };
+  pg.stop();
+  CommandResult r = run("down1");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("catalogue rebuild"), std::string::npos) << r.err;
+  r = run("down2");
+  EXPECT_EQ(r.code, 1) << r.err;
+  std::vector<fs::path> marked;
+  for (const auto& e : fs::directory_iterator(runs)) {
+    EXPECT_TRUE(fs::exists(e.path() / "run.json"));
+    if (fs::exists(e.path() / "catalogue.pending")) marked.push_back(e.path());
+  }
+  ASSERT_EQ(marked.size(), 2u);
+  pg.start();
+  // By hand, one folder's worth: rebuild indexes both and removes both marks.
+  r = test::run_stand({"catalogue", "rebuild", "--runs-dir", runs.string(), "--catalogue", url, "--json"}, tmp.path(),
+                      "rebuild");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["runs_added"], 2);
+  EXPECT_EQ(nlohmann::json::parse(r.out)["calibrations_added"], 2);
+  for (const auto& m : marked) EXPECT_FALSE(fs::exists(m / "catalogue.pending"));
+  // Down again for one run; the next run, with the database back, catches the missed one up.
+  pg.stop();
+  EXPECT_EQ(run("down3").code, 1);
+  pg.start();
+  r = run("up");
+  EXPECT_EQ(r.code, 0) << r.err;
+  const auto cat = open_catalogue(url, Catalogue::Mode::read_only);
+  const auto all = cat->list_runs();
+  EXPECT_EQ(all.size(), 4u);
+  for (const auto& x : all) EXPECT_EQ(x.outcome, "completed") << x.run_id;
+  for (const auto& e : fs::directory_iterator(runs)) EXPECT_FALSE(fs::exists(e.path() / "catalogue.pending"));
+}
+
 }  // namespace
 }  // namespace fpss
