@@ -224,8 +224,17 @@ struct PostgresCatalogue::Connection : pqxx::connection {
   using pqxx::connection::connection;
 };
 
+namespace {
+// A server that does not answer (a host gone, a network cut) must not hold a run for TCP's own
+// timeouts: libpq gives up connecting after connect_timeout unless the URL sets its own.
+std::string with_connect_timeout(const std::string& url) {
+  if (url.find("connect_timeout=") != std::string::npos) return url;
+  return url + (url.find('?') == std::string::npos ? "?" : "&") + "connect_timeout=5";
+}
+}  // namespace
+
 PostgresCatalogue::PostgresCatalogue(const std::string& url, Mode mode, PostgresRetry retry)
-    : url_(url), shown_url_(url_for_messages(url)), mode_(mode), retry_(retry) {
+    : url_(with_connect_timeout(url)), shown_url_(url_for_messages(url)), mode_(mode), retry_(retry) {
   connection();
   if (mode_ == Mode::read_write) migrate();
   const int v = schema_version();
