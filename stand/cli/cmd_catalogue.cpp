@@ -25,7 +25,12 @@ struct DbOpts {
   std::string db;  // overrides runs_dir
   bool json = false;
 
-  std::string url() const { return catalogue_url(db, runs_dir); }
+  const CLI::Option* runs_dir_option = nullptr;  // runs, history: an explicit --runs-dir names the catalogue
+
+  std::string url() const {
+    if (runs_dir_option != nullptr && runs_dir_option->count() > 0) return Catalogue::default_path(runs_dir).string();
+    return catalogue_url(db, runs_dir);
+  }
 };
 
 // `exclusive`: --runs-dir only says where the default catalogue is (runs, history), so giving both
@@ -34,7 +39,10 @@ void add_db_options(CLI::App* sub, DbOpts& o, bool exclusive = true) {
   auto* dir = sub->add_option("--runs-dir", o.runs_dir, "runs folder; the default catalogue is its stand.db")
                   ->capture_default_str();
   auto* db = add_catalogue_option(sub, o.db);
-  if (exclusive) dir->excludes(db);
+  if (exclusive) {
+    dir->excludes(db);
+    o.runs_dir_option = dir;  // over FPSS_CATALOGUE too: the user named the folder
+  }
   sub->add_flag("--json", o.json, "print JSON instead of a table");
 }
 

@@ -388,9 +388,14 @@ TEST_P(Backends, CommandsTakeTheCatalogueUrlTheAliasAndTheEnvironment) {
   EXPECT_LT(nlohmann::json::parse(r.out)["alpha"]["max_abs_arcsec"].get<double>(), 1e-9);  // itself
   ::setenv("FPSS_CATALOGUE", url_.c_str(), 1);
   r = test::run_stand({"history", "SN-7", "--json"}, dir_.path(), "history");
+  // An explicit --runs-dir still names its own stand.db (none there: exit 2).
+  const auto other = test::run_stand({"history", "SN-7", "--runs-dir", (dir_.path() / "elsewhere").string()},
+                                     dir_.path(), "other");
   ::unsetenv("FPSS_CATALOGUE");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(r.out)["calibrations"].size(), 1u);
+  EXPECT_EQ(other.code, 2) << other.err;
+  EXPECT_NE(other.err.find("elsewhere"), std::string::npos) << other.err;
   // Without it, the default (RUNS_DIR/stand.db) does not exist: exit 2 naming it.
   r = test::run_stand({"history", "SN-7", "--runs-dir", (dir_.path() / "none").string()}, dir_.path(), "none");
   EXPECT_EQ(r.code, 2);
