@@ -236,7 +236,9 @@ std::string with_connect_timeout(const std::string& url) {
 PostgresCatalogue::PostgresCatalogue(const std::string& url, Mode mode, PostgresRetry retry)
     : url_(with_connect_timeout(url)), shown_url_(url_for_messages(url)), mode_(mode), retry_(retry) {
   connection();
-  if (mode_ == Mode::read_write) migrate();
+  // Migrations apply on first use, a read of an older schema included; only a writer creates one.
+  const int before = schema_version();
+  if (before < kSchemaVersion && (mode_ == Mode::read_write || before > 0)) migrate();
   const int v = schema_version();
   if (v == 0) throw InputError(fmt::format("{}: not a stand catalogue (no schema)", shown_url_));
   if (v > kSchemaVersion) {

@@ -231,9 +231,13 @@ SqliteCatalogue::SqliteCatalogue(const fs::path& path, Mode mode, int busy_timeo
                                      path_.string(), v, kSchemaVersion));
       }
       if (v != kSchemaVersion) {
-        throw InputError(fmt::format(
-            "{}: catalogue schema version {} but this fpss-stand reads version {} (a run with this version "
-            "upgrades it)", path_.string(), v, kSchemaVersion));
+        // Migrations apply on first use, a read included: upgrade through a writer, then read.
+        try {
+          SqliteCatalogue upgrade(path_, Mode::read_write, busy_timeout_ms);
+        } catch (const std::exception& e) {
+          throw InputError(fmt::format("{}: catalogue schema version {} must be upgraded to {} and cannot be: {}",
+                                       path_.string(), v, kSchemaVersion, e.what()));
+        }
       }
     }
   } catch (const SQLite::Exception& e) {
