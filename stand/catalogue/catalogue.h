@@ -1,18 +1,15 @@
-// The stand's catalogue of units, runs, calibrations and acceptances: one SQLite file shared by runs.
+// The catalogue of units, runs, calibrations and acceptances: the interface and its records (docs/fleet.md).
 #pragma once
 #include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
-
-namespace SQLite {
-class Database;
-}
 
 namespace fpss {
 
@@ -35,7 +32,8 @@ struct AxisResidualStats {
   nlohmann::json to_json() const;  // the same shape, absent figures left out
 };
 
-// What the engine knows when a run starts. The run id is the run folder's name.
+// What the engine knows when a run starts. The run id is run.json's `run_id`: a UUIDv7 for runs
+// made since catalogues are shared by a fleet, the folder's name for older runs (docs/formats.md).
 struct RunStart {
   std::string run_id;
   std::string unit;                // sensor serial
@@ -70,8 +68,9 @@ struct RunRecord {
   std::string software_version;
   int64_t resumes = 0;  // how many times the run was resumed
   int64_t pid = 0;      // process that last started or resumed it
-  std::string host;     // and its host name
-  // True when the run says `running` but its process is gone from this host (killed run).
+  std::string host;     // and its host name: with run_dir, where the run folder lives
+  // True when the run says `running` but its process is gone from this host (killed run). A run
+  // of another host is never called stale from here: its pid means nothing on this one.
   bool stale() const;
 };
 
@@ -88,6 +87,8 @@ struct CalibrationRecord {
   std::string method;                  // "differences", "absolute", "imported", ...
   nlohmann::json coefficients;         // the coefficient file's JSON, as written or imported
   std::optional<AxisResidualStats> pitch, yaw;
+  std::string stand;                   // the stand that recorded it ("" when emulated without a stand file)
+  std::string host;                    // the host that recorded it (set by the catalogue when empty)
 
   // Fills coefficients, method and the residual stats from a calibration.json's content.
   static CalibrationRecord from_calibration_json(const nlohmann::json& cal, const std::string& origin);
@@ -102,6 +103,8 @@ struct AcceptanceRecord {
   std::string date_utc;
   std::string recorded_utc;
   nlohmann::json certificate = nlohmann::json::object();  // acceptance.json's content
+  std::string stand;                   // the stand that judged it
+  std::string host;                    // its host (set by the catalogue when empty)
 };
 
 struct RunFilter {
@@ -109,69 +112,79 @@ struct RunFilter {
   size_t limit = 0;  // 0: all; otherwise the most recent `limit`
 };
 
-// Owns one connection. Safe for several processes at once (WAL, busy timeout, short IMMEDIATE
-// transactions) and for a process killed at any point (SQLite's journal). Not for sharing one
-// object between threads: give each thread its own Catalogue.
+// The catalogue's server cannot be reached (or the connection dropped) beyond the retry window: the
+// run goes on recording to its folder and its entry catches up later (docs/fleet.md).
+struct CatalogueUnavailable : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// The catalogue: one interface, two backends with the same semantics (docs/fleet.md). SQLite, a
+// file per stand, is the embedded default; PostgreSQL is one database a fleet of stands shares.
+// An object owns one connection: give each thread its own.
 class Catalogue {
  public:
   enum class Mode { read_write, read_only };
-  static constexpr int kSchemaVersion = 1;
+  // The schema version this software reads and writes; both backends number their migrations alike.
+  static constexpr int kSchemaVersion = 2;
 
-  // read_write creates the file (and its folder) and the schema when missing; read_only throws
-  // InputError when the file is missing or not a catalogue. Both throw InputError for a schema
-  // newer than this software knows.
-  explicit Catalogue(const std::filesystem::path& path, Mode mode = Mode::read_write,
-                     int busy_timeout_ms = 10000);
-  ~Catalogue();
-  Catalogue(const Catalogue&) = delete;
-  Catalogue& operator=(const Catalogue&) = delete;
+  virtual ~Catalogue() = default;
 
   // `runs/stand.db` under a runs folder: the default catalogue of `--runs-dir`.
   static std::filesystem::path default_path(const std::filesystem::path& runs_dir = "runs");
 
-  const std::filesystem::path& path() const { return path_; }
+  // Where it is, for messages: the file's path, or the URL without its password.
+  virtual std::string location() const = 0;
+  virtual std::string backend() const = 0;  // "sqlite" or "postgresql"
 
   // Registers the unit if new. Returns true when it was new.
-  bool add_unit(const std::string& serial);
+  virtual bool add_unit(const std::string& serial) = 0;
 
   // Inserts the run as `running`. Starting an existing run id again (a resume) keeps its
   // start time, sets it back to `running`, clears its end and counts the resume.
-  void record_run_start(const RunStart& run);
+  virtual void record_run_start(const RunStart& run) = 0;
   // Sets the end time (empty: now) and outcome. Throws std::invalid_argument for an unknown run.
-  void record_run_end(const std::string& run_id, const std::string& outcome,
-                      const std::string& ended_utc = "");
+  virtual void record_run_end(const std::string& run_id, const std::string& outcome,
+                              const std::string& ended_utc = "") = 0;
+  // A whole run record as another catalogue holds it (catalogue copy): inserted when its id is
+  // new, left as it is otherwise. Returns true when it was new.
+  virtual bool copy_run(const RunRecord& run) = 0;
   // Returns the new calibration's id. Registers the unit; checks run_id exists when given.
-  int64_t record_calibration(const CalibrationRecord& cal);
+  virtual int64_t record_calibration(const CalibrationRecord& cal) = 0;
   // An import (source "import") recorded unless the unit already holds an import of the same date
   // with the same coefficient JSON; check and insert are one transaction, so two processes
   // importing one file at once record it once. Returns the id and whether it was new.
-  std::pair<int64_t, bool> record_import_once(const CalibrationRecord& cal);
-  int64_t record_acceptance(const AcceptanceRecord& acc);
+  virtual std::pair<int64_t, bool> record_import_once(const CalibrationRecord& cal) = 0;
+  virtual int64_t record_acceptance(const AcceptanceRecord& acc) = 0;
 
-  std::vector<std::string> units() const;
-  bool has_unit(const std::string& serial) const;
+  virtual std::vector<std::string> units() const = 0;
+  virtual bool has_unit(const std::string& serial) const = 0;
   // Most recent first.
-  std::vector<RunRecord> list_runs(const RunFilter& filter = {}) const;
-  std::optional<RunRecord> find_run(const std::string& run_id) const;
+  virtual std::vector<RunRecord> list_runs(const RunFilter& filter = {}) const = 0;
+  virtual std::optional<RunRecord> find_run(const std::string& run_id) const = 0;
   // The unit's calibrations, oldest first (by date, then by entry order).
-  std::vector<CalibrationRecord> unit_history(const std::string& serial) const;
-  std::optional<CalibrationRecord> find_calibration(int64_t id) const;
-  std::vector<CalibrationRecord> run_calibrations(const std::string& run_id) const;
+  virtual std::vector<CalibrationRecord> unit_history(const std::string& serial) const = 0;
+  virtual std::optional<CalibrationRecord> find_calibration(int64_t id) const = 0;
+  virtual std::vector<CalibrationRecord> run_calibrations(const std::string& run_id) const = 0;
   // The unit's acceptances, oldest first.
-  std::vector<AcceptanceRecord> unit_acceptances(const std::string& serial) const;
+  virtual std::vector<AcceptanceRecord> unit_acceptances(const std::string& serial) const = 0;
 
-  // PRAGMA integrity_check's answer ("ok" when sound).
-  std::string integrity_check() const;
-  int schema_version() const;
-
-  // The connection, for tests and for later schema users; prefer the methods above.
-  SQLite::Database& database() { return *db_; }
-
- private:
-  void init_schema();
-  std::filesystem::path path_;
-  std::unique_ptr<SQLite::Database> db_;
+  // "ok" when sound (SQLite's integrity_check; PostgreSQL: the connection answers).
+  virtual std::string integrity_check() const = 0;
+  virtual int schema_version() const = 0;
 };
 
+// Opens a catalogue by URL: `sqlite:PATH`, a plain PATH (SQLite too), or
+// `postgresql://USER@HOST[:PORT]/DB?sslmode=...` (also `postgres://`). Read-write applies the
+// schema's migrations on first use; both modes refuse a newer schema with InputError.
+std::unique_ptr<Catalogue> open_catalogue(const std::string& url, Catalogue::Mode mode = Catalogue::Mode::read_write);
+
+// The URL without its password (user:password@ or password=), for messages and files.
+std::string url_for_messages(const std::string& url);
+
+// True for a postgresql:// or postgres:// URL.
+bool is_postgres_url(const std::string& url);
+
+// The host name this process runs on ("" when unknown): every record names it.
+std::string this_host();
 
 }  // namespace fpss

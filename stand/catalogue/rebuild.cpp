@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <set>
+#include <system_error>
 
 #include "procedures/recorder.h"
 
@@ -15,14 +16,16 @@ namespace {
 
 RunStart run_start_of(const nlohmann::json& doc, const fs::path& dir) {
   RunStart rs;
-  rs.run_id = dir.filename().string();
+  // run.json's run_id (a UUIDv7); runs made before it was one used the folder's name.
+  rs.run_id = doc.value("run_id", dir.filename().string());
+  if (rs.run_id.empty()) rs.run_id = dir.filename().string();
   rs.unit = doc.value("unit", "");
   rs.procedure = doc.at("procedure").value("name", "");
   rs.procedure_hash = doc.at("procedure").value("sha256", "");
   rs.started_utc = doc.value("started_utc", "");
   rs.run_dir = fs::absolute(dir);
   rs.emulated = doc.value("emulated", false);
-  if (!rs.emulated && doc.contains("stand") && doc["stand"].contains("settings")) {
+  if (doc.contains("stand") && doc["stand"].contains("settings") && doc["stand"]["settings"].is_object()) {
     rs.stand = doc["stand"]["settings"].value("stand", "");
   }
   if (doc.contains("software")) rs.software_version = doc["software"].value("version", rs.software_version);
@@ -48,7 +51,9 @@ std::vector<fs::path> calibration_files(const fs::path& dir) {
   return out;
 }
 
-void index_run(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
+}  // namespace
+
+void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
   const nlohmann::json doc = read_json_file(dir / "run.json");
   const RunStart rs = run_start_of(doc, dir);
   const std::string outcome = doc.value("outcome", "running");
@@ -71,6 +76,7 @@ void index_run(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
     cr.run_id = rs.run_id;
     cr.source_ref = rs.run_id;
     cr.date_utc = cr.coefficients.value("calibrated_at", doc.value("ended_utc", rs.started_utc));
+    cr.stand = rs.stand;
     cat.record_calibration(cr);
     have.insert(cr.coefficients.dump());
     ++r.calibrations_added;
@@ -86,13 +92,12 @@ void index_run(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
       rec.passed = cert.value("passed", false);
       rec.date_utc = cert.value("date_utc", doc.value("ended_utc", ""));
       rec.certificate = cert;
+      rec.stand = rs.stand;
       cat.record_acceptance(rec);
       ++r.acceptances_added;
     }
   }
 }
-
-}  // namespace
 
 RebuildReport rebuild_catalogue(Catalogue& cat, const fs::path& runs_dir) {
   RebuildReport r;
@@ -104,7 +109,9 @@ RebuildReport rebuild_catalogue(Catalogue& cat, const fs::path& runs_dir) {
   for (const auto& d : dirs) {
     ++r.folders;
     try {
-      index_run(cat, d, r);
+      index_run_folder(cat, d, r);
+      std::error_code ec;
+      fs::remove(d / kCataloguePending, ec);
     } catch (const std::exception& e) {
       r.skipped.push_back(fmt::format("{}: {}", d.string(), e.what()));
     }

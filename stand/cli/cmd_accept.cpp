@@ -29,6 +29,7 @@
 #include "stand/report/compare_plot.h"
 #include "stand/report/report.h"
 #include "stand/session/session.h"
+#include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/emulated_bench.h"
 #include "stand/config/stand_config.h"
@@ -39,10 +40,6 @@ namespace fpss::cli {
 namespace fs = std::filesystem;
 namespace {
 
-fs::path catalogue_path(const std::string& db, const std::string& runs_dir) {
-  return db.empty() ? Catalogue::default_path(runs_dir) : fs::path(db);
-}
-
 // A calibration named on the command line: a coefficient file (calibration.json is one), a
 // published set ("a-6-fpss1"), or "cal:ID" for a calibration in the catalogue.
 struct NamedSet {
@@ -50,7 +47,7 @@ struct NamedSet {
   std::string name;
 };
 
-NamedSet resolve_calibration(const std::string& arg, const fs::path& db) {
+NamedSet resolve_calibration(const std::string& arg, const std::string& url) {
   if (arg.rfind("cal:", 0) == 0) {
     int64_t id = 0;
     try {
@@ -60,11 +57,12 @@ NamedSet resolve_calibration(const std::string& arg, const fs::path& db) {
     } catch (const std::exception&) {
       throw InputError(fmt::format("{}: expected cal:ID with a numeric catalogue id", arg));
     }
-    const Catalogue cat(db, Catalogue::Mode::read_only);
-    const auto rec = cat.find_calibration(id);
-    if (!rec) throw InputError(fmt::format("{}: no calibration {} in {}", arg, id, db.string()));
-    NamedSet n{parse_coefficients(rec->coefficients, fmt::format("{} calibration {}", db.string(), id)), {}};
-    n.name = fmt::format("{} calibration {} of {} ({}{})", db.string(), id, rec->unit, rec->date_utc,
+    const auto cat = open_catalogue(url, Catalogue::Mode::read_only);
+    const std::string where = cat->location();
+    const auto rec = cat->find_calibration(id);
+    if (!rec) throw InputError(fmt::format("{}: no calibration {} in {}", arg, id, where));
+    NamedSet n{parse_coefficients(rec->coefficients, fmt::format("{} calibration {}", where, id)), {}};
+    n.name = fmt::format("{} calibration {} of {} ({}{})", where, id, rec->unit, rec->date_utc,
                          rec->label.empty() ? "" : ", " + rec->label);
     return n;
   }
@@ -119,11 +117,11 @@ void add_compare(CLI::App& app, Runner& run) {
   sub->add_option("--range-deg", o->range_deg, "compare over the counts A maps into +-R deg")->capture_default_str();
   sub->add_flag("--json", o->json, "print {\"alpha\": {max_abs_arcsec, rms_arcsec, max_abs_offset_removed_arcsec}, \"beta\": {...}}");
   sub->add_option("--plot", o->plot, "write an SVG plot there (its .dat and .gp next to it)");
-  sub->add_option("--db", o->db, "catalogue for cal:ID (default RUNS_DIR/stand.db)");
+  add_catalogue_option(sub, o->db);
   sub->add_option("--runs-dir", o->runs_dir, "runs folder")->capture_default_str();
   sub->callback([o, &run] {
     run = [o] {
-      const fs::path db = catalogue_path(o->db, o->runs_dir);
+      const std::string db = catalogue_url(o->db, o->runs_dir);
       if (!o->plot.empty()) {
         // The plot's folder is made when missing; then the one output check (folder writable, no input overwritten).
         const fs::path svg = o->plot;
@@ -133,7 +131,7 @@ void add_compare(CLI::App& app, Runner& run) {
         fs::path data = svg, script = svg;
         data.replace_extension(".dat");
         script.replace_extension(".gp");
-        for (const fs::path& p : {svg, data, script}) check_output_path(p, {o->a, o->b, db}, "--plot");
+        for (const fs::path& p : {svg, data, script}) check_output_path(p, {o->a, o->b, sqlite_file_of(db)}, "--plot");
       }
       const NamedSet a = resolve_calibration(o->a, db), b = resolve_calibration(o->b, db);
       const CalibrationComparison c = compare_calibrations(a.set, b.set, o->range_deg);
@@ -163,7 +161,7 @@ void add_import(CLI::App& app, Runner& run) {
   sub->add_option("--unit", o->unit, "sensor unit serial")->required();
   sub->add_option("--date", o->date, "when the calibration was made (YYYY-MM-DD or ISO 8601 time)")->required();
   sub->add_option("--label", o->label, "a name for it (default: the file's \"calibration\" key, e.g. VI)");
-  sub->add_option("--db", o->db, "catalogue file (default RUNS_DIR/stand.db)");
+  add_catalogue_option(sub, o->db);
   sub->add_option("--runs-dir", o->runs_dir, "runs folder")->capture_default_str();
   sub->add_option("--limit-arcsec", o->limit_arcsec, "flag a change from the previous calibration beyond this")
       ->capture_default_str();
@@ -172,8 +170,9 @@ void add_import(CLI::App& app, Runner& run) {
     run = [o] {
       if (o->unit.empty()) throw InputError("--unit: the serial must not be empty");
       const std::string date = checked_date(o->date);
-      const fs::path db_path = catalogue_path(o->db, o->runs_dir);
-      if (fs::exists(db_path)) check_output_path(db_path, {o->file}, "--db");
+      const std::string url = catalogue_url(o->db, o->runs_dir);
+      const fs::path db_path = sqlite_file_of(url);
+      if (!db_path.empty() && fs::exists(db_path)) check_output_path(db_path, {o->file}, "--db");
       const nlohmann::json j = read_json_file(o->file, "coefficient file");
       CalibrationRecord rec = CalibrationRecord::from_calibration_json(j, o->file);  // validates C1..C8
       if (!rec.unit.empty() && rec.unit != o->unit) {
@@ -191,7 +190,8 @@ void add_import(CLI::App& app, Runner& run) {
         rec.label = j["calibration"].get<std::string>();
       }
 
-      Catalogue cat(catalogue_path(o->db, o->runs_dir));
+      const auto catp = open_catalogue(url);
+      Catalogue& cat = *catp;
       // Importing the same file for the same date again is a no-op, so a script may repeat it;
       // check and insert are one transaction, so two imports at once record it once.
       const auto [id, inserted] = cat.record_import_once(rec);
@@ -216,13 +216,13 @@ void add_import(CLI::App& app, Runner& run) {
         out["date"] = date;
         out["label"] = rec.label;
         out["already_present"] = existing.has_value();
-        out["catalogue"] = cat.path().string();
+        out["catalogue"] = cat.location();
         out["change"] = drift ? nlohmann::ordered_json(drift_json(*drift, *prev)) : nlohmann::ordered_json(nullptr);
         std::printf("%s\n", out.dump(1).c_str());
       } else {
         std::printf("%s calibration %lld of %s (%s%s) in %s\n", existing ? "already present as" : "imported as",
                     static_cast<long long>(id), o->unit.c_str(), date.c_str(),
-                    rec.label.empty() ? "" : (", " + rec.label).c_str(), cat.path().c_str());
+                    rec.label.empty() ? "" : (", " + rec.label).c_str(), cat.location().c_str());
         if (drift) {
           std::printf("change from calibration %lld (%s): max %.2f arcsec (%s), %.2f arcsec with the null shift removed%s\n",
                       static_cast<long long>(prev->id), prev->date_utc.c_str(), drift->worst_arcsec,
@@ -240,6 +240,7 @@ void add_import(CLI::App& app, Runner& run) {
 struct AcceptArgs {
   std::string stand_file, unit, procedure, limits, runs_dir = "runs", catalogue;
   bool emulate = false, json = false, quiet = false, no_progress = false, operator_prompts = false;
+  double catalogue_wait_s = 120;
   EmulatedBenchArgs emu;
 };
 
@@ -275,7 +276,6 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   p.procedure_path = a.procedure.empty() ? default_acceptance_procedure_path() : fs::path(a.procedure);
   SessionRequest& req = p.req;
   req.runs_dir = a.runs_dir;
-  req.catalogue = a.catalogue;
   req.quiet = a.quiet;
   if (::isatty(STDIN_FILENO)) req.keys_fd = STDIN_FILENO;  // p pause, r resume, a abort
   req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
@@ -285,6 +285,8 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   Diagnostics ds(a.stand_file);
   req.stand = stand_for_run(a.stand_file, a.emulate, a.emu.speed, ds);
   if (!a.unit.empty() && !a.emulate) req.stand.unit_serial = a.unit;
+  req.catalogue = catalogue_url(a.catalogue, a.runs_dir, req.stand.catalogue);
+  req.catch_up_s = a.catalogue_wait_s;
   if (dp.empty() && ds.empty()) p.plan = expand(req.procedure, req.stand.bench, dp);
   Diagnostics all(proc);
   all.merge(ds);
@@ -301,10 +303,11 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   return p;
 }
 
-// The unit's reference calibration: the latest one that passed an acceptance here, or was
-// imported (a calibration done elsewhere); a failed acceptance's fit is no reference.
-void find_reference(AcceptanceData& data, const fs::path& cat_path, const std::string& unit, const std::string& run_id) {
-  Catalogue cat(cat_path);
+// The unit's reference calibration: the latest one that passed an acceptance on any stand sharing
+// the catalogue, or was imported (a calibration done elsewhere); a failed acceptance's fit is no reference.
+void find_reference(AcceptanceData& data, const std::string& url, const std::string& unit, const std::string& run_id) {
+  const auto catp = open_catalogue(url);
+  const Catalogue& cat = *catp;
   std::set<std::string> accepted_runs;
   for (const auto& acc : cat.unit_acceptances(unit)) {
     if (acc.passed && acc.run_id) accepted_runs.insert(*acc.run_id);
@@ -313,7 +316,7 @@ void find_reference(AcceptanceData& data, const fs::path& cat_path, const std::s
     if (h.run_id && *h.run_id == run_id) continue;
     if (h.source != "import" && !(h.run_id && accepted_runs.count(*h.run_id))) continue;
     try {
-      data.previous = parse_coefficients(h.coefficients, fmt::format("{} calibration {}", cat_path.string(), h.id));
+      data.previous = parse_coefficients(h.coefficients, fmt::format("{} calibration {}", cat.location(), h.id));
       data.previous_name = fmt::format("calibration {} of {} ({} {}{})", h.id, h.date_utc, h.source, h.source_ref,
                                        h.source == "import" ? "" : ", accepted");
     } catch (const InputError&) {
@@ -340,7 +343,7 @@ CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r
   info.procedure_name = req.procedure.name;
   info.procedure_file = fs::absolute(p.procedure_path).lexically_normal().string();
   info.procedure_sha256 = run_doc["procedure"].value("sha256", sha256_hex(req.procedure.text));
-  info.run_id = r.run_dir.filename().string();
+  info.run_id = run_doc.value("run_id", r.run_dir.filename().string());
   info.run_dir = fs::absolute(r.run_dir).string();
   info.run_outcome = to_string(r.outcome);
   info.run_reason = r.reason;
@@ -400,9 +403,9 @@ int accept_command(const AcceptArgs& a) {
   data.run_reason = r.reason;
   if (fs::exists(run_dir / "samples.csv")) data.samples = read_samples_csv(run_dir / "samples.csv");
   if (r.calibration && fs::exists(*r.calibration)) data.calibration = load_coefficients(*r.calibration);
-  const fs::path cat_path = a.catalogue.empty() ? Catalogue::default_path(a.runs_dir) : fs::path(a.catalogue);
-  const std::string run_id = run_dir.filename().string();
-  find_reference(data, cat_path, unit, run_id);
+  const std::string cat_url = p.req.catalogue;
+  const std::string run_id = run_doc.value("run_id", run_dir.filename().string());
+  find_reference(data, cat_url, unit, run_id);
 
   const Judgement j = judge(data, p.limits);
   const CertificateInfo info = certificate_info(p, r, run_doc, unit);
@@ -415,17 +418,24 @@ int accept_command(const AcceptArgs& a) {
                                                   fmt::format("Acceptance of {} ({})", unit, run_id));
   int64_t acc_id = 0;
   try {
-    Catalogue cat(cat_path);
+    const auto cat = open_catalogue(cat_url);
     AcceptanceRecord rec;
     rec.unit = unit;
     rec.run_id = run_id;
     rec.passed = j.passed;
     rec.date_utc = info.date_utc;
     rec.certificate = nlohmann::json::parse(cert.dump());
-    acc_id = cat.record_acceptance(rec);
+    rec.stand = p.req.stand.stand_id;
+    acc_id = cat->record_acceptance(rec);
   } catch (const std::exception& e) {
+    // The folder holds the verdict; its mark lets the next run or `catalogue rebuild` index it.
+    try {
+      mark_catalogue_pending(run_dir, url_for_messages(cat_url), "acceptance", e.what());
+    } catch (const std::exception&) {
+    }
     std::fprintf(stderr, "fpss-stand accept: verdict %s written to %s, but the catalogue %s could not record it: %s\n",
-                 j.passed ? "pass" : "fail", (run_dir / "acceptance.json").c_str(), cat_path.c_str(), e.what());
+                 j.passed ? "pass" : "fail", (run_dir / "acceptance.json").c_str(), url_for_messages(cat_url).c_str(),
+                 e.what());
     return 1;
   }
 
@@ -435,7 +445,7 @@ int accept_command(const AcceptArgs& a) {
     std::printf("%s\n", text.c_str());
     std::printf("acceptance %s: %s\ncertificate: %s\nreport: %s\ncatalogue: %s (acceptance %lld)\n",
                 j.passed ? "PASSED" : "FAILED", (run_dir / "acceptance.json").c_str(),
-                (run_dir / "certificate.txt").c_str(), (run_dir / "report.html").c_str(), cat_path.c_str(),
+                (run_dir / "certificate.txt").c_str(), (run_dir / "report.html").c_str(), url_for_messages(cat_url).c_str(),
                 static_cast<long long>(acc_id));
   }
   std::fflush(stdout);
@@ -453,7 +463,8 @@ void add_accept_command(CLI::App& app, Runner& run) {
   sub->add_option("--procedure", a->procedure, "Acceptance procedure (default procedures/acceptance.yaml)");
   sub->add_option("--limits", a->limits, "Acceptance limits (default procedures/acceptance_limits.yaml)");
   sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made")->capture_default_str();
-  sub->add_option("--catalogue", a->catalogue, "SQLite catalogue (default <runs-dir>/stand.db)");
+  add_catalogue_option(sub, a->catalogue);
+  add_catalogue_wait_option(sub, a->catalogue_wait_s);
   sub->add_flag("--json", a->json, "Print acceptance.json instead of the certificate text");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
   sub->add_flag("--no-progress", a->no_progress, "No live progress line");

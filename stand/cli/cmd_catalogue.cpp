@@ -1,4 +1,4 @@
-// fpss-stand runs / history / catalogue rebuild: read the run catalogue (runs/stand.db) as a table or as JSON, and re-index run folders into it.
+// fpss-stand runs / history / catalogue rebuild / catalogue copy: read the catalogue as a table or as JSON, re-index run folders into it, copy it to another backend.
 #include <fmt/format.h>
 
 #include <cstdio>
@@ -13,7 +13,9 @@
 #include "calib/errors.h"
 #include "calib/json_file.h"
 #include "stand/catalogue/catalogue.h"
+#include "stand/catalogue/copy.h"
 #include "stand/catalogue/rebuild.h"
+#include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
 #include "stand/report/run_summary.h"
 
@@ -25,16 +27,24 @@ struct DbOpts {
   std::string db;  // overrides runs_dir
   bool json = false;
 
-  std::filesystem::path path() const {
-    return db.empty() ? Catalogue::default_path(runs_dir) : std::filesystem::path(db);
+  const CLI::Option* runs_dir_option = nullptr;  // runs, history: an explicit --runs-dir names the catalogue
+
+  std::string url() const {
+    if (runs_dir_option != nullptr && runs_dir_option->count() > 0) return Catalogue::default_path(runs_dir).string();
+    return catalogue_url(db, runs_dir);
   }
 };
 
-void add_db_options(CLI::App* sub, DbOpts& o) {
-  auto* dir = sub->add_option("--runs-dir", o.runs_dir, "runs folder; the catalogue is its stand.db")
+// `exclusive`: --runs-dir only says where the default catalogue is (runs, history), so giving both
+// is a mistake; rebuild reads the folders of --runs-dir into --catalogue.
+void add_db_options(CLI::App* sub, DbOpts& o, bool exclusive = true) {
+  auto* dir = sub->add_option("--runs-dir", o.runs_dir, "runs folder; the default catalogue is its stand.db")
                   ->capture_default_str();
-  auto* db = sub->add_option("--catalogue,--db", o.db, "catalogue file (instead of RUNS_DIR/stand.db)");
-  dir->excludes(db);
+  auto* db = add_catalogue_option(sub, o.db);
+  if (exclusive) {
+    dir->excludes(db);
+    o.runs_dir_option = dir;  // over FPSS_CATALOGUE too: the user named the folder
+  }
   sub->add_flag("--json", o.json, "print JSON instead of a table");
 }
 
@@ -74,6 +84,7 @@ nlohmann::json run_json(const RunRecord& r) {
           {"run_dir", r.run_dir},
           {"emulated", r.emulated},
           {"stand", r.stand},
+          {"host", r.host},
           {"software_version", r.software_version},
           {"resumes", r.resumes}};
 }
@@ -103,7 +114,8 @@ std::string status_text(const RunRecord& r, const FolderStatus& st) {
 }
 
 int list_runs(const DbOpts& o, const std::string& unit, size_t limit) {
-  Catalogue cat(o.path(), Catalogue::Mode::read_only);
+  const auto catp = open_catalogue(o.url(), Catalogue::Mode::read_only);
+  const Catalogue& cat = *catp;
   RunFilter f;
   if (!unit.empty()) f.unit = unit;
   f.limit = limit;
@@ -122,7 +134,7 @@ int list_runs(const DbOpts& o, const std::string& unit, size_t limit) {
   }
   if (runs.empty()) {
     std::fprintf(stderr, "no runs%s in %s\n", unit.empty() ? "" : fmt::format(" of unit {}", unit).c_str(),
-                 cat.path().c_str());
+                 cat.location().c_str());
     return 0;
   }
   std::vector<std::vector<std::string>> rows;
@@ -190,12 +202,12 @@ nlohmann::json history_json(const std::string& serial, const Catalogue& cat, con
     }
     list.push_back(std::move(j));
   }
-  return {{"unit", serial}, {"db", cat.path().string()}, {"calibrations", list}};
+  return {{"unit", serial}, {"db", cat.location()}, {"calibrations", list}};
 }
 
 void print_history(const std::string& serial, const Catalogue& cat, const std::vector<HistoryEntry>& h) {
   std::printf("unit %s: %zu calibration%s in %s (residuals in arcsec: mean |r| +- sd, max; range in deg)\n",
-              serial.c_str(), h.size(), h.size() == 1 ? "" : "s", cat.path().c_str());
+              serial.c_str(), h.size(), h.size() == 1 ? "" : "s", cat.location().c_str());
   bool any_change = false;
   for (const auto& e : h) any_change |= e.change_arcsec.has_value();
   std::vector<std::string> header = {"ID",        "DATE",     "SOURCE",   "LABEL",    "METHOD",
@@ -250,14 +262,15 @@ void fill_changes(std::vector<HistoryEntry>& h, double limit_arcsec) {
 
 int show_history(const DbOpts& o, const std::string& serial, double limit_arcsec) {
   if (!(limit_arcsec > 0)) throw InputError(fmt::format("--limit-arcsec {}: must be positive", limit_arcsec));
-  Catalogue cat(o.path(), Catalogue::Mode::read_only);
+  const auto catp = open_catalogue(o.url(), Catalogue::Mode::read_only);
+  const Catalogue& cat = *catp;
   std::vector<HistoryEntry> h;
   for (auto& c : cat.unit_history(serial)) h.push_back({std::move(c), std::nullopt, false});
   if (h.empty()) {
     const std::string why = cat.has_unit(serial)
                                 ? fmt::format("unit {} is in {} ({} runs) but has no calibration yet", serial,
-                                              cat.path().string(), cat.list_runs({.unit = serial, .limit = 0}).size())
-                                : fmt::format("no unit {} in {} (units there: {})", serial, cat.path().string(),
+                                              cat.location(), cat.list_runs({.unit = serial, .limit = 0}).size())
+                                : fmt::format("no unit {} in {} (units there: {})", serial, cat.location(),
                                               [&] {
                                                 std::string u;
                                                 for (const auto& s : cat.units()) u += (u.empty() ? "" : ", ") + s;
@@ -288,11 +301,12 @@ int rebuild(const DbOpts& o) {
   if (!std::filesystem::is_directory(o.runs_dir)) {
     throw InputError(fmt::format("--runs-dir {}: not a folder", o.runs_dir));
   }
-  Catalogue cat(o.path());
+  const auto catp = open_catalogue(o.url());
+  Catalogue& cat = *catp;
   const RebuildReport r = rebuild_catalogue(cat, o.runs_dir);
   for (const auto& s : r.skipped) std::fprintf(stderr, "fpss-stand catalogue rebuild: skipped %s\n", s.c_str());
   if (o.json) {
-    std::printf("%s\n", nlohmann::json{{"catalogue", cat.path().string()},
+    std::printf("%s\n", nlohmann::json{{"catalogue", cat.location()},
                                         {"folders", r.folders},
                                         {"runs_added", r.runs_added},
                                         {"runs_updated", r.runs_updated},
@@ -303,23 +317,61 @@ int rebuild(const DbOpts& o) {
                              .c_str());
   } else {
     std::printf("%s: %d run folders; added %d runs, %d calibrations, %d acceptances; updated %d runs; skipped %zu\n",
-                cat.path().c_str(), r.folders, r.runs_added, r.calibrations_added, r.acceptances_added,
+                cat.location().c_str(), r.folders, r.runs_added, r.calibrations_added, r.acceptances_added,
                 r.runs_updated, r.skipped.size());
   }
   return r.skipped.empty() ? 0 : 1;
 }
 
+struct CopyOpts {
+  std::string from, to;
+  bool json = false;
+};
+
+int copy(const CopyOpts& o) {
+  const auto from = open_catalogue(o.from, Catalogue::Mode::read_only);
+  const auto to = open_catalogue(o.to);
+  const CopyReport r = copy_catalogue(*from, *to);
+  if (o.json) {
+    std::printf("%s\n", nlohmann::json{{"from", from->location()},
+                                        {"to", to->location()},
+                                        {"units_added", r.units_added},
+                                        {"runs_seen", r.runs_seen},
+                                        {"runs_added", r.runs_added},
+                                        {"calibrations_seen", r.calibrations_seen},
+                                        {"calibrations_added", r.calibrations_added},
+                                        {"acceptances_seen", r.acceptances_seen},
+                                        {"acceptances_added", r.acceptances_added}}
+                             .dump(1)
+                             .c_str());
+  } else {
+    std::printf("%s -> %s: added %d units, %d of %d runs, %d of %d calibrations, %d of %d acceptances\n",
+                from->location().c_str(), to->location().c_str(), r.units_added, r.runs_added, r.runs_seen,
+                r.calibrations_added, r.calibrations_seen, r.acceptances_added, r.acceptances_seen);
+  }
+  return 0;
+}
+
 }  // namespace
 
 void add_catalogue(CLI::App& app, Runner& run) {
+  auto* cat = app.add_subcommand("catalogue", "Maintain the catalogue");
+  cat->require_subcommand(1);
   {
     auto o = std::make_shared<DbOpts>();
-    auto* cat = app.add_subcommand("catalogue", "Maintain the catalogue");
-    cat->require_subcommand(1);
     auto* sub = cat->add_subcommand("rebuild", "Re-index every run folder (run.json, calibrations, acceptance) "
-                                               "into the catalogue; idempotent");
-    add_db_options(sub, *o);
+                                               "into the catalogue (either backend); idempotent");
+    add_db_options(sub, *o, false);
     sub->callback([o, &run] { run = [o] { return rebuild(*o); }; });
+  }
+  {
+    auto o = std::make_shared<CopyOpts>();
+    auto* sub = cat->add_subcommand("copy", "Copy every record of one catalogue into another (e.g. SQLite to "
+                                            "PostgreSQL); idempotent");
+    sub->add_option("--from", o->from, "source catalogue URL (sqlite:PATH, PATH or postgresql://...)")->required();
+    sub->add_option("--to", o->to, "target catalogue URL (created or upgraded when needed)")->required();
+    sub->add_flag("--json", o->json, "print the counts as JSON");
+    sub->callback([o, &run] { run = [o] { return copy(*o); }; });
   }
   {
     struct Opts {

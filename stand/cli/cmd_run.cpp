@@ -14,6 +14,8 @@
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
 #include "stand/session/session.h"
+#include "stand/catalogue/catalogue.h"
+#include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/emulated_bench.h"
 #include "stand/config/stand_config.h"
@@ -28,13 +30,13 @@ struct RunArgs {
   std::string procedure, stand_file, runs_dir = "runs", resume, catalogue;
   bool emulate = false, dry_run = false, no_progress = false, quiet = false;
   std::string unit_serial, operator_name;
+  double catalogue_wait_s = 120;
   EmulatedBenchArgs emu;
 };
 
 int run_command(const RunArgs& a) {
   SessionRequest req;
   req.runs_dir = a.runs_dir;
-  req.catalogue = a.catalogue;
   req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
   req.quiet = a.quiet;
   if (::isatty(STDIN_FILENO)) req.keys_fd = STDIN_FILENO;  // p pause, r resume, a abort
@@ -93,6 +95,9 @@ int run_command(const RunArgs& a) {
     }
     if (a.emulate) req.emulator = emulator_spec(a.emu, a.unit_serial);
   }
+  // "" keeps the session's default: RUNS_DIR/stand.db, or the run folder's parent on a resume.
+  req.catalogue = chosen_catalogue(a.catalogue, req.stand.catalogue);
+  req.catch_up_s = a.catalogue_wait_s;
   // A resumed run's bench is served by the binary running now, not the one recorded.
   if (req.emulator) req.emulator->exe = this_binary();
 
@@ -110,8 +115,10 @@ int run_command(const RunArgs& a) {
   if (!r.catalogue_error.empty()) {
     std::fprintf(stderr,
                  "fpss-stand run: %s\nfpss-stand run: the run folder %s is complete; re-index it with: fpss-stand "
-                 "catalogue rebuild --runs-dir %s\n",
-                 r.catalogue_error.c_str(), dir.c_str(), r.run_dir.parent_path().c_str());
+                 "catalogue rebuild --runs-dir %s --catalogue %s\n",
+                 r.catalogue_error.c_str(), dir.c_str(), r.run_dir.parent_path().c_str(),
+                 req.catalogue.empty() ? (r.run_dir.parent_path() / "stand.db").c_str()
+                                       : url_for_messages(req.catalogue).c_str());
   }
   if (r.calibration) std::printf("calibration: %s\n", r.calibration->string().c_str());
   if (r.report) std::printf("report: %s\n", r.report->string().c_str());
@@ -130,7 +137,8 @@ void add_run(CLI::App& app, Runner& run) {
   sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made (default runs/)");
   sub->add_option("--resume", a->resume, "Continue an interrupted run from its folder");
   sub->add_flag("--dry-run", a->dry_run, "Validate, print the expanded steps, points and duration; move nothing");
-  sub->add_option("--catalogue", a->catalogue, "SQLite catalogue (default <runs-dir>/stand.db)");
+  add_catalogue_option(sub, a->catalogue);
+  add_catalogue_wait_option(sub, a->catalogue_wait_s);
   sub->add_flag("--no-progress", a->no_progress, "No live progress line, even on a terminal");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
   sub->add_option("--operator", a->operator_name, "Who runs it (recorded in run.json)");

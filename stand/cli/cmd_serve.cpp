@@ -11,7 +11,9 @@
 
 #include "calib/errors.h"
 #include "stand/acceptance/acceptance.h"
+#include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
+#include "stand/config/stand_config.h"
 #include "stand/cli/emulated_bench.h"
 #include "stand/console/server.h"
 
@@ -22,7 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct ServeArgs {
-  std::string runs_dir = "runs", listen = "127.0.0.1:8080", stand_file, procedures;
+  std::string runs_dir = "runs", listen = "127.0.0.1:8080", stand_file, procedures, catalogue;
   bool emulate = false;
   size_t max_clients = 8;
   EmulatedBenchArgs emu;
@@ -56,6 +58,9 @@ int serve_command(const ServeArgs& a) {
   if (!a.emulate) require_emulate_for_options(a.emu, "serve");
   if (a.max_clients < 1 || a.max_clients > 64) throw InputError("serve --max-clients: 1-64");
   o.runs_dir = fs::absolute(a.runs_dir);
+  // The runs' catalogue: the option, FPSS_CATALOGUE or the stand file's `catalogue:`; the runs the
+  // console starts are given the same.
+  o.catalogue = chosen_catalogue(a.catalogue, a.stand_file.empty() ? "" : load_stand_file(a.stand_file).catalogue);
   o.emulate = a.emulate;
   if (a.emulate) o.emulator_args = emulator_args(a.emu);
   if (!a.stand_file.empty()) {
@@ -112,6 +117,7 @@ void add_serve(CLI::App& app, Runner& run) {
   sub->add_flag("--emulate", a->emulate, "Runs use the emulated bench (each starts its own emulator child)");
   sub->add_option("--procedures", a->procedures, "Folder of procedures the start page offers (default procedures/)");
   sub->add_option("--max-clients", a->max_clients, "Live event streams at once (default 8)");
+  add_catalogue_option(sub, a->catalogue);
   add_emulated_bench_options(sub, a->emu);
   sub->callback([&run, a] { run = [a] { return serve_command(*a); }; });
 }

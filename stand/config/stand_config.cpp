@@ -63,6 +63,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
   MapReader top(root, "stand file", d);
   if (auto s = top.string("stand")) c.stand_id = *s;
   if (auto s = top.string("unit")) c.unit_serial = *s;
+  if (auto s = top.string("catalogue")) c.catalogue = *s;
 
   // gimbal
   {

@@ -18,6 +18,7 @@ struct StandConfig {
   std::string text;        // the file's text, as recorded in run.json
   std::string stand_id;    // identity of the stand, free text
   std::string unit_serial; // expected sensor serial; "" accepts whatever the sensor reports
+  std::string catalogue;   // catalogue URL (docs/fleet.md); "" : the command line's or the default
   bool clock_sync_given = false;  // the file chose clock.sync (an emulator then keeps that choice)
   GimbalOptions gimbal;
   SensorOptions sensor;

@@ -52,7 +52,7 @@ json stand_state(const Context& c) {
          {"emulator_args", c.opt.emulator_args},
          {"connected", false},
          {"state", "idle"}};
-  const auto live = live_runs(c.opt.runs_dir);
+  const auto live = live_runs(c.opt.runs_dir, c.opt.catalogue);
   if (live.empty()) return s;
   const RunRef& r = live.front();
   s["run_id"] = r.run_id;
@@ -148,7 +148,7 @@ void add_control_routes(httplib::Server& s, Context& c) {
   s.Post(R"(/api/runs/([A-Za-z0-9._-]+)/control)", [&c](const httplib::Request& req, httplib::Response& res) {
     const auto b = body_object(req, res);
     if (!b) return;
-    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
     if (!run) return fail(res, 404, "no such run");
     if (!run->live) return fail(res, 409, "the run is not running");
     const std::string action = str(*b, "action");
@@ -164,7 +164,7 @@ void add_control_routes(httplib::Server& s, Context& c) {
   s.Post(R"(/api/runs/([A-Za-z0-9._-]+)/answer)", [&c](const httplib::Request& req, httplib::Response& res) {
     const auto b = body_object(req, res);
     if (!b) return;
-    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
     if (!run) return fail(res, 404, "no such run");
     if (!run->live) return fail(res, 409, "the run is not running");
     const std::string id = str(*b, "id"), value = str(*b, "value");
@@ -186,15 +186,15 @@ void add_run_routes(httplib::Server& s, Context& c) {
     } catch (const std::exception&) {
       return fail(res, 400, "limit: a number");
     }
-    reply(res, runs_json(c.opt.runs_dir, req.get_param_value("unit"), req.get_param_value("outcome"),
+    reply(res, runs_json(c.opt.runs_dir, c.opt.catalogue, req.get_param_value("unit"), req.get_param_value("outcome"),
                          req.get_param_value("from"), req.get_param_value("to"), limit));
   });
   s.Get(R"(/api/runs/([A-Za-z0-9._-]+))", [&c](const httplib::Request& req, httplib::Response& res) {
-    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
     run ? reply(res, run_json(*run)) : fail(res, 404, "no such run");
   });
   s.Get(R"(/api/runs/([A-Za-z0-9._-]+)/events)", [&c](const httplib::Request& req, httplib::Response& res) {
-    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
     if (!run) return fail(res, 404, "no such run");
     uint64_t from = 0;
     try {
@@ -208,7 +208,7 @@ void add_run_routes(httplib::Server& s, Context& c) {
     reply(res, {{"events", lines}, {"next", ch.next}, {"live", run->live}});
   });
   s.Get(R"(/runs/([A-Za-z0-9._-]+)/(.+))", [&c](const httplib::Request& req, httplib::Response& res) {
-    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
     const auto file = run ? run_file(run->dir, req.matches[2]) : std::nullopt;
     if (!file) return fail(res, 404, "no such file");
     // Streamed in 64 KiB pieces: a samples.csv of millions of rows is never held whole.
@@ -237,7 +237,9 @@ void add_unit_routes(httplib::Server& s, Context& c) {
   s.Get(R"(/api/units/([A-Za-z0-9._-]+)/history)", [&c](const httplib::Request& req, httplib::Response& res) {
     json cals = json::array(), accs = json::array();
     try {
-      Catalogue cat(Catalogue::default_path(c.opt.runs_dir), Catalogue::Mode::read_only);
+      const auto catp = console_catalogue(c.opt.runs_dir, c.opt.catalogue);
+      if (!catp) throw std::runtime_error("no catalogue yet");
+      Catalogue& cat = *catp;
       for (const auto& h : cat.unit_history(req.matches[1])) {
         json j{{"id", h.id}, {"date_utc", h.date_utc}, {"source", h.source}, {"label", h.label}, {"method", h.method},
                {"run_id", h.run_id ? json(*h.run_id) : json()}};
@@ -257,7 +259,9 @@ void add_unit_routes(httplib::Server& s, Context& c) {
   });
   s.Get("/api/units", [&c](const httplib::Request&, httplib::Response& res) {
     try {
-      Catalogue cat(Catalogue::default_path(c.opt.runs_dir), Catalogue::Mode::read_only);
+      const auto catp = console_catalogue(c.opt.runs_dir, c.opt.catalogue);
+      if (!catp) throw std::runtime_error("no catalogue yet");
+      Catalogue& cat = *catp;
       reply(res, cat.units());
     } catch (const std::exception&) {
       reply(res, json::array());
@@ -266,7 +270,9 @@ void add_unit_routes(httplib::Server& s, Context& c) {
   // B - A over the field (the paper's Figures 1-2), both from the catalogue.
   s.Get("/api/compare", [&c](const httplib::Request& req, httplib::Response& res) {
     try {
-      Catalogue cat(Catalogue::default_path(c.opt.runs_dir), Catalogue::Mode::read_only);
+      const auto catp = console_catalogue(c.opt.runs_dir, c.opt.catalogue);
+      if (!catp) throw std::runtime_error("no catalogue yet");
+      Catalogue& cat = *catp;
       const auto a = cat.find_calibration(std::stoll(req.get_param_value("a")));
       const auto b = cat.find_calibration(std::stoll(req.get_param_value("b")));
       if (!a || !b) return fail(res, 404, "no such calibration");
@@ -289,7 +295,7 @@ void add_unit_routes(httplib::Server& s, Context& c) {
 void add_api(httplib::Server& s, Context& c) {
   s.Get("/api/status", [&c](const httplib::Request&, httplib::Response& res) {
     json live = json::array();
-    for (const auto& r : live_runs(c.opt.runs_dir)) live.push_back(r.run_id);
+    for (const auto& r : live_runs(c.opt.runs_dir, c.opt.catalogue)) live.push_back(r.run_id);
     json jobs = json::array();
     for (const auto& j : c.jobs->list()) jobs.push_back(j.to_json());
     reply(res, {{"live_runs", live}, {"jobs", jobs}, {"emulate", c.opt.emulate},

@@ -158,6 +158,7 @@ std::vector<std::string> JobQueue::argv_of(const Job& j) const {
     a.push_back("--operator-prompts");
   }
   a.insert(a.end(), {"--runs-dir", o_.runs_dir.string(), "--quiet", "--no-progress"});
+  if (!o_.catalogue.empty()) a.insert(a.end(), {"--catalogue", o_.catalogue});
   if (j.kind == "run" && !j.operator_name.empty()) a.insert(a.end(), {"--operator", j.operator_name});
   if (o_.emulate) {
     a.push_back("--emulate");
@@ -213,7 +214,7 @@ void JobQueue::tick() {
   for (auto& j : jobs_) {
     if (j.state != "starting" && j.state != "running") continue;
     if (j.run_id.empty()) {
-      if (auto r = run_of_pid(o_.runs_dir, j.pid)) {
+      if (auto r = run_of_pid(o_.runs_dir, o_.catalogue, j.pid)) {
         j.run_id = r->run_id;
         j.state = "running";
       }
@@ -222,7 +223,7 @@ void JobQueue::tick() {
     if (::waitpid(j.pid, &status, WNOHANG) == j.pid) {
       j.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
       if (j.run_id.empty()) {
-        if (auto r = run_of_pid(o_.runs_dir, j.pid)) j.run_id = r->run_id;
+        if (auto r = run_of_pid(o_.runs_dir, o_.catalogue, j.pid)) j.run_id = r->run_id;
       }
       j.state = "finished";
       spdlog::info("job {}: exit {}", j.id, j.exit_code);
@@ -234,7 +235,7 @@ void JobQueue::tick() {
   auto next = std::find_if(jobs_.begin(), jobs_.end(), [](const Job& x) { return x.state == "queued"; });
   if (next == jobs_.end()) return;
   // One stand: a run started by another console (or by hand) holds it too.
-  if (!live_runs(o_.runs_dir).empty()) return;
+  if (!live_runs(o_.runs_dir, o_.catalogue).empty()) return;
   start(*next);
   save();
 }

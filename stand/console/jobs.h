@@ -17,6 +17,7 @@ namespace fpss::console {
 // What serve was started with (docs/console.md).
 struct ConsoleOptions {
   std::filesystem::path runs_dir = "runs";
+  std::string catalogue;  // URL (serve --catalogue); "" for RUNS_DIR/stand.db, as run and accept default
   std::string host = "127.0.0.1";
   int port = 8080;
   std::filesystem::path stand_file;               // a real bench, or

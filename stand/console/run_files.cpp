@@ -19,16 +19,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::unique_ptr<Catalogue> open_catalogue(const fs::path& runs_dir) {
-  const fs::path p = Catalogue::default_path(runs_dir);
-  if (!fs::exists(p)) return nullptr;
-  try {
-    return std::make_unique<Catalogue>(p, Catalogue::Mode::read_only);
-  } catch (const std::exception&) {
-    return nullptr;
-  }
-}
-
 bool alive(int64_t pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
 
 RunRef ref_of(const RunRecord& r) {
@@ -50,18 +40,29 @@ nlohmann::json read_run_doc(const fs::path& dir) {
 
 }  // namespace
 
-std::optional<RunRef> find_run(const fs::path& runs_dir, const std::string& run_id) {
+std::unique_ptr<Catalogue> console_catalogue(const fs::path& runs_dir, const std::string& catalogue_url) {
+  const std::string url = catalogue_url.empty() ? Catalogue::default_path(runs_dir).string() : catalogue_url;
+  // A missing SQLite file is "no runs yet", not an error (read-only never creates one).
+  if (catalogue_url.empty() && !fs::exists(url)) return nullptr;
+  try {
+    return open_catalogue(url, Catalogue::Mode::read_only);
+  } catch (const std::exception&) {
+    return nullptr;
+  }
+}
+
+std::optional<RunRef> find_run(const fs::path& runs_dir, const std::string& catalogue_url, const std::string& run_id) {
   if (!safe_name(run_id, 200)) return std::nullopt;
-  auto cat = open_catalogue(runs_dir);
+  auto cat = console_catalogue(runs_dir, catalogue_url);
   if (!cat) return std::nullopt;
   auto r = cat->find_run(run_id);
   if (!r) return std::nullopt;
   return ref_of(*r);
 }
 
-std::vector<RunRef> live_runs(const fs::path& runs_dir) {
+std::vector<RunRef> live_runs(const fs::path& runs_dir, const std::string& catalogue_url) {
   std::vector<RunRef> out;
-  auto cat = open_catalogue(runs_dir);
+  auto cat = console_catalogue(runs_dir, catalogue_url);
   if (!cat) return out;
   RunFilter f;
   f.limit = 50;
@@ -71,8 +72,8 @@ std::vector<RunRef> live_runs(const fs::path& runs_dir) {
   return out;
 }
 
-std::optional<RunRef> run_of_pid(const fs::path& runs_dir, int pid) {
-  auto cat = open_catalogue(runs_dir);
+std::optional<RunRef> run_of_pid(const fs::path& runs_dir, const std::string& catalogue_url, int pid) {
+  auto cat = console_catalogue(runs_dir, catalogue_url);
   if (!cat) return std::nullopt;
   RunFilter f;
   f.limit = 20;
@@ -82,10 +83,10 @@ std::optional<RunRef> run_of_pid(const fs::path& runs_dir, int pid) {
   return std::nullopt;
 }
 
-nlohmann::json runs_json(const fs::path& runs_dir, const std::string& unit, const std::string& outcome,
+nlohmann::json runs_json(const fs::path& runs_dir, const std::string& catalogue_url, const std::string& unit, const std::string& outcome,
                          const std::string& from_date, const std::string& to_date, size_t limit) {
   nlohmann::json out = nlohmann::json::array();
-  auto cat = open_catalogue(runs_dir);
+  auto cat = console_catalogue(runs_dir, catalogue_url);
   if (!cat) return out;
   RunFilter f;
   if (!unit.empty()) f.unit = unit;

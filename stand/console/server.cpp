@@ -177,7 +177,7 @@ void add_streams(httplib::Server& s, Context& c) {
   // Server-Sent Events: each events.jsonl line is one message whose id is the byte offset after
   // it, so a page that reconnects (Last-Event-ID, or ?from=) continues where it stopped.
   s.Get(R"(/api/runs/([A-Za-z0-9._-]+)/stream)", [&c](const httplib::Request& req, httplib::Response& res) {
-    const auto run = find_run(c.opt.runs_dir, req.matches[1]);
+    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
     if (!run) {
       res.status = 404;
       res.set_content(R"({"error":"no such run"})", "application/json");

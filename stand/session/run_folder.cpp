@@ -2,11 +2,14 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
+#include <sys/random.h>
 #include <unistd.h>
 
 #include <fmt/format.h>
 
+#include <array>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <string>
 
@@ -73,6 +76,35 @@ RunInfo read_run_info(const fs::path& run_dir) {
     throw InputError(fmt::format("{}: {}", path.string(), e.what()));
   }
   return info;
+}
+
+std::string new_run_id() {
+  std::array<unsigned char, 16> b{};
+  size_t got = 0;
+  while (got < b.size()) {
+    const ssize_t n = ::getrandom(b.data() + got, b.size() - got, 0);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw std::runtime_error(fmt::format("getrandom: {}", std::strerror(errno)));
+    got += static_cast<size_t>(n);
+  }
+  const auto ms = static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                            std::chrono::system_clock::now().time_since_epoch())
+                                            .count());
+  for (int i = 0; i < 6; ++i) b[i] = static_cast<unsigned char>(ms >> (40 - 8 * i));
+  b[6] = static_cast<unsigned char>(0x70 | (b[6] & 0x0f));  // version 7
+  b[8] = static_cast<unsigned char>(0x80 | (b[8] & 0x3f));  // variant 10
+  std::string out;
+  for (size_t i = 0; i < b.size(); ++i) {
+    if (i == 4 || i == 6 || i == 8 || i == 10) out += '-';
+    out += fmt::format("{:02x}", b[i]);
+  }
+  return out;
+}
+
+void mark_catalogue_pending(const std::filesystem::path& run_dir, const std::string& catalogue,
+                            const std::string& what, const std::string& error) {
+  write_json_atomic(run_dir / kCataloguePending,
+                    {{"catalogue", catalogue}, {"what", what}, {"error", error}, {"marked_utc", utc_now_iso()}});
 }
 
 }  // namespace fpss

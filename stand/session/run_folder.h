@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "stand/catalogue/rebuild.h"  // kCataloguePending
 #include "stand/cli/emulator_contract.h"
 
 namespace fpss {
@@ -38,5 +39,15 @@ struct RunInfo {
   std::optional<EmulatorSpec> emulator;
 };
 RunInfo read_run_info(const std::filesystem::path& run_dir);
+
+// A new run id, unique across the stands of a fleet: a UUIDv7 (RFC 9562; 48-bit Unix time in ms,
+// then 74 random bits), so ids also sort by start time. The run folder keeps its readable name.
+std::string new_run_id();
+
+// RUN_DIR/catalogue.pending: the catalogue missed something of this run (the server was away).
+// The run end, the next run on the same runs folder and `catalogue rebuild` re-index the folder
+// and remove the mark (docs/fleet.md).
+void mark_catalogue_pending(const std::filesystem::path& run_dir, const std::string& catalogue,
+                            const std::string& what, const std::string& error);
 
 }  // namespace fpss

@@ -22,6 +22,9 @@
 #include "calib/transfer_function.h"
 #include "drivers/endpoints.h"
 #include "stand/catalogue/catalogue.h"
+#include "stand/session/bench_launcher.h"
+#include "stand/session/catch_up.h"
+#include "stand/session/computation_checks.h"
 #include "stand/session/diagnose_step.h"
 #include "stand/session/emulator_process.h"
 #include "stand/session/progress.h"
@@ -85,86 +88,12 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-// The rows of the points before a calibrate step: what it may fit.
-SampleTable rows_up_to(const SampleTable& all, int64_t last_step) {
-  SampleTable t;
-  t.origin = all.origin;
-  t.reserve(all.size());
-  for (size_t i = 0; i < all.size() && all.step[i] <= last_step; ++i) t.push_back(all.row(i));
-  return t;
-}
-
-std::string check_limits(const ResidualLimits& lim, const ResidualStats& r, const char* axis) {
-  std::string broken;
-  auto add = [&](std::string s) { broken += (broken.empty() ? "" : "; ") + s; };
-  if (lim.mean_abs_arcsec && r.mean_abs_arcsec > *lim.mean_abs_arcsec) {
-    add(fmt::format("{} mean |residual| {:.3f} arcsec > {} arcsec", axis, r.mean_abs_arcsec, *lim.mean_abs_arcsec));
-  }
-  if (lim.sd_arcsec && r.sd_arcsec > *lim.sd_arcsec) {
-    add(fmt::format("{} residual sd {:.3f} arcsec > {} arcsec", axis, r.sd_arcsec, *lim.sd_arcsec));
-  }
-  if (lim.max_abs_arcsec && r.max_abs_arcsec > *lim.max_abs_arcsec) {
-    add(fmt::format("{} max |residual| {:.3f} arcsec > {} arcsec", axis, r.max_abs_arcsec, *lim.max_abs_arcsec));
-  }
-  if (lim.min_points && static_cast<int64_t>(r.points) < *lim.min_points) {
-    add(fmt::format("{} {} points < {}", axis, r.points, *lim.min_points));
-  }
-  return broken;
-}
-
-// Residuals a hundred times the limit are not a worn sensor: the recording and the model disagree
-// about which way the axes point, or the model is not this sensor's.
-bool absurd(const ResidualLimits& lim, const ResidualStats& r) {
-  auto over = [](const std::optional<double>& limit, double value) { return limit && value > 100 * *limit; };
-  return over(lim.mean_abs_arcsec, r.mean_abs_arcsec) || over(lim.sd_arcsec, r.sd_arcsec) ||
-         over(lim.max_abs_arcsec, r.max_abs_arcsec);
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
 // The session
 
 namespace {
-
-// The bench of a run: an emulator child (its log kept in the run folder) or the stand's endpoints.
-struct BenchLauncher {
-  std::unique_ptr<EmulatorProcess> emu;
-  fs::path tmp_log;  // the child's log until the run folder exists
-
-  void start(const SessionRequest& req, bool resuming, StandConfig& stand, spdlog::logger& log) {
-    if (!req.emulator) return;
-    EmulatorLaunch l;
-    l.exe = req.emulator->exe;
-    l.args = req.emulator->args(!resuming);
-    if (resuming) {
-      l.log = req.resume_dir / "emulator.log";
-    } else {
-      fs::create_directories(req.runs_dir);
-      tmp_log = req.runs_dir / fmt::format(".emulator-{}.log", ::getpid());
-      l.log = tmp_log;
-    }
-    emu = std::make_unique<EmulatorProcess>(l);
-    log.info("starting the emulated bench: {}", fmt::join(emu->command(), " "));
-    emu->start();
-    stand.gimbal.endpoint = emu->gimbal_endpoint();
-    stand.sensor.endpoint = emu->sensor_endpoint();
-    log.info("emulated bench ready: gimbal {}, sensor {}", stand.gimbal.endpoint, stand.sensor.endpoint);
-  }
-  // Moves the child's log into the run folder (or removes it when there is none).
-  void settle_log(const fs::path& run_dir) {
-    if (tmp_log.empty() || !fs::exists(tmp_log)) return;
-    std::error_code ec;
-    if (!run_dir.empty()) fs::rename(tmp_log, run_dir / "emulator.log", ec);
-    if (run_dir.empty() || ec) fs::remove(tmp_log, ec);
-    tmp_log.clear();
-  }
-  int stop() { return emu ? emu->stop() : -1; }
-  ~BenchLauncher() {
-    stop();
-    settle_log({});
-  }
-};
 
 class Session {
  public:
@@ -206,8 +135,9 @@ class Session {
   EventBus bus_;
   nlohmann::json doc_;
   int session_ = 1;
-  fs::path catalogue_path_;
+  std::string catalogue_url_;
   std::string catalogue_error_;
+  bool catalogue_away_ = false;  // the server was unreachable (worth waiting for), not a refusal
   SampleTable recorded_;  // every row so far, old (a resume) and new: what calibrate steps fit
   std::unique_ptr<StreamingCalibrator> live_;
   std::chrono::steady_clock::time_point last_estimate_ = std::chrono::steady_clock::now() - std::chrono::seconds(10);
@@ -261,7 +191,8 @@ void Session::open_folder() {
     lock_.emplace(res_.run_dir);
     bench_.settle_log(res_.run_dir);
   }
-  run_id_ = res_.run_dir.filename().string();
+  // A fleet-wide id (UUIDv7); a run made before ids were one keeps its folder's name.
+  run_id_ = resuming_ ? doc_.value("run_id", res_.run_dir.filename().string()) : new_run_id();
   auto file_sink = std::make_shared<spdlog::sinks::basic_file_sink_mt>((res_.run_dir / "events.log").string());
   file_sink->set_pattern("%Y-%m-%dT%H:%M:%S.%e [%l] %v");
   log_->sinks().push_back(file_sink);
@@ -317,21 +248,29 @@ void Session::write_start_record() {
 
 // A catalogue that cannot record never loses the run (the folder is complete), but the command
 // says so and ends with exit 1; `fpss-stand catalogue rebuild` re-indexes the folder later.
+// A catalogue that is away marks the folder pending; the run end catches up (catch_up.h).
 template <typename F>
 void Session::with_catalogue(const char* what, F&& f) {
   try {
-    Catalogue cat(catalogue_path_);
-    f(cat);
+    auto cat = open_catalogue(catalogue_url_);
+    f(*cat);
   } catch (const std::exception& e) {
-    log_->error("catalogue {}: {}: {}", catalogue_path_.string(), what, e.what());
-    if (catalogue_error_.empty()) catalogue_error_ = fmt::format("catalogue {}: {}: {}", catalogue_path_.string(), what, e.what());
+    catalogue_away_ |= dynamic_cast<const CatalogueUnavailable*>(&e) != nullptr;
+    const std::string shown = url_for_messages(catalogue_url_);
+    log_->error("catalogue {}: {}: {}", shown, what, e.what());
+    if (catalogue_error_.empty()) catalogue_error_ = fmt::format("catalogue {}: {}: {}", shown, what, e.what());
+    try {
+      mark_catalogue_pending(res_.run_dir, shown, what, e.what());
+    } catch (const std::exception& m) {
+      log_->error("{}: {}", kCataloguePending, m.what());
+    }
   }
 }
 
 void Session::start_catalogue_record() {
-  catalogue_path_ = !req_.catalogue.empty() ? req_.catalogue
-                    : resuming_            ? res_.run_dir.parent_path() / "stand.db"
-                                           : Catalogue::default_path(req_.runs_dir);
+  catalogue_url_ = !req_.catalogue.empty() ? req_.catalogue
+                   : resuming_            ? (res_.run_dir.parent_path() / "stand.db").string()
+                                          : Catalogue::default_path(req_.runs_dir).string();
   with_catalogue("run start", [&](Catalogue& cat) {
     RunStart rs;
     rs.run_id = run_id_;
@@ -341,7 +280,7 @@ void Session::start_catalogue_record() {
     rs.started_utc = doc_["started_utc"].get<std::string>();
     rs.run_dir = fs::absolute(res_.run_dir);
     rs.emulated = req_.emulator.has_value();
-    rs.stand = req_.emulator ? "" : (stand_.stand_id.empty() ? stand_.origin : stand_.stand_id);
+    rs.stand = !stand_.stand_id.empty() ? stand_.stand_id : req_.emulator ? "" : stand_.origin;
     cat.record_run_start(rs);
   });
 }
@@ -452,6 +391,7 @@ void Session::on_calibrate(const Action& a) {
     cr.run_id = run_id_;
     cr.source_ref = run_id_;
     cr.date_utc = utc_now_iso();
+    cr.stand = !stand_.stand_id.empty() ? stand_.stand_id : req_.emulator ? "" : stand_.origin;
     cat.record_calibration(cr);
   });
 }
@@ -516,6 +456,18 @@ void Session::finish(const EngineResult& er) {
   if (res_.calibration) doc_["files"]["calibration"] = res_.calibration->filename().string();
   write_json_atomic(res_.run_dir / "run.json", doc_);
   with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, to_string(er.outcome), end_utc); });
+  if (!catalogue_error_.empty()) {
+    // The entry catches up from the folder, which holds everything, once the catalogue is back.
+    const double window_s = catalogue_away_ ? req_.catch_up_s : 0;
+    log_->warn("catalogue {}: catching up with the run folder (up to {:.0f} s)", url_for_messages(catalogue_url_), window_s);
+    const std::string err = catch_up_run(catalogue_url_, res_.run_dir, window_s);
+    if (err.empty()) {
+      log_->info("catalogue {}: the run's entry caught up", url_for_messages(catalogue_url_));
+      catalogue_error_.clear();
+    } else {
+      catalogue_error_ += fmt::format("; still failing after {:.0f} s: {}", window_s, err);
+    }
+  }
 }
 
 // The report needs a calibration (this session's or an earlier one's); a failure to draw it
@@ -577,6 +529,10 @@ SessionResult Session::run() {
 
   write_start_record();
   start_catalogue_record();
+  if (catalogue_error_.empty() && !resuming_) {
+    const int n = catch_up_pending(catalogue_url_, req_.runs_dir);  // earlier runs the catalogue missed
+    if (n > 0) log_->info("catalogue {}: {} earlier run folder(s) caught up", url_for_messages(catalogue_url_), n);
+  }
   subscribe();
   // The console's pause/resume/abort and prompt answers (RUN_DIR/control.json).
   ControlPoller poller(res_.run_dir, control);

@@ -25,7 +25,8 @@ struct SessionRequest {
   std::optional<EmulatorSpec> emulator;
   std::filesystem::path runs_dir = "runs";
   std::filesystem::path resume_dir;  // set: continue this run
-  std::filesystem::path catalogue;   // "" : <runs_dir>/stand.db (a resume: the run folder's parent)
+  std::string catalogue;             // catalogue URL; "" : <runs_dir>/stand.db (a resume: the run folder's parent)
+  double catch_up_s = 120;           // how long the run end retries a catalogue that was away
   bool tty = false;                  // draw the progress line
   bool quiet = false;                // no console log lines (tests)
   RunControl* control = nullptr;     // null: the session's own, driven by SIGINT/SIGTERM/SIGUSR1

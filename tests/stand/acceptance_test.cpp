@@ -20,7 +20,7 @@
 #include "fixtures/bench.h"
 #include "fixtures/recording.h"
 #include "stand/acceptance/acceptance.h"
-#include "stand/catalogue/catalogue.h"
+#include "stand/catalogue/sqlite_catalogue.h"
 #include "stand/session/emulator_process.h"
 #include "tests/support/test_support.h"
 
@@ -444,7 +444,7 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
     EXPECT_EQ(list[0]["verdict"], "pass");
   }
   {
-    Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+    SqliteCatalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
     const auto acc = cat.unit_acceptances("EMU-0001");
     ASSERT_EQ(acc.size(), 1u);
     EXPECT_TRUE(acc[0].passed);
@@ -468,7 +468,7 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
     }
   }
   {
-    Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+    SqliteCatalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
     const auto acc = cat.unit_acceptances("EMU-0001");
     ASSERT_EQ(acc.size(), 2u);
     EXPECT_FALSE(acc[1].passed);
@@ -530,7 +530,7 @@ TEST_F(AcceptCli, UnitBlindNearTheEdgeFailsOnSunPresence) {
       EXPECT_LT(c["measured"].get<double>(), 1.0);
     }
   }
-  Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  SqliteCatalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
   ASSERT_EQ(cat.unit_acceptances("EMU-0001").size(), 1u);
   EXPECT_FALSE(cat.unit_acceptances("EMU-0001")[0].passed);
 }
@@ -574,7 +574,7 @@ TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
       [&] {
         if (!fs::exists(Catalogue::default_path(runs()))) return false;
         try {
-          Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+          SqliteCatalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
           bool running = false;
           for (const auto& r : cat.list_runs({.unit = "UNIT-C", .limit = 0})) {
             const fs::path points = fs::path(r.run_dir) / "points.jsonl";
@@ -592,7 +592,7 @@ TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
   EXPECT_EQ(a.wait(), 0) << read_file(dir / "a.err");
   EXPECT_EQ(b.wait(), 0) << read_file(dir / "b.err");
 
-  Catalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  SqliteCatalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
   EXPECT_EQ(cat.integrity_check(), "ok");
   for (const char* unit : {"UNIT-A", "UNIT-B"}) {
     const auto acc = cat.unit_acceptances(unit);
@@ -612,7 +612,7 @@ TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
   // And the catalogue takes the next acceptance as usual.
   const CommandResult again = accept("--unit UNIT-C --seed 10");
   EXPECT_EQ(again.code, 0) << again.err;
-  Catalogue after(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  SqliteCatalogue after(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
   EXPECT_EQ(after.unit_acceptances("UNIT-C").size(), 1u);
   EXPECT_EQ(after.integrity_check(), "ok");
 }

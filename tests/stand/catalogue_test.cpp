@@ -1,5 +1,5 @@
 // The run catalogue on a real SQLite file: schema, records, bad files, concurrent writers, killed writers.
-#include "stand/catalogue/catalogue.h"
+#include "stand/catalogue/sqlite_catalogue.h"
 
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -99,15 +99,15 @@ TEST(Catalogue, CreatesTheSchemaOnceAndReopens) {
   TempDir dir;
   const auto db = dir.path() / "sub" / "stand.db";
   {
-    Catalogue c(db);
+    SqliteCatalogue c(db);
     EXPECT_EQ(c.schema_version(), Catalogue::kSchemaVersion);
     EXPECT_EQ(c.database().execAndGet("PRAGMA journal_mode").getString(), "wal");
     EXPECT_TRUE(c.add_unit("FPSS1"));
     EXPECT_FALSE(c.add_unit("FPSS1"));
   }
-  Catalogue again(db);
+  SqliteCatalogue again(db);
   EXPECT_EQ(again.units(), std::vector<std::string>{"FPSS1"});
-  Catalogue ro(db, Catalogue::Mode::read_only);
+  SqliteCatalogue ro(db, Catalogue::Mode::read_only);
   EXPECT_TRUE(ro.has_unit("FPSS1"));
   EXPECT_FALSE(ro.has_unit("FPSS9"));
   EXPECT_EQ(ro.integrity_check(), "ok");
@@ -116,7 +116,7 @@ TEST(Catalogue, CreatesTheSchemaOnceAndReopens) {
 
 TEST(Catalogue, RecordsRunsFromStartToEndAndCountsResumes) {
   TempDir dir;
-  Catalogue c(dir.path() / "stand.db");
+  SqliteCatalogue c(dir.path() / "stand.db");
   c.record_run_start(make_run("20240501T120000Z-FPSS1-discrete_grid", "FPSS1", "2024-05-01T12:00:00Z"));
   c.record_run_start(make_run("20240502T080000Z-FPSS2-full_grid", "FPSS2", "2024-05-02T08:00:00Z"));
 
@@ -161,7 +161,7 @@ TEST(Catalogue, RecordsRunsFromStartToEndAndCountsResumes) {
 
 TEST(Catalogue, KeepsEachUnitsCalibrationsInDateOrder) {
   TempDir dir;
-  Catalogue c(dir.path() / "stand.db");
+  SqliteCatalogue c(dir.path() / "stand.db");
   c.record_run_start(make_run("r1", "FPSS1", "2024-05-03T10:00:00Z"));
 
   auto from_run = CalibrationRecord::from_calibration_json(calibration_json("FPSS1", 0.42), "calibration.json");
@@ -247,7 +247,7 @@ TEST(Catalogue, CalibrationJsonWithBadResidualsIsAnInputError) {
 
 TEST(Catalogue, StoresAcceptancesWithTheirCertificates) {
   TempDir dir;
-  Catalogue c(dir.path() / "stand.db");
+  SqliteCatalogue c(dir.path() / "stand.db");
   c.record_run_start(make_run("acc1", "SN-0042"));
   AcceptanceRecord a;
   a.unit = "SN-0042";
@@ -272,7 +272,7 @@ TEST(Catalogue, BadFilesGiveClearErrors) {
   TempDir dir;
   const auto missing = dir.path() / "none.db";
   try {
-    Catalogue c(missing, Catalogue::Mode::read_only);
+    SqliteCatalogue c(missing, Catalogue::Mode::read_only);
     FAIL() << "no error";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(missing.string()), std::string::npos) << e.what();
@@ -283,7 +283,7 @@ TEST(Catalogue, BadFilesGiveClearErrors) {
   std::ofstream(text) << "this is not a database, just some notes that are long enough to look like a header\n";
   for (auto mode : {Catalogue::Mode::read_only, Catalogue::Mode::read_write}) {
     try {
-      Catalogue c(text, mode);
+      SqliteCatalogue c(text, mode);
       FAIL() << "no error";
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find(text.string()), std::string::npos) << e.what();
@@ -292,13 +292,13 @@ TEST(Catalogue, BadFilesGiveClearErrors) {
 
   const auto empty_db = dir.path() / "empty.db";
   { SQLite::Database d(empty_db, SQLite::OPEN_READWRITE | SQLite::OPEN_CREATE); d.exec("CREATE TABLE t(x)"); }
-  EXPECT_THROW(Catalogue(empty_db, Catalogue::Mode::read_only), InputError);
+  EXPECT_THROW(SqliteCatalogue(empty_db, Catalogue::Mode::read_only), InputError);
 
   const auto future = dir.path() / "future.db";
-  { Catalogue c(future); c.database().exec("PRAGMA user_version = 99"); }
+  { SqliteCatalogue c(future); c.database().exec("PRAGMA user_version = 99"); }
   for (auto mode : {Catalogue::Mode::read_only, Catalogue::Mode::read_write}) {
     try {
-      Catalogue c(future, mode);
+      SqliteCatalogue c(future, mode);
       FAIL() << "no error";
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find("99"), std::string::npos) << e.what();
@@ -322,7 +322,7 @@ TEST(Catalogue, ConcurrentWritersLoseNothing) {
       ::close(go[1]);
       char c;
       if (::read(go[0], &c, 1) != 0) throw std::runtime_error("barrier");  // EOF: all start together
-      Catalogue cat(db);
+      SqliteCatalogue cat(db);
       std::mt19937 rng(1234 + w);
       for (int i = 0; i < kRunsEach; ++i) {
         const std::string unit = fmt::format("SN-{}", rng() % 5);  // units shared between writers
@@ -343,7 +343,7 @@ TEST(Catalogue, ConcurrentWritersLoseNothing) {
   std::printf("%d writers x %d runs (3 transactions each): %.2f s, %.0f commits/s\n", kWriters, kRunsEach,
               seconds, kWriters * kRunsEach * 3 / seconds);
 
-  Catalogue cat(db, Catalogue::Mode::read_only);
+  SqliteCatalogue cat(db, Catalogue::Mode::read_only);
   EXPECT_EQ(cat.integrity_check(), "ok");
   EXPECT_EQ(cat.schema_version(), Catalogue::kSchemaVersion);
   EXPECT_EQ(count_rows(db, "runs"), kWriters * kRunsEach);
@@ -392,7 +392,7 @@ TEST(Catalogue, ConcurrentImportsOfOneFileRecordItOnce) {
       ::close(done[0]);
       char c;
       if (::read(go[0], &c, 1) != 0) throw std::runtime_error("barrier");
-      Catalogue cat(db);
+      SqliteCatalogue cat(db);
       int inserted = 0;
       for (int round = 0; round < 10; ++round) {
         for (const auto& n : names) inserted += cat.record_import_once(import_of(n)).second ? 1 : 0;
@@ -409,7 +409,7 @@ TEST(Catalogue, ConcurrentImportsOfOneFileRecordItOnce) {
   ::close(done[0]);
   EXPECT_EQ(inserted, 3);
   EXPECT_EQ(count_rows(db, "calibrations"), 3);
-  Catalogue cat(db);
+  SqliteCatalogue cat(db);
   EXPECT_EQ(cat.integrity_check(), "ok");
   const auto again = cat.record_import_once(import_of("a-3-fpss1"));
   EXPECT_FALSE(again.second);
@@ -432,7 +432,7 @@ TEST(Catalogue, WriterKilledMidTransactionLeavesASoundFile) {
   ASSERT_EQ(::pipe(ready), 0);
   const pid_t kid = fork_child([&] {
     ::close(ready[0]);
-    Catalogue cat(db);
+    SqliteCatalogue cat(db);
     for (int i = 0; i < kCommitted; ++i) {
       const std::string id = fmt::format("committed-{:03}", i);
       cat.record_run_start(make_run(id, "FPSS1"));
@@ -461,7 +461,7 @@ TEST(Catalogue, WriterKilledMidTransactionLeavesASoundFile) {
   EXPECT_EQ(test::wait_exit_code(kid), 128 + SIGKILL);
   ::close(ready[0]);
 
-  Catalogue cat(db);  // a writer again, straight away: the dead process's lock is gone
+  SqliteCatalogue cat(db);  // a writer again, straight away: the dead process's lock is gone
   EXPECT_EQ(cat.integrity_check(), "ok");
   EXPECT_EQ(count_rows(db, "runs"), kCommitted);
   EXPECT_EQ(count_rows(db, "runs", "run_id LIKE 'uncommitted-%'"), 0);
@@ -484,7 +484,7 @@ TEST(Catalogue, WriterKilledWhileWritingKeepsEveryReportedCommit) {
   ASSERT_EQ(::pipe(pipe_fd), 0);
   const pid_t kid = fork_child([&] {
     ::close(pipe_fd[0]);
-    Catalogue cat(db);
+    SqliteCatalogue cat(db);
     for (int i = 0;; ++i) {
       const std::string id = fmt::format("run-{:06}", i);
       cat.record_run_start(make_run(id, "FPSS2"));
@@ -501,7 +501,7 @@ TEST(Catalogue, WriterKilledWhileWritingKeepsEveryReportedCommit) {
   EXPECT_EQ(test::wait_exit_code(kid), 128 + SIGKILL);
   ::close(pipe_fd[0]);
 
-  Catalogue cat(db, Catalogue::Mode::read_only);
+  SqliteCatalogue cat(db, Catalogue::Mode::read_only);
   EXPECT_EQ(cat.integrity_check(), "ok");
   const auto hist = cat.unit_history("FPSS2");
   ASSERT_GE(hist.size(), static_cast<size_t>(last + 1));
@@ -521,7 +521,7 @@ class CatalogueCli : public ::testing::Test {
  protected:
   void SetUp() override {
     runs_dir_ = dir_.path() / "runs";
-    Catalogue c(Catalogue::default_path(runs_dir_));
+    SqliteCatalogue c(Catalogue::default_path(runs_dir_));
     c.record_run_start(make_run("20240501T120000Z-FPSS1-discrete_grid", "FPSS1", "2024-05-01T12:00:00Z"));
     auto cal = CalibrationRecord::from_calibration_json(calibration_json("FPSS1", 0.26), "calibration.json");
     cal.run_id = "20240501T120000Z-FPSS1-discrete_grid";

@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "stand/catalogue/catalogue.h"
+#include "stand/catalogue/sqlite_catalogue.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {
@@ -105,7 +105,7 @@ class PaperHistories : public ::testing::Test {
 };
 
 TEST_F(PaperHistories, ImportsBecomeTwoUnitsHistoriesInDateOrder) {
-  Catalogue cat(db_, Catalogue::Mode::read_only);
+  SqliteCatalogue cat(db_, Catalogue::Mode::read_only);
   EXPECT_EQ(cat.integrity_check(), "ok");
   for (const char* unit : {"fpss1", "fpss2"}) {
     const std::string serial = unit == std::string("fpss1") ? "SMM-FPSS1" : "SMM-FPSS2";
@@ -125,7 +125,7 @@ TEST_F(PaperHistories, ImportsBecomeTwoUnitsHistoriesInDateOrder) {
 }
 
 TEST_F(PaperHistories, CompareVWithViForFpss1MatchesEq1Independently) {
-  Catalogue cat(db_, Catalogue::Mode::read_only);
+  SqliteCatalogue cat(db_, Catalogue::Mode::read_only);
   const auto h = cat.unit_history("SMM-FPSS1");
   ASSERT_EQ(h[5].label, "V");
   ASSERT_EQ(h[6].label, "VI");
@@ -229,7 +229,7 @@ TEST_F(PaperHistories, ReimportIsANoOpAndReportsTheChange) {
   EXPECT_TRUE(j["already_present"].get<bool>());
   EXPECT_TRUE(j["change"]["flagged"].get<bool>());
   EXPECT_EQ(j["change"]["previous_date"], "1980-08-27");
-  Catalogue cat(db_, Catalogue::Mode::read_only);
+  SqliteCatalogue cat(db_, Catalogue::Mode::read_only);
   EXPECT_EQ(cat.unit_history("SMM-FPSS1").size(), std::size(kPaper));
 }
 
@@ -299,7 +299,7 @@ TEST_F(PaperHistories, BadInputIsExitTwoAndRecordsNothing) {
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
     EXPECT_NE(r.err.find(c.needle), std::string::npos) << c.args << "\n" << r.err;
   }
-  Catalogue cat(db_, Catalogue::Mode::read_only);
+  SqliteCatalogue cat(db_, Catalogue::Mode::read_only);
   EXPECT_FALSE(cat.has_unit("X"));
 
   EXPECT_EQ(run_stand_shell("compare a-6-fpss1 a-7-fpss1 --range-deg -1", scratch_.path()).code, 2);

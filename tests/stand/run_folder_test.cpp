@@ -54,9 +54,9 @@ TEST(RunFolder, ASecondOwnerIsRefusedAndEverySpellingReachesTheSameRun) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_FALSE(fs::exists(run / "stand.db"));
   EXPECT_EQ(run_json(run)["outcome"], "completed");
-  Catalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
-  EXPECT_EQ(cat.find_run(run.filename().string())->outcome, "completed");
-  EXPECT_EQ(cat.run_calibrations(run.filename().string()).size(), 1u);
+  SqliteCatalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
+  EXPECT_EQ(cat.find_run(run_id_of(run))->outcome, "completed");
+  EXPECT_EQ(cat.run_calibrations(run_id_of(run)).size(), 1u);
 }
 
 TEST(RunFolder, ACatalogueThatCannotRecordExitsOneThenRebuildIndexesTheFolder) {
@@ -106,11 +106,11 @@ TEST(RunFolder, ACatalogueThatCannotRecordExitsOneThenRebuildIndexesTheFolder) {
   j = nlohmann::json::parse(rb.out);
   EXPECT_EQ(j["runs_added"], 0);
   EXPECT_EQ(j["calibrations_added"], 0);
-  Catalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
-  const auto rec = cat.find_run(run.filename().string());
+  SqliteCatalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
+  const auto rec = cat.find_run(run_id_of(run));
   ASSERT_TRUE(rec);
   EXPECT_EQ(rec->outcome, "completed");
-  EXPECT_EQ(cat.run_calibrations(run.filename().string()).size(), 1u);
+  EXPECT_EQ(cat.run_calibrations(run_id_of(run)).size(), 1u);
 }
 
 }  // namespace

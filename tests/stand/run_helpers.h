@@ -12,7 +12,7 @@
 #include "calib/calibrator.h"
 #include "calib/coefficients.h"
 #include "calib/samples.h"
-#include "stand/catalogue/catalogue.h"
+#include "stand/catalogue/sqlite_catalogue.h"
 #include "procedures/procedure.h"
 #include "procedures/recorder.h"
 #include "tests/procedures/run_util.h"
@@ -30,6 +30,8 @@ inline fs::path only_run(const fs::path& runs) {
 }
 
 inline nlohmann::json run_json(const fs::path& dir) { return read_json_file(dir / "run.json"); }
+// The catalogue's id of a run: run.json's run_id (a UUIDv7), not the folder's name.
+inline std::string run_id_of(const fs::path& dir) { return run_json(dir).at("run_id").get<std::string>(); }
 
 // A point's identity and measurement, as recorded.
 struct PointRec {

@@ -95,8 +95,8 @@ TEST(Run, SigtermAndSigintStopSafelyAndMarkTheRunInterrupted) {
     // The recording up to the interruption is whole.
     const SampleTable t = read_samples_csv(run / "samples.csv");
     expect_contiguous_points(t, static_cast<int64_t>(RunRecorder::read_journal(run / "points.jsonl").size()));
-    Catalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
-    EXPECT_EQ(cat.find_run(run.filename().string())->outcome, "interrupted");
+    SqliteCatalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
+    EXPECT_EQ(cat.find_run(run_id_of(run))->outcome, "interrupted");
   }
 }
 

@@ -49,8 +49,8 @@ TEST(Run, DiscreteGridCalibratesWithinATenthOfAnArcsecondOfTheTruth) {
   EXPECT_LT(db, 0.1);
 
   // The catalogue knows the run and the unit's calibration.
-  Catalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
-  const auto rec = cat.find_run(run.filename().string());
+  SqliteCatalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
+  const auto rec = cat.find_run(run_id_of(run));
   ASSERT_TRUE(rec);
   EXPECT_EQ(rec->outcome, "completed");
   EXPECT_EQ(rec->procedure_hash, doc["procedure"]["sha256"]);

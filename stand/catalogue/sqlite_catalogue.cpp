@@ -1,4 +1,5 @@
-#include "stand/catalogue/catalogue.h"
+// The SQLite backend of the catalogue: one file, WAL, short IMMEDIATE transactions.
+#include "stand/catalogue/sqlite_catalogue.h"
 
 #include "procedures/recorder.h"
 
@@ -19,20 +20,14 @@
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
-#include "stand/catalogue/schema.h"
+#include "stand/catalogue/sqlite_schema.h"
 
 namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
 
-static_assert(std::size(catalogue_schema::kMigrations) == Catalogue::kSchemaVersion);
-
-std::string host_name() {
-  char buf[256] = {};
-  if (::gethostname(buf, sizeof buf - 1) != 0) return "";
-  return buf;
-}
+static_assert(std::size(sqlite_schema::kMigrations) == Catalogue::kSchemaVersion);
 
 [[noreturn]] void fail(const fs::path& path, const std::string& what, const SQLite::Exception& e) {
   // SQLITE_NOTADB (26) and SQLITE_CORRUPT (11) are about the file the user named.
@@ -140,7 +135,7 @@ RunRecord read_run(SQLite::Statement& st) {
 }
 
 const std::string kCalibrationColumns =
-    "id, unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, coefficients_json, " +
+    "id, unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, coefficients_json, stand, host, " +
     stat_columns("{}_{}");
 
 CalibrationRecord read_calibration(SQLite::Statement& st) {
@@ -157,11 +152,13 @@ CalibrationRecord read_calibration(SQLite::Statement& st) {
   c.coefficients = nlohmann::json::parse(st.getColumn("coefficients_json").getString());
   c.pitch = read_stats(st, "pitch");
   c.yaw = read_stats(st, "yaw");
+  c.stand = st.getColumn("stand").getString();
+  c.host = st.getColumn("host").getString();
   return c;
 }
 
 const char* const kAcceptanceColumns =
-    "id, unit, run_id, passed, date_utc, recorded_utc, certificate_json";
+    "id, unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, host";
 
 AcceptanceRecord read_acceptance(SQLite::Statement& st) {
   AcceptanceRecord a;
@@ -172,6 +169,8 @@ AcceptanceRecord read_acceptance(SQLite::Statement& st) {
   a.date_utc = st.getColumn("date_utc").getString();
   a.recorded_utc = st.getColumn("recorded_utc").getString();
   a.certificate = nlohmann::json::parse(st.getColumn("certificate_json").getString());
+  a.stand = st.getColumn("stand").getString();
+  a.host = st.getColumn("host").getString();
   return a;
 }
 
@@ -194,14 +193,7 @@ bool run_exists(SQLite::Database& db, const std::string& run_id) {
 
 }  // namespace
 
-bool RunRecord::stale() const {
-  if (outcome != outcome::running || pid <= 0 || host.empty() || host != host_name()) return false;
-  return ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH;
-}
-
-fs::path Catalogue::default_path(const fs::path& runs_dir) { return runs_dir / "stand.db"; }
-
-Catalogue::Catalogue(const fs::path& path, Mode mode, int busy_timeout_ms) : path_(path) {
+SqliteCatalogue::SqliteCatalogue(const fs::path& path, Mode mode, int busy_timeout_ms) : path_(path) {
   const bool ro = mode == Mode::read_only;
   if (ro && !fs::exists(path_)) {
     throw InputError(fmt::format("{}: no catalogue there (no run has been recorded with it)", path_.string()));
@@ -234,10 +226,18 @@ Catalogue::Catalogue(const fs::path& path, Mode mode, int busy_timeout_ms) : pat
       if (v == 0) {
         throw InputError(fmt::format("{}: not a stand catalogue (no schema)", path_.string()));
       }
+      if (v > kSchemaVersion) {
+        throw InputError(fmt::format("{}: catalogue schema version {} is newer than this fpss-stand ({})",
+                                     path_.string(), v, kSchemaVersion));
+      }
       if (v != kSchemaVersion) {
-        throw InputError(fmt::format(
-            "{}: catalogue schema version {} but this fpss-stand reads version {}{}", path_.string(), v,
-            kSchemaVersion, v < kSchemaVersion ? " (a run with this version upgrades it)" : ""));
+        // Migrations apply on first use, a read included: upgrade through a writer, then read.
+        try {
+          SqliteCatalogue upgrade(path_, Mode::read_write, busy_timeout_ms);
+        } catch (const std::exception& e) {
+          throw InputError(fmt::format("{}: catalogue schema version {} must be upgraded to {} and cannot be: {}",
+                                       path_.string(), v, kSchemaVersion, e.what()));
+        }
       }
     }
   } catch (const SQLite::Exception& e) {
@@ -245,11 +245,11 @@ Catalogue::Catalogue(const fs::path& path, Mode mode, int busy_timeout_ms) : pat
   }
 }
 
-Catalogue::~Catalogue() = default;
+SqliteCatalogue::~SqliteCatalogue() = default;
 
-int Catalogue::schema_version() const { return db_->execAndGet("PRAGMA user_version").getInt(); }
+int SqliteCatalogue::schema_version() const { return db_->execAndGet("PRAGMA user_version").getInt(); }
 
-void Catalogue::init_schema() {
+void SqliteCatalogue::init_schema() {
   if (schema_version() == kSchemaVersion) return;  // the common case: no write lock needed
   write_txn(*db_, [&] {
     const int v = schema_version();  // again, under the lock: another process may have done it
@@ -257,12 +257,12 @@ void Catalogue::init_schema() {
       throw InputError(fmt::format("{}: catalogue schema version {} is newer than this fpss-stand ({})",
                                    path_.string(), v, kSchemaVersion));
     }
-    for (int step = v; step < kSchemaVersion; ++step) db_->exec(catalogue_schema::kMigrations[step]);
+    for (int step = v; step < kSchemaVersion; ++step) db_->exec(sqlite_schema::kMigrations[step]);
     db_->exec(fmt::format("PRAGMA user_version = {}", kSchemaVersion));
   });
 }
 
-bool Catalogue::add_unit(const std::string& serial) {
+bool SqliteCatalogue::add_unit(const std::string& serial) {
   require_unit(serial);
   try {
     return write_txn(*db_, [&] { return insert_unit(*db_, serial); });
@@ -271,7 +271,7 @@ bool Catalogue::add_unit(const std::string& serial) {
   }
 }
 
-void Catalogue::record_run_start(const RunStart& run) {
+void SqliteCatalogue::record_run_start(const RunStart& run) {
   if (run.run_id.empty()) throw std::invalid_argument("record_run_start: empty run id");
   require_unit(run.unit);
   try {
@@ -303,7 +303,7 @@ void Catalogue::record_run_start(const RunStart& run) {
       st.bind(":stand", run.stand);
       st.bind(":version", run.software_version);
       st.bind(":pid", static_cast<int64_t>(::getpid()));
-      st.bind(":host", host_name());
+      st.bind(":host", this_host());
       st.exec();
     });
   } catch (const SQLite::Exception& e) {
@@ -311,7 +311,7 @@ void Catalogue::record_run_start(const RunStart& run) {
   }
 }
 
-void Catalogue::record_run_end(const std::string& run_id, const std::string& outcome,
+void SqliteCatalogue::record_run_end(const std::string& run_id, const std::string& outcome,
                                const std::string& ended_utc) {
   if (outcome.empty() || outcome == outcome::running) {
     throw std::invalid_argument("record_run_end: the outcome must be a final one");
@@ -326,6 +326,35 @@ void Catalogue::record_run_end(const std::string& run_id, const std::string& out
     });
   } catch (const SQLite::Exception& e) {
     fail(path_, "cannot record the end of run " + run_id, e);
+  }
+}
+
+bool SqliteCatalogue::copy_run(const RunRecord& r) {
+  require_unit(r.unit);
+  try {
+    return write_txn(*db_, [&] {
+      insert_unit(*db_, r.unit);
+      SQLite::Statement st(*db_, fmt::format("INSERT OR IGNORE INTO runs({}) VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                                             kRunColumns));
+      st.bind(1, r.run_id);
+      st.bind(2, r.unit);
+      st.bind(3, r.procedure);
+      st.bind(4, r.procedure_hash);
+      st.bind(5, r.started_utc);
+      if (r.ended_utc) st.bind(6, *r.ended_utc);
+      else st.bind(6);
+      st.bind(7, r.outcome);
+      st.bind(8, r.run_dir);
+      st.bind(9, r.emulated ? 1 : 0);
+      st.bind(10, r.stand);
+      st.bind(11, r.software_version);
+      st.bind(12, r.resumes);
+      st.bind(13, r.pid);
+      st.bind(14, r.host);
+      return st.exec() == 1;
+    });
+  } catch (const SQLite::Exception& e) {
+    fail(path_, "cannot copy run " + r.run_id, e);
   }
 }
 
@@ -351,8 +380,8 @@ int64_t insert_calibration(SQLite::Database& db, const CalibrationRecord& cal) {
   const std::string now = utc_now_iso();
   static const std::string sql = fmt::format(
       "INSERT INTO calibrations(unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, "
-      "coefficients_json, {}) VALUES(:unit, :source, :run_id, :source_ref, :label, :date, :recorded, "
-      ":method, :coefficients, {})",
+      "coefficients_json, stand, host, {}) VALUES(:unit, :source, :run_id, :source_ref, :label, :date, :recorded, "
+      ":method, :coefficients, :stand, :host, {})",
       stat_columns("{}_{}"), stat_columns(":{}_{}"));
   SQLite::Statement st(db, sql);
   st.bind(":unit", cal.unit);
@@ -364,6 +393,8 @@ int64_t insert_calibration(SQLite::Database& db, const CalibrationRecord& cal) {
   st.bind(":recorded", now);
   st.bind(":method", cal.method);
   st.bind(":coefficients", cal.coefficients.dump());
+  st.bind(":stand", cal.stand);
+  st.bind(":host", cal.host.empty() ? this_host() : cal.host);
   bind_stats(st, "pitch", cal.pitch);
   bind_stats(st, "yaw", cal.yaw);
   st.exec();
@@ -372,7 +403,7 @@ int64_t insert_calibration(SQLite::Database& db, const CalibrationRecord& cal) {
 
 }  // namespace
 
-int64_t Catalogue::record_calibration(const CalibrationRecord& cal) {
+int64_t SqliteCatalogue::record_calibration(const CalibrationRecord& cal) {
   check_calibration(cal);
   try {
     return write_txn(*db_, [&] { return insert_calibration(*db_, cal); });
@@ -381,7 +412,7 @@ int64_t Catalogue::record_calibration(const CalibrationRecord& cal) {
   }
 }
 
-std::pair<int64_t, bool> Catalogue::record_import_once(const CalibrationRecord& cal) {
+std::pair<int64_t, bool> SqliteCatalogue::record_import_once(const CalibrationRecord& cal) {
   check_calibration(cal);
   if (cal.source != "import") throw std::invalid_argument("record_import_once: the calibration is not an import");
   if (cal.date_utc.empty()) throw std::invalid_argument("record_import_once: an import needs its date");
@@ -401,7 +432,7 @@ std::pair<int64_t, bool> Catalogue::record_import_once(const CalibrationRecord& 
   }
 }
 
-int64_t Catalogue::record_acceptance(const AcceptanceRecord& acc) {
+int64_t SqliteCatalogue::record_acceptance(const AcceptanceRecord& acc) {
   require_unit(acc.unit);
   try {
     return write_txn(*db_, [&]() -> int64_t {
@@ -411,8 +442,8 @@ int64_t Catalogue::record_acceptance(const AcceptanceRecord& acc) {
       insert_unit(*db_, acc.unit);
       const std::string now = utc_now_iso();
       SQLite::Statement st(*db_, R"sql(
-        INSERT INTO acceptances(unit, run_id, passed, date_utc, recorded_utc, certificate_json)
-        VALUES(?, ?, ?, ?, ?, ?))sql");
+        INSERT INTO acceptances(unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, host)
+        VALUES(?, ?, ?, ?, ?, ?, ?, ?))sql");
       st.bind(1, acc.unit);
       if (acc.run_id) st.bind(2, *acc.run_id);
       else st.bind(2);
@@ -420,6 +451,8 @@ int64_t Catalogue::record_acceptance(const AcceptanceRecord& acc) {
       st.bind(4, acc.date_utc.empty() ? now : acc.date_utc);
       st.bind(5, now);
       st.bind(6, acc.certificate.dump());
+      st.bind(7, acc.stand);
+      st.bind(8, acc.host.empty() ? this_host() : acc.host);
       st.exec();
       return db_->getLastInsertRowid();
     });
@@ -428,7 +461,7 @@ int64_t Catalogue::record_acceptance(const AcceptanceRecord& acc) {
   }
 }
 
-std::vector<std::string> Catalogue::units() const {
+std::vector<std::string> SqliteCatalogue::units() const {
   try {
     std::vector<std::string> out;
     SQLite::Statement st(*db_, "SELECT serial FROM units ORDER BY serial");
@@ -439,7 +472,7 @@ std::vector<std::string> Catalogue::units() const {
   }
 }
 
-bool Catalogue::has_unit(const std::string& serial) const {
+bool SqliteCatalogue::has_unit(const std::string& serial) const {
   try {
     SQLite::Statement st(*db_, "SELECT 1 FROM units WHERE serial = ?");
     st.bind(1, serial);
@@ -449,7 +482,7 @@ bool Catalogue::has_unit(const std::string& serial) const {
   }
 }
 
-std::vector<RunRecord> Catalogue::list_runs(const RunFilter& filter) const {
+std::vector<RunRecord> SqliteCatalogue::list_runs(const RunFilter& filter) const {
   try {
     std::string sql = fmt::format("SELECT {} FROM runs", kRunColumns);
     if (filter.unit) sql += " WHERE unit = :unit";
@@ -466,7 +499,7 @@ std::vector<RunRecord> Catalogue::list_runs(const RunFilter& filter) const {
   }
 }
 
-std::optional<RunRecord> Catalogue::find_run(const std::string& run_id) const {
+std::optional<RunRecord> SqliteCatalogue::find_run(const std::string& run_id) const {
   try {
     SQLite::Statement st(*db_, fmt::format("SELECT {} FROM runs WHERE run_id = ?", kRunColumns));
     st.bind(1, run_id);
@@ -477,7 +510,7 @@ std::optional<RunRecord> Catalogue::find_run(const std::string& run_id) const {
   }
 }
 
-std::vector<CalibrationRecord> Catalogue::unit_history(const std::string& serial) const {
+std::vector<CalibrationRecord> SqliteCatalogue::unit_history(const std::string& serial) const {
   try {
     SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE unit = ? ORDER BY date_utc, id",
                                            kCalibrationColumns));
@@ -490,7 +523,7 @@ std::vector<CalibrationRecord> Catalogue::unit_history(const std::string& serial
   }
 }
 
-std::optional<CalibrationRecord> Catalogue::find_calibration(int64_t id) const {
+std::optional<CalibrationRecord> SqliteCatalogue::find_calibration(int64_t id) const {
   try {
     SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE id = ?", kCalibrationColumns));
     st.bind(1, id);
@@ -501,7 +534,7 @@ std::optional<CalibrationRecord> Catalogue::find_calibration(int64_t id) const {
   }
 }
 
-std::vector<CalibrationRecord> Catalogue::run_calibrations(const std::string& run_id) const {
+std::vector<CalibrationRecord> SqliteCatalogue::run_calibrations(const std::string& run_id) const {
   try {
     SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE run_id = ? ORDER BY id",
                                            kCalibrationColumns));
@@ -514,7 +547,7 @@ std::vector<CalibrationRecord> Catalogue::run_calibrations(const std::string& ru
   }
 }
 
-std::vector<AcceptanceRecord> Catalogue::unit_acceptances(const std::string& serial) const {
+std::vector<AcceptanceRecord> SqliteCatalogue::unit_acceptances(const std::string& serial) const {
   try {
     SQLite::Statement st(*db_, fmt::format("SELECT {} FROM acceptances WHERE unit = ? ORDER BY date_utc, id",
                                            kAcceptanceColumns));
@@ -527,7 +560,7 @@ std::vector<AcceptanceRecord> Catalogue::unit_acceptances(const std::string& ser
   }
 }
 
-std::string Catalogue::integrity_check() const {
+std::string SqliteCatalogue::integrity_check() const {
   try {
     std::string out;
     SQLite::Statement st(*db_, "PRAGMA integrity_check");

@@ -1,8 +1,8 @@
-// The catalogue's SQLite schema, as versioned migrations.
+// The catalogue's SQLite schema, as versioned migrations (the PostgreSQL ones are numbered alike).
 #pragma once
 #include <iterator>
 
-namespace fpss::catalogue_schema {
+namespace fpss::sqlite_schema {
 
 // Schema migrations: kMigrations[v] takes a catalogue from user_version v to v + 1. Each runs
 // inside the IMMEDIATE transaction that also sets user_version, so two processes opening a
@@ -71,6 +71,14 @@ CREATE TABLE IF NOT EXISTS acceptances (
 );
 CREATE INDEX IF NOT EXISTS acceptances_by_unit ON acceptances(unit, date_utc, id);
 )sql",
+    // 1 -> 2: every record names the stand and host that wrote it (a fleet shares one catalogue).
+    R"sql(
+ALTER TABLE calibrations ADD COLUMN stand TEXT NOT NULL DEFAULT '';
+ALTER TABLE calibrations ADD COLUMN host TEXT NOT NULL DEFAULT '';
+ALTER TABLE acceptances ADD COLUMN stand TEXT NOT NULL DEFAULT '';
+ALTER TABLE acceptances ADD COLUMN host TEXT NOT NULL DEFAULT '';
+CREATE INDEX IF NOT EXISTS runs_by_stand ON runs(stand, started_utc);
+)sql",
 };
 
-}  // namespace fpss::catalogue_schema
+}  // namespace fpss::sqlite_schema

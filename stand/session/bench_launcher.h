@@ -1,0 +1,29 @@
+// The bench of a run: an emulator child (its log kept in the run folder) or the stand's endpoints.
+#pragma once
+#include <filesystem>
+#include <memory>
+
+#include <spdlog/spdlog.h>
+
+#include "stand/config/stand_config.h"
+#include "stand/session/emulator_process.h"
+#include "stand/session/session.h"
+
+namespace fpss {
+
+struct BenchLauncher {
+  std::unique_ptr<EmulatorProcess> emu;
+  std::filesystem::path tmp_log;  // the child's log until the run folder exists
+
+  // Starts the emulator child when the request has one and points the stand's endpoints at it.
+  void start(const SessionRequest& req, bool resuming, StandConfig& stand, spdlog::logger& log);
+  // Moves the child's log into the run folder (or removes it when there is none).
+  void settle_log(const std::filesystem::path& run_dir);
+  int stop() { return emu ? emu->stop() : -1; }
+  ~BenchLauncher() {
+    stop();
+    settle_log({});
+  }
+};
+
+}  // namespace fpss

@@ -1,0 +1,20 @@
+// What the run's computation steps check: the rows a step may use, a check step's limits.
+#pragma once
+#include <cstdint>
+#include <string>
+
+#include "calib/calibrator.h"
+#include "calib/samples.h"
+#include "procedures/procedure.h"
+
+namespace fpss {
+
+// The rows of the points before a computation step (points 1..last_step): what it may use.
+SampleTable rows_up_to(const SampleTable& all, int64_t last_step);
+// The limits `r` breaks, one clause each ("pitch max |residual| 2.300 arcsec > 2.1 arcsec; ..."),
+// or "" when none.
+std::string check_limits(const ResidualLimits& lim, const ResidualStats& r, const char* axis);
+// Residuals a hundred times a limit.
+bool absurd(const ResidualLimits& lim, const ResidualStats& r);
+
+}  // namespace fpss

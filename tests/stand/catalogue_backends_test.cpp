@@ -1,0 +1,447 @@
+// One suite, both backends: the catalogue's semantics on a real SQLite file and on a real PostgreSQL
+// server started by the test (tests/support/pg_server.h): records, order, schema versions and
+// migrations, concurrent writers (processes), imports recorded once, copy between backends.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <SQLiteCpp/SQLiteCpp.h>
+#include <fmt/format.h>
+
+#include <atomic>
+#include <functional>
+#include <random>
+#include <set>
+
+#include "calib/coefficients.h"
+#include "calib/errors.h"
+#include "stand/catalogue/copy.h"
+#include "stand/catalogue/postgres_catalogue.h"
+#include "stand/catalogue/postgres_schema.h"
+#include "stand/catalogue/sqlite_catalogue.h"
+#include "stand/catalogue/sqlite_schema.h"
+#include "tests/support/pg_server.h"
+#include "tests/support/test_support.h"
+
+namespace fpss {
+namespace {
+
+namespace fs = std::filesystem;
+
+// One server for the whole binary; one database per test.
+test::PgServer& pg() {
+  static test::PgServer server;
+  return server;
+}
+
+RunStart make_run(const std::string& id, const std::string& unit, const std::string& started = "") {
+  RunStart r;
+  r.run_id = id;
+  r.unit = unit;
+  r.procedure = "discrete_grid";
+  r.procedure_hash = "sha256:0123abcd";
+  r.started_utc = started;
+  r.run_dir = "runs/" + id;
+  r.emulated = true;
+  r.stand = "stand-A";
+  return r;
+}
+
+nlohmann::json calibration_json(const std::string& unit, double pitch_mean) {
+  auto j = to_json(load_published("a-6-fpss1"));
+  j["unit"] = unit;
+  j["method"] = "differences";
+  j["residuals"] = {{"pitch", {{"mean_abs_arcsec", pitch_mean}, {"sd_arcsec", 0.2}, {"max_abs_arcsec", 0.9},
+                               {"points", 40}, {"range_deg", {-0.42, 0.42}}}},
+                    {"yaw", {{"mean_abs_arcsec", 0.31}, {"points", 38}}}};
+  return j;
+}
+
+// Runs `body` in a forked child; its exit code is 0 when body returns, 1 when it throws.
+pid_t fork_child(const std::function<void()>& body) {
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    int code = 0;
+    try {
+      body();
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "child %d: %s\n", ::getpid(), e.what());
+      code = 1;
+    }
+    std::fflush(nullptr);
+    ::_exit(code);
+  }
+  return pid;
+}
+
+enum class Backend { sqlite, postgresql };
+
+class Backends : public ::testing::TestWithParam<Backend> {
+ protected:
+  void SetUp() override {
+    static std::atomic<int> n{0};
+    if (GetParam() == Backend::sqlite) {
+      url_ = "sqlite:" + (dir_.path() / "stand.db").string();
+    } else {
+      db_ = fmt::format("t{}_{}", ::getpid(), n++);
+      url_ = pg().create_database(db_);
+    }
+  }
+  std::unique_ptr<Catalogue> open(Catalogue::Mode m = Catalogue::Mode::read_write) { return open_catalogue(url_, m); }
+  // Writes a schema version into the catalogue behind its back (a newer binary, or an old file).
+  void set_version(int v) {
+    if (GetParam() == Backend::sqlite) {
+      SQLite::Database d(dir_.path() / "stand.db", SQLite::OPEN_READWRITE);
+      d.exec(fmt::format("PRAGMA user_version = {}", v));
+    } else {
+      pg().psql(db_, fmt::format("UPDATE schema_version SET version = {}", v));
+    }
+  }
+  // A catalogue made by a binary that knew only schema version 1.
+  void make_version_1() {
+    if (GetParam() == Backend::sqlite) {
+      SQLite::Database d(dir_.path() / "stand.db", SQLite::OPEN_READWRITE | SQLite::OPEN_CREATE);
+      d.exec(sqlite_schema::kMigrations[0]);
+      d.exec("PRAGMA user_version = 1");
+      d.exec("INSERT INTO units VALUES('OLD-1', '2024-01-01T00:00:00Z')");
+    } else {
+      pg().psql(db_, std::string(postgres_schema::kMigrations[0]) +
+                         "CREATE TABLE schema_version (version INTEGER NOT NULL);"
+                         "INSERT INTO schema_version VALUES (1);"
+                         "INSERT INTO units VALUES('OLD-1', '2024-01-01T00:00:00Z');");
+    }
+  }
+
+  test::TempDir dir_;
+  std::string url_, db_;
+};
+
+TEST_P(Backends, RecordsRunsFromStartToEndAndCountsResumes) {
+  auto c = open();
+  EXPECT_EQ(c->schema_version(), Catalogue::kSchemaVersion);
+  c->record_run_start(make_run("r1", "SN-1", "2024-05-01T10:00:00Z"));
+  c->record_run_start(make_run("r2", "SN-1", "2024-05-02T10:00:00Z"));
+  c->record_run_start(make_run("r3", "SN-2", "2024-05-03T10:00:00Z"));
+  c->record_run_end("r1", outcome::interrupted, "2024-05-01T11:00:00Z");
+  c->record_run_start(make_run("r1", "SN-1", "2099-01-01T00:00:00Z"));  // a resume keeps the start
+  c->record_run_end("r1", outcome::completed);
+  EXPECT_THROW(c->record_run_end("nope", outcome::completed), std::invalid_argument);
+  EXPECT_THROW(c->record_run_start(make_run("r1", "SN-9")), std::invalid_argument);  // another unit's id
+
+  const auto runs = c->list_runs();
+  ASSERT_EQ(runs.size(), 3u);
+  EXPECT_EQ(runs[0].run_id, "r3");  // most recent first
+  EXPECT_EQ(runs[2].run_id, "r1");
+  const auto r1 = c->find_run("r1").value();
+  EXPECT_EQ(r1.started_utc, "2024-05-01T10:00:00Z");
+  EXPECT_EQ(r1.outcome, "completed");
+  EXPECT_EQ(r1.resumes, 1);
+  EXPECT_EQ(r1.stand, "stand-A");
+  EXPECT_EQ(r1.host, this_host());
+  EXPECT_EQ(r1.pid, ::getpid());
+  EXPECT_TRUE(fs::path(r1.run_dir).is_absolute());
+  EXPECT_EQ(c->list_runs({.unit = "SN-1", .limit = 1}).size(), 1u);
+  EXPECT_EQ(c->list_runs({.unit = "SN-1", .limit = 1})[0].run_id, "r2");
+  EXPECT_EQ(c->units(), (std::vector<std::string>{"SN-1", "SN-2"}));
+  EXPECT_TRUE(c->has_unit("SN-2"));
+  EXPECT_FALSE(c->has_unit("SN-3"));
+  EXPECT_FALSE(c->add_unit("SN-2"));
+  EXPECT_TRUE(c->add_unit("SN-3"));
+  EXPECT_EQ(c->integrity_check(), "ok");
+}
+
+TEST_P(Backends, KeepsCalibrationsInDateOrderWithTheirStatsAndOrigin) {
+  auto c = open();
+  c->record_run_start(make_run("r1", "SN-1"));
+  auto late = CalibrationRecord::from_calibration_json(calibration_json("SN-1", 0.26), "late");
+  late.source = "run";
+  late.run_id = "r1";
+  late.date_utc = "2024-06-01T00:00:00Z";
+  late.stand = "stand-A";
+  const int64_t late_id = c->record_calibration(late);
+  auto early = CalibrationRecord::from_calibration_json(calibration_json("SN-1", 0.5), "early");
+  early.source = "import";
+  early.source_ref = "/elsewhere/early.json";
+  early.date_utc = "2024-01-01";
+  early.label = "VI";
+  const auto [early_id, fresh] = c->record_import_once(early);
+  EXPECT_TRUE(fresh);
+  EXPECT_EQ(c->record_import_once(early), std::make_pair(early_id, false));  // the same import again: no-op
+  auto orphan = late;
+  orphan.run_id = "no-such-run";
+  EXPECT_THROW(c->record_calibration(orphan), std::invalid_argument);
+
+  const auto h = c->unit_history("SN-1");
+  ASSERT_EQ(h.size(), 2u);
+  EXPECT_EQ(h[0].id, early_id);
+  EXPECT_EQ(h[0].label, "VI");
+  EXPECT_FALSE(h[0].run_id.has_value());
+  EXPECT_EQ(h[1].id, late_id);
+  EXPECT_EQ(h[1].run_id.value(), "r1");
+  EXPECT_EQ(h[1].stand, "stand-A");
+  EXPECT_EQ(h[1].host, this_host());
+  EXPECT_DOUBLE_EQ(h[1].pitch->mean_abs_arcsec.value(), 0.26);
+  EXPECT_DOUBLE_EQ(h[1].pitch->range_lo_deg.value(), -0.42);
+  EXPECT_EQ(h[1].pitch->points.value(), 40);
+  EXPECT_FALSE(h[1].yaw->sd_arcsec.has_value());
+  EXPECT_EQ(h[1].coefficients, late.coefficients);  // the JSON comes back as it went in
+  EXPECT_EQ(c->find_calibration(late_id)->unit, "SN-1");
+  EXPECT_FALSE(c->find_calibration(late_id + 1000).has_value());
+  EXPECT_EQ(c->run_calibrations("r1").size(), 1u);
+}
+
+TEST_P(Backends, StoresAcceptancesWithTheirCertificates) {
+  auto c = open();
+  c->record_run_start(make_run("r1", "SN-1"));
+  AcceptanceRecord a;
+  a.unit = "SN-1";
+  a.run_id = "r1";
+  a.passed = true;
+  a.date_utc = "2024-05-01T12:00:00Z";
+  a.certificate = {{"verdict", "pass"}, {"criteria", {1, 2, 3}}};
+  a.stand = "stand-B";
+  const int64_t id = c->record_acceptance(a);
+  a.run_id = "nope";
+  EXPECT_THROW(c->record_acceptance(a), std::invalid_argument);
+  const auto acc = c->unit_acceptances("SN-1");
+  ASSERT_EQ(acc.size(), 1u);
+  EXPECT_EQ(acc[0].id, id);
+  EXPECT_TRUE(acc[0].passed);
+  EXPECT_EQ(acc[0].certificate["criteria"][2], 3);
+  EXPECT_EQ(acc[0].stand, "stand-B");
+  EXPECT_EQ(acc[0].host, this_host());
+}
+
+TEST_P(Backends, MigratesAnOlderSchemaAndRefusesANewerOne) {
+  make_version_1();
+  EXPECT_EQ(open(Catalogue::Mode::read_only)->schema_version(), Catalogue::kSchemaVersion);  // a read upgrades too
+  {
+    auto c = open();
+    EXPECT_EQ(c->schema_version(), Catalogue::kSchemaVersion);
+    EXPECT_TRUE(c->has_unit("OLD-1"));  // what was there stays
+    c->record_run_start(make_run("r1", "OLD-1"));
+    auto cal = CalibrationRecord::from_calibration_json(calibration_json("OLD-1", 0.3), "x");
+    cal.source = "run";
+    cal.run_id = "r1";
+    cal.stand = "stand-C";
+    c->record_calibration(cal);
+    EXPECT_EQ(c->unit_history("OLD-1").at(0).stand, "stand-C");
+  }
+  set_version(Catalogue::kSchemaVersion + 7);
+  for (auto mode : {Catalogue::Mode::read_write, Catalogue::Mode::read_only}) {
+    const std::string msg = test::error_of<InputError>([&] { open(mode); });
+    EXPECT_NE(msg.find(fmt::format("schema version {}", Catalogue::kSchemaVersion + 7)), std::string::npos) << msg;
+    EXPECT_NE(msg.find("newer"), std::string::npos) << msg;
+  }
+}
+
+TEST_P(Backends, ReadOnlyRefusesWhatIsNoCatalogue) {
+  if (GetParam() == Backend::postgresql) {
+    const std::string msg = test::error_of<InputError>([&] { open(Catalogue::Mode::read_only); });
+    EXPECT_NE(msg.find("not a stand catalogue"), std::string::npos) << msg;
+  } else {
+    EXPECT_THROW(open(Catalogue::Mode::read_only), InputError);  // no file
+  }
+  open();  // a writer creates the schema
+  EXPECT_EQ(open(Catalogue::Mode::read_only)->schema_version(), Catalogue::kSchemaVersion);
+}
+
+// Processes writing at once, on a fresh catalogue (so they also race to create the schema):
+// nothing lost, nothing duplicated, every row its writer's.
+TEST_P(Backends, ConcurrentWritersLoseAndDuplicateNothing) {
+  constexpr int kWriters = 6, kRunsEach = 15;
+  int go[2];
+  ASSERT_EQ(::pipe(go), 0);
+  std::vector<pid_t> kids;
+  for (int w = 0; w < kWriters; ++w) {
+    kids.push_back(fork_child([&, w] {
+      ::close(go[1]);
+      char ch;
+      if (::read(go[0], &ch, 1) != 0) throw std::runtime_error("barrier");
+      auto cat = open();
+      std::mt19937 rng(99 + w);
+      for (int i = 0; i < kRunsEach; ++i) {
+        const std::string unit = fmt::format("SN-{}", rng() % 3);  // shared units: contention
+        const std::string id = fmt::format("w{}-r{:03}", w, i);
+        cat->record_run_start(make_run(id, unit));
+        auto cal = CalibrationRecord::from_calibration_json(calibration_json(unit, 0.1 * w + 0.001 * i), id);
+        cal.source = "run";
+        cal.run_id = id;
+        cat->record_calibration(cal);
+        cat->record_run_end(id, outcome::completed);
+      }
+    }));
+  }
+  ::close(go[0]);
+  ::close(go[1]);
+  for (pid_t k : kids) EXPECT_EQ(test::wait_exit_code(k), 0);
+  auto c = open(Catalogue::Mode::read_only);
+  const auto runs = c->list_runs();
+  EXPECT_EQ(runs.size(), static_cast<size_t>(kWriters * kRunsEach));
+  std::set<std::string> ids;
+  for (const auto& r : runs) {
+    ids.insert(r.run_id);
+    EXPECT_EQ(r.outcome, "completed");
+  }
+  EXPECT_EQ(ids.size(), runs.size());
+  std::set<int64_t> cal_ids;
+  for (const auto& u : c->units()) {
+    for (const auto& cal : c->unit_history(u)) {
+      int w = -1, i = -1;
+      ASSERT_EQ(std::sscanf(cal.run_id.value().c_str(), "w%d-r%d", &w, &i), 2);
+      EXPECT_NEAR(cal.pitch->mean_abs_arcsec.value(), 0.1 * w + 0.001 * i, 1e-12);
+      EXPECT_TRUE(cal_ids.insert(cal.id).second);
+    }
+  }
+  EXPECT_EQ(cal_ids.size(), static_cast<size_t>(kWriters * kRunsEach));
+}
+
+TEST_P(Backends, ConcurrentImportsOfOneFileRecordItOnce) {
+  open();  // the schema first: this test is about the import, not the creation
+  constexpr int kProcs = 6;
+  int go[2];
+  ASSERT_EQ(::pipe(go), 0);
+  std::vector<pid_t> kids;
+  for (int p = 0; p < kProcs; ++p) {
+    kids.push_back(fork_child([&] {
+      ::close(go[1]);
+      char ch;
+      if (::read(go[0], &ch, 1) != 0) throw std::runtime_error("barrier");
+      auto cat = open();
+      for (const char* name : {"a-1-fpss1", "a-6-fpss1"}) {
+        auto cal = CalibrationRecord::from_calibration_json(to_json(load_published(name)), name);
+        cal.unit = "FPSS1";
+        cal.source = "import";
+        cal.source_ref = name;
+        cal.date_utc = "2024-01-01";
+        cat->record_import_once(cal);
+      }
+    }));
+  }
+  ::close(go[0]);
+  ::close(go[1]);
+  for (pid_t k : kids) EXPECT_EQ(test::wait_exit_code(k), 0);
+  EXPECT_EQ(open()->unit_history("FPSS1").size(), 2u);
+}
+
+// copy to the other backend and back: everything arrives once, a second copy adds nothing.
+TEST_P(Backends, CopiesToTheOtherBackendIdempotently) {
+  auto src = open();
+  src->record_run_start(make_run("r1", "SN-1", "2024-05-01T10:00:00Z"));
+  src->record_run_end("r1", outcome::completed, "2024-05-01T11:00:00Z");
+  src->record_run_start(make_run("r2", "SN-1", "2024-05-02T10:00:00Z"));  // still running
+  auto cal = CalibrationRecord::from_calibration_json(calibration_json("SN-1", 0.2), "x");
+  cal.source = "run";
+  cal.run_id = "r1";
+  cal.date_utc = "2024-05-01T11:00:00Z";
+  src->record_calibration(cal);
+  auto imp = CalibrationRecord::from_calibration_json(calibration_json("SN-1", 0.4), "y");
+  imp.source = "import";
+  imp.source_ref = "/somewhere/y.json";
+  imp.date_utc = "2024-01-01";
+  src->record_import_once(imp);
+  AcceptanceRecord a;
+  a.unit = "SN-1";
+  a.run_id = "r1";
+  a.passed = true;
+  a.date_utc = "2024-05-01T11:00:00Z";
+  src->record_acceptance(a);
+
+  static std::atomic<int> n{0};
+  const std::string other = GetParam() == Backend::sqlite
+                                ? pg().create_database(fmt::format("copy{}_{}", ::getpid(), n++))
+                                : "sqlite:" + (dir_.path() / "copy.db").string();
+  {
+    auto dst = open_catalogue(other);
+    const CopyReport r = copy_catalogue(*src, *dst);
+    EXPECT_EQ(r.runs_added, 2);
+    EXPECT_EQ(r.calibrations_added, 2);
+    EXPECT_EQ(r.acceptances_added, 1);
+    const CopyReport again = copy_catalogue(*src, *dst);
+    EXPECT_EQ(again.runs_added + again.calibrations_added + again.acceptances_added + again.units_added, 0);
+  }
+  auto dst = open_catalogue(other, Catalogue::Mode::read_only);
+  const auto r1 = dst->find_run("r1").value();
+  EXPECT_EQ(r1.ended_utc.value_or(""), "2024-05-01T11:00:00Z");
+  EXPECT_EQ(r1.host, this_host());
+  EXPECT_EQ(dst->find_run("r2")->outcome, "running");
+  const auto h = dst->unit_history("SN-1");
+  ASSERT_EQ(h.size(), 2u);
+  EXPECT_EQ(h[0].source, "import");
+  EXPECT_EQ(h[1].run_id.value_or(""), "r1");
+  EXPECT_EQ(h[1].coefficients, cal.coefficients);
+  EXPECT_EQ(dst->unit_acceptances("SN-1").size(), 1u);
+}
+
+// The commands over either backend through --catalogue URL, its alias --db, and FPSS_CATALOGUE.
+TEST_P(Backends, CommandsTakeTheCatalogueUrlTheAliasAndTheEnvironment) {
+  const fs::path coeffs = test::write_file(dir_.path() / "vi.json", to_json(load_published("a-6-fpss1")).dump());
+  auto r = test::run_stand({"import", coeffs.string(), "--unit", "SN-7", "--date", "2024-02-03", "--catalogue", url_,
+                            "--json"},
+                           dir_.path(), "import");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const int64_t id = nlohmann::json::parse(r.out)["id"].get<int64_t>();
+  r = test::run_stand({"compare", fmt::format("cal:{}", id), "a-6-fpss1", "--db", url_, "--json"}, dir_.path(),
+                      "compare");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_LT(nlohmann::json::parse(r.out)["alpha"]["max_abs_arcsec"].get<double>(), 1e-9);  // itself
+  ::setenv("FPSS_CATALOGUE", url_.c_str(), 1);
+  r = test::run_stand({"history", "SN-7", "--json"}, dir_.path(), "history");
+  // An explicit --runs-dir still names its own stand.db (none there: exit 2).
+  const auto other = test::run_stand({"history", "SN-7", "--runs-dir", (dir_.path() / "elsewhere").string()},
+                                     dir_.path(), "other");
+  ::unsetenv("FPSS_CATALOGUE");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["calibrations"].size(), 1u);
+  EXPECT_EQ(other.code, 2) << other.err;
+  EXPECT_NE(other.err.find("elsewhere"), std::string::npos) << other.err;
+  // Without it, the default (RUNS_DIR/stand.db) does not exist: exit 2 naming it.
+  r = test::run_stand({"history", "SN-7", "--runs-dir", (dir_.path() / "none").string()}, dir_.path(), "none");
+  EXPECT_EQ(r.code, 2);
+  const std::string copy = "sqlite:" + (dir_.path() / "copied.db").string();
+  r = test::run_stand({"catalogue", "copy", "--from", url_, "--to", copy, "--json"}, dir_.path(), "copy");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["calibrations_added"], 1);
+  EXPECT_EQ(open_catalogue(copy, Catalogue::Mode::read_only)->unit_history("SN-7").at(0).label, "V");
+}
+
+INSTANTIATE_TEST_SUITE_P(Catalogue, Backends, ::testing::Values(Backend::sqlite, Backend::postgresql),
+                         [](const auto& info) { return info.param == Backend::sqlite ? "sqlite" : "postgresql"; });
+
+// Staleness needs the run's own host: a pid of another host is never judged from here.
+TEST(RunRecord, IsStaleOnlyOnItsOwnHostWithItsProcessGone) {
+  RunRecord r;
+  r.outcome = outcome::running;
+  r.host = this_host();
+  r.pid = ::getpid();
+  EXPECT_FALSE(r.stale());
+  const pid_t child = fork_child([] {});
+  test::wait_exit_code(child);
+  r.pid = child;  // reaped: gone
+  EXPECT_TRUE(r.stale());
+  r.host = this_host() + "-elsewhere";
+  EXPECT_FALSE(r.stale());
+}
+
+TEST(OpenCatalogue, ChoosesTheBackendByUrlAndHidesPasswords) {
+  test::TempDir dir;
+  const auto plain = open_catalogue((dir.path() / "a.db").string());
+  EXPECT_EQ(plain->backend(), "sqlite");
+  EXPECT_EQ(open_catalogue("sqlite:" + (dir.path() / "b.db").string())->backend(), "sqlite");
+  EXPECT_TRUE(fs::exists(dir.path() / "b.db"));
+  EXPECT_THROW(open_catalogue("mysql://x/y"), InputError);
+  EXPECT_THROW(open_catalogue(""), InputError);
+  EXPECT_TRUE(is_postgres_url("postgres://u@h/db"));
+  EXPECT_EQ(url_for_messages("postgresql://stand:s3cret@db.example:5432/fpss?sslmode=require"),
+            "postgresql://stand@db.example:5432/fpss?sslmode=require");
+  // A server that is not there: an error naming it, within the retry window, not a hang.
+  const int port = test::free_loopback_port();
+  const std::string msg = test::error_of<CatalogueUnavailable>(
+      [&] { PostgresCatalogue c(fmt::format("postgresql://x@127.0.0.1:{}/none?connect_timeout=2", port)); });
+  EXPECT_NE(msg.find("cannot connect"), std::string::npos) << msg;
+}
+
+}  // namespace
+}  // namespace fpss
