@@ -35,6 +35,16 @@ fs::path find_run(const ShowArgs& a) {
   if (a.run.find('/') == std::string::npos && a.run != "." && a.run != "..") {
     const fs::path in_runs = fs::path(a.runs_dir) / a.run;
     if (fs::is_directory(in_runs)) return in_runs;
+    // The catalogue's run id (a UUIDv7, run.json's run_id) of a folder in the runs folder.
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(a.runs_dir, ec)) {
+      if (!e.is_directory() || e.is_symlink() || !fs::is_regular_file(e.path() / "run.json")) continue;
+      try {
+        const auto j = read_json_file(e.path() / "run.json", "run file");
+        if (j.is_object() && j.value("run_id", std::string()) == a.run) return e.path();
+      } catch (const InputError&) {
+      }
+    }
   }
   if (fs::is_directory(as_path)) throw InputError(fmt::format("{}: not a run folder (no run.json)", a.run));
   throw InputError(fmt::format("{}: no such run folder, and no run with that id in {}", a.run, a.runs_dir));

@@ -385,7 +385,7 @@ void Session::on_calibrate(const Action& a) {
   res_.calibration = out;
   last_cal_ = rep;
   with_catalogue("calibration", [&](Catalogue& cat) {
-    CalibrationRecord cr = CalibrationRecord::from_calibration_json(to_json(rep.coefficients()), out.string());
+    CalibrationRecord cr = CalibrationRecord::from_calibration_json(to_json(fitted), out.string());
     cr.unit = unit_;
     cr.source = "run";
     cr.run_id = run_id_;

@@ -82,7 +82,7 @@ void BM_RunUnderConsole(benchmark::State& state) {
       return j["state"] == "finished";
     }, 300, std::chrono::milliseconds(50));
     reader.join();
-    state.SetIterationTime(engine_wall_s(t / "runs" / run_id));
+    state.SetIterationTime(engine_wall_s(fpss::test::run_folder_of(t / "runs", run_id)));
     state.counters["stream_bytes"] = static_cast<double>(bytes.load());
   }
   serve.signal(SIGTERM);

@@ -58,8 +58,19 @@ class Console:
         self.proc.wait(timeout=20)
 
 
+def run_dir(runs, run_id):
+    """The folder whose run.json names run_id (the catalogue's UUIDv7; folders keep readable names)."""
+    for name in os.listdir(runs):
+        path = os.path.join(runs, name, "run.json")
+        if os.path.isfile(path):
+            with open(path) as f:
+                if json.load(f).get("run_id") == run_id:
+                    return os.path.join(runs, name)
+    return os.path.join(runs, run_id)
+
+
 def run_json(runs, run_id):
-    with open(os.path.join(runs, run_id, "run.json")) as f:
+    with open(os.path.join(run_dir(runs, run_id), "run.json")) as f:
         return json.load(f)
 
 
@@ -155,7 +166,7 @@ def first_run(b):
     held = b.progress()
     time.sleep(2.0)
     assert b.progress() == held, "progress moved while paused: %d -> %d" % (held, b.progress())
-    assert '"paused"' in open(os.path.join(b.runs, run, "events.jsonl")).read()
+    assert '"paused"' in open(os.path.join(run_dir(b.runs, run), "events.jsonl")).read()
     b.shot("4-paused")
     b.click("btn-resume")
     wait_for("progress after resume", lambda: b.progress() > held)
@@ -183,7 +194,7 @@ def aborted_run(b):
     doc = wait_for("run.json's outcome",
                    lambda: (lambda d: d if d.get("outcome") != "running" else None)(run_json(b.runs, run)))
     assert doc["stop_cause"] == "aborted" and doc["safe_state"] is True, doc
-    lines = open(os.path.join(b.runs, run, "events.jsonl")).read().splitlines()
+    lines = open(os.path.join(run_dir(b.runs, run), "events.jsonl")).read().splitlines()
     stopped = [json.loads(x) for x in lines if '"run_stopped"' in x][-1]
     assert stopped["cause"] == "aborted" and stopped["safe_state"] is True
     b.go("index.html#runs")
@@ -217,9 +228,9 @@ def acceptance(b):
     done = wait_for("the acceptance's exit", lambda: (lambda j: j if j["state"] == "finished" else None)(
         b.fetch("/api/jobs/%d" % job)), timeout=60)
     assert done["exit_code"] == 0, done
-    cert = json.load(open(os.path.join(b.runs, run, "acceptance.json")))
+    cert = json.load(open(os.path.join(run_dir(b.runs, run), "acceptance.json")))
     assert cert["operator"] == "Ada Operator" and cert["signed_off_utc"], cert
-    assert "Ada Operator" in open(os.path.join(b.runs, run, "certificate.txt")).read()
+    assert "Ada Operator" in open(os.path.join(run_dir(b.runs, run), "certificate.txt")).read()
     hist = b.fetch("/api/units/FPSS-B1/history")
     assert any(a["operator"] == "Ada Operator" and a["passed"] for a in hist["acceptances"]), hist
     b.shot("8-acceptance")

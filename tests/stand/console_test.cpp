@@ -172,7 +172,11 @@ TEST(Console, ARunOutlivesItsConsoleAndARestartedConsoleShowsItLive) {
     if (j["run_id"].is_string()) run_id = j["run_id"];
     return !run_id.empty();
   }, 60));
-  const fs::path dir = t / "runs" / run_id;
+  fs::path dir;
+  ASSERT_TRUE(wait_until([&] {
+    dir = run_folder_of(t / "runs", run_id);
+    return fs::exists(dir / "run.json");
+  }, 60));
   ASSERT_TRUE(wait_until([&] { return read_file(dir / "events.jsonl").find("\"point\":5,") != std::string::npos; }, 60));
   // A second job waits in the queue; it is kept across the console's restart.
   r = c.Post("/api/jobs", auth, R"({"procedure":"discrete_grid.yaml","unit":"FPSS-K2"})", "application/json");

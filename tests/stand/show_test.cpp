@@ -51,10 +51,15 @@ test::TempDir* ShowCli::tmp_ = nullptr;
 fs::path ShowCli::good_, ShowCli::failed_;
 std::string ShowCli::bad_out_;
 
+// A run's id: run.json's run_id (the catalogue's UUIDv7), not its folder's name.
+std::string run_id_of(const fs::path& dir) {
+  return nlohmann::json::parse(test::read_file(dir / "run.json"))["run_id"].get<std::string>();
+}
+
 TEST_F(ShowCli, ShowsARunByPathAndById) {
   const CommandResult by_path = test::run_stand({"show", good_.string()}, tmp_->path(), "show1");
   ASSERT_EQ(by_path.code, 0) << by_path.err;
-  EXPECT_THAT(by_path.out, HasSubstr("run " + good_.filename().string()));
+  EXPECT_THAT(by_path.out, HasSubstr("run " + run_id_of(good_)));
   EXPECT_THAT(by_path.out, HasSubstr("outcome    completed"));
   EXPECT_THAT(by_path.out, HasSubstr("verdict    PASS"));
   EXPECT_THAT(by_path.out, HasSubstr("points     113/113"));
@@ -64,6 +69,13 @@ TEST_F(ShowCli, ShowsARunByPathAndById) {
                                               tmp_->path(), "show2");
   ASSERT_EQ(by_id.code, 0) << by_id.err;
   EXPECT_EQ(by_id.out, by_path.out);
+  // The catalogue's run id (run.json's run_id, a UUIDv7) finds the folder too.
+  const std::string uuid = run_id_of(good_);
+  ASSERT_NE(uuid, good_.filename().string());
+  const CommandResult by_uuid = test::run_stand({"show", uuid, "--runs-dir", good_.parent_path().string()},
+                                                tmp_->path(), "show4");
+  ASSERT_EQ(by_uuid.code, 0) << by_uuid.err;
+  EXPECT_EQ(by_uuid.out, by_path.out);
   const CommandResult missing = test::run_stand({"show", "no-such-run", "--runs-dir", good_.parent_path().string()},
                                                 tmp_->path(), "show3");
   EXPECT_EQ(missing.code, 2);
@@ -74,7 +86,7 @@ TEST_F(ShowCli, ShowJsonCarriesOutcomeVerdictPointsResidualsFiles) {
   const CommandResult r = test::run_stand({"show", good_.string(), "--json"}, tmp_->path(), "showjson");
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  EXPECT_EQ(j["run_id"], good_.filename().string());
+  EXPECT_EQ(j["run_id"], run_id_of(good_));
   EXPECT_EQ(j["outcome"], "completed");
   EXPECT_EQ(j["verdict"], "pass");
   EXPECT_EQ(j["points"]["done"], 113);
@@ -139,7 +151,7 @@ TEST_F(ShowCli, RunsShowsOutcomesAndVerdictColumns) {
   const CommandResult r = test::run_stand({"runs", "--runs-dir", good_.parent_path().string()}, tmp_->path(), "runs");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_THAT(r.out, HasSubstr("VERDICT"));
-  EXPECT_THAT(r.out, HasSubstr(good_.filename().string()));
+  EXPECT_THAT(r.out, HasSubstr(run_id_of(good_)));
   const CommandResult j = test::run_stand({"runs", "--runs-dir", good_.parent_path().string(), "--json"}, tmp_->path(), "runsj");
   ASSERT_EQ(j.code, 0) << j.err;
   const auto list = nlohmann::json::parse(j.out);

@@ -59,6 +59,17 @@ inline std::string read_file(const fs::path& p) {
   return ss.str();
 }
 
+// The folder in `runs_dir` whose run.json names `run_id` (the catalogue's UUIDv7; folders keep
+// readable names); `runs_dir / run_id` when none does yet.
+inline fs::path run_folder_of(const fs::path& runs_dir, const std::string& run_id) {
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(runs_dir, ec)) {
+    if (!e.is_directory()) continue;
+    if (read_file(e.path() / "run.json").find("\"" + run_id + "\"") != std::string::npos) return e.path();
+  }
+  return runs_dir / run_id;
+}
+
 inline fs::path write_file(const fs::path& p, const std::string& text) {
   std::ofstream out(p, std::ios::binary);
   out << text;
