@@ -1,5 +1,6 @@
 // The PostgreSQL backend: libpqxx, SERIALIZABLE writes retried on 40001/40P01, reconnection within a window.
 #include "stand/catalogue/postgres_catalogue.h"
+#include "stand/catalogue/record_rules.h"
 
 #include <fmt/format.h>
 #include <unistd.h>
@@ -57,9 +58,6 @@ std::optional<double> opt_double(const pqxx::field& f) {
   if (f.is_null()) return std::nullopt;
   return f.as<double>();
 }
-
-constexpr const char* kStatColumns[] = {"mean_abs_arcsec", "sd_arcsec",    "max_abs_arcsec", "rms_arcsec",
-                                        "points",          "range_lo_deg", "range_hi_deg"};
 
 std::string stat_columns() {
   std::string out;
@@ -153,10 +151,6 @@ AcceptanceRecord read_acceptance(const pqxx::row& r) {
   return a;
 }
 
-void require_unit(const std::string& serial) {
-  if (serial.empty()) throw InputError("unit serial must not be empty");
-}
-
 bool insert_unit(pqxx::transaction_base& w, const std::string& serial) {
   return Args()
              .s(serial)
@@ -177,17 +171,6 @@ void back_off(int attempt) {
                                     static_cast<unsigned>(Clock::now().time_since_epoch().count()));
   const int cap_ms = std::min(200, 2 << std::min(attempt, 7));
   std::this_thread::sleep_for(std::chrono::milliseconds(1 + rng() % cap_ms));
-}
-
-void check_calibration(const CalibrationRecord& cal) {
-  require_unit(cal.unit);
-  if (cal.source != "run" && cal.source != "import") {
-    throw std::invalid_argument(fmt::format("calibration source must be run or import, not \"{}\"", cal.source));
-  }
-  if ((cal.source == "run") != cal.run_id.has_value()) {
-    throw std::invalid_argument("a calibration from a run names its run id, an import none");
-  }
-  if (!cal.coefficients.is_object()) throw std::invalid_argument("calibration coefficients must be a JSON object");
 }
 
 int64_t insert_calibration(pqxx::transaction_base& w, const CalibrationRecord& cal) {

@@ -1,5 +1,6 @@
 // The SQLite backend of the catalogue: one file, WAL, short IMMEDIATE transactions.
 #include "stand/catalogue/sqlite_catalogue.h"
+#include "stand/catalogue/record_rules.h"
 
 #include "procedures/recorder.h"
 
@@ -54,9 +55,6 @@ auto write_txn(SQLite::Database& db, F&& body) {
 }
 
 // The residual columns of one axis, in one place for the insert and the select.
-constexpr const char* kStatColumns[] = {"mean_abs_arcsec", "sd_arcsec",    "max_abs_arcsec", "rms_arcsec",
-                                        "points",          "range_lo_deg", "range_hi_deg"};
-
 template <typename T>
 void bind_opt(SQLite::Statement& st, const std::string& name, const std::optional<T>& v) {
   if (v) st.bind(name, *v);
@@ -172,10 +170,6 @@ AcceptanceRecord read_acceptance(SQLite::Statement& st) {
   a.stand = st.getColumn("stand").getString();
   a.host = st.getColumn("host").getString();
   return a;
-}
-
-void require_unit(const std::string& serial) {
-  if (serial.empty()) throw InputError("unit serial must not be empty");
 }
 
 bool insert_unit(SQLite::Database& db, const std::string& serial) {
@@ -359,17 +353,6 @@ bool SqliteCatalogue::copy_run(const RunRecord& r) {
 }
 
 namespace {
-
-void check_calibration(const CalibrationRecord& cal) {
-  require_unit(cal.unit);
-  if (cal.source != "run" && cal.source != "import") {
-    throw std::invalid_argument(fmt::format("calibration source must be run or import, not \"{}\"", cal.source));
-  }
-  if ((cal.source == "run") != cal.run_id.has_value()) {
-    throw std::invalid_argument("a calibration from a run names its run id, an import none");
-  }
-  if (!cal.coefficients.is_object()) throw std::invalid_argument("calibration coefficients must be a JSON object");
-}
 
 // The insert itself, inside the caller's transaction.
 int64_t insert_calibration(SQLite::Database& db, const CalibrationRecord& cal) {

@@ -27,6 +27,7 @@ namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
+using test::fork_child;
 
 // One server for the whole binary; one database per test.
 test::PgServer& pg() {
@@ -55,25 +56,6 @@ nlohmann::json calibration_json(const std::string& unit, double pitch_mean) {
                                {"points", 40}, {"range_deg", {-0.42, 0.42}}}},
                     {"yaw", {{"mean_abs_arcsec", 0.31}, {"points", 38}}}};
   return j;
-}
-
-// Runs `body` in a forked child; its exit code is 0 when body returns, 1 when it throws.
-pid_t fork_child(const std::function<void()>& body) {
-  std::fflush(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) {
-    int code = 0;
-    try {
-      body();
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "child %d: %s\n", ::getpid(), e.what());
-      code = 1;
-    }
-    std::fflush(nullptr);
-    ::_exit(code);
-  }
-  return pid;
 }
 
 enum class Backend { sqlite, postgresql };

@@ -24,6 +24,7 @@ namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
+using test::fork_child;
 
 using test::TempDir;
 
@@ -54,25 +55,6 @@ nlohmann::json calibration_json(const std::string& unit, double pitch_mean) {
 int64_t count_rows(const fs::path& db, const std::string& table, const std::string& where = "1") {
   SQLite::Database d(db, SQLite::OPEN_READONLY);
   return d.execAndGet(fmt::format("SELECT count(*) FROM {} WHERE {}", table, where)).getInt64();
-}
-
-// Runs `body` in a forked child; the child exits 0 when body returns, 1 when it throws.
-pid_t fork_child(const std::function<void()>& body) {
-  std::fflush(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) {
-    int code = 0;
-    try {
-      body();
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "child %d: %s\n", ::getpid(), e.what());
-      code = 1;
-    }
-    std::fflush(nullptr);
-    ::_exit(code);
-  }
-  return pid;
 }
 
 void write_all(int fd, const std::string& s) {

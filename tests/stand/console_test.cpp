@@ -46,6 +46,17 @@ std::string token_of(const TempDir& t) {
   return s;
 }
 
+// The run id job `id` started, once its run is in the catalogue ("" after a minute without).
+std::string run_of_job(httplib::Client& c, int id) {
+  std::string run_id;
+  wait_until([&] {
+    auto j = json::parse(c.Get(("/api/jobs/" + std::to_string(id)).c_str())->body);
+    if (j["run_id"].is_string()) run_id = j["run_id"];
+    return !run_id.empty();
+  }, 60);
+  return run_id;
+}
+
 TEST(Console, ControlNeedsTheTokenAndRequestsAreBounded) {
   TempDir t;
   Serve s(t, {"--listen", "127.0.0.1:0", "--max-clients", "1"}, "serve1");
@@ -99,12 +110,8 @@ TEST(Console, ControlNeedsTheTokenAndRequestsAreBounded) {
   // The live-client cap (1 here): a second event stream is refused while the first is open.
   r = c.Post("/api/jobs", auth, job, "application/json");
   ASSERT_EQ(r->status, 201) << r->body;
-  std::string run_id;
-  ASSERT_TRUE(wait_until([&] {
-    auto j = json::parse(c.Get("/api/jobs/1")->body);
-    if (j["run_id"].is_string()) run_id = j["run_id"];
-    return !run_id.empty();
-  }, 60));
+  const std::string run_id = run_of_job(c, 1);
+  ASSERT_FALSE(run_id.empty());
   std::atomic<bool> got{false};
   std::thread first([&] {
     httplib::Client c1("127.0.0.1", s.port);
@@ -166,12 +173,8 @@ TEST(Console, ARunOutlivesItsConsoleAndARestartedConsoleShowsItLive) {
   auto c = s.client();
   auto r = c.Post("/api/jobs", auth, R"({"procedure":"discrete_grid.yaml","unit":"FPSS-K1"})", "application/json");
   ASSERT_EQ(r->status, 201);
-  std::string run_id;
-  ASSERT_TRUE(wait_until([&] {
-    auto j = json::parse(c.Get("/api/jobs/1")->body);
-    if (j["run_id"].is_string()) run_id = j["run_id"];
-    return !run_id.empty();
-  }, 60));
+  const std::string run_id = run_of_job(c, 1);
+  ASSERT_FALSE(run_id.empty());
   fs::path dir;
   ASSERT_TRUE(wait_until([&] {
     dir = run_folder_of(t / "runs", run_id);

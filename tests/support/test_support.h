@@ -11,6 +11,7 @@
 
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
@@ -49,6 +50,26 @@ inline std::string find_program(const std::string& name) {
 
 inline fs::path stand_binary() { return fs::path(FPSS_BINARY_DIR) / "stand" / "fpss-stand"; }
 inline fs::path source_dir() { return fs::path(FPSS_SOURCE_DIR); }
+
+// Runs `body` in a forked child; the child exits 0 when body returns, 1 when it throws (the
+// message on stderr).
+inline pid_t fork_child(const std::function<void()>& body) {
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    int code = 0;
+    try {
+      body();
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "child %d: %s\n", ::getpid(), e.what());
+      code = 1;
+    }
+    std::fflush(nullptr);
+    ::_exit(code);
+  }
+  return pid;
+}
 
 // ---------------------------------------------------------------- files
 
