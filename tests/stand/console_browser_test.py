@@ -181,13 +181,15 @@ def first_run(b):
 
 def aborted_run(b):
     """Step 6: the stand page during a run; abort: the gimbal is at null and the run is marked aborted."""
-    run = b.watch(b.queue("run", "discrete_grid.yaml", "FPSS-B2", "Browser Test"))
-    wait_for("run 2 progress", lambda: b.progress() >= 3)
+    # The longer full grid (161 points), and the stand page looked at first, so that on a loaded
+    # machine the run is still running when Abort is pressed right after the live page shows it.
+    run = b.watch(b.queue("run", "full_grid.yaml", "FPSS-B2", "Browser Test"))
     b.go("index.html#stand")
     wait_for("the stand page live", lambda: "connected" in b.text("stand-table") and "point" in b.text("stand-table"))
     b.shot("6-stand-live")
     b.go("index.html#live/" + run)
-    wait_for("run 2 progress again", lambda: b.progress() >= 3)
+    wait_for("run 2 progress", lambda: b.progress() >= 3)
+    assert b.text("live-state") == "running", "run 2 ended before Abort: " + b.text("live-state")
     b.click("btn-abort")
     wait_for("aborted", lambda: b.text("live-state") == "aborted", timeout=60)
     assert b.driver.find_element(By.ID, "live-state").get_attribute("data-safe") == "true", "gimbal not at null"
@@ -244,6 +246,24 @@ def acceptance(b):
     b.shot("9-unit-history")
 
 
+def stop_runs(runs):
+    """Runs outlive their console by design: a failed test must not leave its runs behind, so each
+    run process still alive (run.json's pid) is sent SIGTERM (it returns the gimbal to null and stops
+    its emulator child)."""
+    for name in os.listdir(runs) if os.path.isdir(runs) else []:
+        try:
+            with open(os.path.join(runs, name, "run.json")) as f:
+                doc = json.load(f)
+        except (OSError, ValueError):
+            continue
+        pid = (doc.get("sessions") or [{}])[-1].get("pid")
+        if doc.get("outcome") == "running" and isinstance(pid, int) and pid > 0:
+            try:
+                os.kill(pid, signal.SIGTERM)
+            except OSError:
+                pass
+
+
 def main():
     tmp = tempfile.mkdtemp(prefix="fpss-console-browser-")
     console = Console(os.path.join(tmp, "runs"))
@@ -263,6 +283,7 @@ def main():
     finally:
         b.driver.quit()
         console.stop()
+        stop_runs(os.path.join(tmp, "runs"))
     lat = sorted(x for x in (lat or []) if x is not None)
     out = {"points": len(lat), "median_ms": statistics.median(lat) if lat else None,
            "p99_ms": lat[math.ceil(0.99 * len(lat)) - 1] if lat else None, "all_ms": lat,
