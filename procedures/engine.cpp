@@ -19,8 +19,8 @@ using namespace engine_detail;
 
 Engine::Engine(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, const Plan& plan, EventBus& events,
                spdlog::logger& log, RunControl& control, EngineHooks hooks, ResumePoint from)
-    : g_(gimbal), s_(sensor), b_(bench), plan_(plan), log_(log), ctl_(control), hooks_(std::move(hooks)),
-      events_(events), from_(std::move(from)), next_point_(from_.next_point) {}
+    : g_(gimbal), s_(sensor), b_(bench), plan_(plan), events_(events), from_(std::move(from)),
+      next_point_(from_.next_point), log_(log), ctl_(control), hooks_(std::move(hooks)) {}
 
 void Engine::warn(const Action* a, const std::string& message) {
   log_.warn("{}", message);
