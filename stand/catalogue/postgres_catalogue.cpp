@@ -151,6 +151,15 @@ AcceptanceRecord read_acceptance(const pqxx::row& r) {
   return a;
 }
 
+// Every row of a result as a record, in the result's order.
+template <typename Record>
+std::vector<Record> records_of(const pqxx::result& rows, Record (*read)(const pqxx::row&)) {
+  std::vector<Record> out;
+  out.reserve(rows.size());
+  for (const auto& r : rows) out.push_back(read(r));
+  return out;
+}
+
 bool insert_unit(pqxx::transaction_base& w, const std::string& serial) {
   return Args()
              .s(serial)
@@ -275,6 +284,13 @@ void PostgresCatalogue::migrate() {
 
 // One write: a SERIALIZABLE transaction redone on 40001/40P01 up to max_attempts, and on a lost
 // connection (before COMMIT) within the reconnect window.
+bool PostgresCatalogue::wait_to_reconnect(Clock::time_point start) const {
+  if (std::chrono::duration<double>(Clock::now() - start).count() > retry_.reconnect_window_s) return false;
+  ++retries_;
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  return true;
+}
+
 template <typename F>
 auto PostgresCatalogue::write(const std::string& what, F&& body) {
   if (mode_ == Mode::read_only) throw std::logic_error(fmt::format("{}: {}: opened read-only", shown_url_, what));
@@ -290,11 +306,9 @@ auto PostgresCatalogue::write(const std::string& what, F&& body) {
       throw CatalogueUnavailable(fmt::format("{}: {}: the commit's outcome is unknown: {}", shown_url_, what, e.what()));
     } catch (const pqxx::broken_connection& e) {
       conn_.reset();
-      if (std::chrono::duration<double>(Clock::now() - start).count() > retry_.reconnect_window_s) {
+      if (!wait_to_reconnect(start)) {
         throw CatalogueUnavailable(fmt::format("{}: {}: connection lost: {}", shown_url_, what, e.what()));
       }
-      ++retries_;
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
     } catch (const pqxx::transaction_rollback& e) {
       // libpqxx 6 files 40001 (serialization_failure) and 40P01 (deadlock_detected) here, not
       // under sql_error; both mean "redo the whole transaction".
@@ -312,9 +326,7 @@ auto PostgresCatalogue::write(const std::string& what, F&& body) {
       back_off(attempt);
     } catch (const CatalogueUnavailable&) {
       // connection() failed while the server is away: the same window as a lost connection
-      if (std::chrono::duration<double>(Clock::now() - start).count() > retry_.reconnect_window_s) throw;
-      ++retries_;
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (!wait_to_reconnect(start)) throw;
     }
   }
 }
@@ -328,15 +340,11 @@ auto PostgresCatalogue::read(const std::string& what, F&& body) const {
       return body(w);
     } catch (const pqxx::broken_connection& e) {
       conn_.reset();
-      if (std::chrono::duration<double>(Clock::now() - start).count() > retry_.reconnect_window_s) {
+      if (!wait_to_reconnect(start)) {
         throw CatalogueUnavailable(fmt::format("{}: {}: connection lost: {}", shown_url_, what, e.what()));
       }
-      ++retries_;
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
     } catch (const CatalogueUnavailable&) {
-      if (std::chrono::duration<double>(Clock::now() - start).count() > retry_.reconnect_window_s) throw;
-      ++retries_;
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (!wait_to_reconnect(start)) throw;
     } catch (const pqxx::sql_error& e) {
       throw std::runtime_error(fmt::format("{}: cannot {}: {}", shown_url_, what, e.what()));
     }
@@ -482,9 +490,7 @@ std::vector<RunRecord> PostgresCatalogue::list_runs(const RunFilter& filter) con
       a.i(static_cast<int64_t>(filter.limit));
       sql += fmt::format(" LIMIT ${}", filter.unit ? 2 : 1);
     }
-    std::vector<RunRecord> out;
-    for (const auto& r : a.exec(w, sql)) out.push_back(read_run(r));
-    return out;
+    return records_of(a.exec(w, sql), read_run);
   });
 }
 
@@ -498,12 +504,9 @@ std::optional<RunRecord> PostgresCatalogue::find_run(const std::string& run_id) 
 
 std::vector<CalibrationRecord> PostgresCatalogue::unit_history(const std::string& serial) const {
   return read("read the history of " + serial, [&](pqxx::transaction_base& w) {
-    std::vector<CalibrationRecord> out;
-    for (const auto& r : Args().s(serial).exec(
-             w, fmt::format("SELECT {} FROM calibrations WHERE unit = $1 ORDER BY date_utc, id", kCalibrationColumns))) {
-      out.push_back(read_calibration(r));
-    }
-    return out;
+    return records_of(Args().s(serial).exec(w, fmt::format(
+                          "SELECT {} FROM calibrations WHERE unit = $1 ORDER BY date_utc, id", kCalibrationColumns)),
+                      read_calibration);
   });
 }
 
@@ -517,23 +520,17 @@ std::optional<CalibrationRecord> PostgresCatalogue::find_calibration(int64_t id)
 
 std::vector<CalibrationRecord> PostgresCatalogue::run_calibrations(const std::string& run_id) const {
   return read("read the calibrations of run " + run_id, [&](pqxx::transaction_base& w) {
-    std::vector<CalibrationRecord> out;
-    for (const auto& r : Args().s(run_id).exec(
-             w, fmt::format("SELECT {} FROM calibrations WHERE run_id = $1 ORDER BY id", kCalibrationColumns))) {
-      out.push_back(read_calibration(r));
-    }
-    return out;
+    return records_of(Args().s(run_id).exec(
+                          w, fmt::format("SELECT {} FROM calibrations WHERE run_id = $1 ORDER BY id", kCalibrationColumns)),
+                      read_calibration);
   });
 }
 
 std::vector<AcceptanceRecord> PostgresCatalogue::unit_acceptances(const std::string& serial) const {
   return read("read the acceptances of " + serial, [&](pqxx::transaction_base& w) {
-    std::vector<AcceptanceRecord> out;
-    for (const auto& r : Args().s(serial).exec(
-             w, fmt::format("SELECT {} FROM acceptances WHERE unit = $1 ORDER BY date_utc, id", kAcceptanceColumns))) {
-      out.push_back(read_acceptance(r));
-    }
-    return out;
+    return records_of(Args().s(serial).exec(w, fmt::format(
+                          "SELECT {} FROM acceptances WHERE unit = $1 ORDER BY date_utc, id", kAcceptanceColumns)),
+                      read_acceptance);
   });
 }
 

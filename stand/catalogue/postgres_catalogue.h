@@ -1,5 +1,6 @@
 // The PostgreSQL backend of the catalogue: one database a fleet of stands writes to at once (libpqxx).
 #pragma once
+#include <chrono>
 #include <memory>
 #include <string>
 
@@ -61,6 +62,8 @@ class PostgresCatalogue final : public Catalogue {
   template <typename F>
   auto read(const std::string& what, F&& body) const;
   Connection& connection() const;
+  // Within the reconnect window since `start`: counts a retry, pauses briefly, true; beyond: false.
+  bool wait_to_reconnect(std::chrono::steady_clock::time_point start) const;
   void migrate();
 
   std::string url_, shown_url_;

@@ -21,6 +21,7 @@
 #include "stand/catalogue/sqlite_catalogue.h"
 #include "stand/catalogue/sqlite_schema.h"
 #include "tests/support/pg_server.h"
+#include "tests/stand/catalogue_fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {
@@ -35,17 +36,9 @@ test::PgServer& pg() {
   return server;
 }
 
+// Runs of these tests come from stand A.
 RunStart make_run(const std::string& id, const std::string& unit, const std::string& started = "") {
-  RunStart r;
-  r.run_id = id;
-  r.unit = unit;
-  r.procedure = "discrete_grid";
-  r.procedure_hash = "sha256:0123abcd";
-  r.started_utc = started;
-  r.run_dir = "runs/" + id;
-  r.emulated = true;
-  r.stand = "stand-A";
-  return r;
+  return test::make_run(id, unit, started, "stand-A");
 }
 
 nlohmann::json calibration_json(const std::string& unit, double pitch_mean) {

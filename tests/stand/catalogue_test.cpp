@@ -18,6 +18,7 @@
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
+#include "tests/stand/catalogue_fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {
@@ -25,20 +26,9 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::fork_child;
+using test::make_run;
 
 using test::TempDir;
-
-RunStart make_run(const std::string& id, const std::string& unit, const std::string& started = "") {
-  RunStart r;
-  r.run_id = id;
-  r.unit = unit;
-  r.procedure = "discrete_grid";
-  r.procedure_hash = "sha256:0123abcd";
-  r.started_utc = started;
-  r.run_dir = "runs/" + id;
-  r.emulated = true;
-  return r;
-}
 
 nlohmann::json calibration_json(const std::string& unit, double pitch_mean) {
   auto j = to_json(load_published("a-6-fpss1"));
