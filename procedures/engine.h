@@ -40,7 +40,7 @@ struct EngineStats {
   double device_s = 0;       // inside device calls (I/O and the devices' own waiting)
   double sleep_s = 0;        // settle times and poll intervals
   double storage_s = 0;      // appending and syncing samples.csv and the journal (fsync)
-  double calibrate_s = 0;    // calibrate steps (a fit, not per point)
+  double calibrate_s = 0;    // computation steps: calibrate and diagnose (not per point)
   int64_t points = 0;        // points measured in this session
   int64_t remeasured = 0;    // extra attempts
   int64_t recoveries = 0;    // fault clears, stream restarts

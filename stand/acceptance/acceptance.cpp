@@ -41,15 +41,15 @@ constexpr LimitField kLimitFields[] = {
     {"consistency_arcsec", &AcceptanceLimits::consistency_arcsec, true},
 };
 
-fs::path procedures_dir() {
+}  // namespace
+
+fs::path shipped_procedures_dir() {
   if (const char* env = std::getenv("FPSS_PROCEDURES_DIR"); env && *env) return env;
   return fs::path(FPSS_SOURCE_DIR) / "procedures";
 }
 
-}  // namespace
-
-fs::path default_limits_path() { return procedures_dir() / "acceptance_limits.yaml"; }
-fs::path default_acceptance_procedure_path() { return procedures_dir() / "acceptance.yaml"; }
+fs::path default_limits_path() { return shipped_procedures_dir() / "acceptance_limits.yaml"; }
+fs::path default_acceptance_procedure_path() { return shipped_procedures_dir() / "acceptance.yaml"; }
 
 AcceptanceLimits parse_acceptance_limits(const std::string& text, const std::string& origin) {
   Diagnostics d(origin);

@@ -67,7 +67,7 @@ int serve_command(const ServeArgs& a) {
     if (!fs::is_regular_file(a.stand_file)) throw InputError(fmt::format("serve --stand {}: no such file", a.stand_file));
     o.stand_file = fs::absolute(a.stand_file);
   }
-  o.procedures_dir = a.procedures.empty() ? default_acceptance_procedure_path().parent_path() : fs::path(a.procedures);
+  o.procedures_dir = a.procedures.empty() ? shipped_procedures_dir() : fs::path(a.procedures);
   o.procedures_dir = fs::absolute(o.procedures_dir);
   if (!fs::is_directory(o.procedures_dir)) {
     throw InputError(fmt::format("serve --procedures {}: not a folder", o.procedures_dir.string()));
