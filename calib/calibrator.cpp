@@ -271,13 +271,19 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
   return p;
 }
 
-void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, int count) {
+void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, int count,
+                       const std::optional<std::array<double, 2>>& range_arcsec) {
   out.angle_sigma_arcsec.clear();
   if (count < 2) return;
   const AxisModel model(out.coeffs);
-  const double margin = 0.05 * (d.counts_hi - d.counts_lo) + 10;
+  const double lo = range_arcsec ? (*range_arcsec)[0] : d.ref_lo_arcsec;
+  const double hi = range_arcsec ? (*range_arcsec)[1] : d.ref_hi_arcsec;
+  // Beyond the data (a range asked for) the counts are searched as far again as the angles lie
+  // outside it, at the nominal scale factor, with room to spare.
+  const double outside_arcsec = std::max({0.0, d.ref_lo_arcsec - lo, hi - d.ref_hi_arcsec});
+  const double margin = 0.05 * (d.counts_hi - d.counts_lo) + 10 + 2 * outside_arcsec / (kNominalC2 * kArcsecPerRad);
   for (int i = 0; i < count; ++i) {
-    const double a = d.ref_lo_arcsec + (d.ref_hi_arcsec - d.ref_lo_arcsec) * i / (count - 1);
+    const double a = lo + (hi - lo) * i / (count - 1);
     double sig = std::numeric_limits<double>::quiet_NaN();
     try {
       const double n = model.counts_for_angle_unchecked(arcsec_to_rad(a), d.counts_lo - margin, d.counts_hi + margin);
@@ -392,7 +398,8 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
     out.solver.initial_cost = 0.5 * start;
     out.solver.final_cost = 0.5 * out.residuals.rms_arcsec * out.residuals.rms_arcsec * static_cast<double>(out.residuals.points);
   }
-  list_angle_sigmas(out, u, d, opts.sigma_angles);
+  list_angle_sigmas(out, u, d, opts.sigma_angles,
+                    axis == Axis::alpha ? opts.sigma_range_pitch_arcsec : opts.sigma_range_yaw_arcsec);
   return out;
 }
 
@@ -536,6 +543,16 @@ std::vector<bool> outlier_rows(const SampleTable& t, const CalibrationOptions& o
 CalibrationReport calibrate(const SampleTable& samples, const CalibrationOptions& opts) {
   if (!opts.reject_outliers) return calibrate_dwells(average_dwells(samples), opts, samples.origin, samples.size());
   return calibrate_dwells(average_dwells(samples, outlier_rows(samples, opts)), opts, samples.origin, samples.size());
+}
+
+double AxisFit::listed_sigma_max_arcsec() const {
+  if (angle_sigma_arcsec.empty()) return std::numeric_limits<double>::infinity();
+  double worst = 0;
+  for (const auto& [angle, sigma] : angle_sigma_arcsec) {
+    if (!std::isfinite(sigma)) return std::numeric_limits<double>::infinity();
+    worst = std::max(worst, sigma);
+  }
+  return worst;
 }
 
 }  // namespace fpss

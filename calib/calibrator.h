@@ -55,6 +55,10 @@ struct CalibrationOptions {
   double remainder_sigmas = 4.0;
   // Angles at which the calibration's 1-sigma is listed (evenly over the calibrated range).
   int sigma_angles = 41;
+  // The reference range [lo, hi] (arcsec, sensor frame) over which those angles are spread, per
+  // axis; unset: the range the data cover. A streaming fit asks over the range a run will cover,
+  // so that a sigma from the points so far is not small only because their range is.
+  std::optional<std::array<double, 2>> sigma_range_pitch_arcsec, sigma_range_yaw_arcsec;
 };
 
 // Table 1 of the paper: residuals of one axis's fit, arcsec.
@@ -118,6 +122,10 @@ struct AxisFit {
   bool model_remainder = false;  // reduced chi2 materially > 1: sigmas scaled up by sigma_scale
   double sigma_scale = 1.0;
   size_t dwells_fitted = 0, levels = 0;
+
+  // The largest listed angle sigma; infinite when none is listed or an angle is not reached (the
+  // fit cannot yet speak for the whole range).
+  double listed_sigma_max_arcsec() const;
 };
 
 struct CalibrationReport {

@@ -92,10 +92,14 @@ StreamingCalibrator::Estimate StreamingCalibrator::current() const {
 
 CalibrationReport StreamingCalibrator::finish() {
   if (auto d = builder_.flush()) take_dwell(*d);
+  return fit_so_far(opts_);
+}
+
+CalibrationReport StreamingCalibrator::fit_so_far(const CalibrationOptions& opts) const {
   CalibrationReport rep;
   rep.method = Method::differences;
   rep.source = source_;
-  rep.unit = opts_.unit.empty() && opts_.init ? opts_.init->unit : opts_.unit;
+  rep.unit = opts.unit.empty() && opts.init ? opts.init->unit : opts.unit;
   rep.samples = samples_;
   rep.null_dwells = null_dwells_;
   rep.offset_dwells = offset_dwells_;
@@ -103,9 +107,15 @@ CalibrationReport StreamingCalibrator::finish() {
   rep.outlier_frames = outlier_frames_;
   fit::check_axis(pitch_, fit::Axis::alpha, source_);
   fit::check_axis(yaw_, fit::Axis::beta, source_);
-  rep.pitch = fit::fit_axis(pitch_, gram_pitch_, fit::Axis::alpha, opts_);
-  rep.yaw = fit::fit_axis(yaw_, gram_yaw_, fit::Axis::beta, opts_);
+  rep.pitch = fit::fit_axis(pitch_, gram_pitch_, fit::Axis::alpha, opts);
+  rep.yaw = fit::fit_axis(yaw_, gram_yaw_, fit::Axis::beta, opts);
   return rep;
+}
+
+AxisFit StreamingCalibrator::fit_so_far(fit::Axis axis, const CalibrationOptions& opts) const {
+  const bool alpha = axis == fit::Axis::alpha;
+  fit::check_axis(alpha ? pitch_ : yaw_, axis, source_);
+  return fit::fit_axis(alpha ? pitch_ : yaw_, alpha ? gram_pitch_ : gram_yaw_, axis, opts);
 }
 
 namespace {

@@ -46,6 +46,13 @@ class StreamingCalibrator {
 
   // The full fit of everything added so far (the batch fit's refinement and report).
   CalibrationReport finish();
+  // The same fit of the dwells completed so far, leaving the calibrator as it was: what an honest
+  // uncertainty mid-run comes from (its angle sigmas over `opts.sigma_range_*`, when given).
+  // Costs a batch fit of the changes so far (milliseconds for a grid of a few hundred).
+  CalibrationReport fit_so_far(const CalibrationOptions& opts) const;
+  // One axis of it (DataError when the changes so far cannot tell that axis's coefficients).
+  AxisFit fit_so_far(fit::Axis axis, const CalibrationOptions& opts) const;
+  const CalibrationOptions& options() const { return opts_; }
 
  private:
   void take_dwell(const Dwell& d);

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <ctime>
@@ -460,6 +461,41 @@ void Engine::do_action(size_t i) {
   }
 }
 
+bool Engine::until_reached(size_t index) {
+  const Action& a = plan_.actions[index];
+  if (a.until_group < 0) return false;
+  auto& done = cursor_.until_done;
+  if (std::find(done.begin(), done.end(), a.until_group) != done.end()) return true;
+  if (!a.is_point() || a.point < cursor_.first || !hooks_.until_sigma) return false;
+  double sigma;
+  {
+    Timed t(stats_.calibrate_s);
+    sigma = hooks_.until_sigma(a);
+  }
+  if (!(sigma <= a.until_sigma_arcsec)) return false;
+  done.push_back(a.until_group);
+  StepStopped ev;
+  ev.step_index = a.step_index;
+  ev.axes = a.until_both_axes ? "both" : to_string(a.axis);
+  ev.sigma_max_arcsec = sigma;
+  ev.until_sigma_arcsec = a.until_sigma_arcsec;
+  ev.session = cursor_.session;
+  for (size_t j = index; j < plan_.actions.size(); ++j) {
+    const Action& b = plan_.actions[j];
+    if (b.until_group == a.until_group && b.is_point()) ev.skipped.push_back(b.point);
+  }
+  log_.info("step {}: adaptive stop on {}: largest 1-sigma {:.4f} <= {:.4f} arcsec; {} points not measured",
+            a.step_index, ev.axes, sigma, a.until_sigma_arcsec, ev.skipped.size());
+  try {
+    Timed t(stats_.storage_s);
+    events_.publish(ev);
+  } catch (const std::exception& e) {
+    throw StorageFailure(e.what());
+  }
+  next_point_ = ev.skipped.back() + 1;
+  return true;
+}
+
 EngineResult Engine::run(int session) {
   const auto t0 = Clock::now();
   EngineResult r;
@@ -478,6 +514,7 @@ EngineResult Engine::run(int session) {
     for (size_t i = 0; i < plan_.actions.size(); ++i) {
       check_abort();
       wait_while_paused();
+      if (until_reached(i)) continue;
       do_action(i);
     }
     r.outcome = RunOutcome::completed;

@@ -56,6 +56,9 @@ struct EngineHooks {
   std::function<std::string(const Action&)> check;
   // A diagnose action: the sim-to-real diagnosis of what was recorded before it. Throwing fails the run.
   std::function<void(const Action&)> diagnose;
+  // A point of a grid with an adaptive stop is about to be measured: the live fit's largest
+  // 1-sigma (arcsec) over the range of the point's group and axes; infinite when it cannot tell.
+  std::function<double(const Action&)> until_sigma;
 };
 
 class Engine {
@@ -80,6 +83,9 @@ class Engine {
 
   void prepare();
   void do_action(size_t index);  // plan_.actions[index], skipping what a resumed run did before
+  // True when plan_.actions[index] belongs to an adaptive-stop group that has reached its target
+  // (the group's points left are then journalled as skipped, once).
+  bool until_reached(size_t index);
   void do_home(const Action& a);
   // A computation step (calibrate, diagnose) through its hook; what it throws stops the run with `cause`.
   void compute(const Action& a, const char* what, const std::function<void(const Action&)>& hook, StopCause cause);
@@ -140,6 +146,7 @@ class Engine {
     bool resuming = false;
     size_t resume_at = 0;   // index of that point's action
     bool homed_again = false;
+    std::vector<int> until_done;  // adaptive-stop groups that reached their target
   } cursor_;
   bool moved_ = false;
   GimbalCommand commanded_;

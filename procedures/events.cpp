@@ -150,6 +150,18 @@ struct ToJson {
             {"sigma_max_pitch_arcsec", finite_or_null(e.sigma_max_pitch_arcsec)},
             {"sigma_max_yaw_arcsec", finite_or_null(e.sigma_max_yaw_arcsec)}};
   }
+  ojson operator()(const StepStopped& e) const {
+    return {{"type", "step_stopped"},
+            {"step", e.step_index},
+            {"axes", e.axes},
+            {"sigma_max_arcsec", finite_or_null(e.sigma_max_arcsec)},
+            {"until_sigma_arcsec", e.until_sigma_arcsec},
+            {"points_skipped", e.skipped.size()},
+            {"first_skipped_point", e.skipped.empty() ? ojson(nullptr) : ojson(e.skipped.front() + 1)},
+            {"reason", fmt::format("adaptive stop: the live fit's largest 1-sigma {:.4f} arcsec is at most the "
+                                   "target {:.4f} arcsec",
+                                   e.sigma_max_arcsec, e.until_sigma_arcsec)}};
+  }
   ojson operator()(const Paused& e) const { return {{"type", "paused"}, {"next_point", e.next_point + 1}}; }
   ojson operator()(const Resumed& e) const { return {{"type", "resumed"}, {"next_point", e.next_point + 1}}; }
   ojson operator()(const Fault& e) const {
@@ -177,6 +189,9 @@ nlohmann::ordered_json to_json(const Event& e) {
 void record_with(EventBus& bus, RunRecorder& rec) {
   bus.subscribe([&rec](const Event& e) {
     if (const auto* s = std::get_if<Samples>(&e)) rec.append_point(s->action->point, *s->rows, s->attempt, s->session);
+    if (const auto* s = std::get_if<StepStopped>(&e)) {
+      for (int64_t p : s->skipped) rec.skip_point(p, s->session, "until");
+    }
   });
 }
 

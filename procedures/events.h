@@ -77,6 +77,15 @@ struct FitUpdated {
   double rms_pitch_arcsec = 0, rms_yaw_arcsec = 0;      // residual of the changes
   double sigma_max_pitch_arcsec = 0, sigma_max_yaw_arcsec = 0;  // 1-sigma of the fitted angle, worst over the range
 };
+// A grid's adaptive stop reached its target: the rest of one group's points will not be measured.
+struct StepStopped {
+  size_t step_index = 0;           // the procedure step (1-based)
+  std::string axes;                // "pitch", "yaw" or "both": whose points end
+  double sigma_max_arcsec = 0;     // the live fit's largest 1-sigma over the grid's range
+  double until_sigma_arcsec = 0;   // the step's target
+  std::vector<int64_t> skipped;    // points (0-based) not measured, in order
+  int session = 1;
+};
 struct Paused {
   int64_t next_point = 0;
 };
@@ -97,7 +106,8 @@ struct RunStopped {
   bool safe_state = true;
 };
 
-using Event = std::variant<RunStarted, PointStarted, Samples, PointDone, FitUpdated, Paused, Resumed, Fault, RunStopped>;
+using Event = std::variant<RunStarted, PointStarted, Samples, PointDone, FitUpdated, StepStopped, Paused, Resumed, Fault,
+                           RunStopped>;
 
 // One line of events.jsonl (docs/formats.md): {"type": ..., "utc": ..., ...}; point numbers 1-based.
 nlohmann::ordered_json to_json(const Event& e);

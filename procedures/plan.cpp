@@ -57,7 +57,22 @@ class Expander {
     a.kind = k;
     a.step_index = step_->index;
     a.mark = step_->mark;
+    if (k == Action::Kind::dwell && until_.until_group >= 0) {
+      a.until_sigma_arcsec = until_.until_sigma_arcsec;
+      a.until_group = until_.until_group;
+      a.until_both_axes = until_.until_both_axes;
+      a.axis = until_.axis;
+    }
     return a;
+  }
+
+  // The adaptive-stop group the grid's next dwells belong to (none when the grid has no `until`).
+  void until_group(const GridStep& s, StandAxis axis, bool both) {
+    if (s.until_sigma_arcsec <= 0) return;
+    until_.until_sigma_arcsec = s.until_sigma_arcsec;
+    until_.until_group = next_group_++;
+    until_.until_both_axes = both;
+    until_.axis = axis;
   }
 
   void push(Action a) {
@@ -182,11 +197,17 @@ class Expander {
         for (double o : offs) pts.emplace_back(o, -o);
       }
     }
+    // With `until`, each axis's offsets are a group (layout axes); other layouts move both at once.
+    const bool per_axis = s.layout == GridStep::Layout::axes;
+    auto axis_of = [](std::pair<double, double> pt) { return pt.first != 0 ? StandAxis::pitch : StandAxis::yaw; };
+    if (!pts.empty()) until_group(s, axis_of(pts.front()), !per_axis);
     dwell(0, 0, Phase::null, s.settle_s, s.frames);
-    for (auto [p, y] : pts) {
-      dwell(p, y, Phase::offset, s.settle_s, s.frames);
+    for (size_t i = 0; i < pts.size(); ++i) {
+      if (per_axis && i > 0 && axis_of(pts[i]) != axis_of(pts[i - 1])) until_group(s, axis_of(pts[i]), false);
+      dwell(pts[i].first, pts[i].second, Phase::offset, s.settle_s, s.frames);
       dwell(0, 0, Phase::null, s.settle_s, s.frames);
     }
+    until_ = Action{};
   }
 
   void add(const SlewStep& s) {
@@ -252,6 +273,8 @@ class Expander {
   Plan plan_;
   double p_ = 0, y_ = 0;  // planned position: a run starts from null
   std::vector<std::string> bad_;
+  Action until_;  // the adaptive-stop fields of the grid being expanded
+  int next_group_ = 0;
   bool too_many_ = false;
 };
 

@@ -30,7 +30,12 @@ struct Action {
   // slew: start point and sampling
   double start_pitch_arcsec = 0, start_yaw_arcsec = 0;
   double sample_period_s = 0;
-  StandAxis axis = StandAxis::pitch;
+  StandAxis axis = StandAxis::pitch;  // slew: the axis; adaptive stop: the group's axis
+  // Adaptive stop (a grid's `until`): the points of one group (a grid axis, or the whole grid
+  // when its points move both axes) end once the live fit's largest 1-sigma is at most this.
+  double until_sigma_arcsec = 0;  // 0: no adaptive stop
+  int until_group = -1;           // unique in the plan
+  bool until_both_axes = false;   // the group moves both axes (else only `axis`)
   const CalibrateStep* calibrate = nullptr;  // into the Procedure, which must outlive the plan
   const CheckStep* check = nullptr;
   const DiagnoseStep* diagnose = nullptr;

@@ -18,6 +18,33 @@ int FrameSpec::count(double sample_rate_hz) const {
   return std::max(1, static_cast<int>(std::lround(duration_s * sample_rate_hz)));
 }
 
+namespace {
+
+// Indices 0..n-1 of increasing offsets, coarse to fine: the largest, then the one nearest the
+// middle of the widest gap left (between zero and the largest first), and so on.
+std::vector<size_t> spread_order(size_t n) {
+  std::vector<size_t> order;
+  std::vector<bool> taken(n, false);
+  if (n == 0) return order;
+  order.push_back(n - 1);
+  taken[n - 1] = true;
+  while (order.size() < n) {
+    // Magnitudes are (k + 1) step: the gaps are between taken indices, with -1 standing for zero.
+    long best = -1, best_gap = -1, prev = -1;
+    for (long k = 0; k < static_cast<long>(n); ++k) {
+      if (!taken[static_cast<size_t>(k)]) continue;
+      const long gap = k - prev;
+      if (gap > best_gap && gap > 1) { best_gap = gap; best = prev + gap / 2; }
+      prev = k;
+    }
+    taken[static_cast<size_t>(best)] = true;
+    order.push_back(static_cast<size_t>(best));
+  }
+  return order;
+}
+
+}  // namespace
+
 std::vector<double> GridStep::offsets_arcsec() const {
   std::vector<double> pos;
   // A small tolerance so that 0.42 / 0.06 gives 7 offsets despite rounding.
@@ -38,6 +65,9 @@ std::vector<double> GridStep::offsets_arcsec() const {
     case Order::descending:
       for (auto it = pos.rbegin(); it != pos.rend(); ++it) out.push_back(*it);
       for (double p : pos) out.push_back(-p);
+      break;
+    case Order::spread:
+      for (size_t k : spread_order(pos.size())) { out.push_back(pos[k]); out.push_back(-pos[k]); }
       break;
   }
   return out;
@@ -138,6 +168,14 @@ void read_listed_offsets(MapReader& r, GridStep& s) {
   }
 }
 
+// until: {angle_sigma_max_arcsec: S}, the adaptive stop (docs/procedures.md).
+void read_until(MapReader& r, GridStep& s) {
+  if (!r.has("until")) return;
+  MapReader u(r.node("until"), fmt::format("{}: field until", r.where()), r.diagnostics());
+  if (auto v = u.positive("angle_sigma_max_arcsec", true)) s.until_sigma_arcsec = *v;
+  u.finish();
+}
+
 StepBody parse_home(MapReader& r) {
   HomeStep s;
   s.timeout_s = r.positive("timeout_s");
@@ -176,6 +214,7 @@ StepBody parse_grid(MapReader& r) {
   GridStep s;
   Diagnostics& d = r.diagnostics();
   read_listed_offsets(r, s);
+  read_until(r, s);
   if (s.listed()) {
     if (auto v = r.non_negative("settle_s")) s.settle_s = *v;
     if (auto f = read_frames(r, true)) s.frames = *f;
@@ -222,9 +261,10 @@ StepBody parse_grid(MapReader& r) {
   if (step) s.step_arcsec = *step;
   if (auto v = r.non_negative("settle_s")) s.settle_s = *v;
   if (auto f = read_frames(r, true)) s.frames = *f;
-  if (auto o = r.choice("order", {"outward", "ascending", "descending"})) {
+  if (auto o = r.choice("order", {"outward", "ascending", "descending", "spread"})) {
     s.order = *o == "outward" ? GridStep::Order::outward
-              : *o == "ascending" ? GridStep::Order::ascending : GridStep::Order::descending;
+              : *o == "ascending" ? GridStep::Order::ascending
+              : *o == "spread" ? GridStep::Order::spread : GridStep::Order::descending;
   }
   if (auto l = r.choice("layout", {"axes", "diagonals", "full"})) {
     s.layout = *l == "axes" ? GridStep::Layout::axes

@@ -52,7 +52,9 @@ inline constexpr size_t kMaxPlanPoints = 100000;
 
 // The paper's pattern: null, offset, null, offset, ... every offset between two null dwells.
 struct GridStep {
-  enum class Order { outward, ascending, descending };
+  // spread: coarse to fine, the extremes first, then halving the gaps (so that every prefix of
+  // the grid spans the range, which an adaptive stop needs).
+  enum class Order { outward, ascending, descending, spread };
   enum class Layout { axes, diagonals, full };
   std::vector<StandAxis> axes{StandAxis::pitch, StandAxis::yaw};  // axis order
   double extent_arcsec = 0;  // largest offset
@@ -64,6 +66,9 @@ struct GridStep {
   // Offsets listed one by one, in recording order (a design from `fpss-stand design`): when one is
   // given, extent and step are not, and `axes` are the listed ones (pitch first).
   std::vector<double> pitch_offsets_arcsec, yaw_offsets_arcsec;
+  // Adaptive stop (`until: {angle_sigma_max_arcsec: S}`): each axis's points end once the live
+  // fit's largest 1-sigma over the grid's range is at most S; 0: every point is taken.
+  double until_sigma_arcsec = 0;
   std::vector<double> offsets_arcsec() const;  // ordered, zero excluded (extent and step)
   std::vector<double> offsets_arcsec(StandAxis axis) const;  // the list of that axis, or the above
   bool listed() const { return !pitch_offsets_arcsec.empty() || !yaw_offsets_arcsec.empty(); }

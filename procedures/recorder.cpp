@@ -137,6 +137,8 @@ std::vector<JournalEntry> RunRecorder::read_journal(const fs::path& path) {
       je.utc = j.value("utc", "");
       je.session = j.value("session", 1);
       je.attempts = j.value("attempts", 1);
+      je.skipped = j.value("skipped", "");
+      if (je.skipped.size() > 200) throw InputError(fmt::format("{}:{}: key skipped: longer than 200 characters", path.string(), line_no));
     } catch (const nlohmann::json::exception& ex) {
       // The journal is not synced line by line (samples.csv is, before each line): a crash can
       // leave its last line unreadable, which only means that point is measured again.
@@ -224,21 +226,33 @@ void RunRecorder::append_point(int64_t point, const std::vector<RecordedRow>& ro
     last_time_s_ = std::max(last_time_s_, r.sample.time_s);
   }
   writer_->sync();
+  journal(point, rows.size(), attempts, session, {});
+  has_rows_ = has_rows_ || !rows.empty();
+}
+
+void RunRecorder::skip_point(int64_t point, int session, const std::string& why) {
+  if (point != next_point()) {
+    throw std::logic_error(fmt::format("recorder: point {} out of order (next is {})", point + 1, next_point() + 1));
+  }
+  journal(point, 0, 0, session, why);
+}
+
+void RunRecorder::journal(int64_t point, size_t rows, int attempts, int session, const std::string& skipped) {
   JournalEntry je;
   je.point = point;
   je.step = point + 1;
-  je.rows = rows.size();
+  je.rows = rows;
   je.bytes = fs::file_size(samples_path());
   je.last_time_s = last_time_s_;
   je.utc = utc_now_iso();
   je.session = session;
   je.attempts = attempts;
-  const std::string line = nlohmann::json{{"point", je.point + 1}, {"step", je.step},
-                                          {"rows", je.rows},       {"bytes", je.bytes},
-                                          {"last_time_s", je.last_time_s}, {"utc", je.utc},
-                                          {"session", je.session}, {"attempts", je.attempts}}
-                               .dump() +
-                           "\n";
+  je.skipped = skipped;
+  nlohmann::json j{{"point", je.point + 1}, {"step", je.step},   {"rows", je.rows},
+                   {"bytes", je.bytes},     {"last_time_s", je.last_time_s}, {"utc", je.utc},
+                   {"session", je.session}, {"attempts", je.attempts}};
+  if (!skipped.empty()) j["skipped"] = skipped;
+  const std::string line = j.dump() + "\n";
   // No fsync here: samples.csv is durable already, and a journal line lost in a crash only
   // means the point is cut and measured again on resume (one fsync per point, not two).
   if (::write(journal_fd_, line.data(), line.size()) != static_cast<ssize_t>(line.size())) {
@@ -246,7 +260,6 @@ void RunRecorder::append_point(int64_t point, const std::vector<RecordedRow>& ro
                                          std::strerror(errno)));
   }
   journal_.push_back(je);
-  has_rows_ = has_rows_ || !rows.empty();
 }
 
 }  // namespace fpss

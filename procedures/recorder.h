@@ -41,6 +41,8 @@ struct JournalEntry {
   std::string utc;
   int session = 1;
   int attempts = 1;
+  // Not measured: why ("until": a grid's adaptive stop had reached its target); rows is then 0.
+  std::string skipped;
 };
 
 // Now as ISO 8601 UTC, 2024-05-01T12:00:00Z.
@@ -76,6 +78,9 @@ class RunRecorder {
   // Appends the rows of one point, syncs samples.csv, then journals the point.
   void append_point(int64_t point, const std::vector<RecordedRow>& rows, int attempts, int session);
 
+  // Journals a point that will not be measured (no rows), so that the points stay in order.
+  void skip_point(int64_t point, int session, const std::string& why);
+
   const std::vector<JournalEntry>& journal() const { return journal_; }
   int64_t next_point() const { return journal_.empty() ? 0 : journal_.back().point + 1; }
   double last_time_s() const { return last_time_s_; }
@@ -102,6 +107,8 @@ class RunRecorder {
   double last_time_s_ = 0;
   bool has_rows_ = false;
   uint64_t cut_bytes_ = 0;
+
+  void journal(int64_t point, size_t rows, int attempts, int session, const std::string& skipped);
 
  public:
   ~RunRecorder();

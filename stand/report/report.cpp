@@ -100,6 +100,21 @@ void run_section(std::string& h, const nlohmann::json& run) {
   h += "<table>\n" + rows + "</table>\n" + blocks + "</section>\n";
 }
 
+// Why a grid took fewer points than planned (run.json `adaptive_stops`).
+void adaptive_stop_note(std::string& h, const nlohmann::json& run) {
+  if (!run.contains("adaptive_stops") || !run["adaptive_stops"].is_array()) return;
+  for (const auto& st : run["adaptive_stops"]) {
+    if (!st.is_object()) continue;
+    auto number = [&](const char* k) { return st.contains(k) && st[k].is_number() ? st[k].get<double>() : std::nan(""); };
+    h += fmt::format("<p class=\"note\">Adaptive stop, step {} ({}): the live fit's largest 1-sigma over the grid's "
+                     "range was {} arcsec, at most the target {} arcsec, so {} of its points were not measured "
+                     "(from point {}).</p>\n",
+                     num(number("step"), 0), html_escape(st.value("axes", "?")), num(number("sigma_max_arcsec"), 4),
+                     num(number("until_sigma_arcsec"), 4), num(number("points_skipped"), 0),
+                     num(number("first_skipped_point"), 0));
+  }
+}
+
 // Table 1 of the paper: per axis mean |residual| +- sd, max |residual|, points, range.
 void summary_section(std::string& h, const ReportInput& in) {
   const auto& r = in.residuals;
@@ -114,6 +129,7 @@ void summary_section(std::string& h, const ReportInput& in) {
             "dwell and a neighbouring null dwell, for every change null&nbsp;&rarr;&nbsp;offset and "
             "offset&nbsp;&rarr;&nbsp;null (the paper's method)."
           : "Each residual is the model's angle minus the reference angle of one dwell.");
+  adaptive_stop_note(h, in.run);
   if (in.fit_last_step) {
     h += fmt::format("<p>The rows the calibration was fitted on: steps 1 to {}. Points measured after the calibrate "
                      "step (verification, rest dwells) are not in this table.</p>\n", *in.fit_last_step);
@@ -212,7 +228,24 @@ struct Plots {
   }
 };
 
-std::string angle_plot_script(const RunResiduals& r, bool pitch) {
+// The calibration's [angle_arcsec, sigma_arcsec] list of one axis (calibration.json
+// `uncertainties.<axis>.angle_sigma_arcsec`); empty when absent or not of that shape.
+std::vector<std::array<double, 2>> sigma_curve(const CoefficientSet& cal, const char* axis) {
+  std::vector<std::array<double, 2>> out;
+  const auto& x = cal.extra;
+  if (!x.contains("uncertainties") || !x["uncertainties"].is_object()) return out;
+  const auto& u = x["uncertainties"];
+  if (!u.contains(axis) || !u[axis].is_object() || !u[axis].contains("angle_sigma_arcsec")) return out;
+  const auto& list = u[axis]["angle_sigma_arcsec"];
+  if (!list.is_array() || list.size() > 10000) return out;
+  for (const auto& e : list) {
+    if (!e.is_array() || e.size() != 2 || !e[0].is_number() || !e[1].is_number()) continue;  // null: not reached
+    out.push_back({e[0].get<double>(), e[1].get<double>()});
+  }
+  return out;
+}
+
+std::string angle_plot_script(const RunResiduals& r, bool pitch, const std::vector<std::array<double, 2>>& sigma) {
   std::vector<std::vector<double>> fwd, back, still;
   for (const auto& p : r.points) {
     const double deg = (pitch ? p.ref_pitch_arcsec : p.ref_yaw_arcsec) / kArcsecPerDeg;
@@ -241,6 +274,13 @@ std::string angle_plot_script(const RunResiduals& r, bool pitch) {
   if (!back.empty()) {
     s += datablock("back", back);
     parts.push_back("$back using 1:2 with points pt 6 ps 0.9 lc rgb '#d62728' title 'from the null after'");
+  }
+  if (!sigma.empty()) {
+    std::vector<std::vector<double>> band;
+    for (const auto& [angle, sig] : sigma) band.push_back({angle / kArcsecPerDeg, sig, -sig});
+    s += datablock("sig", band);
+    parts.push_back("$sig using 1:2 with lines lw 2 lc rgb '#2ca02c' title 'calibration 1-sigma (+-)'");
+    parts.push_back("$sig using 1:3 with lines lw 2 lc rgb '#2ca02c' notitle");
   }
   s += "plot ";
   for (size_t i = 0; i < parts.size(); ++i) s += (i ? ", " : "") + parts[i];
@@ -305,8 +345,10 @@ void plots_section(std::string& h, const ReportInput& in, const ReportOptions& o
     return;
   }
   Plots plots{Gnuplot(opts.gnuplot), std::nullopt, 0};
-  std::string angle = plots.draw(angle_plot_script(r, true), "pitch residuals against angle", 640, 420);
-  angle += plots.draw(angle_plot_script(r, false), "yaw residuals against angle", 640, 420);
+  std::string angle = plots.draw(angle_plot_script(r, true, sigma_curve(in.calibration, "pitch")),
+                                 "pitch residuals against angle", 640, 420);
+  angle += plots.draw(angle_plot_script(r, false, sigma_curve(in.calibration, "yaw")), "yaw residuals against angle",
+                      640, 420);
   const auto [map_script, scale] = map_plot_script(r);
   std::string map = plots.draw(map_script, "residual map", 720, 640);
   if (plots.missing) {
@@ -321,6 +363,10 @@ void plots_section(std::string& h, const ReportInput& in, const ReportOptions& o
          "taken offset minus null, so both show the model's error at the offset. Grey: offsets along the other "
          "axis, where this axis stood still.</p>\n";
   }
+  h += "<p>Green: &plusmn; the calibration's 1-sigma of the fitted angle over the calibrated range (the null "
+       "condition included; calibration.json <code>uncertainties</code>). The residuals scatter with the "
+       "measurement noise of each change; the curve is how far the fitted transfer function itself may be "
+       "off.</p>\n";
   h += "<div class=\"plots2\">" + angle + "</div>\n";
   h += "<h2 id=\"map\">Residual map over the field</h2>\n";
   h += fmt::format("<p>At each offset position the arrow is the residual vector (yaw, pitch), the mean of the "

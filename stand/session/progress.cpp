@@ -43,6 +43,12 @@ void Progress::point_done(const std::string& live) {
   }
 }
 
+void Progress::skipped(size_t n) {
+  std::lock_guard lock(mu_);
+  done_ += n;
+  start_done_ += n;  // not measured here: the ETA's rate is of the points measured
+}
+
 void Progress::clear() {
   std::lock_guard lock(mu_);
   if (tty_ && drawn_) {

@@ -16,6 +16,8 @@ class Progress {
 
   // A point was completed; `live` is the streaming estimator's word on it (may be empty).
   void point_done(const std::string& live);
+  // Points that will not be measured (an adaptive stop) count as done.
+  void skipped(size_t n);
   // Removes the live line before other output (a terminal only).
   void clear();
   void finish();

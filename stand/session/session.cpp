@@ -27,6 +27,7 @@
 #include "stand/session/computation_checks.h"
 #include "stand/session/diagnose_step.h"
 #include "stand/session/emulator_process.h"
+#include "stand/session/live_fit.h"
 #include "stand/session/progress.h"
 #include "stand/session/run_folder.h"
 #include "stand/session/terminal_keys.h"
@@ -108,6 +109,7 @@ class Session {
   void start_catalogue_record();
   void subscribe();
   void on_point_done(const PointDone& p);
+  void on_step_stopped(const StepStopped& s);
   int64_t points_before(const Action& a) const;  // points planned before a computation step
   void ask_prompts(ControlPoller& poller, RunControl& control);
   void on_calibrate(const Action& a);
@@ -139,10 +141,7 @@ class Session {
   std::string catalogue_error_;
   bool catalogue_away_ = false;  // the server was unreachable (worth waiting for), not a refusal
   SampleTable recorded_;  // every row so far, old (a resume) and new: what calibrate steps fit
-  std::unique_ptr<StreamingCalibrator> live_;
-  std::chrono::steady_clock::time_point last_estimate_ = std::chrono::steady_clock::now() - std::chrono::seconds(10);
-  std::string live_text_;
-  std::optional<StreamingCalibrator::Estimate> live_est_;
+  std::unique_ptr<LiveFit> live_;
   std::vector<std::pair<int64_t, PointStats>> unplotted_;  // points done before the first valid live fit
   std::unique_ptr<Progress> progress_;
   std::optional<CalibrationReport> last_cal_;
@@ -296,8 +295,8 @@ void Session::subscribe() {
   });
   bus_.subscribe([this](const Event& e) { event_log_->write(e); });
   try {
-    live_ = std::make_unique<StreamingCalibrator>(CalibrationOptions{}, "live");
-    for (size_t i = 0; i < recorded_.size(); ++i) live_->add_sample(recorded_.row(i));
+    live_ = std::make_unique<LiveFit>(plan_, stand_.bench.axes);
+    for (size_t i = 0; i < recorded_.size(); ++i) live_->add(recorded_.row(i));
   } catch (const std::exception& e) {
     log_->warn("live residual off: {}", e.what());
     live_.reset();
@@ -305,31 +304,17 @@ void Session::subscribe() {
   progress_ = std::make_unique<Progress>(plan_.points, static_cast<size_t>(rec_->next_point()), req_.tty, *log_);
   bus_.subscribe([this](const Event& e) {
     if (const auto* p = std::get_if<PointDone>(&e)) on_point_done(*p);
+    if (const auto* s = std::get_if<StepStopped>(&e)) on_step_stopped(*s);
   });
 }
 
 void Session::on_point_done(const PointDone& p) {
   if (live_) {
     try {
-      for (const auto& r : *p.rows) live_->add_sample(r.sample);
+      for (const auto& r : *p.rows) live_->add(r.sample);
       // The estimate costs a few thousand small solves: refresh it twice a second at most.
       const bool last = progress_->done() + 1 >= plan_.points;
-      if (last || std::chrono::steady_clock::now() - last_estimate_ > std::chrono::milliseconds(500)) {
-        last_estimate_ = std::chrono::steady_clock::now();
-        const auto est = live_->current();
-        if (est.valid) live_est_ = est;
-        if (est.valid) {
-          live_text_ = fmt::format("live residual rms pitch {:.2f} yaw {:.2f} arcsec ({} pairs)", est.rms_pitch_arcsec,
-                                   est.rms_yaw_arcsec, est.pairs);
-          FitUpdated f;
-          f.points = p.action->point + 1;
-          f.pairs = est.pairs;
-          f.rms_pitch_arcsec = est.rms_pitch_arcsec;
-          f.rms_yaw_arcsec = est.rms_yaw_arcsec;
-          f.sigma_max_pitch_arcsec = f.sigma_max_yaw_arcsec = std::numeric_limits<double>::quiet_NaN();
-          bus_.publish(f);
-        }
-      }
+      if (auto f = live_->update(p.action->point + 1, last)) bus_.publish(*f);
     } catch (const std::exception& e) {
       log_->warn("live residual off: {}", e.what());
       live_.reset();
@@ -338,17 +323,31 @@ void Session::on_point_done(const PointDone& p) {
   // Each point against the latest live fit, for the console's residual chart and map; the points
   // before the first valid fit are written once it exists.
   if (p.stats.rows > 0) unplotted_.push_back({p.action->point + 1, p.stats});
-  if (live_est_) {
+  if (live_ && live_->estimate()) {
+    const auto& est = *live_->estimate();
     for (const auto& [point, st] : unplotted_) {
-      const double rp = rad_to_arcsec(transfer_angle(live_est_->alpha.data(), st.counts_alpha)) - st.ref_pitch_arcsec;
-      const double ry = rad_to_arcsec(transfer_angle(live_est_->beta.data(), st.counts_beta)) - st.ref_yaw_arcsec;
+      const double rp = rad_to_arcsec(transfer_angle(est.alpha.data(), st.counts_alpha)) - st.ref_pitch_arcsec;
+      const double ry = rad_to_arcsec(transfer_angle(est.beta.data(), st.counts_beta)) - st.ref_yaw_arcsec;
       event_log_->write_note("point_residual", {{"point", point}, {"ref_pitch_arcsec", st.ref_pitch_arcsec},
                                                 {"ref_yaw_arcsec", st.ref_yaw_arcsec}, {"residual_pitch_arcsec", rp},
                                                 {"residual_yaw_arcsec", ry}});
     }
     unplotted_.clear();
   }
-  progress_->point_done(live_text_);
+  progress_->point_done(live_ ? live_->text() : std::string());
+}
+
+void Session::on_step_stopped(const StepStopped& s) {
+  nlohmann::json j = nlohmann::json::parse(to_json(Event{s}).dump());
+  j.erase("type");
+  j.erase("utc");
+  doc_["adaptive_stops"].push_back(j);
+  size_t skipped = 0;
+  for (const auto& st : doc_["adaptive_stops"]) skipped += st.value("points_skipped", size_t{0});
+  doc_["points"]["skipped"] = skipped;
+  progress_->skipped(s.skipped.size());
+  progress_->note(j.value("reason", "") + fmt::format(" (step {}, {}: {} points not measured)", s.step_index, s.axes,
+                                                      s.skipped.size()));
 }
 
 int64_t Session::points_before(const Action& a) const {
@@ -541,6 +540,9 @@ SessionResult Session::run() {
   hooks.calibrate = [this](const Action& a) { on_calibrate(a); };
   hooks.check = [this](const Action& a) { return on_check(a); };
   hooks.diagnose = [this](const Action& a) { on_diagnose(a); };
+  hooks.until_sigma = [this](const Action& a) {
+    return live_ ? live_->until_sigma(a) : std::numeric_limits<double>::infinity();
+  };
   EngineResult er;
   {
     std::optional<TerminalKeys> keys;
@@ -566,7 +568,9 @@ SessionResult Session::run() {
   if (bench_.emu) log_->info("emulated bench stopped (status {})", bench_.stop());
   finish(er);
   write_report();
-  log_->info("run {}: {} ({} of {} points){}", run_id_, to_string(er.outcome), er.points_done, plan_.points,
+  const size_t skipped = doc_["points"].value("skipped", size_t{0});
+  log_->info("run {}: {} ({} of {} points{}){}", run_id_, to_string(er.outcome), er.points_done, plan_.points,
+             skipped ? fmt::format(", {} of them skipped by the adaptive stop", skipped) : "",
              er.reason.empty() ? "" : ": " + er.reason);
   res_.exit_code = er.outcome == RunOutcome::completed ? 0 : 1;
   if (!catalogue_error_.empty()) {

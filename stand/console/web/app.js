@@ -174,6 +174,14 @@ function logLine(e) {
   frame.lines.push(utc + ' ' + type + ' ' + JSON.stringify(rest).slice(0, 200) + '\n');
   schedule();
 }
+function showProgress(done) {
+  live.done = done;
+  const p = live.total ? live.done / live.total : 0;
+  $('live-progress').value = p;
+  $('live-progress-text').textContent = live.done + ' / ' + live.total + ' points';
+  const el = (Date.now() - live.t0) / 1000;
+  $('live-eta').textContent = p > 0 && p < 1 ? Math.round(el / p - el) + ' s' : '-';
+}
 function onEvent(e) {
   if (e.type !== 'samples') logLine(e);
   if (e.type === 'run_started') {
@@ -182,13 +190,12 @@ function onEvent(e) {
   } else if (e.type === 'point_started') {
     $('live-point').textContent = e.point + ' (' + e.phase + ', pitch ' + fmt(e.target_pitch_arcsec, 0) + ', yaw ' + fmt(e.target_yaw_arcsec, 0) + ' arcsec)';
   } else if (e.type === 'point_done') {
-    live.done = e.point;
     live.pendingDone[e.point] = Date.parse(e.utc);
-    const p = live.total ? live.done / live.total : 0;
-    $('live-progress').value = p;
-    $('live-progress-text').textContent = live.done + ' / ' + live.total + ' points';
-    const el = (Date.now() - live.t0) / 1000;
-    $('live-eta').textContent = p > 0 && p < 1 ? Math.round(el / p - el) + ' s' : '-';
+    showProgress(e.point);
+  } else if (e.type === 'step_stopped') {
+    // An adaptive stop: the group's remaining points are not measured (they count as done).
+    showProgress(e.first_skipped_point + e.points_skipped - 1);
+    $('live-fit').textContent += '; ' + e.reason;
   } else if (e.type === 'point_residual') {
     live.res.push({ p: e.ref_pitch_arcsec, y: e.ref_yaw_arcsec, rp: e.residual_pitch_arcsec, ry: e.residual_yaw_arcsec });
     frame.chart = true;

@@ -1,0 +1,62 @@
+// The run's live fit: the streaming estimator on every recorded row, its honest uncertainty for the console and an adaptive stop.
+#pragma once
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/streaming.h"
+#include "procedures/events.h"
+#include "procedures/plan.h"
+#include "procedures/settings.h"
+
+namespace fpss {
+
+class LiveFit {
+ public:
+  // The plan's dwells give the ranges the uncertainty is judged over (the sensor frame, through
+  // the stand's axis mapping): all of them for the run's figure, each grid's own for its `until`.
+  LiveFit(const Plan& plan, const AxisMapping& axes);
+
+  void add(const Sample& s) { cal_.add_sample(s); }
+
+  // After a point: the estimate, refreshed at most twice a second unless `force`. The sigmas are
+  // the batch fit's honest ones (GLS) over the run's planned range, NaN until an axis can be fitted.
+  std::optional<FitUpdated> update(int64_t points, bool force);
+
+  // For the engine's adaptive stop: the largest 1-sigma over the range of `a`'s grid, for the
+  // axes of its group; infinite while the data cannot tell.
+  double until_sigma(const Action& a);
+
+  // The latest valid estimate (for residuals of each point), if any.
+  const std::optional<StreamingCalibrator::Estimate>& estimate() const { return est_; }
+  const std::string& text() const { return text_; }
+
+ private:
+  using Range = std::optional<std::array<double, 2>>;
+  struct Ranges {
+    Range pitch, yaw;  // sensor frame: what alpha and beta measure
+  };
+  Ranges ranges_of(const Plan& plan, size_t step_index) const;  // step 0: every dwell of the plan
+  // Largest listed sigma of one sensor axis over `r` (cached per number of changes).
+  double sigma(fit::Axis axis, const Ranges& r, size_t key);
+
+  StreamingCalibrator cal_;
+  AxisMapping axes_;
+  Ranges run_ranges_;
+  std::map<size_t, Ranges> step_ranges_;
+  struct Cached {
+    size_t pairs = 0;
+    double sigma = 0;
+  };
+  std::map<std::pair<size_t, int>, Cached> cache_;  // (range key, axis) -> sigma at `pairs` changes
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now() - std::chrono::seconds(10);
+  std::optional<StreamingCalibrator::Estimate> est_;
+  std::string text_;
+};
+
+}  // namespace fpss
