@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <optional>
 #include <thread>
 
 #include <fmt/format.h>
@@ -16,6 +17,7 @@
 #include "stand/config/stand_config.h"
 #include "stand/cli/emulated_bench.h"
 #include "stand/console/server.h"
+#include "stand/session/run_folder.h"
 
 namespace fpss::cli {
 
@@ -81,6 +83,14 @@ int serve_command(const ServeArgs& a) {
   sigaddset(&set, SIGINT);
   sigaddset(&set, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  // One console per runs folder: two would each keep their own queue and start runs on one stand.
+  fs::create_directories(o.runs_dir / ".console");
+  std::optional<RunFolderLock> one_console;
+  try {
+    one_console.emplace(o.runs_dir / ".console", "console.lock", "the runs folder's console");
+  } catch (const RunFolderBusy& e) {
+    throw InputError(fmt::format("serve: {}", e.what()));
+  }
   console::ConsoleServer server(o);
   server.bind();
   const std::string url = fmt::format("http://{}:{}/", o.host.find(':') != std::string::npos ? "[" + o.host + "]" : o.host,

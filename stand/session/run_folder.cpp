@@ -29,8 +29,10 @@ fs::path canonical_run_dir(const fs::path& dir) {
   return c;
 }
 
-RunFolderLock::RunFolderLock(const fs::path& run_dir) {
-  const fs::path path = run_dir / ".lock";
+RunFolderLock::RunFolderLock(const fs::path& run_dir) : RunFolderLock(run_dir, ".lock", "the run folder") {}
+
+RunFolderLock::RunFolderLock(const fs::path& run_dir, const std::string& file, const std::string& what) {
+  const fs::path path = run_dir / file;
   fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
   if (fd_ < 0) throw std::runtime_error(fmt::format("{}: cannot open: {}", path.string(), std::strerror(errno)));
   if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
@@ -41,8 +43,8 @@ RunFolderLock::RunFolderLock(const fs::path& run_dir) {
     fd_ = -1;
     if (err != EWOULDBLOCK) throw std::runtime_error(fmt::format("{}: cannot lock: {}", path.string(), std::strerror(err)));
     const std::string pid = n > 0 ? std::string(buf, static_cast<size_t>(n)) : std::string("?");
-    throw RunFolderBusy(fmt::format("{}: the run folder is in use by another fpss-stand (pid {}); nothing was written",
-                                    run_dir.string(), pid.substr(0, pid.find_first_of("\n"))));
+    throw RunFolderBusy(fmt::format("{}: {} is in use by another fpss-stand (pid {}); nothing was written",
+                                    run_dir.string(), what, pid.substr(0, pid.find_first_of("\n"))));
   }
   const std::string pid = std::to_string(::getpid()) + "\n";
   // Without the pid the lock still holds; only a second owner's message is poorer.

@@ -24,6 +24,9 @@ struct RunFolderBusy : std::runtime_error {
 class RunFolderLock {
  public:
   explicit RunFolderLock(const std::filesystem::path& run_dir);  // throws RunFolderBusy
+  // The same lock on `dir`/`file` for another single owner (`what`, for the message), e.g. the
+  // one console of a runs folder.
+  RunFolderLock(const std::filesystem::path& dir, const std::string& file, const std::string& what);
   ~RunFolderLock();
   RunFolderLock(const RunFolderLock&) = delete;
   RunFolderLock& operator=(const RunFolderLock&) = delete;

@@ -3,12 +3,14 @@
 // console shows it live, lets its stream catch up and keeps the queue. ~25 s (two emulated grid runs at --speed 20).
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <regex>
 
 #include <gtest/gtest.h>
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include "tests/stand/emulator_stand.h"
 #include "tests/support/test_support.h"
 
 namespace {
@@ -20,8 +22,10 @@ struct Serve {
   std::unique_ptr<Child> child;
   int port = 0;
   std::string banner;
+  // `extra` without --stand: the emulated bench.
   Serve(const TempDir& t, const std::vector<std::string>& extra, const std::string& tag) {
-    std::vector<std::string> args{"serve", "--emulate", "--runs-dir", (t / "runs").string()};
+    std::vector<std::string> args{"serve", "--runs-dir", (t / "runs").string()};
+    if (std::find(extra.begin(), extra.end(), "--stand") == extra.end()) args.push_back("--emulate");
     args.insert(args.end(), extra.begin(), extra.end());
     child = std::make_unique<Child>(stand_argv(args), fs::path(), t / (tag + ".err"));
     const auto first = child->line(30);
@@ -232,6 +236,52 @@ TEST(Console, ARunOutlivesItsConsoleAndARestartedConsoleShowsItLive) {
   EXPECT_TRUE(run["files"].contains("report.html"));
   again.child->signal(SIGTERM);
   EXPECT_EQ(again.child->wait(20), 0);
+}
+
+// A console of a real stand (`--stand`, here a running `fpss-stand emulate` behind the shipped
+// emulator_stand.yaml): its runs use the stand file, not an emulator of their own. A second
+// console on the same runs folder is refused (one queue, one stand).
+TEST(Console, ServeStandRunsOnTheStandAndOneConsolePerRunsFolder) {
+  TempDir t;
+  EmulatorStand es(t);
+  ASSERT_FALSE(es.stand_file.empty());
+  fs::create_directories(t / "procs");
+  write_file(t / "procs" / "small.yaml",
+             "name: small\nsteps:\n  - home\n"
+             "  - null_offset_grid: {extent_deg: 0.4, step_deg: 0.1, frames: 5, settle_s: 0.2}\n"
+             "  - calibrate: {method: differences}\n");
+  Serve s(t, {"--stand", es.stand_file.string(), "--procedures", (t / "procs").string(), "--listen", "127.0.0.1:0"},
+          "serve1");
+  ASSERT_GT(s.port, 0) << s.banner;
+
+  Child second(stand_argv({"serve", "--emulate", "--runs-dir", (t / "runs").string(), "--listen", "127.0.0.1:0"}),
+               fs::path(), t / "second.err");
+  EXPECT_EQ(second.wait(30), 2);
+  EXPECT_NE(read_file(t / "second.err").find("console is in use by another fpss-stand"), std::string::npos)
+      << read_file(t / "second.err");
+
+  auto c = s.client();
+  const json stand = json::parse(c.Get("/api/stand")->body);
+  EXPECT_EQ(stand["mode"], "stand");
+  EXPECT_EQ(stand["stand_file"], fs::absolute(es.stand_file).string());
+  const httplib::Headers auth{{"Authorization", "Bearer " + token_of(t)}};
+  auto r = c.Post("/api/jobs", auth, R"({"procedure":"small.yaml","unit":"EMU-0001"})", "application/json");
+  ASSERT_EQ(r->status, 201) << r->body;
+  const std::string run_id = run_of_job(c, 1);
+  ASSERT_FALSE(run_id.empty()) << read_file(t / "serve1.err");
+  const fs::path dir = run_folder_of(t / "runs", run_id);
+  ASSERT_TRUE(wait_until([&] {
+    return fs::exists(dir / "run.json") && json::parse(read_file(dir / "run.json")).value("outcome", "") != "running";
+  }, 120));
+  const json doc = json::parse(read_file(dir / "run.json"));
+  EXPECT_EQ(doc["outcome"], "completed") << doc.dump(1);
+  EXPECT_EQ(doc["emulated"], false);
+  EXPECT_EQ(doc["points"]["completed"], doc["points"]["total"]);
+  EXPECT_TRUE(fs::exists(dir / "calibration.json"));
+  s.child->signal(SIGTERM);
+  EXPECT_EQ(s.child->wait(20), 0);
+  es.emu.signal(SIGTERM);
+  EXPECT_EQ(es.emu.wait(30), 0);
 }
 
 }  // namespace

@@ -8,8 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "stand/cli/emulator_contract.h"
 #include "tests/procedures/run_util.h"
+#include "tests/stand/emulator_stand.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {
@@ -19,31 +19,13 @@ namespace fs = std::filesystem;
 using testing::HasSubstr;
 using testing::Not;
 
-std::string procedures(const char* name) { return (test::source_dir() / "procedures" / name).string(); }
+std::string procedures(const char* name) { return test::shipped_procedure(name); }
 
-void replace(std::string& text, const std::string& from, const std::string& to) {
-  const auto at = text.find(from);
-  ASSERT_NE(at, std::string::npos) << from;
-  text.replace(at, from.size(), to);
-}
-
-// emulator_stand.yaml as shipped, but for the endpoints: its gimbal port and sensor link are fixed
-// names (1502, /tmp/fpss-sensor) and tests run side by side, so this emulator picks a free port
-// and a link in the test's folder; every other setting (axes, clock, speed, limits) is the file's.
 TEST(ExampleStand, TheEmulatorStandFileCalibratesWithinTheLimitsAgainstARunningEmulate) {
   test::TempDir tmp("example-stand");
-  const fs::path link = tmp / "fpss-sensor";
-  test::Child emu = test::start_emulate({"--modbus-port", "0", "--serial-link", link.string()}, tmp / "emulate.err");
-  EmulatorReadyLines ready;
-  while (!ready.ready) {
-    const auto line = emu.line(60);
-    ASSERT_TRUE(line.has_value()) << test::read_file(tmp / "emulate.err");
-    ready.take_line(*line);
-  }
-  std::string stand = test::read_file(procedures("emulator_stand.yaml"));
-  replace(stand, "modbus-tcp:127.0.0.1:1502", ready.gimbal);
-  replace(stand, "pty:/tmp/fpss-sensor", "pty:" + link.string());
-  const fs::path stand_file = tmp.write("stand.yaml", stand);
+  test::EmulatorStand es(tmp);
+  ASSERT_FALSE(es.stand_file.empty());
+  const fs::path stand_file = es.stand_file;
   const fs::path runs = tmp / "runs";
   const auto r = test::run_stand({"run", procedures("discrete_grid.yaml"), "--stand", stand_file.string(), "--runs-dir",
                                   runs.string()}, tmp.path(), "run", 300);
@@ -54,8 +36,8 @@ TEST(ExampleStand, TheEmulatorStandFileCalibratesWithinTheLimitsAgainstARunningE
     EXPECT_LE(cal["residuals"][axis]["mean_abs_arcsec"].get<double>(), 0.8) << axis;
     EXPECT_LE(cal["residuals"][axis]["max_abs_arcsec"].get<double>(), 2.1) << axis;
   }
-  emu.signal(SIGTERM);
-  EXPECT_EQ(emu.wait(30), 0);
+  es.emu.signal(SIGTERM);
+  EXPECT_EQ(es.emu.wait(30), 0);
 }
 
 // The paper's mounting on the emulator's sensor: hundreds of arcsec, and the run says why.
