@@ -174,6 +174,9 @@ def first_run(b):
              lambda: int(b.driver.find_element(By.ID, "chart-residual").get_attribute("data-points") or 0) >= 3)
     b.shot("3-5-running-chart")
     wait_for("run 1 completed", lambda: b.text("live-state") == "completed", timeout=120)
+    # The streaming fit's residual and its uncertainty (published with the last point at least).
+    fit = wait_for("the live fit's 1-sigma", lambda: re.search(r"1-sigma ([0-9.]+) / ([0-9.]+)", b.text("live-fit")))
+    assert 0 < float(fit.group(1)) < 1 and 0 < float(fit.group(2)) < 1, b.text("live-fit")
     wait_for("the report link", lambda: b.driver.find_element(By.ID, "live-report").is_displayed(), timeout=60)
     b.shot("5-completed")
     return run, b.driver.execute_script("return window.fpssLatencies")
