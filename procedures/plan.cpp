@@ -334,6 +334,9 @@ std::string format_plan(const Procedure& proc, const Plan& plan, const EngineSet
     s += fmt::format(" ({} of wall time at speed-up {})", duration_text(plan.estimated_s / b.time_scale),
                      b.time_scale);
   }
+  const bool adaptive = std::any_of(plan.actions.begin(), plan.actions.end(),
+                                    [](const Action& a) { return a.until_group >= 0; });
+  if (adaptive) s += "; at most: a grid's adaptive stop (until) may end it sooner";
   s += "\nall targets inside the soft limits\n";
   return s;
 }
