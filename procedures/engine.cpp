@@ -9,12 +9,32 @@
 #include <limits>
 #include <thread>
 
+#include <sys/prctl.h>
+
 #include "procedures/align.h"
 #include "procedures/engine_detail.h"
 
 namespace fpss {
 
 using namespace engine_detail;
+
+namespace {
+// Seconds an axis needs to stop at a target `e` away, moving at `v` now, with the profile's
+// top speed and acceleration (the trapezoid of move_duration_s, entered part-way).
+double axis_remaining_s(double e, double v, double vmax, double acc) {
+  if (e < 0) {
+    e = -e;
+    v = -v;
+  }
+  if (e <= 0 || !(vmax > 0)) return 0;
+  if (!(acc > 0)) return e / vmax;
+  if (v < 0) return -v / acc + move_duration_s(0, 0, e + v * v / (2 * acc), 0, vmax, acc);  // stops first
+  if (v * v / (2 * acc) >= e) return v > 0 ? 2 * e / v : 0;                                   // braking onto it
+  const double vp = std::min(vmax, std::sqrt(acc * e + v * v / 2));
+  const double cruise = e - (vp * vp - v * v) / (2 * acc) - vp * vp / (2 * acc);
+  return (vp - v) / acc + std::max(0.0, cruise) / vp + vp / acc;
+}
+}  // namespace
 
 
 Engine::Engine(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, const Plan& plan, EventBus& events,
@@ -57,6 +77,10 @@ GimbalState Engine::read_gimbal() {
     st = g_.read_state();
   }
   last_gimbal_time_s_ = static_cast<double>(st.sample_time_us) * 1e-6;
+  last_pitch_arcsec_ = st.pitch_arcsec;
+  last_yaw_arcsec_ = st.yaw_arcsec;
+  note_bench(last_gimbal_time_s_, st.host_time_s > 0 ? st.host_time_s : host_now_s());
+  if (bench_start_s_ < 0) bench_start_s_ = last_gimbal_time_s_;
   return st;
 }
 
@@ -143,6 +167,74 @@ void Engine::sleep_physical(double physical_s) {
   }
 }
 
+void Engine::note_bench(double bench_s, double host_s) {
+  // The devices' stamps are the truth (the host's estimate between them may run ahead); never
+  // backwards: a late stamp of an earlier instant says nothing new.
+  if (bench_s >= last_bench_s_) {
+    last_bench_s_ = bench_s;
+    last_bench_host_s_ = host_s;
+  }
+}
+
+double Engine::bench_now_at(double host_s) const {
+  if (last_bench_host_s_ <= 0) return last_bench_s_;
+  return last_bench_s_ + std::max(0.0, host_s - last_bench_host_s_) * b_.time_scale;
+}
+
+double Engine::bench_now_s() const { return bench_now_at(host_now_s()); }
+
+void Engine::sleep_until_bench(double t_s) { sleep_physical(t_s - bench_now_s()); }
+
+std::optional<SensorSample> Engine::wait_bench_until(double t_s) {
+  const double period = 1.0 / b_.sample_rate_hz;
+  if (last_bench_s_ >= t_s) return std::nullopt;  // a device already said it is past
+  if (b_.clock != ClockSync::shared) {
+    sleep_until_bench(t_s);
+    return std::nullopt;
+  }
+  // The host clock for what is surely ahead (two frame periods short), then the frames: their
+  // time stamps are the bench clock itself, whatever the host's scheduler did.
+  sleep_until_bench(t_s - 2 * period);
+  const double frame_wait = b_.wall(period) + b_.frame_timeout_s;
+  for (;;) {
+    check_abort();
+    std::optional<SensorSample> f;
+    try {
+      Timed t(stats_.device_s);
+      f = s_.next_sample(frame_wait);
+    } catch (const DeviceError&) {
+      f.reset();  // the measurement that needs the sensor says so; the wait falls back on the host clock
+    }
+    if (!f) {
+      sleep_until_bench(t_s);
+      return std::nullopt;
+    }
+    const double ts = sensor_clock_s(*f);
+    note_bench(ts, f->host_time_s);
+    if (ts + 1e-9 >= t_s) return f;
+  }
+}
+
+void Engine::off_bench(const std::function<void()>& f) {
+  // From the bench clock's estimate before to a gimbal reading after (a host that ran ahead of
+  // the devices' clock counts nothing).
+  struct Add {
+    Engine& e;
+    double t0;
+    ~Add() {
+      double t1 = 0;
+      try {
+        e.read_gimbal();
+        t1 = e.last_bench_s_;
+      } catch (const std::exception&) {
+        t1 = e.bench_now_s();
+      }
+      e.off_bench_s_ += std::max(0.0, t1 - t0);
+    }
+  } add{*this, bench_now_s()};
+  f();
+}
+
 void Engine::wait_while_paused() {
   if (!ctl_.pause.load()) return;
   log_.info("paused at the last point; the gimbal holds (the key r, or SIGUSR1 again, continues)");
@@ -158,7 +250,15 @@ void Engine::wait_while_paused() {
 }
 
 GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing) {
-  {
+  const double rate = commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
+  double arrival = 0;  // when the profile says the gimbal arrives (bench clock)
+  if (!homing && pending_ && pending_->pitch_arcsec == pitch && pending_->yaw_arcsec == yaw) {
+    arrival = pending_->arrival_s;  // commanded while the last point was being stored
+  } else {
+    pending_.reset();
+    // From the latest device time stamp (no later than the command): the first look may come
+    // early, never late.
+    const double from_p = last_pitch_arcsec_, from_y = last_yaw_arcsec_, t0 = last_bench_s_;
     Timed t(stats_.device_s);
     moved_ = true;
     if (homing) {
@@ -167,7 +267,9 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
       target_known_ = false;  // a home need not write the target registers
     }
     else command_move(pitch, yaw);
+    arrival = t0 + move_duration_s(from_p, from_y, homing ? 0 : pitch, homing ? 0 : yaw, rate, b_.acceleration_arcsec_s2);
   }
+  pending_.reset();
   // Communication slack on top of the physical time: a slow link must not look like a stuck axis.
   const double timeout_wall = b_.wall(timeout_physical_s) + 2.0;
   const auto start = Clock::now();
@@ -175,6 +277,7 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
   GimbalState st;
   for (;;) {
     check_abort();
+    wait_bench_until(arrival);
     st = read_gimbal();
     if (st.has(kFault) || st.fault != GimbalFault::none) {
       throw GimbalFailure(fmt::format("gimbal fault ({}) while moving to pitch {}, yaw {}", fault_name(st),
@@ -189,8 +292,12 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
                                       deg(pitch), deg(yaw), timeout_wall, deg(st.pitch_arcsec), deg(st.yaw_arcsec),
                                       st.status));
     }
-    Timed t(stats_.sleep_s);
-    std::this_thread::sleep_for(std::chrono::duration<double>(b_.poll_interval_s));
+    // Not there yet: when it will be, from where it is and how fast it goes; no sooner than the
+    // next frame (or the stand's poll interval without a shared clock).
+    const double left = std::max(axis_remaining_s(pitch - st.pitch_arcsec, st.pitch_rate_arcsec_s, rate, b_.acceleration_arcsec_s2),
+                                 axis_remaining_s(yaw - st.yaw_arcsec, st.yaw_rate_arcsec_s, rate, b_.acceleration_arcsec_s2));
+    const double floor_s = b_.clock == ClockSync::shared ? 0.0 : b_.poll_interval_s * b_.time_scale;
+    arrival = last_gimbal_time_s_ + std::max(left, floor_s);
   }
 }
 
@@ -247,6 +354,7 @@ void Engine::prepare() {
 
 void Engine::recover(const std::string& reason, bool sensor_side) {
   ++stats_.recoveries;
+  pending_.reset();  // the gimbal is stopped below: a move commanded ahead is void
   // A short pause lets a dropped link come back (the drivers reconnect on the next request).
   sleep_physical(0);
   {
@@ -366,6 +474,7 @@ void Engine::do_move(const Action& a) {
 
 bool Engine::safe_stop() {
   stopping_ = true;
+  pending_.reset();
   bool ok = true;
   try {
     Timed t(stats_.device_s);
@@ -410,6 +519,7 @@ bool Engine::safe_stop() {
 
 void Engine::do_action(size_t i) {
   const Action& a = plan_.actions[i];
+  action_ = i;
   const bool done_before = cursor_.resuming && i < cursor_.resume_at;
   switch (a.kind) {
     case Action::Kind::home:
@@ -431,7 +541,7 @@ void Engine::do_action(size_t i) {
       break;
     case Action::Kind::settle:
       if (done_before) break;
-      sleep_physical(a.settle_s);
+      wait_bench_until(bench_now_s() + a.settle_s);
       break;
     case Action::Kind::dwell:
       if (a.point < cursor_.first) break;
@@ -444,14 +554,15 @@ void Engine::do_action(size_t i) {
       measure_slew(a, cursor_.session);
       break;
     case Action::Kind::calibrate:
-      compute(a, "calibrate", hooks_.calibrate, StopCause::calibration_failed);
+      off_bench([&] { compute(a, "calibrate", hooks_.calibrate, StopCause::calibration_failed); });
       break;
     case Action::Kind::diagnose:
-      compute(a, "diagnose", hooks_.diagnose, StopCause::diagnosis_failed);
+      off_bench([&] { compute(a, "diagnose", hooks_.diagnose, StopCause::diagnosis_failed); });
       break;
     case Action::Kind::check: {
       log_.info("step {}: check", a.step_index);
-      const std::string broken = hooks_.check ? hooks_.check(a) : std::string();
+      std::string broken;
+      if (hooks_.check) off_bench([&] { broken = hooks_.check(a); });
       if (!broken.empty()) {
         throw PointFailure(fmt::format("step {} (check): {}", a.step_index, broken), StopCause::check_failed);
       }
@@ -462,6 +573,17 @@ void Engine::do_action(size_t i) {
 
 EngineResult Engine::run(int session) {
   const auto t0 = Clock::now();
+  // Waits of tens of microseconds matter at a fast emulator's pace (a microsecond of wall time is
+  // a millisecond of bench time at 1000x): no timer slack on this thread while the run lasts.
+  struct TimerSlack {
+    int prev = ::prctl(PR_GET_TIMERSLACK, 0, 0, 0, 0);
+    TimerSlack() { ::prctl(PR_SET_TIMERSLACK, 1, 0, 0, 0); }
+    ~TimerSlack() {
+      if (prev > 0) ::prctl(PR_SET_TIMERSLACK, prev, 0, 0, 0);
+    }
+  } slack;
+  bench_start_s_ = -1;
+  off_bench_s_ = 0;
   EngineResult r;
   cursor_ = Cursor{};
   cursor_.session = session;
@@ -514,6 +636,12 @@ EngineResult Engine::run(int session) {
     }
   }
   r.points_done = next_point_;
+  if (bench_start_s_ >= 0) {
+    const double bench = std::max(0.0, last_bench_s_ - bench_start_s_ - off_bench_s_);
+    stats_.bench_s += bench;
+    log_.info("bench time {:.2f} s (computation steps left out); the plan's physical minimum {:.2f} s, estimate {:.2f} s",
+              bench, plan_.physical_s, plan_.estimated_s);
+  }
   events_.publish(RunStopped{r.outcome, r.cause, r.reason, r.points_done, r.safe_state});
   stats_.wall_s += seconds_since(t0);
   return r;

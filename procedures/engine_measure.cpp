@@ -16,19 +16,7 @@ using namespace engine_detail;
 
 void Engine::measure_dwell(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
-    move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
-    sleep_physical(a.settle_s);
-    const double settled_host = host_now_s();
-    GimbalState before;
-    try {
-      {
-        Timed t(stats_.device_s);
-        s_.flush();
-      }
-      before = read_gimbal();
-    } catch (const DeviceError& e) {
-      throw PointFailure(e.what());
-    }
+    const GimbalState arrived = move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
     auto check_still = [&](const GimbalState& st, const char* when) {
       if (st.has(kFault) || st.fault != GimbalFault::none) {
         throw GimbalFailure(fmt::format("gimbal fault ({}) {} sampling", fault_name(st), when));
@@ -41,7 +29,26 @@ void Engine::measure_dwell(const Action& a, int session) {
                                         deg(st.pitch_arcsec), deg(st.yaw_arcsec), st.status));
       }
     };
-    check_still(before, "before");
+    // The settle counts from the reading that found the gimbal there. One clock for both devices:
+    // the frames say when it is over, and the first frame after it is the dwell's first; else the
+    // host clock says, and a reading after it starts the dwell.
+    const bool shared = b_.clock == ClockSync::shared;
+    const double settled_bench = last_gimbal_time_s_ + a.settle_s;
+    std::optional<SensorSample> first = wait_bench_until(settled_bench);
+    const double settled_host = host_now_s();
+    if (!first && !shared) {
+      try {
+        {
+          Timed t(stats_.device_s);
+          s_.flush();
+        }
+        check_still(read_gimbal(), "before");
+      } catch (const DeviceError& e) {
+        throw PointFailure(e.what());
+      }
+    } else {
+      check_still(arrived, "before");
+    }
     const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
     std::vector<SensorSample> frames;
     std::vector<GimbalState> refs;
@@ -52,17 +59,22 @@ void Engine::measure_dwell(const Action& a, int session) {
     while (static_cast<int>(frames.size()) < a.frames) {
       check_abort();
       std::optional<SensorSample> f;
-      try {
-        Timed t(stats_.device_s);
-        f = s_.next_sample(frame_wait);
-      } catch (const DeviceError& e) {
-        throw SensorFailure(e.what());
+      if (first) {
+        f = first;
+        first.reset();
+      } else {
+        try {
+          Timed t(stats_.device_s);
+          f = s_.next_sample(frame_wait);
+        } catch (const DeviceError& e) {
+          throw SensorFailure(e.what());
+        }
       }
       if (!f) throw SensorFailure(fmt::format("the sensor sent no frame within {:.2f} s", frame_wait));
-      if (f->host_time_s < settled_host) continue;  // on its way before the settle ended
-      // One clock for both devices: a frame stamped before the settled gimbal reading was taken
-      // during the move, however late it arrives (a sensor stream catching up after a stall).
-      if (b_.clock == ClockSync::shared && sensor_clock_s(*f) + 1e-6 < before.sample_time_us * 1e-6) continue;
+      // One clock for both devices: a frame stamped before the settle ended was taken during
+      // it, however late it arrives (a sensor stream catching up after a stall).
+      if (shared && sensor_clock_s(*f) + 1e-6 < settled_bench) continue;
+      if (!shared && f->host_time_s < settled_host) continue;  // on its way before the settle ended
       if (!f->valid()) {
         last_bad_status = f->status;
         if (++invalid > a.max_invalid) {
@@ -82,6 +94,9 @@ void Engine::measure_dwell(const Action& a, int session) {
       }
       check_still(refs.back(), "while");
     }
+    // Everything the gimbal had to do here is done: its next move starts now, and the checks
+    // and the storing below overlap it.
+    command_next_move();
     verify_command();
     const double temp = read_temperature_c(a);
     std::vector<RecordedRow> rows;
@@ -93,6 +108,27 @@ void Engine::measure_dwell(const Action& a, int session) {
     }
     publish_point(a, rows, attempt, session, invalid);
   });
+}
+
+void Engine::command_next_move() {
+  pending_.reset();
+  // A pause or an abort holds the gimbal where it is.
+  if (ctl_.pause.load() || ctl_.abort.load() || action_ + 1 >= plan_.actions.size()) return;
+  const Action& n = plan_.actions[action_ + 1];
+  if (n.kind != Action::Kind::dwell || n.point < cursor_.first) return;
+  const double from_p = last_pitch_arcsec_, from_y = last_yaw_arcsec_, t0 = last_bench_s_;
+  try {
+    Timed t(stats_.device_s);
+    command_move(n.pitch_arcsec, n.yaw_arcsec);
+  } catch (const DeviceError& e) {
+    log_.debug("{}: move commanded ahead not sent ({}); sent again when its turn comes", label(n), e.what());
+    target_known_ = false;
+    return;
+  }
+  moved_ = true;
+  const double rate = commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
+  pending_ = PendingMove{n.pitch_arcsec, n.yaw_arcsec,
+                         t0 + move_duration_s(from_p, from_y, n.pitch_arcsec, n.yaw_arcsec, rate, b_.acceleration_arcsec_s2)};
 }
 
 void Engine::slew_times(const std::vector<SensorSample>& frames, const std::vector<GimbalFix>& fixes,
@@ -129,7 +165,7 @@ void Engine::slew_times(const std::vector<SensorSample>& frames, const std::vect
 void Engine::measure_slew(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
     move_and_wait(a.start_pitch_arcsec, a.start_yaw_arcsec, b_.move_timeout_s);
-    sleep_physical(a.settle_s);
+    wait_bench_until(last_gimbal_time_s_ + a.settle_s);
     struct RateGuard {
       Engine& e;
       ~RateGuard() {
@@ -171,6 +207,8 @@ void Engine::measure_slew(const Action& a, int session) {
       const double timeout_wall = b_.wall(span / a.rate_arcsec_s * 2 + b_.move_timeout_s) + 2.0;
       const auto start = Clock::now();
       const double tol = b_.in_position_tolerance_arcsec;
+      const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
+      size_t seen = frames.size();
       for (;;) {
         check_abort();
         GimbalState st = read_gimbal();
@@ -187,8 +225,12 @@ void Engine::measure_slew(const Action& a, int session) {
           throw GimbalFailure(fmt::format("slew did not reach its end within {:.1f} s (at pitch {}, yaw {})",
                                           timeout_wall, deg(st.pitch_arcsec), deg(st.yaw_arcsec)));
         }
-        Timed t(stats_.sleep_s);
-        std::this_thread::sleep_for(std::chrono::microseconds(500));
+        // Paced by the sensor: when no frame came since the last reading, the next one is waited for.
+        if (frames.size() == seen) {
+          Timed t(stats_.device_s);
+          if (auto f = s_.next_sample(frame_wait)) frames.push_back(*f);
+        }
+        seen = frames.size();
       }
       // Frames sampled before the arrival may still be on the line: wait one frame period more.
       {
