@@ -52,6 +52,7 @@ void Engine::measure_dwell(const Action& a, int session) {
     const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
     std::vector<SensorSample> frames;
     std::vector<GimbalState> refs;
+    std::vector<size_t> ref_of;  // each frame's reading in refs
     frames.reserve(static_cast<size_t>(a.frames));
     refs.reserve(static_cast<size_t>(a.frames));
     int invalid = 0;
@@ -85,14 +86,27 @@ void Engine::measure_dwell(const Action& a, int session) {
         continue;
       }
       frames.push_back(*f);
-      // Each frame gets its own encoder reading: the dwell's reference is then the mean of as many
-      // readings as frames, not of two (the encoders' noise dominates a dwell's error otherwise).
+      // Each frame is referenced to the first encoder reading after it: the gimbal is read after
+      // every frame while the link keeps up with them (the dwell's reference is then the mean of as
+      // many readings as frames, not of two: the encoders' noise dominates a dwell's error
+      // otherwise), and after each run of frames that came during a reading when it does not (a
+      // fast emulator), so the readings never hold the dwell back.
+      if (static_cast<int>(frames.size()) < a.frames) {
+        try {
+          Timed t(stats_.device_s);
+          first = s_.next_sample(0.0);
+        } catch (const DeviceError& e) {
+          throw SensorFailure(e.what());
+        }
+        if (first) continue;
+      }
       try {
         refs.push_back(read_gimbal());
       } catch (const DeviceError& e) {
         throw GimbalFailure(e.what());
       }
       check_still(refs.back(), "while");
+      ref_of.resize(frames.size(), refs.size() - 1);
     }
     // Everything the gimbal had to do here is done: its next move starts now, and the checks
     // and the storing below overlap it.
@@ -102,33 +116,12 @@ void Engine::measure_dwell(const Action& a, int session) {
     std::vector<RecordedRow> rows;
     rows.reserve(frames.size());
     for (size_t i = 0; i < frames.size(); ++i) {
-      const GimbalState& g = refs[i];
+      const GimbalState& g = refs[ref_of[i]];
       const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
       rows.push_back(make_row(a, a.phase, frames[i], sensor_clock_s(frames[i]), ref, temp, attempt, session));
     }
     publish_point(a, rows, attempt, session, invalid);
   });
-}
-
-void Engine::command_next_move() {
-  pending_.reset();
-  // A pause or an abort holds the gimbal where it is.
-  if (ctl_.pause.load() || ctl_.abort.load() || action_ + 1 >= plan_.actions.size()) return;
-  const Action& n = plan_.actions[action_ + 1];
-  if (n.kind != Action::Kind::dwell || n.point < cursor_.first) return;
-  const double from_p = last_pitch_arcsec_, from_y = last_yaw_arcsec_, t0 = last_bench_s_;
-  try {
-    Timed t(stats_.device_s);
-    command_move(n.pitch_arcsec, n.yaw_arcsec);
-  } catch (const DeviceError& e) {
-    log_.debug("{}: move commanded ahead not sent ({}); sent again when its turn comes", label(n), e.what());
-    target_known_ = false;
-    return;
-  }
-  moved_ = true;
-  const double rate = commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
-  pending_ = PendingMove{n.pitch_arcsec, n.yaw_arcsec,
-                         t0 + move_duration_s(from_p, from_y, n.pitch_arcsec, n.yaw_arcsec, rate, b_.acceleration_arcsec_s2)};
 }
 
 void Engine::slew_times(const std::vector<SensorSample>& frames, const std::vector<GimbalFix>& fixes,

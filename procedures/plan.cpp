@@ -129,9 +129,9 @@ class Expander {
     a.max_invalid = f.max_invalid;
     travel(p, y, 0);
     plan_.physical_s += settle_s + a.frames / b_.sample_rate_hz;
-    // The link: the move's command (targets, then go) and the reading that finds it there; one
-    // encoder reading per frame, which sets the dwell's pace when it takes longer than a frame.
-    link_s_ += 3 * link() + std::max(0.0, a.frames * link() - a.frames / b_.sample_rate_hz);
+    // The links: the move's command (targets, then go), the reading that finds the gimbal there,
+    // and the encoder reading after the last frame (the others overlap the frames).
+    link_s_ += 3 * link();
     plan_.frames += a.frames;
     push(a);
   }

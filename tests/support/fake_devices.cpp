@@ -168,7 +168,7 @@ std::optional<SensorSample> FakeSensor::next_sample(double timeout_s) {
     {
       std::lock_guard lock(b_.mutex());
       now = b_.now_s();
-      if (streaming_ && b_.virtual_clock()) {
+      if (streaming_ && b_.virtual_clock() && timeout_s > 0) {
         b_.advance_to(frame_time_s(next_frame_));  // waiting for the frame is what moves the clock
         now = b_.now_s();
       }
