@@ -176,18 +176,17 @@ void Engine::measure_slew(const Action& a, int session) {
       fixes.push_back(GimbalFix{static_cast<double>(st.sample_time_us) / 1e6, st.host_time_s, st.pitch_arcsec,
                                 st.yaw_arcsec, st.pitch_rate_arcsec_s, st.yaw_rate_arcsec_s, st.status});
     };
-    auto drain = [&] {
+    auto drain = [&] {  // true when a frame came
       Timed t(stats_.device_s);
+      const size_t n = frames.size();
       while (auto f = s_.next_sample(0.0)) frames.push_back(*f);
+      return frames.size() > n;
     };
     try {
+      RateGuard guard{*this};  // restores the profile rate however this ends
       {
         Timed t(stats_.device_s);
         command_rate(a.rate_arcsec_s);
-      }
-      RateGuard guard{*this};
-      {
-        Timed t(stats_.device_s);
         s_.flush();
       }
       fix(read_gimbal());
@@ -201,7 +200,6 @@ void Engine::measure_slew(const Action& a, int session) {
       const auto start = Clock::now();
       const double tol = b_.in_position_tolerance_arcsec;
       const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
-      size_t seen = frames.size();
       for (;;) {
         check_abort();
         GimbalState st = read_gimbal();
@@ -209,7 +207,6 @@ void Engine::measure_slew(const Action& a, int session) {
         if (st.has(kFault) || st.fault != GimbalFault::none) {
           throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
         }
-        drain();
         if (st.has(kInPosition) && !st.has(kMoving) && std::fabs(st.pitch_arcsec - a.pitch_arcsec) <= tol &&
             std::fabs(st.yaw_arcsec - a.yaw_arcsec) <= tol) {
           break;
@@ -218,12 +215,11 @@ void Engine::measure_slew(const Action& a, int session) {
           throw GimbalFailure(fmt::format("slew did not reach its end within {:.1f} s (at pitch {}, yaw {})",
                                           timeout_wall, deg(st.pitch_arcsec), deg(st.yaw_arcsec)));
         }
-        // Paced by the sensor: when no frame came since the last reading, the next one is waited for.
-        if (frames.size() == seen) {
+        // Paced by the sensor: with no frame since the last reading, the next one is waited for.
+        if (!drain()) {
           Timed t(stats_.device_s);
           if (auto f = s_.next_sample(frame_wait)) frames.push_back(*f);
         }
-        seen = frames.size();
       }
       // Frames sampled before the arrival may still be on the line: wait one frame period more.
       {
@@ -237,9 +233,7 @@ void Engine::measure_slew(const Action& a, int session) {
     }
     verify_command();
     if (frames.empty()) throw SensorFailure("the sensor sent no frame during the slew");
-
-    // Sensor time -> gimbal time.
-    std::vector<double> s_times, g_times;
+    std::vector<double> s_times, g_times;  // sensor time -> gimbal time
     slew_times(frames, fixes, s_times, g_times);
     const double temp = read_temperature_c(a);
     std::vector<RecordedRow> rows;
