@@ -48,6 +48,15 @@ double Engine::bench_now_s() const { return bench_now_at(host_now_s()); }
 void Engine::sleep_until_bench(double t_s) { sleep_physical(t_s - bench_now_s()); }
 
 std::optional<SensorSample> Engine::wait_bench_until(double t_s) {
+  // The gimbal's watchdog (bench seconds) wants a request in time: a longer wait is cut by readings.
+  const double keep_alive = 0.5 * b_.watchdog_s;
+  while (keep_alive > 0 && t_s - last_gimbal_time_s_ > keep_alive + 1e-6) {  // (the inner wait: none)
+    const double before = last_gimbal_time_s_;
+    wait_bench_until(before + keep_alive);
+    check_abort();
+    read_gimbal();
+    if (last_gimbal_time_s_ <= before) break;  // a gimbal clock standing still paces nothing
+  }
   const double period = 1.0 / b_.sample_rate_hz;
   if (last_bench_s_ >= t_s) return std::nullopt;  // a device already said it is past
   if (b_.clock != ClockSync::shared) {

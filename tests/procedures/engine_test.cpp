@@ -325,5 +325,33 @@ TEST(Engine, TheDiscreteGridTakesWithin10PercentOfItsPhysicalMinimumAtEverySpeed
   }
 }
 
+// Waiting for the predicted arrival, the settle and the frames sends nothing to the gimbal: with
+// its watchdog on (0.3 bench seconds here, shorter than the grid's moves and settles), readings
+// cut the long waits and it never trips.
+TEST(Engine, LongWaitsFeedTheGimbalsWatchdog) {
+  TempDir tmp("engine-watchdog");
+  EngineSettings b;
+  b.clock = ClockSync::shared;
+  b.time_scale = 1e9;
+  b.watchdog_s = 0.3;
+  test::FakeBench fake{default_bench_config(), 1000};
+  fake.use_virtual_clock(kLinkRoundTrip_s * 1000);
+  test::FakeGimbal gimbal{fake};
+  test::FakeSensor sensor{fake};
+  gimbal.connect();
+  sensor.connect();
+  const Plan plan = plan_of(grid(), b);
+  RunRecorder recorder(tmp / "run");
+  EventBus bus;
+  record_with(bus, recorder);
+  RunControl ctl;
+  const auto log = quiet_log();
+  Engine engine(gimbal, sensor, b, plan, bus, *log, ctl);
+  const EngineResult r = engine.run();
+  EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
+  EXPECT_EQ(engine.stats().recoveries, 0);
+  EXPECT_EQ(r.points_done, static_cast<int64_t>(plan.points));
+}
+
 }  // namespace
 }  // namespace fpss
