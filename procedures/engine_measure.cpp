@@ -50,6 +50,7 @@ void Engine::measure_dwell(const Action& a, int session) {
       check_still(arrived, "before");
     }
     const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
+    const bool link_slower_than_frames = b_.link_round_trip_s * b_.time_scale > 1.0 / b_.sample_rate_hz;
     std::vector<SensorSample> frames;
     std::vector<GimbalState> refs;
     std::vector<size_t> ref_of;  // each frame's reading in refs
@@ -87,11 +88,11 @@ void Engine::measure_dwell(const Action& a, int session) {
       }
       frames.push_back(*f);
       // Each frame is referenced to the first encoder reading after it: the gimbal is read after
-      // every frame while the link keeps up with them (the dwell's reference is then the mean of as
-      // many readings as frames, not of two: the encoders' noise dominates a dwell's error
-      // otherwise), and after each run of frames that came during a reading when it does not (a
-      // fast emulator), so the readings never hold the dwell back.
-      if (static_cast<int>(frames.size()) < a.frames) {
+      // every frame (the dwell's reference is then the mean of as many readings as frames, not of
+      // two: the encoders' noise dominates a dwell's error otherwise), unless the stand's link
+      // takes longer than a frame period at its speed-up (an emulator at 1000x): then after each
+      // run of frames that came during a reading, so the readings never hold the dwell back.
+      if (link_slower_than_frames && static_cast<int>(frames.size()) < a.frames) {
         try {
           Timed t(stats_.device_s);
           first = s_.next_sample(0.0);

@@ -31,8 +31,10 @@ struct EngineSettings {
   double sensor_time_offset_s = 0;       // added to sensor time before aligning (known latency)
   double max_reference_gap_s = 0.05;     // slews: a frame between gimbal readings further apart is skipped
   double time_scale = 1;                 // bench seconds per wall second (an emulator's speed-up)
-  // One device request's round trip (wall seconds), for duration estimates only: at a speed-up
-  // it costs that many times more bench time (0: not counted; the emulator's is set for it).
+  // One device request's round trip (wall seconds), for duration estimates and the dwell's pace
+  // of encoder readings (one per frame unless a round trip at the speed-up is longer than a frame
+  // period): at a speed-up it costs that many times more bench time (0: not counted; the
+  // emulator's is set for it).
   double link_round_trip_s = 0;
   double poll_interval_s = 0.002;        // wall seconds between gimbal polls when no sensor frame paces them
 
