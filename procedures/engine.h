@@ -41,6 +41,9 @@ struct EngineStats {
   double sleep_s = 0;        // settle times and poll intervals
   double storage_s = 0;      // appending and syncing samples.csv and the journal (fsync)
   double calibrate_s = 0;    // computation steps: calibrate and diagnose (not per point)
+  // Bench seconds (the devices' clock) from the first reading to the gimbal back at null, the
+  // computation steps left out: what the plan's estimated_s (the physical minimum) predicts.
+  double bench_s = 0;
   int64_t points = 0;        // points measured in this session
   int64_t remeasured = 0;    // extra attempts
   int64_t recoveries = 0;    // fault clears, stream restarts
@@ -99,6 +102,21 @@ class Engine {
   void with_remeasure(const Action& a, const std::function<void(int)>& attempt);
   GimbalState move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing = false);
   void sleep_physical(double physical_s);
+  // The bench clock (the devices' own) now: the latest device time stamp, advanced by the host
+  // clock since at the bench's pace.
+  double bench_now_s() const;
+  double bench_now_at(double host_s) const;
+  void note_bench(double bench_s, double host_s);
+  // Waits until the bench clock reaches t_s: the host clock for the part surely ahead, then (one
+  // clock for both devices) the sensor's time-stamped frames. Returns the first frame at or after
+  // t_s when the frames told, nullopt when the host clock did (another clock, a silent sensor).
+  std::optional<SensorSample> wait_bench_until(double t_s);
+  void sleep_until_bench(double t_s);
+  // Commands the move of the action after the current one while this point is still being
+  // stored (its fsync overlaps the motion); move_and_wait then only waits for it.
+  void command_next_move();
+  // Excludes a computation step's bench time from EngineStats::bench_s.
+  void off_bench(const std::function<void()>& f);
   void wait_while_paused();
   void check_abort();
   void recover(const std::string& reason, bool sensor_side);
@@ -157,6 +175,15 @@ class Engine {
   std::optional<double> sensor_t0_;
   double time_base_ = 0, last_time_ = 0;
   double last_gimbal_time_s_ = 0;
+  double last_pitch_arcsec_ = 0, last_yaw_arcsec_ = 0;  // the latest encoder reading
+  double last_bench_s_ = 0, last_bench_host_s_ = 0;     // the latest device time stamp and its receipt
+  double bench_start_s_ = -1, off_bench_s_ = 0;
+  size_t action_ = 0;           // plan_.actions index being done
+  // A move commanded ahead (command_next_move): its target and predicted arrival (bench clock).
+  struct PendingMove {
+    double pitch_arcsec = 0, yaw_arcsec = 0, arrival_s = 0;
+  };
+  std::optional<PendingMove> pending_;
 };
 
 }  // namespace fpss

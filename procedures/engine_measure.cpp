@@ -16,19 +16,7 @@ using namespace engine_detail;
 
 void Engine::measure_dwell(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
-    move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
-    sleep_physical(a.settle_s);
-    const double settled_host = host_now_s();
-    GimbalState before;
-    try {
-      {
-        Timed t(stats_.device_s);
-        s_.flush();
-      }
-      before = read_gimbal();
-    } catch (const DeviceError& e) {
-      throw PointFailure(e.what());
-    }
+    const GimbalState arrived = move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
     auto check_still = [&](const GimbalState& st, const char* when) {
       if (st.has(kFault) || st.fault != GimbalFault::none) {
         throw GimbalFailure(fmt::format("gimbal fault ({}) {} sampling", fault_name(st), when));
@@ -41,10 +29,31 @@ void Engine::measure_dwell(const Action& a, int session) {
                                         deg(st.pitch_arcsec), deg(st.yaw_arcsec), st.status));
       }
     };
-    check_still(before, "before");
+    // The settle counts from the reading that found the gimbal there. One clock for both devices:
+    // the frames say when it is over, and the first frame after it is the dwell's first; else the
+    // host clock says, and a reading after it starts the dwell.
+    const bool shared = b_.clock == ClockSync::shared;
+    const double settled_bench = last_gimbal_time_s_ + a.settle_s;
+    std::optional<SensorSample> first = wait_bench_until(settled_bench);
+    const double settled_host = host_now_s();
+    if (!first && !shared) {
+      try {
+        {
+          Timed t(stats_.device_s);
+          s_.flush();
+        }
+        check_still(read_gimbal(), "before");
+      } catch (const DeviceError& e) {
+        throw PointFailure(e.what());
+      }
+    } else {
+      check_still(arrived, "before");
+    }
     const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
+    const bool link_slower_than_frames = b_.link_round_trip_s * b_.time_scale > 1.0 / b_.sample_rate_hz;
     std::vector<SensorSample> frames;
     std::vector<GimbalState> refs;
+    std::vector<size_t> ref_of;  // each frame's reading in refs
     frames.reserve(static_cast<size_t>(a.frames));
     refs.reserve(static_cast<size_t>(a.frames));
     int invalid = 0;
@@ -52,17 +61,22 @@ void Engine::measure_dwell(const Action& a, int session) {
     while (static_cast<int>(frames.size()) < a.frames) {
       check_abort();
       std::optional<SensorSample> f;
-      try {
-        Timed t(stats_.device_s);
-        f = s_.next_sample(frame_wait);
-      } catch (const DeviceError& e) {
-        throw SensorFailure(e.what());
+      if (first) {
+        f = first;
+        first.reset();
+      } else {
+        try {
+          Timed t(stats_.device_s);
+          f = s_.next_sample(frame_wait);
+        } catch (const DeviceError& e) {
+          throw SensorFailure(e.what());
+        }
       }
       if (!f) throw SensorFailure(fmt::format("the sensor sent no frame within {:.2f} s", frame_wait));
-      if (f->host_time_s < settled_host) continue;  // on its way before the settle ended
-      // One clock for both devices: a frame stamped before the settled gimbal reading was taken
-      // during the move, however late it arrives (a sensor stream catching up after a stall).
-      if (b_.clock == ClockSync::shared && sensor_clock_s(*f) + 1e-6 < before.sample_time_us * 1e-6) continue;
+      // One clock for both devices: a frame stamped before the settle ended was taken during
+      // it, however late it arrives (a sensor stream catching up after a stall).
+      if (shared && sensor_clock_s(*f) + 1e-6 < settled_bench) continue;
+      if (!shared && f->host_time_s < settled_host) continue;  // on its way before the settle ended
       if (!f->valid()) {
         last_bad_status = f->status;
         if (++invalid > a.max_invalid) {
@@ -73,21 +87,37 @@ void Engine::measure_dwell(const Action& a, int session) {
         continue;
       }
       frames.push_back(*f);
-      // Each frame gets its own encoder reading: the dwell's reference is then the mean of as many
-      // readings as frames, not of two (the encoders' noise dominates a dwell's error otherwise).
+      // Each frame is referenced to the first encoder reading after it: the gimbal is read after
+      // every frame (the dwell's reference is then the mean of as many readings as frames, not of
+      // two: the encoders' noise dominates a dwell's error otherwise), unless the stand's link
+      // takes longer than a frame period at its speed-up (an emulator at 1000x): then after each
+      // run of frames that came during a reading, so the readings never hold the dwell back.
+      if (link_slower_than_frames && static_cast<int>(frames.size()) < a.frames) {
+        try {
+          Timed t(stats_.device_s);
+          first = s_.next_sample(0.0);
+        } catch (const DeviceError& e) {
+          throw SensorFailure(e.what());
+        }
+        if (first) continue;
+      }
       try {
         refs.push_back(read_gimbal());
       } catch (const DeviceError& e) {
         throw GimbalFailure(e.what());
       }
       check_still(refs.back(), "while");
+      ref_of.resize(frames.size(), refs.size() - 1);
     }
+    // Everything the gimbal had to do here is done: its next move starts now, and the checks
+    // and the storing below overlap it.
+    command_next_move();
     verify_command();
     const double temp = read_temperature_c(a);
     std::vector<RecordedRow> rows;
     rows.reserve(frames.size());
     for (size_t i = 0; i < frames.size(); ++i) {
-      const GimbalState& g = refs[i];
+      const GimbalState& g = refs[ref_of[i]];
       const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
       rows.push_back(make_row(a, a.phase, frames[i], sensor_clock_s(frames[i]), ref, temp, attempt, session));
     }
@@ -129,7 +159,7 @@ void Engine::slew_times(const std::vector<SensorSample>& frames, const std::vect
 void Engine::measure_slew(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
     move_and_wait(a.start_pitch_arcsec, a.start_yaw_arcsec, b_.move_timeout_s);
-    sleep_physical(a.settle_s);
+    wait_bench_until(last_gimbal_time_s_ + a.settle_s);
     struct RateGuard {
       Engine& e;
       ~RateGuard() {
@@ -147,18 +177,17 @@ void Engine::measure_slew(const Action& a, int session) {
       fixes.push_back(GimbalFix{static_cast<double>(st.sample_time_us) / 1e6, st.host_time_s, st.pitch_arcsec,
                                 st.yaw_arcsec, st.pitch_rate_arcsec_s, st.yaw_rate_arcsec_s, st.status});
     };
-    auto drain = [&] {
+    auto drain = [&] {  // true when a frame came
       Timed t(stats_.device_s);
+      const size_t n = frames.size();
       while (auto f = s_.next_sample(0.0)) frames.push_back(*f);
+      return frames.size() > n;
     };
     try {
+      RateGuard guard{*this};  // restores the profile rate however this ends
       {
         Timed t(stats_.device_s);
         command_rate(a.rate_arcsec_s);
-      }
-      RateGuard guard{*this};
-      {
-        Timed t(stats_.device_s);
         s_.flush();
       }
       fix(read_gimbal());
@@ -171,6 +200,7 @@ void Engine::measure_slew(const Action& a, int session) {
       const double timeout_wall = b_.wall(span / a.rate_arcsec_s * 2 + b_.move_timeout_s) + 2.0;
       const auto start = Clock::now();
       const double tol = b_.in_position_tolerance_arcsec;
+      const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
       for (;;) {
         check_abort();
         GimbalState st = read_gimbal();
@@ -178,7 +208,6 @@ void Engine::measure_slew(const Action& a, int session) {
         if (st.has(kFault) || st.fault != GimbalFault::none) {
           throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
         }
-        drain();
         if (st.has(kInPosition) && !st.has(kMoving) && std::fabs(st.pitch_arcsec - a.pitch_arcsec) <= tol &&
             std::fabs(st.yaw_arcsec - a.yaw_arcsec) <= tol) {
           break;
@@ -187,8 +216,11 @@ void Engine::measure_slew(const Action& a, int session) {
           throw GimbalFailure(fmt::format("slew did not reach its end within {:.1f} s (at pitch {}, yaw {})",
                                           timeout_wall, deg(st.pitch_arcsec), deg(st.yaw_arcsec)));
         }
-        Timed t(stats_.sleep_s);
-        std::this_thread::sleep_for(std::chrono::microseconds(500));
+        // Paced by the sensor: with no frame since the last reading, the next one is waited for.
+        if (!drain()) {
+          Timed t(stats_.device_s);
+          if (auto f = s_.next_sample(frame_wait)) frames.push_back(*f);
+        }
       }
       // Frames sampled before the arrival may still be on the line: wait one frame period more.
       {
@@ -202,9 +234,7 @@ void Engine::measure_slew(const Action& a, int session) {
     }
     verify_command();
     if (frames.empty()) throw SensorFailure("the sensor sent no frame during the slew");
-
-    // Sensor time -> gimbal time.
-    std::vector<double> s_times, g_times;
+    std::vector<double> s_times, g_times;  // sensor time -> gimbal time
     slew_times(frames, fixes, s_times, g_times);
     const double temp = read_temperature_c(a);
     std::vector<RecordedRow> rows;

@@ -47,7 +47,9 @@ class Expander {
       }
     }
     // The engine returns to null at the end of every run.
-    plan_.estimated_s += move_duration_s(p_, y_, 0, 0, b_.profile_rate_arcsec_s, b_.acceleration_arcsec_s2);
+    plan_.physical_s += move_duration_s(p_, y_, 0, 0, b_.profile_rate_arcsec_s, b_.acceleration_arcsec_s2);
+    link_s_ += 2 * link();
+    plan_.estimated_s = plan_.physical_s + link_s_;
     return std::move(plan_);
   }
 
@@ -121,8 +123,11 @@ class Expander {
     bad_.clear();
   }
 
+  // A device request's round trip in bench seconds.
+  double link() const { return b_.link_round_trip_s * b_.time_scale; }
+
   void travel(double p, double y, double rate) {
-    plan_.estimated_s += move_duration_s(p_, y_, p, y, rate > 0 ? rate : b_.profile_rate_arcsec_s,
+    plan_.physical_s += move_duration_s(p_, y_, p, y, rate > 0 ? rate : b_.profile_rate_arcsec_s,
                                          b_.acceleration_arcsec_s2);
     p_ = p;
     y_ = y;
@@ -138,7 +143,10 @@ class Expander {
     a.frames = f.count(b_.sample_rate_hz);
     a.max_invalid = f.max_invalid;
     travel(p, y, 0);
-    plan_.estimated_s += settle_s + a.frames / b_.sample_rate_hz;
+    plan_.physical_s += settle_s + a.frames / b_.sample_rate_hz;
+    // The links: the move's command (targets, then go), the reading that finds the gimbal there,
+    // and the encoder reading after the last frame (the others overlap the frames).
+    link_s_ += 3 * link();
     plan_.frames += a.frames;
     push(a);
   }
@@ -164,7 +172,7 @@ class Expander {
   void add(const SettleStep& s) {
     Action a = base(Action::Kind::settle);
     a.settle_s = s.duration_s;
-    plan_.estimated_s += s.duration_s;
+    plan_.physical_s += s.duration_s;
     push(a);
   }
 
@@ -239,10 +247,10 @@ class Expander {
         check_target(a.start_pitch_arcsec, a.start_yaw_arcsec);
         check_target(a.pitch_arcsec, a.yaw_arcsec);
         travel(a.start_pitch_arcsec, a.start_yaw_arcsec, 0);
-        plan_.estimated_s += s.settle_s;
-        const double before = plan_.estimated_s;
+        plan_.physical_s += s.settle_s;
+        const double before = plan_.physical_s;
         travel(a.pitch_arcsec, a.yaw_arcsec, rate);
-        plan_.frames += static_cast<size_t>((plan_.estimated_s - before) / s.sample_period_s);
+        plan_.frames += static_cast<size_t>((plan_.physical_s - before) / s.sample_period_s);
         push(a);
       }
     }
@@ -276,6 +284,7 @@ class Expander {
   Action until_;  // the adaptive-stop fields of the grid being expanded
   int next_group_ = 0;
   bool too_many_ = false;
+  double link_s_ = 0;  // bench seconds the device links add to the physical minimum
 };
 
 }  // namespace
@@ -329,6 +338,8 @@ std::string format_plan(const Procedure& proc, const Plan& plan, const EngineSet
   }
   s += fmt::format("points: {} ({} null, {} offset, {} slew segments); frames kept: {}\n", plan.points, nulls,
                    offsets, slews, plan.frames);
+  s += fmt::format("physical minimum: {} of bench time (moves at the profile rate and acceleration, settles, "
+                   "frames)\n", duration_text(plan.physical_s));
   s += fmt::format("estimated duration: {} of bench time", duration_text(plan.estimated_s));
   if (b.time_scale != 1) {
     s += fmt::format(" ({} of wall time at speed-up {})", duration_text(plan.estimated_s / b.time_scale),

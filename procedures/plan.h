@@ -48,7 +48,12 @@ struct Plan {
   std::vector<Action> actions;
   size_t points = 0;
   size_t frames = 0;             // frames kept at dwells (slews: estimated samples)
-  double estimated_s = 0;        // physical seconds, from the gimbal's rates and the settle times
+  // The physical minimum (bench seconds): the moves at the gimbal's profile rate and acceleration,
+  // the settles and the dwells' frames.
+  double physical_s = 0;
+  // What a run should take (bench seconds): the physical minimum plus what the device links cost
+  // at the stand's speed-up (EngineSettings::link_round_trip_s); the --dry-run figure.
+  double estimated_s = 0;
   // Index in `actions` of each point.
   std::vector<size_t> point_action;
 };

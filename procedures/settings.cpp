@@ -27,6 +27,7 @@ nlohmann::json to_json(const EngineSettings& b) {
       {"sensor_time_offset_s", b.sensor_time_offset_s},
       {"max_reference_gap_s", b.max_reference_gap_s},
       {"time_scale", b.time_scale},
+      {"link_round_trip_s", b.link_round_trip_s},
   };
 }
 

@@ -19,7 +19,7 @@ struct EngineSettings {
   SoftLimits limits;
   AxisMapping axes;
   double profile_rate_arcsec_s = 1800;   // gimbal profile speed for moves
-  double acceleration_arcsec_s2 = 3600;  // for duration estimates only
+  double acceleration_arcsec_s2 = 3600;  // for duration estimates and to predict a move's arrival
   double in_position_tolerance_arcsec = 1.0;  // the engine's own arrival check on the encoders
   double move_timeout_s = 30;            // physical seconds for one move
   double home_timeout_s = 60;
@@ -31,7 +31,12 @@ struct EngineSettings {
   double sensor_time_offset_s = 0;       // added to sensor time before aligning (known latency)
   double max_reference_gap_s = 0.05;     // slews: a frame between gimbal readings further apart is skipped
   double time_scale = 1;                 // bench seconds per wall second (an emulator's speed-up)
-  double poll_interval_s = 0.002;        // wall seconds between gimbal polls while waiting
+  // One device request's round trip (wall seconds), for duration estimates and the dwell's pace
+  // of encoder readings (one per frame unless a round trip at the speed-up is longer than a frame
+  // period): at a speed-up it costs that many times more bench time (0: not counted; the
+  // emulator's is set for it).
+  double link_round_trip_s = 0;
+  double poll_interval_s = 0.002;        // wall seconds between gimbal polls when no sensor frame paces them
 
   // Physical seconds -> wall seconds to wait.
   double wall(double physical_s) const { return physical_s / time_scale; }

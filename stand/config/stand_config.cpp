@@ -180,6 +180,9 @@ void adapt_to_emulator(StandConfig& c, double speed) {
   // alignment (to exercise it against the emulator).
   if (!c.clock_sync_given) c.bench.clock = ClockSync::shared;
   c.bench.time_scale = speed;
+  // A Modbus request to the emulator on loopback, or a command on its pty, measured with the
+  // drivers on a 2-core machine (docs/procedures.md, "Speed"): at 1000x it is 30 ms of bench time.
+  c.bench.link_round_trip_s = 30e-6;
 }
 
 StandConfig emulated_stand(double speed) {

@@ -445,7 +445,9 @@ void Session::finish(const EngineResult& er) {
   const EngineStats& st = res_.stats;
   s["engine"] = {{"wall_s", st.wall_s},         {"device_s", st.device_s},       {"sleep_s", st.sleep_s},
                  {"storage_s", st.storage_s},   {"calibrate_s", st.calibrate_s}, {"own_s", st.own_s()},
-                 {"points", st.points},         {"remeasured", st.remeasured},   {"recoveries", st.recoveries}};
+                 {"points", st.points},         {"remeasured", st.remeasured},   {"recoveries", st.recoveries},
+                 {"bench_s", st.bench_s},       {"physical_s", plan_.physical_s},
+                 {"estimated_s", plan_.estimated_s}};
   if (sensor_) {
     const SensorStats ss = sensor_->stats();
     s["sensor_stats"] = {{"frames", ss.frames},           {"crc_errors", ss.crc_errors},

@@ -53,6 +53,49 @@ void BM_DiscreteGridEmulated(benchmark::State& state) {
 }
 BENCHMARK(BM_DiscreteGridEmulated)->Iterations(2)->UseManualTime()->Unit(benchmark::kSecond);
 
+// The speed sweep: `fpss-stand run procedures/discrete_grid.yaml --emulate --speed K` for K = 20,
+// 100, 1000. The run's bench time (run.json, engine bench_s: the devices' clock from the first
+// reading to the gimbal back at null, the calibrate and check steps left out) against the physical
+// minimum the dry run prints (the moves at the gimbal's rate and acceleration, the settles and the
+// dwells; engine physical_s), the dry run's estimate (estimated_s: the minimum plus the links'
+// round trips at the speed-up), and the command's wall time. Targets: ratio <= 1.1 and the dry
+// run's estimate within 5 % of the bench time at every speed; under 0.5 s of wall at 1000.
+void BM_DiscreteGridAtSpeed(benchmark::State& state) {
+  const auto speed = std::to_string(state.range(0));
+  fpss::test::TempDir tmp("bench-speed");
+  const std::string grid = (fpss::test::source_dir() / "procedures" / "discrete_grid.yaml").string();
+  const auto dry = fpss::test::run_stand({"run", grid, "--emulate", "--speed", speed, "--dry-run"}, tmp.path(), "dry", 60);
+  double bench = 0, physical = 0, estimate = 0, wall = 0;
+  int n = 0;
+  for (auto _ : state) {
+    const fs::path runs = tmp / ("runs" + std::to_string(n++));
+    const auto t0 = Clock::now();
+    const auto r = fpss::test::run_stand({"run", grid, "--emulate", "--speed", speed, "--runs-dir", runs.string(), "--quiet"},
+                                         tmp.path(), "grid", 300);
+    const double w = std::chrono::duration<double>(Clock::now() - t0).count();
+    state.SetIterationTime(w);
+    if (r.code != 0) {
+      state.SkipWithError(("run failed: " + r.err).c_str());
+      return;
+    }
+    const auto engine = fpss::read_json_file(fpss::test::run_dirs(runs).front() / "run.json")["sessions"][0]["engine"];
+    bench += engine["bench_s"].get<double>();
+    physical = engine["physical_s"].get<double>();
+    estimate = engine["estimated_s"].get<double>();
+    wall += w;
+  }
+  bench /= n;
+  wall /= n;
+  state.counters["bench_s"] = bench;
+  state.counters["physical_min_s"] = physical;
+  state.counters["ratio"] = bench / physical;
+  state.counters["estimate_s"] = estimate;
+  state.counters["estimate_err_pct"] = 100 * (estimate - bench) / bench;
+  state.counters["wall_s"] = wall;
+  if (dry.out.find("estimated duration:") == std::string::npos) state.SkipWithError("the dry run printed no estimate");
+}
+BENCHMARK(BM_DiscreteGridAtSpeed)->Arg(20)->Arg(100)->Arg(1000)->Iterations(3)->UseManualTime()->Unit(benchmark::kSecond);
+
 // Devices that are always where they were told to be and always have a frame ready.
 class InstantGimbal : public fpss::Gimbal {
  public:

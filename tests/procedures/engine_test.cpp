@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 
+#include <cstdio>
 #include <thread>
 
 #include "calib/samples.h"
@@ -217,6 +218,84 @@ TEST(Engine, AGimbalCommandedByAnotherClientIsNoticedAndThePointMeasuredAgainOrT
     EXPECT_TRUE(r.safe_state);
     EXPECT_EQ(r.points_done, 2);
   }
+}
+
+// A link's round trip (one Modbus request on loopback, one sensor command on a pty), wall seconds.
+constexpr double kLinkRoundTrip_s = 30e-6;
+
+// How the engine waits, in bench seconds, at every speed-up: on a virtual clock bench time moves
+// only when a device is asked (each request costs the link's round trip times the speed-up: at
+// 1000x a 30 us round trip is 30 ms of bench time) and when the sensor's next frame is waited
+// for, so the same run takes the same bench time on any host. The engine's own host clock is
+// made to sleep nothing (time scale 1e9): only the devices' clock can tell it when to look.
+// The shipped discrete grid then takes its physical minimum (the dry run's figure; no settle or
+// frame skipped), at most 1.1 times it, and the dry run's estimate is within 5 % of the bench time.
+TEST(Engine, TheDiscreteGridTakesWithin10PercentOfItsPhysicalMinimumAtEverySpeed) {
+  for (const double speed : {20.0, 100.0, 1000.0}) {
+    SCOPED_TRACE(speed);
+    TempDir tmp("engine-pace");
+    EngineSettings b;
+    b.clock = ClockSync::shared;
+    b.time_scale = 1e9;
+    b.link_round_trip_s = kLinkRoundTrip_s * speed / b.time_scale;  // the dry run's model of the link
+    test::FakeBench fake{default_bench_config(), speed};
+    fake.use_virtual_clock(kLinkRoundTrip_s * speed);
+    test::FakeGimbal gimbal{fake};
+    test::FakeSensor sensor{fake};
+    gimbal.connect();
+    sensor.connect();
+    const Plan plan = plan_of(load_procedure(test::source_dir() / "procedures" / "discrete_grid.yaml"), b);
+    RunRecorder recorder(tmp / "run");
+    EventBus bus;
+    record_with(bus, recorder);
+    RunControl ctl;
+    const auto log = quiet_log();
+    Engine engine(gimbal, sensor, b, plan, bus, *log, ctl);
+    const EngineResult r = engine.run();
+    ASSERT_EQ(r.outcome, RunOutcome::completed) << r.reason;
+    EXPECT_EQ(r.points_done, 113);
+    const double bench_s = engine.stats().bench_s;
+    // The engine's figure is the devices' clock: the virtual clock ran only for the run.
+    {
+      std::lock_guard lock(fake.mutex());
+      EXPECT_NEAR(bench_s, fake.now_s(), 3 * kLinkRoundTrip_s * speed);
+    }
+    std::printf("speed %g: bench %.2f s, physical minimum %.2f s, ratio %.3f, estimate %.2f s (%+.1f %%)\n", speed,
+                bench_s, plan.physical_s, bench_s / plan.physical_s, plan.estimated_s,
+                100 * (plan.estimated_s - bench_s) / bench_s);
+    // No settle or frame skipped: a dwell's frames span one frame period less than the minimum counts.
+    EXPECT_GE(bench_s, plan.physical_s - static_cast<double>(plan.points) / b.sample_rate_hz);
+    EXPECT_LE(bench_s / plan.physical_s, 1.1) << bench_s << " s of bench time, " << plan.physical_s << " s minimum";
+    EXPECT_NEAR(plan.estimated_s, bench_s, 0.05 * bench_s) << plan.physical_s << " s minimum";
+  }
+}
+
+// Waiting for the predicted arrival, the settle and the frames sends nothing to the gimbal: with
+// its watchdog on (0.3 bench seconds here, shorter than the grid's moves and settles), readings
+// cut the long waits and it never trips.
+TEST(Engine, LongWaitsFeedTheGimbalsWatchdog) {
+  TempDir tmp("engine-watchdog");
+  EngineSettings b;
+  b.clock = ClockSync::shared;
+  b.time_scale = 1e9;
+  b.watchdog_s = 0.3;
+  test::FakeBench fake{default_bench_config(), 1000};
+  fake.use_virtual_clock(kLinkRoundTrip_s * 1000);
+  test::FakeGimbal gimbal{fake};
+  test::FakeSensor sensor{fake};
+  gimbal.connect();
+  sensor.connect();
+  const Plan plan = plan_of(grid(), b);
+  RunRecorder recorder(tmp / "run");
+  EventBus bus;
+  record_with(bus, recorder);
+  RunControl ctl;
+  const auto log = quiet_log();
+  Engine engine(gimbal, sensor, b, plan, bus, *log, ctl);
+  const EngineResult r = engine.run();
+  EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
+  EXPECT_EQ(engine.stats().recoveries, 0);
+  EXPECT_EQ(r.points_done, static_cast<int64_t>(plan.points));
 }
 
 }  // namespace

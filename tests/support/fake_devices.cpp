@@ -15,7 +15,22 @@ double host_now_s() {
 
 FakeBench::FakeBench(BenchConfig cfg, double speed) : bench_(std::move(cfg)), speed_(speed) {}
 
+void FakeBench::use_virtual_clock(double request_s) {
+  virtual_ = true;
+  request_s_ = request_s;
+}
+
+void FakeBench::charge_request() {
+  if (virtual_) advance_to(virtual_t_ + request_s_);
+}
+
+void FakeBench::advance_to(double t_s) {
+  virtual_t_ = std::max(virtual_t_, t_s);
+  bench_.advance_to(virtual_t_);
+}
+
 double FakeBench::now_s() {
+  if (virtual_) return bench_.time_s();
   const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count() * speed_;
   bench_.advance_to(std::max(t, bench_.time_s()));
   return bench_.time_s();
@@ -24,6 +39,7 @@ double FakeBench::now_s() {
 void FakeGimbal::request() {
   if (!connected_) throw DeviceError("fake gimbal: not connected");
   ++requests_;
+  b_.charge_request();
   b_.now_s();
   b_.bench().note_request();
   if (b_.following_error_at_request != 0 && requests_ == b_.following_error_at_request) b_.bench().inject_fault(1);
@@ -134,6 +150,7 @@ void FakeSensor::start() {
 
 double FakeSensor::temperature_c() {
   std::lock_guard lock(b_.mutex());
+  b_.charge_request();
   return b_.bench().temperature_c(b_.now_s());
 }
 
@@ -151,6 +168,10 @@ std::optional<SensorSample> FakeSensor::next_sample(double timeout_s) {
     {
       std::lock_guard lock(b_.mutex());
       now = b_.now_s();
+      if (streaming_ && b_.virtual_clock() && timeout_s > 0) {
+        b_.advance_to(frame_time_s(next_frame_));  // waiting for the frame is what moves the clock
+        now = b_.now_s();
+      }
       if (streaming_ && frame_time_s(next_frame_) <= now) {
         const uint64_t k = next_frame_++;
         const SensorReading r = b_.bench().sensor_at(frame_time_s(k), k);

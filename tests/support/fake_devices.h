@@ -19,6 +19,15 @@ class FakeBench {
   explicit FakeBench(BenchConfig cfg = default_bench_config(), double speed = 20);
   // Brings the physics up to now and returns the bench time.
   double now_s();
+  // A virtual clock instead: bench time moves only when a device is asked (each gimbal request
+  // and sensor command costs `request_s` of bench time, a link's round trip at some speed-up) and
+  // when the sensor's next frame is waited for. Whatever the host does, the same run takes the
+  // same bench time: what a controller's waiting costs, in bench seconds, to the microsecond.
+  void use_virtual_clock(double request_s);
+  bool virtual_clock() const { return virtual_; }
+  // Virtual clock: a request's round trip, or a wait up to bench time t_s.
+  void charge_request();
+  void advance_to(double t_s);
   Bench& bench() { return bench_; }
   std::mutex& mutex() { return mu_; }
   double speed() const { return speed_; }
@@ -31,6 +40,8 @@ class FakeBench {
   std::mutex mu_;
   Bench bench_;
   double speed_;
+  bool virtual_ = false;
+  double request_s_ = 0, virtual_t_ = 0;  // the virtual clock, exact (the bench keeps whole ticks)
   std::chrono::steady_clock::time_point t0_ = std::chrono::steady_clock::now();
 };
 

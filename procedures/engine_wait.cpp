@@ -1,0 +1,182 @@
+// The engine's waiting on the bench clock: the clock from the devices' time stamps, waits that end
+// on the sensor's frames, moves predicted from the gimbal's profile, the next move commanded early.
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "procedures/engine.h"
+#include "procedures/engine_detail.h"
+
+namespace fpss {
+
+using namespace engine_detail;
+
+namespace {
+// Seconds an axis needs to stop at a target `e` away, moving at `v` now, with the profile's
+// top speed and acceleration (the trapezoid of move_duration_s, entered part-way).
+double axis_remaining_s(double e, double v, double vmax, double acc) {
+  if (e < 0) {
+    e = -e;
+    v = -v;
+  }
+  if (e <= 0 || !(vmax > 0)) return 0;
+  if (!(acc > 0)) return e / vmax;
+  if (v < 0) return -v / acc + move_duration_s(0, 0, e + v * v / (2 * acc), 0, vmax, acc);  // stops first
+  if (v * v / (2 * acc) >= e) return v > 0 ? 2 * e / v : 0;                                   // braking onto it
+  const double vp = std::min(vmax, std::sqrt(acc * e + v * v / 2));
+  const double cruise = e - (vp * vp - v * v) / (2 * acc) - vp * vp / (2 * acc);
+  return (vp - v) / acc + std::max(0.0, cruise) / vp + vp / acc;
+}
+}  // namespace
+
+void Engine::note_bench(double bench_s, double host_s) {
+  // The devices' stamps are the truth (the host's estimate between them may run ahead); never
+  // backwards: a late stamp of an earlier instant says nothing new.
+  if (bench_s >= last_bench_s_) {
+    last_bench_s_ = bench_s;
+    last_bench_host_s_ = host_s;
+  }
+}
+
+double Engine::bench_now_at(double host_s) const {
+  if (last_bench_host_s_ <= 0) return last_bench_s_;
+  return last_bench_s_ + std::max(0.0, host_s - last_bench_host_s_) * b_.time_scale;
+}
+
+double Engine::bench_now_s() const { return bench_now_at(host_now_s()); }
+
+void Engine::sleep_until_bench(double t_s) { sleep_physical(t_s - bench_now_s()); }
+
+std::optional<SensorSample> Engine::wait_bench_until(double t_s) {
+  // The gimbal's watchdog (bench seconds) wants a request in time: a longer wait is cut by readings.
+  const double keep_alive = 0.5 * b_.watchdog_s;
+  while (keep_alive > 0 && t_s - last_gimbal_time_s_ > keep_alive + 1e-6) {  // (the inner wait: none)
+    const double before = last_gimbal_time_s_;
+    wait_bench_until(before + keep_alive);
+    check_abort();
+    read_gimbal();
+    if (last_gimbal_time_s_ <= before) break;  // a gimbal clock standing still paces nothing
+  }
+  const double period = 1.0 / b_.sample_rate_hz;
+  if (last_bench_s_ >= t_s) return std::nullopt;  // a device already said it is past
+  if (b_.clock != ClockSync::shared) {
+    sleep_until_bench(t_s);
+    return std::nullopt;
+  }
+  // The host clock for what is surely ahead (two frame periods short), then the frames: their
+  // time stamps are the bench clock itself, whatever the host's scheduler did.
+  sleep_until_bench(t_s - 2 * period);
+  const double frame_wait = b_.wall(period) + b_.frame_timeout_s;
+  for (;;) {
+    check_abort();
+    std::optional<SensorSample> f;
+    try {
+      Timed t(stats_.device_s);
+      f = s_.next_sample(frame_wait);
+    } catch (const DeviceError&) {
+      f.reset();  // the measurement that needs the sensor says so; the wait falls back on the host clock
+    }
+    if (!f) {
+      sleep_until_bench(t_s);
+      return std::nullopt;
+    }
+    const double ts = sensor_clock_s(*f);
+    note_bench(ts, f->host_time_s);
+    if (ts + 1e-9 >= t_s) return f;
+  }
+}
+
+void Engine::off_bench(const std::function<void()>& f) {
+  // From the bench clock's estimate before to a gimbal reading after (a host that ran ahead of
+  // the devices' clock counts nothing).
+  struct Add {
+    Engine& e;
+    double t0;
+    ~Add() {
+      double t1 = 0;
+      try {
+        e.read_gimbal();
+        t1 = e.last_bench_s_;
+      } catch (const std::exception&) {
+        t1 = e.bench_now_s();
+      }
+      e.off_bench_s_ += std::max(0.0, t1 - t0);
+    }
+  } add{*this, bench_now_s()};
+  f();
+}
+
+GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing) {
+  const double rate = commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
+  double arrival = 0;  // when the profile says the gimbal arrives (bench clock)
+  if (!homing && pending_ && pending_->pitch_arcsec == pitch && pending_->yaw_arcsec == yaw) {
+    arrival = pending_->arrival_s;  // commanded while the last point was being stored
+  } else {
+    pending_.reset();
+    // From the latest device time stamp (no later than the command): the first look may come
+    // early, never late.
+    const double from_p = last_pitch_arcsec_, from_y = last_yaw_arcsec_, t0 = last_bench_s_;
+    Timed t(stats_.device_s);
+    moved_ = true;
+    if (homing) {
+      g_.home();
+      commanded_.target_pitch_arcsec = commanded_.target_yaw_arcsec = 0;
+      target_known_ = false;  // a home need not write the target registers
+    }
+    else command_move(pitch, yaw);
+    arrival = t0 + move_duration_s(from_p, from_y, homing ? 0 : pitch, homing ? 0 : yaw, rate, b_.acceleration_arcsec_s2);
+  }
+  pending_.reset();
+  // Communication slack on top of the physical time: a slow link must not look like a stuck axis.
+  const double timeout_wall = b_.wall(timeout_physical_s) + 2.0;
+  const auto start = Clock::now();
+  const double tol = b_.in_position_tolerance_arcsec;
+  GimbalState st;
+  for (;;) {
+    check_abort();
+    wait_bench_until(arrival);
+    st = read_gimbal();
+    if (st.has(kFault) || st.fault != GimbalFault::none) {
+      throw GimbalFailure(fmt::format("gimbal fault ({}) while moving to pitch {}, yaw {}", fault_name(st),
+                                      deg(pitch), deg(yaw)));
+    }
+    const bool there = homing ? st.has(kHomed)
+                              : std::fabs(st.pitch_arcsec - pitch) <= tol && std::fabs(st.yaw_arcsec - yaw) <= tol;
+    if (there && st.has(kInPosition) && !st.has(kMoving)) return st;
+    if (seconds_since(start) > timeout_wall) {
+      throw GimbalFailure(fmt::format("gimbal not in position at pitch {}, yaw {} within {:.1f} s (at pitch {}, yaw "
+                                      "{}, status 0x{:02x})",
+                                      deg(pitch), deg(yaw), timeout_wall, deg(st.pitch_arcsec), deg(st.yaw_arcsec),
+                                      st.status));
+    }
+    // Not there yet: when it will be, from where it is and how fast it goes; no sooner than the
+    // next frame (or the stand's poll interval without a shared clock).
+    const double left = std::max(axis_remaining_s(pitch - st.pitch_arcsec, st.pitch_rate_arcsec_s, rate, b_.acceleration_arcsec_s2),
+                                 axis_remaining_s(yaw - st.yaw_arcsec, st.yaw_rate_arcsec_s, rate, b_.acceleration_arcsec_s2));
+    const double floor_s = b_.clock == ClockSync::shared ? 0.0 : b_.poll_interval_s * b_.time_scale;
+    arrival = last_gimbal_time_s_ + std::max(left, floor_s);
+  }
+}
+
+void Engine::command_next_move() {
+  pending_.reset();
+  // A pause or an abort holds the gimbal where it is.
+  if (ctl_.pause.load() || ctl_.abort.load() || action_ + 1 >= plan_.actions.size()) return;
+  const Action& n = plan_.actions[action_ + 1];
+  if (n.kind != Action::Kind::dwell || n.point < cursor_.first) return;
+  const double from_p = last_pitch_arcsec_, from_y = last_yaw_arcsec_, t0 = last_bench_s_;
+  try {
+    Timed t(stats_.device_s);
+    command_move(n.pitch_arcsec, n.yaw_arcsec);
+  } catch (const DeviceError& e) {
+    log_.debug("{}: move commanded ahead not sent ({}); sent again when its turn comes", label(n), e.what());
+    target_known_ = false;
+    return;
+  }
+  moved_ = true;
+  const double rate = commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
+  pending_ = PendingMove{n.pitch_arcsec, n.yaw_arcsec,
+                         t0 + move_duration_s(from_p, from_y, n.pitch_arcsec, n.yaw_arcsec, rate, b_.acceleration_arcsec_s2)};
+}
+
+}  // namespace fpss
