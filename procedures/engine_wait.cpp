@@ -164,6 +164,8 @@ void Engine::command_next_move() {
   if (ctl_.pause.load() || ctl_.abort.load() || action_ + 1 >= plan_.actions.size()) return;
   const Action& n = plan_.actions[action_ + 1];
   if (n.kind != Action::Kind::dwell || n.point < cursor_.first) return;
+  // A point of an adaptive-stop group is decided on the fit that includes the point now ending.
+  if (n.until_group >= 0) return;
   const double from_p = last_pitch_arcsec_, from_y = last_yaw_arcsec_, t0 = last_bench_s_;
   try {
     Timed t(stats_.device_s);

@@ -20,6 +20,7 @@ using test::TempDir;
 using test::Bench;
 using test::grid;
 using test::plan_of;
+using test::quiet_log;
 namespace fs = std::filesystem;
 
 TEST(Engine, RunsAPlanAndRecordsEveryPoint) {
