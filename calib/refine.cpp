@@ -29,14 +29,15 @@ struct Strided {
 };
 
 RowView view_of(const AxisData& d, double fraction, Strided& keep) {
-  if (fraction >= 1.0) {
+  if (fraction >= 1.0 && d.changes.empty()) {
     return {d.n_plus.data(), d.differences ? d.n_minus.data() : nullptr, d.y_arcsec.data(), d.rows()};
   }
+  // Rows held as dwell pairs (or a subset): gathered, as Ceres reads contiguous rows.
   for (size_t i = 0; i < d.rows(); ++i) {
     if (!in_spread_subset(i, fraction)) continue;
-    keep.n_plus.push_back(d.n_plus[i]);
-    if (d.differences) keep.n_minus.push_back(d.n_minus[i]);
-    keep.y.push_back(d.y_arcsec[i]);
+    keep.n_plus.push_back(d.row_n_plus(i));
+    if (d.differences) keep.n_minus.push_back(d.row_n_minus(i));
+    keep.y.push_back(d.row_y_arcsec(i));
   }
   return {keep.n_plus.data(), d.differences ? keep.n_minus.data() : nullptr, keep.y.data(), keep.y.size()};
 }
@@ -273,6 +274,18 @@ double angle_and_gradient(const Scaled& u, double n, Vec7& grad) {
   return a.a;
 }
 
+// The dwells' weights, 1 / variance in arcsec^-2, from the start's slope, computed when read (no
+// array per dwell); float, as they were kept.
+struct Weights {
+  const GlsData* g;
+  AxisCoeffs c0;
+  float operator()(size_t k) const {
+    if (!g->noise_known) return 1.0f;
+    const double slope = rad_to_arcsec(transfer_slope(c0.data(), g->counts[k]));
+    return static_cast<float>(1.0 / std::max(1e-30, g->var_ref_arcsec2(k) + slope * slope * g->var_counts2[k]));
+  }
+};
+
 // Per level: weighted sums of the dwells' e = ref - f0 and of the gradients.
 struct LevelSums {
   double w = 0, we = 0, wee = 0;
@@ -284,17 +297,18 @@ struct Pass {
   double cost = 0;  // sum w (e - level)^2
 };
 
-Pass level_pass(const GlsData& g, const std::vector<float>& w, const Scaled& u) {
+Pass level_pass(const GlsData& g, const Weights& w, const Scaled& u) {
   Pass p;
   p.lv.assign(g.levels, LevelSums{});
   Vec7 gr;
   for (size_t k = 0; k < g.size(); ++k) {
-    const double e = g.ref_arcsec[k] - angle_and_gradient(u, g.counts[k], gr);
-    LevelSums& l = p.lv[g.level[k]];
-    l.w += w[k];
-    l.we += w[k] * e;
-    l.wee += w[k] * e * e;
-    l.wg += w[k] * gr;
+    const double e = g.ref_arcsec(k) - angle_and_gradient(u, g.counts[k], gr);
+    LevelSums& l = p.lv[g.level_of(k)];
+    const float wk = w(k);
+    l.w += wk;
+    l.we += wk * e;
+    l.wee += wk * e * e;
+    l.wg += wk * gr;
   }
   for (const auto& l : p.lv) {
     if (l.w > 0) p.cost += l.wee - l.we * l.we / l.w;
@@ -304,7 +318,7 @@ Pass level_pass(const GlsData& g, const std::vector<float>& w, const Scaled& u) 
 }
 
 // R (8 x 8) of the QR of [J~ | r], the projected Jacobian and residuals, accumulated in chunks.
-Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const std::vector<float>& w, const Scaled& u,
+Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const Weights& w, const Scaled& u,
                                         const Pass& p) {
   constexpr int kChunk = 256;
   Eigen::Matrix<double, Eigen::Dynamic, 8> stack(kChunk + 8, 8);
@@ -323,9 +337,9 @@ Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const std::vector<floa
   };
   Vec7 gr;
   for (size_t k = 0; k < g.size(); ++k) {
-    const LevelSums& l = p.lv[g.level[k]];
-    const double e = g.ref_arcsec[k] - angle_and_gradient(u, g.counts[k], gr);
-    const double sw = std::sqrt(w[k]);
+    const LevelSums& l = p.lv[g.level_of(k)];
+    const double e = g.ref_arcsec(k) - angle_and_gradient(u, g.counts[k], gr);
+    const double sw = std::sqrt(w(k));
     stack.row(rows).head<7>() = (sw * (gr - l.wg / l.w)).transpose();
     const double res = -sw * (e - l.we / l.w);
     stack(rows, 7) = res;
@@ -369,13 +383,7 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
   c0[0] = 0;
   Scaled u = to_scaled(c0);
   // Weights from the start's slope (the count noise enters as slope x count error).
-  std::vector<float> w(g.size(), 1.0f);  // 1 / variance, arcsec^-2 (float: memory per dwell)
-  if (g.noise_known) {
-    for (size_t k = 0; k < g.size(); ++k) {
-      const double slope = rad_to_arcsec(transfer_slope(c0.data(), g.counts[k]));
-      w[k] = static_cast<float>(1.0 / std::max(1e-30, g.var_ref_arcsec2[k] + slope * slope * g.var_counts2[k]));
-    }
-  }
+  const Weights w{&g, c0};
   Pass p = level_pass(g, w, u);
   constexpr int kMaxIterations = 30;
   for (int it = 0; it < kMaxIterations; ++it) {
