@@ -229,13 +229,6 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
   g.level.resize(m);
   std::vector<double> nulls;
   double total_nulls = 0;
-  // The null dwells of a level are one position (the null condition's premise, paper eq. 3): their
-  // whole counts are pooled before the rounding's expectation is inverted, so the inversion's
-  // curvature over a 5-frame mean's scatter does not bias or widen the null's count.
-  struct NullPool {
-    double frames = 0, sum = 0, counts = 0, slope = 1, variance = 0;
-  };
-  std::vector<NullPool> pool;
   for (size_t k = 0; k < m; ++k) {
     const auto& r = d.dwells[k];
     // Union-find roots: a parent always has the lower index, so a set's root (its lowest index)
@@ -245,43 +238,22 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
     if (root == k) {
       g.level[k] = static_cast<uint32_t>(g.levels++);
       nulls.push_back(0);
-      pool.emplace_back();
     } else {
       g.level[k] = g.level[root];
     }
     if (r.null()) {
       nulls[g.level[k]] += 1;
       total_nulls += 1;
-      const double n = static_cast<double>(std::max<uint32_t>(1, r.samples()));
-      pool[g.level[k]].frames += n;
-      pool[g.level[k]].sum += n * (r.counts - d.dwells[root].counts);  // about the level's first dwell
     }
   }
   if (g.levels == 1) std::vector<uint32_t>().swap(g.level);  // the usual one level: no list (memory)
   g.counts.resize(m);
   g.var_counts2.resize(m);
-  const bool pooled = ni.quantisation_corrected && opts.pool_null_counts;
-  if (pooled) {
-    for (size_t l = 0, k = 0; l < g.levels; ++k) {
-      if (d.dwells[k].link != k) continue;  // roots in level order
-      NullPool& np = pool[l++];
-      if (!(np.frames > 0)) continue;
-      np.counts = counts_from_rounded_mean(d.dwells[k].counts + np.sum / np.frames, *s);
-      np.slope = expected_rounded_slope(np.counts, *s);
-      np.variance = rounded_counts_variance(np.counts, *s);
-      np.sum = d.dwells[k].counts + np.sum / np.frames;  // now the pooled mean itself
-    }
-  }
   for (size_t k = 0; k < m; ++k) {
     const auto& r = d.dwells[k];
     const double n = static_cast<double>(std::max<uint32_t>(1, r.samples()));
     double c = r.counts, vc = 0;
-    if (pooled && r.null()) {
-      // Linear in the dwell's own mean: the null dwells' weighted mean is the pooled inversion.
-      const NullPool& np = pool[g.level_of(k)];
-      c = np.counts + (r.counts - np.sum) / np.slope;
-      vc = np.variance / (n * np.slope * np.slope);
-    } else if (ni.quantisation_corrected) {
+    if (ni.quantisation_corrected) {
       c = counts_from_rounded_mean(r.counts, *s);
       const double h = expected_rounded_slope(c, *s);
       vc = rounded_counts_variance(c, *s) / (n * h * h);

@@ -50,9 +50,6 @@ struct CalibrationOptions {
   // Dwell means of whole counts are replaced by the count whose expected rounded value they are,
   // when the count noise is known or estimated (false: for comparison).
   bool quantisation_correction = true;
-  // With the correction, the null dwells of one reference level (one position: the null condition's
-  // premise) are corrected from their pooled frames instead of dwell by dwell (false: for comparison).
-  bool pool_null_counts = false;
   // chi2/dof of the dwell residuals beyond 1 + this many sqrt(2/dof) is a model remainder (4: the
   // weights come from estimated noise, which widens chi2's scatter beyond its textbook one).
   double remainder_sigmas = 4.0;

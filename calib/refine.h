@@ -84,9 +84,10 @@ struct GlsFit {
   Uncertainty uncertainty;
 };
 
-// Gauss-Newton from `start` (the changes' least-squares fit) with the levels projected out
-// (variable projection: each level is its dwells' weighted mean at any C2..C8); QR of the
-// projected Jacobian accumulated in chunks (TSQR), so memory does not grow with the dwells.
+// Levenberg-Marquardt from `start` (the changes' least-squares fit) with the levels projected out
+// (variable projection: each level is its dwells' weighted mean at any C2..C8), the sinusoids as
+// a sin + b cos while iterating and the linear parameters solved exactly before every step; QR of
+// the projected Jacobian accumulated in chunks (TSQR), so memory does not grow with the dwells.
 GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, double counts_hi,
                   double remainder_sigmas = 3.0);
 
