@@ -417,24 +417,32 @@ Solve solve_r(const Eigen::Matrix<double, 8, 8>& r) {
   return s;
 }
 
-}  // namespace
+// The linear parameters (slope and both sinusoids' a, b) exactly at their optimum for the current
+// frequencies: the leading 5 x 5 block of the projected QR, as the model is linear in them.
+void solve_linear(const GlsData& g, const Weights& w, Model& f, Pass& p) {
+  const Eigen::Matrix<double, 8, 8> rl = projected_r(g, w, f, p);
+  const Eigen::Matrix<double, 5, 5> r_lin = rl.topLeftCorner<5, 5>();
+  Eigen::JacobiSVD<Eigen::Matrix<double, 5, 5>> svd(r_lin, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix<double, 5, 1> inv = Eigen::Matrix<double, 5, 1>::Zero();
+  for (int i = 0; i < 5; ++i) {
+    if (svd.singularValues()(i) > 1e-10 * svd.singularValues()(0)) inv(i) = 1.0 / svd.singularValues()(i);
+  }
+  Model lin = f;
+  lin.v.head<5>() -= svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose() * rl.block<5, 1>(0, 7);
+  Pass q = level_pass(g, w, lin);
+  if (q.cost < p.cost) {
+    f = lin;
+    p = std::move(q);
+  }
+}
 
-GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, double counts_hi,
-                  double remainder_sigmas) {
-  GlsFit out;
-  AxisCoeffs c0 = start;
-  normalise(c0);
-  c0[0] = 0;
-  Scaled u = to_scaled(c0);
-  // Weights from the start's slope (the count noise enters as slope x count error).
-  const Weights w{&g, c0};
-  Model f = Model::from_polar(u);
-  Pass p = level_pass(g, w, f);
+// Moves `f` (Cartesian) to the minimum; `p` is its pass. Sets out.iterations and out.converged.
+void minimise(const GlsData& g, const Weights& w, Model& f, Pass& p, GlsFit& out) {
   // Levenberg-Marquardt on the projected problem: Gauss-Newton steps while they lower the cost,
   // damped (Marquardt's diagonal scaling) when they do not. A slow sinusoid over less than half its
   // period is nearly a polynomial, and the cost is flat and curved along its frequency: undamped
-  // steps halved along one direction stopped after 30 iterations short of the minimum on 1 yaw fit
-  // in 9 of Table A-5 FPSS2's grid (docs/calibration.md). Converged when the whole Gauss-Newton step
+  // steps halved along one direction stopped at a 30-iteration cap short of the minimum on 23 of 200
+  // yaw fits of Table A-5 FPSS2's grid (docs/calibration.md). Converged when the whole Gauss-Newton step
   // would gain less than kGainTolerance of chi^2 (|z|^2, the residuals' part in the Jacobian's column
   // space), or less than kGainOfResidualVariance of one residual's variance (cost / dof: a change of
   // the transfer function of about a hundredth of its sigma), or no step lowers the cost.
@@ -448,22 +456,7 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
     // Variable projection: the linear parameters first go exactly to their optimum at these
     // frequencies (the QR's leading 5 x 5 block: the model is linear in them), so the step below
     // only has the frequencies' flat but short valley to follow.
-    {
-      const Eigen::Matrix<double, 8, 8> rl = projected_r(g, w, f, p);
-      const Eigen::Matrix<double, 5, 5> r_lin = rl.topLeftCorner<5, 5>();
-      Eigen::JacobiSVD<Eigen::Matrix<double, 5, 5>> svd(r_lin, Eigen::ComputeFullU | Eigen::ComputeFullV);
-      Eigen::Matrix<double, 5, 1> inv = Eigen::Matrix<double, 5, 1>::Zero();
-      for (int i = 0; i < 5; ++i) {
-        if (svd.singularValues()(i) > 1e-10 * svd.singularValues()(0)) inv(i) = 1.0 / svd.singularValues()(i);
-      }
-      Model lin = f;
-      lin.v.head<5>() -= svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose() * rl.block<5, 1>(0, 7);
-      Pass q = level_pass(g, w, lin);
-      if (q.cost < p.cost) {
-        f = lin;
-        p = std::move(q);
-      }
-    }
+    solve_linear(g, w, f, p);
     const Eigen::Matrix<double, 8, 8> r = projected_r(g, w, f, p);
     const Vec7 z = r.topRightCorner<7, 1>();
     if (z.squaredNorm() <= std::max(kGainTolerance, kGainOfResidualVariance / dof) * p.cost || p.cost <= 1e-300) {
@@ -495,6 +488,22 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
       break;
     }
   }
+}
+
+}  // namespace
+
+GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, double counts_hi,
+                  double remainder_sigmas) {
+  GlsFit out;
+  AxisCoeffs c0 = start;
+  normalise(c0);
+  c0[0] = 0;
+  Scaled u = to_scaled(c0);
+  // Weights from the start's slope (the count noise enters as slope x count error).
+  const Weights w{&g, c0};
+  Model f = Model::from_polar(u);
+  Pass p = level_pass(g, w, f);
+  minimise(g, w, f, p, out);
   u = f.to_polar();
   // Back to the normalised form (positive frequencies, phases in (-pi, pi]) before the covariance.
   AxisCoeffs c = from_scaled(u);
