@@ -1,13 +1,13 @@
 #include "calib/streaming.h"
 
 #include <array>
-#include <deque>
 #include <cmath>
+#include <deque>
 #include <functional>
 #include <limits>
 #include <optional>
-#include <unordered_map>
 #include <stdexcept>
+#include <unordered_map>
 
 #include "calib/errors.h"
 #include "calib/outliers.h"
@@ -57,9 +57,9 @@ void StreamingCalibrator::take_dwell(const Dwell& d) {
 void StreamingCalibrator::add_pair(const Dwell& null_dwell, const Dwell& offset_dwell) {
   fit::add_pair_rows(pitch_, fit::Axis::alpha, null_dwell, offset_dwell);
   fit::add_pair_rows(yaw_, fit::Axis::beta, null_dwell, offset_dwell);
-  const size_t last = pitch_.rows() - 1;
-  gram_pitch_.add(pitch_.row_n_plus(last), pitch_.row_n_minus(last), pitch_.row_y_arcsec(last));
-  gram_yaw_.add(yaw_.row_n_plus(last), yaw_.row_n_minus(last), yaw_.row_y_arcsec(last));
+  const size_t p = pitch_.rows() - 1, y = yaw_.rows() - 1;
+  gram_pitch_.add(pitch_.row_n_plus(p), pitch_.row_n_minus(p), pitch_.row_y_arcsec(p));
+  gram_yaw_.add(yaw_.row_n_plus(y), yaw_.row_n_minus(y), yaw_.row_y_arcsec(y));
 }
 
 void StreamingCalibrator::add_null(const Dwell& null_dwell) {
