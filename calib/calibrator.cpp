@@ -65,28 +65,37 @@ double sd_ref_of(const Dwell& d, Axis a) { return a == Axis::alpha ? d.sd_ref_pi
 bool whole_of(const Dwell& d, Axis a) { return a == Axis::alpha ? d.whole_counts_alpha : d.whole_counts_beta; }
 
 // The dwell's row (found by step among the latest rows: pairs and nulls arrive in recording order),
-// added when new.
-constexpr size_t kDwellLookBack = 64;
+// added when new; a new dwell's scatter enters the pooled sums.
 uint32_t dwell_row(AxisData& d, Axis axis, const Dwell& dw) {
+  constexpr size_t kLook = AxisData::kRecentSteps;
   const size_t n = d.dwells.size();
-  for (size_t k = n; k > 0 && n - k < kDwellLookBack; --k) {
-    if (d.dwells[k - 1].step == dw.step) return static_cast<uint32_t>(k - 1);
+  for (size_t k = n; k > 0 && n - k < kLook; --k) {
+    if (d.recent_steps[(k - 1) % kLook] == dw.step) return static_cast<uint32_t>(k - 1);
   }
   AxisData::DwellRow r;
-  r.step = dw.step;
   r.counts = counts_of(dw, axis);
-  r.sd_counts = static_cast<float>(sd_counts_of(dw, axis));
   r.ref_arcsec = ref_of(dw, axis);
-  r.sd_ref_arcsec = static_cast<float>(sd_ref_of(dw, axis));
-  r.samples = static_cast<uint32_t>(dw.samples);
   r.link = static_cast<uint32_t>(n);
-  r.null = dw.phase == Phase::null;
-  r.whole_counts = whole_of(dw, axis);
+  r.info = static_cast<uint32_t>(std::min<size_t>(dw.samples, AxisData::DwellRow::kSamplesMask)) |
+           (dw.phase == Phase::null ? AxisData::DwellRow::kNullBit : 0u) |
+           (whole_of(dw, axis) ? AxisData::DwellRow::kWholeBit : 0u);
   d.dwells.push_back(r);
+  d.recent_steps[n % kLook] = dw.step;
+  // The scatter as float (what a dwell record used to keep): the pooled sums stay as they were.
+  const double sd_counts = static_cast<float>(sd_counts_of(dw, axis));
+  const double sd_ref = static_cast<float>(sd_ref_of(dw, axis));
+  d.all_whole_counts = d.all_whole_counts && r.whole_counts();
+  if (r.samples() >= 2) {
+    const double f = r.samples() - 1.0;
+    d.ref_scatter_ss += f * sd_ref * sd_ref;
+    d.count_scatter_ss += f * sd_counts * sd_counts;
+    d.scatter_dof += f;
+    d.count_scatter.add({r.counts, sd_counts * sd_counts, r.samples()});
+  }
   return static_cast<uint32_t>(n);
 }
 
-uint32_t root_of(std::vector<AxisData::DwellRow>& rows, uint32_t k) {
+uint32_t root_of(std::deque<AxisData::DwellRow>& rows, uint32_t k) {
   while (rows[k].link != k) {
     rows[k].link = rows[rows[k].link].link;  // path halving
     k = rows[k].link;
@@ -97,12 +106,11 @@ uint32_t root_of(std::vector<AxisData::DwellRow>& rows, uint32_t k) {
 }  // namespace
 
 void add_pair_rows(AxisData& d, Axis axis, const Dwell& null_dwell, const Dwell& offset_dwell) {
-  const uint32_t a = root_of(d.dwells, dwell_row(d, axis, null_dwell));
-  const uint32_t b = root_of(d.dwells, dwell_row(d, axis, offset_dwell));
+  const uint32_t nk = dwell_row(d, axis, null_dwell), ok = dwell_row(d, axis, offset_dwell);
+  const uint32_t a = root_of(d.dwells, nk);
+  const uint32_t b = root_of(d.dwells, ok);
   d.dwells[std::max(a, b)].link = std::min(a, b);
-  d.n_plus.push_back(counts_of(offset_dwell, axis));
-  d.n_minus.push_back(counts_of(null_dwell, axis));
-  d.y_arcsec.push_back(ref_of(offset_dwell, axis) - ref_of(null_dwell, axis));
+  d.changes.push_back({nk, ok});
   d.cover(counts_of(offset_dwell, axis), ref_of(offset_dwell, axis));
   d.cover(counts_of(null_dwell, axis), ref_of(null_dwell, axis));
 }
@@ -130,8 +138,8 @@ void check_axis(const AxisData& d, Axis axis, const std::string& origin) {
   double spread = 0, ref_spread = 0;
   if (d.differences) {
     for (size_t i = 0; i < d.rows(); ++i) {
-      spread = std::max(spread, std::abs(d.n_plus[i] - d.n_minus[i]));
-      ref_spread = std::max(ref_spread, std::abs(d.y_arcsec[i]));
+      spread = std::max(spread, std::abs(d.row_n_plus(i) - d.row_n_minus(i)));
+      ref_spread = std::max(ref_spread, std::abs(d.row_y_arcsec(i)));
     }
   } else {
     spread = d.counts_hi - d.counts_lo;
@@ -146,7 +154,8 @@ void check_axis(const AxisData& d, Axis axis, const std::string& origin) {
   }
   // Positions at least kDistinctCounts from the last one counted: a dense scan counts by its
   // extent, a few positions repeated many times count once each.
-  std::vector<double> pos = d.n_plus;
+  std::vector<double> pos(d.rows());
+  for (size_t i = 0; i < d.rows(); ++i) pos[i] = d.row_n_plus(i);
   std::sort(pos.begin(), pos.end());
   size_t distinct = 0;
   double last = 0;
@@ -200,43 +209,49 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
   } else if ((s = noise_from_file(opts))) {
     ni.count_noise_source = "coefficient file";
   }
-  bool whole = true;
-  double ref_ss = 0, ref_dof = 0, raw_ss = 0, raw_dof = 0;
-  std::vector<CountScatter> scatter;
-  for (const auto& r : d.dwells) {
-    whole = whole && r.whole_counts;
-    if (r.samples < 2) continue;
-    const double f = r.samples - 1.0;
-    ref_ss += f * r.sd_ref_arcsec * r.sd_ref_arcsec;
-    raw_ss += f * r.sd_counts * r.sd_counts;
-    ref_dof += f;
-    raw_dof += f;
-    scatter.push_back({r.counts, static_cast<double>(r.sd_counts) * r.sd_counts, r.samples});
-  }
+  const bool whole = d.all_whole_counts;
+  const double ref_dof = d.scatter_dof, raw_dof = d.scatter_dof;
   if (!s) {
-    if (whole) s = estimate_count_noise(scatter.data(), scatter.size());
-    else if (raw_dof > 0) s = std::sqrt(raw_ss / raw_dof);
+    if (whole) s = d.count_scatter.estimate();
+    else if (raw_dof > 0) s = std::sqrt(d.count_scatter_ss / raw_dof);
     if (s) ni.count_noise_source = "within-dwell scatter";
   }
-  const double ref_var = ref_dof > 0 ? ref_ss / ref_dof : std::nan("");
+  const double ref_var = ref_dof > 0 ? d.ref_scatter_ss / ref_dof : std::nan("");
   if (s) ni.count_noise_counts = *s;
   if (ref_dof > 0) ni.ref_noise_arcsec = std::sqrt(ref_var);
   ni.quantisation_corrected = opts.quantisation_correction && s && whole && *s >= kMinQuantisationNoise;
 
   GlsData& g = p.g;
+  g.dwells = &d.dwells;
   g.noise_known = s.has_value() && ref_dof > 0;
+  g.ref_var_arcsec2 = std::isfinite(ref_var) ? ref_var : 0.0;
   const size_t m = d.dwells.size();
-  g.counts.resize(m);
-  g.ref_arcsec.resize(m);
-  g.var_ref_arcsec2.resize(m);
-  g.var_counts2.resize(m);
   g.level.resize(m);
-  std::vector<uint32_t> level_of_root(m, UINT32_MAX);
   std::vector<double> nulls;
   double total_nulls = 0;
   for (size_t k = 0; k < m; ++k) {
     const auto& r = d.dwells[k];
-    const double n = static_cast<double>(std::max<uint32_t>(1, r.samples));
+    // Union-find roots: a parent always has the lower index, so a set's root (its lowest index)
+    // comes first and has its level when the others look it up.
+    uint32_t root = static_cast<uint32_t>(k);
+    while (d.dwells[root].link != root) root = d.dwells[root].link;
+    if (root == k) {
+      g.level[k] = static_cast<uint32_t>(g.levels++);
+      nulls.push_back(0);
+    } else {
+      g.level[k] = g.level[root];
+    }
+    if (r.null()) {
+      nulls[g.level[k]] += 1;
+      total_nulls += 1;
+    }
+  }
+  if (g.levels == 1) std::vector<uint32_t>().swap(g.level);  // the usual one level: no list (memory)
+  g.counts.resize(m);
+  g.var_counts2.resize(m);
+  for (size_t k = 0; k < m; ++k) {
+    const auto& r = d.dwells[k];
+    const double n = static_cast<double>(std::max<uint32_t>(1, r.samples()));
     double c = r.counts, vc = 0;
     if (ni.quantisation_corrected) {
       c = counts_from_rounded_mean(r.counts, *s);
@@ -250,21 +265,7 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
       vc = *s * *s / n;
     }
     g.counts[k] = c;
-    g.ref_arcsec[k] = r.ref_arcsec;
-    g.var_ref_arcsec2[k] = static_cast<float>(std::isfinite(ref_var) ? ref_var / n : 0.0);
     g.var_counts2[k] = static_cast<float>(vc);
-    // Union-find roots: a parent always has the lower index, so one pass finds every root.
-    uint32_t root = static_cast<uint32_t>(k);
-    while (d.dwells[root].link != root) root = d.dwells[root].link;
-    if (level_of_root[root] == UINT32_MAX) {
-      level_of_root[root] = static_cast<uint32_t>(g.levels++);
-      nulls.push_back(0);
-    }
-    g.level[k] = level_of_root[root];
-    if (r.null) {
-      nulls[g.level[k]] += 1;
-      total_nulls += 1;
-    }
   }
   g.level_share.resize(g.levels);
   for (size_t l = 0; l < g.levels; ++l) g.level_share[l] = total_nulls > 0 ? nulls[l] / total_nulls : 0.0;
@@ -392,7 +393,7 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
     // as the grid starts) and at the returned coefficients.
     double start = 0;
     for (size_t i = 0; i < d.rows(); ++i) {
-      const double r = d.y_arcsec[i] - kNominalC2 * kArcsecPerRad * (d.n_plus[i] - d.n_minus[i]);
+      const double r = d.row_y_arcsec(i) - kNominalC2 * kArcsecPerRad * (d.row_n_plus(i) - d.row_n_minus(i));
       start += r * r;
     }
     out.solver.initial_cost = 0.5 * start;
@@ -485,12 +486,8 @@ CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const Calib
   auto fit_one = [&](const fit::AxisData& d, fit::Axis axis) {
     fit::FrequencyGram gram(opts.grid, diff);
     const double fraction = std::min(1.0, static_cast<double>(opts.grid_max_rows) / static_cast<double>(d.rows()));
-    if (fraction >= 1.0) {
-      gram.add(d.n_plus.data(), diff ? d.n_minus.data() : nullptr, d.y_arcsec.data(), d.rows());
-    } else {
-      for (size_t i = 0; i < d.rows(); ++i) {
-        if (fit::in_spread_subset(i, fraction)) gram.add(d.n_plus[i], diff ? d.n_minus[i] : 0.0, d.y_arcsec[i]);
-      }
+    for (size_t i = 0; i < d.rows(); ++i) {
+      if (fit::in_spread_subset(i, fraction)) gram.add(d.row_n_plus(i), d.row_n_minus(i), d.row_y_arcsec(i));
     }
     return fit::fit_axis(d, gram, axis, opts);
   };

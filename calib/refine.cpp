@@ -29,14 +29,15 @@ struct Strided {
 };
 
 RowView view_of(const AxisData& d, double fraction, Strided& keep) {
-  if (fraction >= 1.0) {
+  if (fraction >= 1.0 && d.changes.empty()) {
     return {d.n_plus.data(), d.differences ? d.n_minus.data() : nullptr, d.y_arcsec.data(), d.rows()};
   }
+  // Rows held as dwell pairs (or a subset): gathered, as Ceres reads contiguous rows.
   for (size_t i = 0; i < d.rows(); ++i) {
     if (!in_spread_subset(i, fraction)) continue;
-    keep.n_plus.push_back(d.n_plus[i]);
-    if (d.differences) keep.n_minus.push_back(d.n_minus[i]);
-    keep.y.push_back(d.y_arcsec[i]);
+    keep.n_plus.push_back(d.row_n_plus(i));
+    if (d.differences) keep.n_minus.push_back(d.row_n_minus(i));
+    keep.y.push_back(d.row_y_arcsec(i));
   }
   return {keep.n_plus.data(), d.differences ? keep.n_minus.data() : nullptr, keep.y.data(), keep.y.size()};
 }
@@ -273,6 +274,62 @@ double angle_and_gradient(const Scaled& u, double n, Vec7& grad) {
   return a.a;
 }
 
+// f0 and its gradient as the iteration sees it: over u[1..7] (C3 sin(C4 N + C5), the reported form)
+// or, while iterating, in the Cartesian form a sin(w x) + b cos(w x) (x = N / kCountScale), where
+// the amplitudes enter linearly: a slow sinusoid over less than half its period is nearly a
+// polynomial, and in (amplitude, phase) its valley is long and curved (Gauss-Newton then crawls
+// along it for hundreds of iterations); in (a, b) only the frequencies are nonlinear.
+struct Model {
+  bool cartesian = false;
+  Scaled u{};
+  // slope, a1, b1, a2, b2 (the linear parameters, arcsec), then w1, w2 (rad per kCountScale counts)
+  Vec7 v = Vec7::Zero();
+
+  static Model polar(const Scaled& u) {
+    Model m;
+    m.u = u;
+    return m;
+  }
+  static Model from_polar(const Scaled& u) {
+    Model m;
+    m.cartesian = true;
+    m.v << u[1], u[2] * std::cos(u[4]), u[2] * std::sin(u[4]), u[5] * std::cos(u[7]), u[5] * std::sin(u[7]), u[3], u[6];
+    return m;
+  }
+  Scaled to_polar() const {
+    if (!cartesian) return u;
+    Scaled out{};
+    out[1] = v(0);
+    out[2] = std::hypot(v(1), v(2));
+    out[3] = v(5);
+    out[4] = std::atan2(v(2), v(1));
+    out[5] = std::hypot(v(3), v(4));
+    out[6] = v(6);
+    out[7] = std::atan2(v(4), v(3));
+    return out;
+  }
+  double operator()(double n, Vec7& grad) const {
+    if (!cartesian) return angle_and_gradient(u, n, grad);
+    const double x = n / kCountScale;
+    const double s1 = std::sin(v(5) * x), c1 = std::cos(v(5) * x);
+    const double s2 = std::sin(v(6) * x), c2 = std::cos(v(6) * x);
+    grad << x, s1, c1, s2, c2, x * (v(1) * c1 - v(2) * s1), x * (v(3) * c2 - v(4) * s2);
+    return v(0) * x + v(1) * s1 + v(2) * c1 + v(3) * s2 + v(4) * c2;
+  }
+};
+
+// The dwells' weights, 1 / variance in arcsec^-2, from the start's slope, computed when read (no
+// array per dwell); float, as they were kept.
+struct Weights {
+  const GlsData* g;
+  AxisCoeffs c0;
+  float operator()(size_t k) const {
+    if (!g->noise_known) return 1.0f;
+    const double slope = rad_to_arcsec(transfer_slope(c0.data(), g->counts[k]));
+    return static_cast<float>(1.0 / std::max(1e-30, g->var_ref_arcsec2(k) + slope * slope * g->var_counts2[k]));
+  }
+};
+
 // Per level: weighted sums of the dwells' e = ref - f0 and of the gradients.
 struct LevelSums {
   double w = 0, we = 0, wee = 0;
@@ -284,17 +341,18 @@ struct Pass {
   double cost = 0;  // sum w (e - level)^2
 };
 
-Pass level_pass(const GlsData& g, const std::vector<float>& w, const Scaled& u) {
+Pass level_pass(const GlsData& g, const Weights& w, const Model& f) {
   Pass p;
   p.lv.assign(g.levels, LevelSums{});
   Vec7 gr;
   for (size_t k = 0; k < g.size(); ++k) {
-    const double e = g.ref_arcsec[k] - angle_and_gradient(u, g.counts[k], gr);
-    LevelSums& l = p.lv[g.level[k]];
-    l.w += w[k];
-    l.we += w[k] * e;
-    l.wee += w[k] * e * e;
-    l.wg += w[k] * gr;
+    const double e = g.ref_arcsec(k) - f(g.counts[k], gr);
+    LevelSums& l = p.lv[g.level_of(k)];
+    const float wk = w(k);
+    l.w += wk;
+    l.we += wk * e;
+    l.wee += wk * e * e;
+    l.wg += wk * gr;
   }
   for (const auto& l : p.lv) {
     if (l.w > 0) p.cost += l.wee - l.we * l.we / l.w;
@@ -304,7 +362,7 @@ Pass level_pass(const GlsData& g, const std::vector<float>& w, const Scaled& u) 
 }
 
 // R (8 x 8) of the QR of [J~ | r], the projected Jacobian and residuals, accumulated in chunks.
-Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const std::vector<float>& w, const Scaled& u,
+Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const Weights& w, const Model& f,
                                         const Pass& p) {
   constexpr int kChunk = 256;
   Eigen::Matrix<double, Eigen::Dynamic, 8> stack(kChunk + 8, 8);
@@ -323,9 +381,9 @@ Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const std::vector<floa
   };
   Vec7 gr;
   for (size_t k = 0; k < g.size(); ++k) {
-    const LevelSums& l = p.lv[g.level[k]];
-    const double e = g.ref_arcsec[k] - angle_and_gradient(u, g.counts[k], gr);
-    const double sw = std::sqrt(w[k]);
+    const LevelSums& l = p.lv[g.level_of(k)];
+    const double e = g.ref_arcsec(k) - f(g.counts[k], gr);
+    const double sw = std::sqrt(w(k));
     stack.row(rows).head<7>() = (sw * (gr - l.wg / l.w)).transpose();
     const double res = -sw * (e - l.we / l.w);
     stack(rows, 7) = res;
@@ -359,6 +417,79 @@ Solve solve_r(const Eigen::Matrix<double, 8, 8>& r) {
   return s;
 }
 
+// The linear parameters (slope and both sinusoids' a, b) exactly at their optimum for the current
+// frequencies: the leading 5 x 5 block of the projected QR, as the model is linear in them.
+void solve_linear(const GlsData& g, const Weights& w, Model& f, Pass& p) {
+  const Eigen::Matrix<double, 8, 8> rl = projected_r(g, w, f, p);
+  const Eigen::Matrix<double, 5, 5> r_lin = rl.topLeftCorner<5, 5>();
+  Eigen::JacobiSVD<Eigen::Matrix<double, 5, 5>> svd(r_lin, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix<double, 5, 1> inv = Eigen::Matrix<double, 5, 1>::Zero();
+  for (int i = 0; i < 5; ++i) {
+    if (svd.singularValues()(i) > 1e-10 * svd.singularValues()(0)) inv(i) = 1.0 / svd.singularValues()(i);
+  }
+  Model lin = f;
+  lin.v.head<5>() -= svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose() * rl.block<5, 1>(0, 7);
+  Pass q = level_pass(g, w, lin);
+  if (q.cost < p.cost) {
+    f = lin;
+    p = std::move(q);
+  }
+}
+
+// Moves `f` (Cartesian) to the minimum; `p` is its pass. Sets out.iterations and out.converged.
+void minimise(const GlsData& g, const Weights& w, Model& f, Pass& p, GlsFit& out) {
+  // Levenberg-Marquardt on the projected problem: Gauss-Newton steps while they lower the cost,
+  // damped (Marquardt's diagonal scaling) when they do not. A slow sinusoid over less than half its
+  // period is nearly a polynomial, and the cost is flat and curved along its frequency: undamped
+  // steps halved along one direction stopped at a 30-iteration cap short of the minimum on 23 of 200
+  // yaw fits of Table A-5 FPSS2's grid (docs/calibration.md). Converged when the whole Gauss-Newton step
+  // would gain less than kGainTolerance of chi^2 (|z|^2, the residuals' part in the Jacobian's column
+  // space), or less than kGainOfResidualVariance of one residual's variance (cost / dof: a change of
+  // the transfer function of about a hundredth of its sigma), or no step lowers the cost.
+  constexpr int kMaxIterations = 300;
+  constexpr double kGainTolerance = 1e-10;
+  constexpr double kGainOfResidualVariance = 1e-4;
+  const double dof = static_cast<double>(std::max<size_t>(1, g.size() > 7 + g.levels ? g.size() - 7 - g.levels : 1));
+  double lambda = 0;
+  for (int it = 0; it < kMaxIterations; ++it) {
+    out.iterations = it + 1;
+    // Variable projection: the linear parameters first go exactly to their optimum at these
+    // frequencies (the QR's leading 5 x 5 block: the model is linear in them), so the step below
+    // only has the frequencies' flat but short valley to follow.
+    solve_linear(g, w, f, p);
+    const Eigen::Matrix<double, 8, 8> r = projected_r(g, w, f, p);
+    const Vec7 z = r.topRightCorner<7, 1>();
+    if (z.squaredNorm() <= std::max(kGainTolerance, kGainOfResidualVariance / dof) * p.cost || p.cost <= 1e-300) {
+      out.converged = true;
+      break;
+    }
+    const Solve gn = solve_r(r);
+    const Mat7 r11 = r.topLeftCorner<7, 7>();
+    const Mat7 a = r11.transpose() * r11;
+    const Vec7 rhs = -(r11.transpose() * z);
+    const Vec7 diag = a.diagonal().cwiseMax(1e-12 * a.diagonal().maxCoeff());
+    bool moved = false;
+    for (int tries = 0; tries < 24; ++tries) {
+      const Vec7 step = lambda == 0 ? gn.step : Vec7((a + lambda * Mat7(diag.asDiagonal())).ldlt().solve(rhs));
+      Model trial = f;
+      trial.v += step;
+      Pass q = level_pass(g, w, trial);
+      if (q.cost < p.cost) {
+        f = trial;
+        p = std::move(q);
+        moved = true;
+        lambda = lambda < 1e-7 ? 0 : lambda / 3;
+        break;
+      }
+      lambda = lambda == 0 ? 1e-6 : lambda * 4;
+    }
+    if (!moved) {
+      out.converged = true;  // no step lowers the cost: at the minimum to round-off
+      break;
+    }
+  }
+}
+
 }  // namespace
 
 GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, double counts_hi,
@@ -369,45 +500,18 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
   c0[0] = 0;
   Scaled u = to_scaled(c0);
   // Weights from the start's slope (the count noise enters as slope x count error).
-  std::vector<float> w(g.size(), 1.0f);  // 1 / variance, arcsec^-2 (float: memory per dwell)
-  if (g.noise_known) {
-    for (size_t k = 0; k < g.size(); ++k) {
-      const double slope = rad_to_arcsec(transfer_slope(c0.data(), g.counts[k]));
-      w[k] = static_cast<float>(1.0 / std::max(1e-30, g.var_ref_arcsec2[k] + slope * slope * g.var_counts2[k]));
-    }
-  }
-  Pass p = level_pass(g, w, u);
-  constexpr int kMaxIterations = 30;
-  for (int it = 0; it < kMaxIterations; ++it) {
-    out.iterations = it + 1;
-    const Solve s = solve_r(projected_r(g, w, u, p));
-    double t = 1.0;
-    bool moved = false;
-    for (int half = 0; half < 12; ++half, t *= 0.5) {
-      Scaled trial = u;
-      for (int i = 0; i < 7; ++i) trial[1 + i] += t * s.step(i);
-      Pass q = level_pass(g, w, trial);
-      if (q.cost <= p.cost) {
-        const double gain = p.cost - q.cost;
-        u = trial;
-        p = std::move(q);
-        moved = true;
-        if (gain <= 1e-13 * std::max(p.cost, 1e-300)) out.converged = true;
-        break;
-      }
-    }
-    if (!moved || out.converged || s.step.norm() < 1e-13) {
-      out.converged = true;
-      break;
-    }
-  }
+  const Weights w{&g, c0};
+  Model f = Model::from_polar(u);
+  Pass p = level_pass(g, w, f);
+  minimise(g, w, f, p, out);
+  u = f.to_polar();
   // Back to the normalised form (positive frequencies, phases in (-pi, pi]) before the covariance.
   AxisCoeffs c = from_scaled(u);
   normalise(c);
   c[0] = 0;
   u = to_scaled(c);
-  p = level_pass(g, w, u);
-  const Solve s = solve_r(projected_r(g, w, u, p));
+  p = level_pass(g, w, Model::polar(u));
+  const Solve s = solve_r(projected_r(g, w, Model::polar(u), p));
 
   // C1 = sum_g share_g level_g, level_g = weighted mean of (ref - f0) over its dwells.
   double c1 = 0, var_c1_noise = 0;

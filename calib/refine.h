@@ -1,9 +1,13 @@
 // The nonlinear refinement of one axis with Ceres, and its covariance. The only place that
 // includes ceres.h (refine.cpp), to keep the build cheap.
 #pragma once
+#include <algorithm>
 #include <array>
 #include <cstddef>
+#include <cstdint>
+#include <deque>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -47,17 +51,23 @@ double angle_sigma_arcsec(const Uncertainty& u, const AxisCoeffs& fit, double co
 // dwells with one free reference level per set of dwells the changes join (the changes lose
 // exactly that level), each dwell weighted by its own variance. Prepared by the calibrator.
 struct GlsData {
+  const std::deque<AxisData::DwellRow>* dwells = nullptr;  // the dwells: reference angle, frames
   std::vector<double> counts;           // the dwell's count (quantisation-corrected when known)
-  std::vector<double> ref_arcsec;       // its reference angle
-  std::vector<float> var_ref_arcsec2;  // variance of the reference mean
-  std::vector<float> var_counts2;      // variance of the count estimate, counts^2
-  std::vector<uint32_t> level;          // which reference level, 0 .. levels - 1
+  std::vector<float> var_counts2;       // variance of the count estimate, counts^2
+  std::vector<uint32_t> level;          // which reference level, 0 .. levels - 1 (empty: all in level 0)
   std::vector<double> level_share;      // C1 = sum share_g level_g: the null condition over null dwells
   size_t levels = 0;
+  double ref_var_arcsec2 = 0;           // reference variance per frame (pooled within-dwell scatter)
   // Variances from a noise model (given or from within-dwell scatter); false: equal weights, and
   // the covariance is scaled by the residuals.
   bool noise_known = true;
   size_t size() const { return counts.size(); }
+  double ref_arcsec(size_t k) const { return (*dwells)[k].ref_arcsec; }
+  uint32_t level_of(size_t k) const { return level.empty() ? 0u : level[k]; }
+  // Variance of the dwell's reference mean.
+  float var_ref_arcsec2(size_t k) const {
+    return static_cast<float>(ref_var_arcsec2 / static_cast<double>(std::max<uint32_t>(1, (*dwells)[k].samples())));
+  }
 };
 
 struct GlsFit {
@@ -74,9 +84,10 @@ struct GlsFit {
   Uncertainty uncertainty;
 };
 
-// Gauss-Newton from `start` (the changes' least-squares fit) with the levels projected out
-// (variable projection: each level is its dwells' weighted mean at any C2..C8); QR of the
-// projected Jacobian accumulated in chunks (TSQR), so memory does not grow with the dwells.
+// Levenberg-Marquardt from `start` (the changes' least-squares fit) with the levels projected out
+// (variable projection: each level is its dwells' weighted mean at any C2..C8), the sinusoids as
+// a sin + b cos while iterating and the linear parameters solved exactly before every step; QR of
+// the projected Jacobian accumulated in chunks (TSQR), so memory does not grow with the dwells.
 GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, double counts_hi,
                   double remainder_sigmas = 3.0);
 

@@ -5,8 +5,10 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <vector>
 
+#include "calib/quantisation.h"
 #include "calib/transfer_function.h"
 #include "calib/units.h"
 
@@ -20,10 +22,13 @@ inline constexpr double kNominalC2 = 0.5326322e-6;
 // One axis's data as the fit sees it.
 //  differences: one row per change, ref_change = f(n_plus) - f(n_minus), n_plus at the offset dwell,
 //               n_minus at its null dwell; C1 cancels and follows from the null condition.
-//  absolute:    one row per dwell, ref = f(n_plus); n_minus is unused (empty).
+//  absolute:    one row per dwell, ref = f(n_plus); n_minus is unused (0).
+// Rows are either given explicitly (the vectors n_plus, n_minus, y_arcsec) or, for the differences
+// method fed dwell by dwell (add_pair_rows), held as the pair of dwells they join: a change costs
+// 8 bytes, its numbers are the dwells'. Read rows through the accessors, which see both.
 struct AxisData {
   bool differences = true;
-  std::vector<double> n_plus, n_minus, y_arcsec;
+  std::vector<double> n_plus, n_minus, y_arcsec;  // explicit rows (come first)
   // The null condition (paper eq. 3): the mean null-dwell counts and reference.
   double null_counts_sum = 0, null_ref_arcsec_sum = 0;
   size_t null_dwells = 0;
@@ -32,18 +37,46 @@ struct AxisData {
   bool covered = false;
 
   // The dwells themselves (differences method), for the fit with the changes' covariance: one
-  // entry per dwell, in order; `link` is the union-find parent (dwells joined by a change share
-  // one reference level).
+  // entry per dwell, in order (24 bytes: memory grows with the dwells, so they are kept small);
+  // `link` is the union-find parent (dwells joined by a change share one reference level).
   struct DwellRow {
-    int64_t step = 0;
     double counts = 0, ref_arcsec = 0;
-    float sd_counts = 0, sd_ref_arcsec = 0;  // within-dwell scatter (float: memory per dwell)
-    uint32_t samples = 0, link = 0;
-    bool null = false, whole_counts = false;
+    uint32_t link = 0;
+    uint32_t info = 0;  // samples (low 30 bits), kNullBit, kWholeBit
+    static constexpr uint32_t kNullBit = 1u << 31, kWholeBit = 1u << 30, kSamplesMask = kWholeBit - 1;
+    uint32_t samples() const { return info & kSamplesMask; }
+    bool null() const { return (info & kNullBit) != 0; }
+    bool whole_counts() const { return (info & kWholeBit) != 0; }
   };
-  std::vector<DwellRow> dwells;
+  // Chunked (no reallocation peak of twice the size while growing).
+  std::deque<DwellRow> dwells;
+  struct Change {
+    uint32_t null_dwell = 0, offset_dwell = 0;  // into `dwells`
+  };
+  std::deque<Change> changes;  // rows after the explicit ones
+  // The dwells' within-dwell scatter, pooled as they are added (what the noise model needs of it):
+  // sums over dwells of two or more frames of (frames - 1) x variance, and the count scatter by
+  // the fractional part of the count (the count noise's estimate, calib/quantisation.h).
+  double ref_scatter_ss = 0, count_scatter_ss = 0, scatter_dof = 0;
+  bool all_whole_counts = true;
+  CountNoiseEstimator count_scatter;
+  // Steps of the latest dwells (pairs and nulls arrive in recording order): finds a dwell again.
+  static constexpr size_t kRecentSteps = 64;
+  std::array<int64_t, kRecentSteps> recent_steps{};
 
-  size_t rows() const { return y_arcsec.size(); }
+  size_t rows() const { return y_arcsec.size() + changes.size(); }
+  double row_n_plus(size_t i) const {
+    return i < y_arcsec.size() ? n_plus[i] : dwells[changes[i - y_arcsec.size()].offset_dwell].counts;
+  }
+  double row_n_minus(size_t i) const {
+    if (i < y_arcsec.size()) return differences ? n_minus[i] : 0.0;
+    return dwells[changes[i - y_arcsec.size()].null_dwell].counts;
+  }
+  double row_y_arcsec(size_t i) const {
+    if (i < y_arcsec.size()) return y_arcsec[i];
+    const Change& c = changes[i - y_arcsec.size()];
+    return dwells[c.offset_dwell].ref_arcsec - dwells[c.null_dwell].ref_arcsec;
+  }
   size_t parameters() const { return differences ? 7 : 8; }
   double null_counts() const { return null_counts_sum / static_cast<double>(null_dwells); }
   double null_ref_arcsec() const { return null_ref_arcsec_sum / static_cast<double>(null_dwells); }
@@ -158,10 +191,10 @@ struct DwellLevelResidual {
 // Residual of row i in arcsec for plain coefficients (radians), for statistics.
 inline double residual_arcsec(const AxisData& d, const AxisCoeffs& c, size_t i) {
   if (d.differences) {
-    return rad_to_arcsec(transfer_angle(c.data(), d.n_plus[i]) - transfer_angle(c.data(), d.n_minus[i])) -
-           d.y_arcsec[i];
+    return rad_to_arcsec(transfer_angle(c.data(), d.row_n_plus(i)) - transfer_angle(c.data(), d.row_n_minus(i))) -
+           d.row_y_arcsec(i);
   }
-  return rad_to_arcsec(transfer_angle(c.data(), d.n_plus[i])) - d.y_arcsec[i];
+  return rad_to_arcsec(transfer_angle(c.data(), d.row_n_plus(i))) - d.row_y_arcsec(i);
 }
 
 }  // namespace fpss::fit

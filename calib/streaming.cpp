@@ -2,10 +2,12 @@
 
 #include <array>
 #include <cmath>
+#include <deque>
 #include <functional>
-#include <optional>
 #include <limits>
+#include <optional>
 #include <stdexcept>
+#include <unordered_map>
 
 #include "calib/errors.h"
 #include "calib/outliers.h"
@@ -55,8 +57,9 @@ void StreamingCalibrator::take_dwell(const Dwell& d) {
 void StreamingCalibrator::add_pair(const Dwell& null_dwell, const Dwell& offset_dwell) {
   fit::add_pair_rows(pitch_, fit::Axis::alpha, null_dwell, offset_dwell);
   fit::add_pair_rows(yaw_, fit::Axis::beta, null_dwell, offset_dwell);
-  gram_pitch_.add(pitch_.n_plus.back(), pitch_.n_minus.back(), pitch_.y_arcsec.back());
-  gram_yaw_.add(yaw_.n_plus.back(), yaw_.n_minus.back(), yaw_.y_arcsec.back());
+  const size_t p = pitch_.rows() - 1, y = yaw_.rows() - 1;
+  gram_pitch_.add(pitch_.row_n_plus(p), pitch_.row_n_minus(p), pitch_.row_y_arcsec(p));
+  gram_yaw_.add(yaw_.row_n_plus(y), yaw_.row_n_minus(y), yaw_.row_y_arcsec(y));
 }
 
 void StreamingCalibrator::add_null(const Dwell& null_dwell) {
@@ -120,6 +123,32 @@ AxisFit StreamingCalibrator::fit_so_far(fit::Axis axis, const CalibrationOptions
 
 namespace {
 
+// Every step's median count per axis in 8 bytes: a median of whole counts is a whole or half count,
+// exact as a float; a median that is not (averaged data) is kept exactly on the side.
+class StepMedians {
+ public:
+  void push_back(const std::array<double, 2>& m) {
+    const size_t k = low_.size();
+    low_.push_back({static_cast<float>(m[0]), static_cast<float>(m[1])});
+    if (!same(m[0], low_.back()[0]) || !same(m[1], low_.back()[1])) exact_[k] = m;
+  }
+  std::array<double, 2> operator[](size_t k) const {
+    if (!exact_.empty()) {
+      if (auto it = exact_.find(k); it != exact_.end()) return it->second;
+    }
+    return {low_[k][0], low_[k][1]};
+  }
+  void release() {
+    std::deque<std::array<float, 2>>().swap(low_);
+    std::unordered_map<size_t, std::array<double, 2>>().swap(exact_);
+  }
+
+ private:
+  static bool same(double v, float f) { return v == static_cast<double>(f) || (std::isnan(v) && std::isnan(f)); }
+  std::deque<std::array<float, 2>> low_;  // chunked: no doubling peak while growing
+  std::unordered_map<size_t, std::array<double, 2>> exact_;
+};
+
 bool is_dwell_row(const Sample& s) { return s.phase == Phase::null || s.phase == Phase::offset; }
 
 // The null/offset rows of a file, step by step: on_row(row, index of its step among the steps).
@@ -148,7 +177,7 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
   OutlierRule rule;
   rule.min_sigma = kRounding;
   StepOutlierScreen screen[2] = {StepOutlierScreen(rule), StepOutlierScreen(rule)};
-  std::vector<std::array<double, 2>> medians;  // per step: alpha, beta
+  StepMedians medians;  // per step: alpha, beta
   if (opts.reject_outliers) {
     StepValues cur[2];
     size_t cur_step = 0;
@@ -168,8 +197,9 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
     if (any) close();
   }
   auto outlier = [&](const Sample& s, size_t k) {
-    return opts.reject_outliers && (screen[0].is_outlier(s.counts_alpha, medians[k][0]) ||
-                                    screen[1].is_outlier(s.counts_beta, medians[k][1]));
+    if (!opts.reject_outliers) return false;
+    const auto m = medians[k];
+    return screen[0].is_outlier(s.counts_alpha, m[0]) || screen[1].is_outlier(s.counts_beta, m[1]);
   };
   // Pass 2 (noise not given): the within-dwell scatter without the gross spikes, for the floor.
   if (opts.reject_outliers) {
@@ -199,6 +229,7 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
     if (auto d = b.add(s, outlier(s, k))) cal.add_dwell(*d);
   });
   if (auto d = b.flush()) cal.add_dwell(*d);
+  medians.release();  // not needed by the fit: freed before it
   cal.set_samples(rows);
   // Nothing to pair (no nulls, no offsets, no dwells): the batch calibrator says what is missing.
   if (cal.pairs() == 0) return calibrate(read_samples_csv(path), opts);
