@@ -90,7 +90,7 @@ ojson flexible_shrink(const Recording& r, const std::vector<double> e_in[2], con
     j["ratio"] = 1.0;
     return j;
   }
-  std::vector<double> e[2] = {e_in[0], e_in[1]};
+  std::vector<float> e[2] = {{e_in[0].begin(), e_in[0].end()}, {e_in[1].begin(), e_in[1].end()}};
   constexpr int kKnots = 16;
   for (const Factor* f : use) {
     j["factors"].push_back(f->name);
@@ -162,14 +162,16 @@ class WhereSearch {
     // Greedy: the factor whose fit (on the fit rows) removes most of what is left on the held-out
     // rows, less 2 noise variances per parameter so that a flexible factor does not win by noise,
     // takes its share; its fit is removed and the next is sought. Shares therefore add up.
-    e[0] = e_in[0];
-    e[1] = e_in[1];
+    e[0].assign(e_in[0].begin(), e_in[0].end());
+    e[1].assign(e_in[1].begin(), e_in[1].end());
     penalty = 2.0 * noise_arcsec * noise_arcsec;
     used.assign(factors.size(), false);
     for (int round = 0; round < 5; ++round) {
       if (!greedy_round()) break;
     }
     std::stable_sort(out.begin(), out.end(), [](const WhereEntry& a, const WhereEntry& b) { return a.share > b.share; });
+    e[0] = {};  // the flexible model works on its own copy
+    e[1] = {};
     if (flexible) *flexible = flexible_shrink(r, e_in, factors, out);
     return out;
   }
@@ -204,7 +206,7 @@ class WhereSearch {
   std::vector<WhereEntry> out;
   Scale ang[2], rate[2], time, since, temp;
   std::vector<Factor> factors;
-  std::vector<double> e[2];
+  std::vector<float> e[2];  // what is left, float: shares need no more (and a large recording's memory does)
   double penalty = 0;
   std::vector<bool> used;
 };

@@ -162,13 +162,19 @@ void Engine::measure_slew(const Action& a, int session) {
         s_.flush();
       }
       fix(read_gimbal());
+      // Legs alternate between the far end and the start (a.reversals turns inside the segment);
+      // each starts the instant the previous one is in position, all recorded as one point.
+      int leg = 0;
+      auto leg_target = [&](int k) {
+        return k % 2 == 0 ? std::pair{a.pitch_arcsec, a.yaw_arcsec} : std::pair{a.start_pitch_arcsec, a.start_yaw_arcsec};
+      };
       {
         Timed t(stats_.device_s);
         command_move(a.pitch_arcsec, a.yaw_arcsec);
       }
       const double span = std::fabs(a.axis == StandAxis::pitch ? a.pitch_arcsec - a.start_pitch_arcsec
                                                                : a.yaw_arcsec - a.start_yaw_arcsec);
-      const double timeout_wall = b_.wall(span / a.rate_arcsec_s * 2 + b_.move_timeout_s) + 2.0;
+      const double timeout_wall = b_.wall((span / a.rate_arcsec_s * 2 + b_.move_timeout_s) * (a.reversals + 1)) + 2.0;
       const auto start = Clock::now();
       const double tol = b_.in_position_tolerance_arcsec;
       for (;;) {
@@ -179,9 +185,14 @@ void Engine::measure_slew(const Action& a, int session) {
           throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
         }
         drain();
-        if (st.has(kInPosition) && !st.has(kMoving) && std::fabs(st.pitch_arcsec - a.pitch_arcsec) <= tol &&
-            std::fabs(st.yaw_arcsec - a.yaw_arcsec) <= tol) {
-          break;
+        const auto [tp, ty] = leg_target(leg);
+        if (st.has(kInPosition) && !st.has(kMoving) && std::fabs(st.pitch_arcsec - tp) <= tol &&
+            std::fabs(st.yaw_arcsec - ty) <= tol) {
+          if (leg == a.reversals) break;
+          const auto [np, ny] = leg_target(++leg);
+          Timed t(stats_.device_s);
+          command_move(np, ny);
+          continue;
         }
         if (seconds_since(start) > timeout_wall) {
           throw GimbalFailure(fmt::format("slew did not reach its end within {:.1f} s (at pitch {}, yaw {})",
