@@ -352,12 +352,16 @@ void Diagnoser::find_ambiguous() {
 }
 
 void Diagnoser::locate() {
-  std::vector<double> after[2];
+  // Float copies (where and scatter need no more precision; a large recording's memory does).
+  {
+    const std::vector<float> before[2] = {{r.res[0].begin(), r.res[0].end()}, {r.res[1].begin(), r.res[1].end()}};
+    d.where = where_of(r, before, d.noise_floor_arcsec);
+  }
+  std::vector<float> after[2];
   for (int a = 0; a < 2; ++a) {
     after[a].resize(r.n);
-    for (size_t i = 0; i < r.n; ++i) after[a][i] = r.res[a][i] - combined.v[a][i];
+    for (size_t i = 0; i < r.n; ++i) after[a][i] = static_cast<float>(r.res[a][i] - combined.v[a][i]);
   }
-  d.where = where_of(r, r.res, d.noise_floor_arcsec);
   d.where_after = where_of(r, after, d.noise_floor_arcsec, &flexible);
 
   // Noise is not structure: the within-step scatter of what the causes leave, against what the

@@ -372,7 +372,7 @@ DiagnosisColumns read_diagnosis_columns(const std::filesystem::path& path, int64
           if (since) c.time_since_move_s.push_back(static_cast<float>(sc[i]));
         }
       },
-      4096);
+      1024);
   return c;
 }
 
