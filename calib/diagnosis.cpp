@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <malloc.h>
 #include <limits>
 #include <map>
 #include <numeric>
@@ -65,6 +66,9 @@ double penalised(double ms, double ms0, int k, double N) {
 }  // namespace diag
 
 namespace {
+// Hands freed pages in the middle of the heap back (glibc keeps them otherwise): each phase frees
+// large working arrays, and a large recording's peak should be what is live.
+void release_free_memory() { malloc_trim(0); }
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -236,8 +240,13 @@ class Diagnoser {
       : opts_(opts), r(diag::prepare(std::move(data), model, opts)) {}
 
   Diagnosis run(DiagnosisFigures* figures) {
+    // Each phase frees large working arrays in the middle of the heap; handing those pages back
+    // keeps a large recording's peak to what is live (glibc keeps them otherwise).
+    release_free_memory();
     fit_singles();
+    release_free_memory();
     pick_cause();
+    release_free_memory();
     find_ambiguous();
     locate();
     describe();

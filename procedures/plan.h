@@ -1,7 +1,9 @@
 // A procedure expanded for one stand: a flat list of actions with numbered points, checked against the soft limits.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "procedures/settings.h"
@@ -39,6 +41,13 @@ struct Action {
   // slew: where the segment ends (the far end, or the start after an odd number of reversals).
   double end_pitch_arcsec() const { return reversals % 2 ? start_pitch_arcsec : pitch_arcsec; }
   double end_yaw_arcsec() const { return reversals % 2 ? start_yaw_arcsec : yaw_arcsec; }
+  // slew: where leg k goes (legs alternate far end / start; a.reversals turns inside the segment).
+  std::pair<double, double> leg_target(int k) const {
+    return k % 2 == 0 ? std::pair{pitch_arcsec, yaw_arcsec} : std::pair{start_pitch_arcsec, start_yaw_arcsec};
+  }
+  double slew_span_arcsec() const {
+    return axis == StandAxis::pitch ? std::abs(pitch_arcsec - start_pitch_arcsec) : std::abs(yaw_arcsec - start_yaw_arcsec);
+  }
   bool is_point() const { return kind == Kind::dwell || kind == Kind::slew; }
   std::string describe() const;  // one line for --dry-run and the log
 };
