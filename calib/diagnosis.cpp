@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <malloc.h>
 #include <limits>
 #include <map>
 #include <numeric>
@@ -65,6 +66,9 @@ double penalised(double ms, double ms0, int k, double N) {
 }  // namespace diag
 
 namespace {
+// Hands freed pages in the middle of the heap back (glibc keeps them otherwise): each phase frees
+// large working arrays, and a large recording's peak should be what is live.
+void release_free_memory() { malloc_trim(0); }
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -168,8 +172,8 @@ Observability observability(const Recording& r) {
   for (uint32_t i : r.fit_rows) {
     if (!std::isfinite(r.since_move[i]) || (r.move_dir[0][i] == 0 && r.move_dir[1][i] == 0)) continue;
     ++settled;
-    tmin = std::min(tmin, r.since_move[i]);
-    tmax = std::max(tmax, r.since_move[i]);
+    tmin = std::min<double>(tmin, r.since_move[i]);
+    tmax = std::max<double>(tmax, r.since_move[i]);
   }
   if (settled < 10 || !(tmax - tmin > 0.02)) {
     add("settling", "no dwell samples spread in time after a move: a decay after arrival cannot be seen", false);
@@ -204,13 +208,12 @@ Scored fit_one(const Recording& r, const std::string& name, const Contribution& 
   Scored s;
   s.cand = diag::make_candidate(name);
   s.cand->fit(r, target, r.fit_rows);
-  s.contrib.resize(r.n);
-  s.cand->contribute(r, s.contrib);
+  const Contribution c = s.contribution(r);
   s.result.name = name;
   s.result.params = s.cand->params();
   s.result.parameters = s.cand->parameters();
-  s.result.fit_rms_arcsec = std::sqrt(mean_square(r, &s.contrib, r.fit_rows));
-  const double ms = mean_square(r, &s.contrib, r.heldout_rows);
+  s.result.fit_rms_arcsec = std::sqrt(mean_square(r, &c, r.fit_rows));
+  const double ms = mean_square(r, &c, r.heldout_rows);
   s.result.heldout_rms_arcsec = std::sqrt(ms);
   s.result.score = penalised(ms, ms0, s.result.parameters, N);
   s.result.notes = s.cand->notes();
@@ -233,16 +236,22 @@ ojson effect_json(const EffectResult& e) {
 // The state diagnose's steps share; the steps run in the order their methods are declared.
 class Diagnoser {
  public:
-  Diagnoser(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts)
-      : data_(data), opts_(opts), r(diag::prepare(data, model, opts)) {}
+  Diagnoser(DiagnosisColumns&& data, const CoefficientSet& model, const DiagnosisOptions& opts)
+      : opts_(opts), r(diag::prepare(std::move(data), model, opts)) {}
 
-  Diagnosis run() {
+  Diagnosis run(DiagnosisFigures* figures) {
+    // Each phase frees large working arrays in the middle of the heap; handing those pages back
+    // keeps a large recording's peak to what is live (glibc keeps them otherwise).
+    release_free_memory();
     fit_singles();
+    release_free_memory();
     pick_cause();
+    release_free_memory();
     find_ambiguous();
     locate();
     describe();
     warn();
+    if (figures) *figures = diag::figures(r, combined);
     return std::move(d);
   }
 
@@ -254,7 +263,6 @@ class Diagnoser {
   void describe();
   void warn();
 
-  const SampleTable& data_;
   const DiagnosisOptions& opts_;
   const Recording r;
   Diagnosis d;
@@ -275,7 +283,7 @@ void Diagnoser::fit_singles() {
   ms0 = mean_square(r, nullptr, r.heldout_rows);
   d.gap_before_arcsec = std::sqrt(ms0);
   Contribution target;
-  for (int a = 0; a < 2; ++a) target.v[a] = r.res[a];
+  for (int a = 0; a < 2; ++a) target.v[a].assign(r.res[a].begin(), r.res[a].end());
 
   {
     Scored none;
@@ -284,7 +292,6 @@ void Diagnoser::fit_singles() {
     none.result.fit_rms_arcsec = std::sqrt(mean_square(r, nullptr, r.fit_rows));
     none.result.heldout_rms_arcsec = d.gap_before_arcsec;
     none.result.score = 0;
-    none.contrib.resize(r.n);
     all.push_back(std::move(none));
   }
   for (const auto& name : diagnosis_effect_names()) {
@@ -318,10 +325,8 @@ void Diagnoser::pick_cause() {
   d.cause = best.result.name;
   d.gap_after_arcsec = best.result.heldout_rms_arcsec;
   d.gap_after_all_arcsec = d.gap_after_arcsec;
-  combined.resize(r.n);
   if (d.cause != "none") {
     d.causes = {best.result};
-    combined = best.contrib;
     // A second effect when the first leaves a gap above noise. Pairs are sought around a few
     // single effects (the best single may be a flexible stand-in for two simpler ones, e.g. a
     // settling with an endless tau for backlash plus drift): the others are screened on what
@@ -334,6 +339,9 @@ void Diagnoser::pick_cause() {
       diag::second_effect(r, all, best, ms0, N, material, d, combined);
     }
   }
+  // The causes' contribution: the pair's when one was kept, else the cause's (built after the
+  // pair search, which needs the memory).
+  if (combined.v[0].empty()) combined = all[pick].contribution(r);
 }
 
 void Diagnoser::find_ambiguous() {
@@ -353,13 +361,16 @@ void Diagnoser::find_ambiguous() {
 }
 
 void Diagnoser::locate() {
-  std::vector<double> before[2], after[2];
-  for (int a = 0; a < 2; ++a) {
-    before[a] = r.res[a];
-    after[a].resize(r.n);
-    for (size_t i = 0; i < r.n; ++i) after[a][i] = r.res[a][i] - combined.v[a][i];
+  // Float copies (where and scatter need no more precision; a large recording's memory does).
+  {
+    const std::vector<float> before[2] = {{r.res[0].begin(), r.res[0].end()}, {r.res[1].begin(), r.res[1].end()}};
+    d.where = where_of(r, before, d.noise_floor_arcsec);
   }
-  d.where = where_of(r, before, d.noise_floor_arcsec);
+  std::vector<float> after[2];
+  for (int a = 0; a < 2; ++a) {
+    after[a].resize(r.n);
+    for (size_t i = 0; i < r.n; ++i) after[a][i] = static_cast<float>(r.res[a][i] - combined.v[a][i]);
+  }
   d.where_after = where_of(r, after, d.noise_floor_arcsec, &flexible);
 
   // Noise is not structure: the within-step scatter of what the causes leave, against what the
@@ -408,7 +419,7 @@ void Diagnoser::describe() {
 }
 
 void Diagnoser::warn() {
-  if (!data_.has_column("time_since_move_s")) {
+  if (!r.has_since_move) {
     d.warnings.push_back(fmt::format(
         "no time_since_move_s column: dwells are taken to start {} s after their arrival (settle_s); settling "
         "amplitudes refer to that arrival",
@@ -493,13 +504,18 @@ ojson Diagnosis::to_json() const {
   return j;
 }
 
+Diagnosis diagnose(DiagnosisColumns data, const CoefficientSet& model, const DiagnosisOptions& opts,
+                   DiagnosisFigures* figures) {
+  return Diagnoser(std::move(data), model, opts).run(figures);
+}
+
 Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts) {
-  return Diagnoser(data, model, opts).run();
+  return diagnose(DiagnosisColumns::of(data), model, opts);
 }
 
 SensorPrediction predict_sensor(const SampleTable& data, const CoefficientSet& model, const EffectParams& effect,
                                 const DiagnosisOptions& opts) {
-  const Recording r = diag::prepare(data, model, opts);
+  const Recording r = diag::prepare(DiagnosisColumns::of(data), model, opts);
   SensorPrediction p;
   p.pitch_arcsec.resize(r.n);
   p.yaw_arcsec.resize(r.n);

@@ -1,5 +1,7 @@
 // Sim-to-real gap diagnosis: which unmodelled bench effect explains model(counts) - reference, checked on held-out steps.
 #pragma once
+#include <cstdint>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <optional>
@@ -113,8 +115,30 @@ struct Diagnosis {
   nlohmann::ordered_json to_json() const;
 };
 
+// The columns the diagnosis reads, column-major and nothing else (about 60 bytes a row): the
+// samples file's required columns but `phase` (labels are not trusted), and temperature_c and
+// time_since_move_s when the recording has them (empty otherwise).
+struct DiagnosisColumns {
+  std::string origin;
+  std::vector<double> time_s, ref_pitch_arcsec, ref_yaw_arcsec, counts_alpha, counts_beta;
+  std::vector<int64_t> step;
+  std::vector<float> temperature_c, time_since_move_s;
+  size_t size() const { return time_s.size(); }
+  static DiagnosisColumns of(const SampleTable& t);  // a copy of the columns the diagnosis reads
+};
+
+// Reads a samples CSV straight into those columns, in chunks (the checks and messages of
+// read_samples_csv; no other column is held). Rows of steps after `last_step` are left out.
+DiagnosisColumns read_diagnosis_columns(const std::filesystem::path& path,
+                                        int64_t last_step = std::numeric_limits<int64_t>::max());
+
+struct DiagnosisFigures;
+
 // Throws InputError/DataError naming what cannot be told apart when the recording cannot
-// support any diagnosis (no rows, a single dwell, counts the model cannot map).
+// support any diagnosis (no rows, a single dwell, counts the model cannot map). The columns are
+// taken over (not copied); `figures`, when given, gets the report's data (diagnosis_figures).
+Diagnosis diagnose(DiagnosisColumns data, const CoefficientSet& model, const DiagnosisOptions& opts = {},
+                   DiagnosisFigures* figures = nullptr);
 Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts = {});
 
 // The forward model: what the sensor would read (pitch, yaw arcsec per row, through the model's

@@ -155,7 +155,7 @@ class Coefficients : public Candidate {
       y.reserve(rows.size());
       for (uint32_t i : rows) {
         n.push_back(r.counts[a][i]);
-        y.push_back(r.meas[a][i] - tg.v[a][i]);  // the angle the sensor's true function gives here
+        y.push_back(r.meas(a, i) - tg.v[a][i]);  // the angle the sensor's true function gives here
       }
       if (n.size() < 8) {
         c_[a] = model[a];

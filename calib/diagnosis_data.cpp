@@ -24,42 +24,43 @@ constexpr double kReverse_arcsec = 0.5;
 
 int8_t sign_of(double v) { return v > 0 ? 1 : (v < 0 ? -1 : 0); }
 
-void residuals(Recording& r, const SampleTable& data, const CoefficientSet& model) {
+// Takes the columns over (moved, not copied) and computes the residuals through the model.
+void residuals(Recording& r, DiagnosisColumns& data, const CoefficientSet& model) {
   const size_t n = r.n;
-  r.t = data.time_s;
-  r.ref[0] = data.ref_pitch_arcsec;
-  r.ref[1] = data.ref_yaw_arcsec;
-  r.counts[0] = data.counts_alpha;
-  r.counts[1] = data.counts_beta;
+  r.t = std::move(data.time_s);
+  r.ref[0] = std::move(data.ref_pitch_arcsec);
+  r.ref[1] = std::move(data.ref_yaw_arcsec);
   const AxisModel am[2] = {model.alpha_model(), model.beta_model()};
   for (int a = 0; a < 2; ++a) {
-    r.meas[a].resize(n);
+    std::vector<double>& counts = a == 0 ? data.counts_alpha : data.counts_beta;
     r.res[a].resize(n);
     for (size_t i = 0; i < n; ++i) {
-      r.meas[a][i] = am[a].angle_arcsec(r.counts[a][i]);
-      r.res[a][i] = r.meas[a][i] - r.ref[a][i];
+      r.res[a][i] = am[a].angle_arcsec(counts[i]) - r.ref[a][i];
       if (!std::isfinite(r.res[a][i])) {
         throw DataError(fmt::format("{}: data row {}: the model maps counts_{} = {} to a non-finite angle", r.origin,
-                                    i + 1, a == 0 ? "alpha" : "beta", r.counts[a][i]));
+                                    i + 1, a == 0 ? "alpha" : "beta", counts[i]));
       }
     }
+    r.counts[a].assign(counts.begin(), counts.end());
+    counts = {};
   }
-  r.temp.assign(n, kNaN);
-  if (data.has_column("temperature_c")) {
-    r.temp = data.numeric_column("temperature_c");
-    r.has_temperature = std::any_of(r.temp.begin(), r.temp.end(), [](double v) { return std::isfinite(v); });
+  if (!data.temperature_c.empty()) {
+    r.temp = std::move(data.temperature_c);
+    r.has_temperature = std::any_of(r.temp.begin(), r.temp.end(), [](float v) { return std::isfinite(v); });
+  } else {
+    r.temp.assign(n, static_cast<float>(kNaN));
   }
 }
 
-void find_steps(Recording& r, const SampleTable& data) {
+void find_steps(Recording& r, const std::vector<int64_t>& step) {
   const size_t n = r.n;
   // Steps: consecutive rows with one step id (the reader guarantees steps never decrease).
   r.step_of.resize(n);
   for (size_t i = 0; i < n;) {
     Step s;
-    s.id = data.step[i];
+    s.id = step[i];
     s.begin = i;
-    while (i < n && data.step[i] == s.id) r.step_of[i++] = static_cast<uint32_t>(r.steps.size());
+    while (i < n && step[i] == s.id) r.step_of[i++] = static_cast<uint32_t>(r.steps.size());
     s.end = i;
     for (int a = 0; a < 2; ++a) {
       const auto [lo, hi] = std::minmax_element(r.ref[a].begin() + s.begin, r.ref[a].begin() + s.end);
@@ -212,7 +213,7 @@ void directions(Recording& r, const DiagnosisOptions& opts) {
   }
 }
 
-void settling_clock(Recording& r, const std::vector<double>& since_col, const DiagnosisOptions& opts) {
+void settling_clock(Recording& r, std::vector<float>& since_col, const DiagnosisOptions& opts) {
   const size_t n = r.n;
   // Settling clock, as docs/diagnosis.md states the physics: every dwell follows an arrival
   // settle_s before its first row (or time_since_move_s). The axes that ring are those that moved
@@ -221,7 +222,11 @@ void settling_clock(Recording& r, const std::vector<double>& since_col, const Di
   // that continues the previous one (no axis jumped) keeps its clock. Rows of slew segments are
   // moving: no settling.
   for (int a = 0; a < 2; ++a) r.move_dir[a].assign(n, 0);
-  r.since_move.assign(n, kNaN);
+  // The recording's own time_since_move_s, when it has one, is taken over (NaN kept in motion).
+  const bool own = !since_col.empty();
+  if (own) r.since_move = std::move(since_col);
+  r.has_since_move = own;
+  if (!own) r.since_move.assign(n, static_cast<float>(kNaN));
   int8_t ring[2] = {0, 0};
   double arrival = kNaN;
   for (size_t si = 0; si < r.steps.size(); ++si) {
@@ -229,6 +234,7 @@ void settling_clock(Recording& r, const std::vector<double>& since_col, const Di
     if (s.kind == StepKind::motion) {
       ring[0] = ring[1] = 0;
       arrival = kNaN;
+      if (own) for (size_t i = s.begin; i < s.end; ++i) r.since_move[i] = static_cast<float>(kNaN);
       continue;
     }
     bool moved = false;
@@ -249,7 +255,7 @@ void settling_clock(Recording& r, const std::vector<double>& since_col, const Di
     }
     for (size_t i = s.begin; i < s.end; ++i) {
       for (int a = 0; a < 2; ++a) r.move_dir[a][i] = ring[a];
-      r.since_move[i] = since_col.empty() ? r.t[i] - arrival : since_col[i];
+      if (!own) r.since_move[i] = static_cast<float>(r.t[i] - arrival);
     }
   }
 }
@@ -285,7 +291,7 @@ void split_steps(Recording& r, const DiagnosisOptions& opts) {
 
 }  // namespace
 
-Recording prepare(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts) {
+Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const DiagnosisOptions& opts) {
   Recording r;
   r.origin = data.origin.empty() ? std::string("recording") : data.origin;
   r.model = model;
@@ -294,17 +300,80 @@ Recording prepare(const SampleTable& data, const CoefficientSet& model, const Di
   if (!(opts.max_skew_s >= 0) || !(opts.settle_s >= 0) || opts.heldout_every < 2) {
     throw InputError("diagnosis options: max_skew_s and settle_s must be >= 0, heldout_every >= 2");
   }
+  for (const auto* v : {&data.temperature_c, &data.time_since_move_s}) {
+    if (!v->empty() && v->size() != r.n) throw InputError(fmt::format("{}: an optional column's length differs", r.origin));
+  }
   residuals(r, data, model);
-  std::vector<double> since_col;
-  if (data.has_column("time_since_move_s")) since_col = data.numeric_column("time_since_move_s");
-  find_steps(r, data);
+  find_steps(r, data.step);
+  data.step = {};
   expected_scatter(r, model);
   flag_outlier_frames(r, model, opts);
   rates(r);
   directions(r, opts);
-  settling_clock(r, since_col, opts);
+  settling_clock(r, data.time_since_move_s, opts);
   split_steps(r, opts);
   return r;
 }
 
 }  // namespace fpss::diag
+
+namespace fpss {
+
+DiagnosisColumns DiagnosisColumns::of(const SampleTable& t) {
+  DiagnosisColumns c;
+  c.origin = t.origin;
+  c.time_s = t.time_s;
+  c.ref_pitch_arcsec = t.ref_pitch_arcsec;
+  c.ref_yaw_arcsec = t.ref_yaw_arcsec;
+  c.counts_alpha = t.counts_alpha;
+  c.counts_beta = t.counts_beta;
+  c.step = t.step;
+  for (auto [name, out] : {std::pair{"temperature_c", &c.temperature_c}, {"time_since_move_s", &c.time_since_move_s}}) {
+    if (!t.has_column(name)) continue;
+    const std::vector<double> v = t.numeric_column(name);
+    out->assign(v.begin(), v.end());
+  }
+  return c;
+}
+
+DiagnosisColumns read_diagnosis_columns(const std::filesystem::path& path, int64_t last_step) {
+  DiagnosisColumns c;
+  c.origin = path.string();
+  bool first = true, done = false;
+  for_each_sample_chunk(
+      path,
+      [&](const SampleTable& t, size_t from, double fraction_read) {
+        if (done) return;
+        const bool temp = t.has_column("temperature_c"), since = t.has_column("time_since_move_s");
+        if (first && t.size() > from) {
+          // Reserve once from the first chunk's share of the file (plus a margin), so that growing
+          // the columns never holds two copies of them.
+          first = false;
+          const size_t est = static_cast<size_t>(static_cast<double>(t.size() - from) / fraction_read * 1.02) + 64;
+          for (auto* v : {&c.time_s, &c.ref_pitch_arcsec, &c.ref_yaw_arcsec, &c.counts_alpha, &c.counts_beta}) {
+            v->reserve(est);
+          }
+          c.step.reserve(est);
+          if (temp) c.temperature_c.reserve(est);
+          if (since) c.time_since_move_s.reserve(est);
+        }
+        std::vector<double> tc, sc;
+        if (temp) tc = t.numeric_column("temperature_c");
+        if (since) sc = t.numeric_column("time_since_move_s");
+        for (size_t i = from; i < t.size(); ++i) {
+          if (t.step[i] > last_step) { done = true; return; }
+          c.time_s.push_back(t.time_s[i]);
+          c.ref_pitch_arcsec.push_back(t.ref_pitch_arcsec[i]);
+          c.ref_yaw_arcsec.push_back(t.ref_yaw_arcsec[i]);
+          c.counts_alpha.push_back(t.counts_alpha[i]);
+          c.counts_beta.push_back(t.counts_beta[i]);
+          c.step.push_back(t.step[i]);
+          if (temp) c.temperature_c.push_back(static_cast<float>(tc[i]));
+          if (since) c.time_since_move_s.push_back(static_cast<float>(sc[i]));
+        }
+      },
+      1024);
+  return c;
+}
+
+}  // namespace fpss

@@ -26,12 +26,22 @@ double get(const EffectParams& p, const char* key) {
 // Least squares of one scale factor: target ~ c * x over rows, both axes pooled when asked.
 double ratio(double sxy, double sxx) { return sxx > 0 ? sxy / sxx : 0.0; }
 
-// A column with values on one axis only (the other zero).
-Contribution axis_column(const Recording& r, int axis, const std::vector<double>& v) {
+// A column with values f(row) on one axis only (the other left empty: zero).
+template <typename F>
+Contribution axis_column(const Recording& r, int axis, F&& f) {
   Contribution c;
-  c.resize(r.n);
-  c.v[axis] = v;
+  c.v[axis].resize(r.n);
+  for (size_t i = 0; i < r.n; ++i) c.v[axis][i] = static_cast<float>(f(i));
   return c;
+}
+
+// The columns moved into a vector (an initializer list would copy each one).
+template <typename... C>
+std::vector<Contribution> columns_of(C&&... c) {
+  std::vector<Contribution> v;
+  v.reserve(sizeof...(c));
+  (v.push_back(std::move(c)), ...);
+  return v;
 }
 
 // ------------------------------------------------------------------ bias
@@ -53,8 +63,8 @@ class Bias : public Candidate {
   ojson params() const override { return {{"pitch_arcsec", b_[0]}, {"yaw_arcsec", b_[1]}}; }
   void set(const EffectParams& p) override { b_[0] = get(p, "pitch_arcsec"); b_[1] = get(p, "yaw_arcsec"); }
   bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    const std::vector<double> one(r.n, 1.0);
-    cols = {axis_column(r, 0, one), axis_column(r, 1, one)};
+    auto one = [](size_t) { return 1.0; };
+    cols = columns_of(axis_column(r, 0, one), axis_column(r, 1, one));
     return true;
   }
   void set_linear(const std::vector<double>& w) override { b_[0] = w[0]; b_[1] = w[1]; }
@@ -85,7 +95,8 @@ class Drift : public Candidate {
     k_[1] = get(p, "yaw_arcsec_per_s");
   }
   bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    cols = {axis_column(r, 0, r.t), axis_column(r, 1, r.t)};
+    auto t = [&](size_t i) { return r.t[i]; };
+    cols = columns_of(axis_column(r, 0, t), axis_column(r, 1, t));
     return true;
   }
   void set_linear(const std::vector<double>& w) override { k_[0] = w[0]; k_[1] = w[1]; }
@@ -118,7 +129,8 @@ class ScaleFactor : public Candidate {
   ojson params() const override { return {{"pitch_ppm", ppm_[0]}, {"yaw_ppm", ppm_[1]}}; }
   void set(const EffectParams& p) override { ppm_[0] = get(p, "pitch_ppm"); ppm_[1] = get(p, "yaw_ppm"); }
   bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    cols = {axis_column(r, 0, r.ref[0]), axis_column(r, 1, r.ref[1])};
+    cols = columns_of(axis_column(r, 0, [&](size_t i) { return r.ref[0][i]; }),
+            axis_column(r, 1, [&](size_t i) { return r.ref[1][i]; }));
     return true;
   }
   void set_linear(const std::vector<double>& w) override {
@@ -162,7 +174,7 @@ class BoresightRoll : public Candidate {
     Contribution c;
     c.resize(r.n);
     for (size_t i = 0; i < r.n; ++i) { c.v[0][i] = -r.ref[1][i]; c.v[1][i] = r.ref[0][i]; }
-    cols = {c};
+    cols = columns_of(c);
     return true;
   }
   void set_linear(const std::vector<double>& w) override { phi_ = std::asin(std::clamp(w[0], -1.0, 1.0)); }
@@ -190,7 +202,7 @@ class AxisNonorthogonality : public Candidate {
   ojson params() const override { return {{"skew_arcsec", rad_to_arcsec(std::asin(s_))}}; }
   void set(const EffectParams& p) override { s_ = std::sin(arcsec_to_rad(get(p, "skew_arcsec"))); }
   bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    cols = {axis_column(r, 1, r.ref[0])};
+    cols = columns_of(axis_column(r, 1, [&](size_t i) { return r.ref[0][i]; }));
     return true;
   }
   void set_linear(const std::vector<double>& w) override { s_ = std::clamp(w[0], -1.0, 1.0); }
@@ -226,7 +238,7 @@ class Backlash : public Candidate {
     Contribution c;
     c.resize(r.n);
     for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) c.v[a][i] = -0.5 * r.dir[a][i];
-    cols = {c};
+    cols = columns_of(c);
     return true;
   }
   void set_linear(const std::vector<double>& w) override { w_ = w[0]; }
@@ -288,7 +300,7 @@ class Settling : public Candidate {
     Contribution c;
     c.resize(r.n);
     unit.contribute(r, c);
-    cols = {c};
+    cols = columns_of(c);
     return true;
   }
   void set_linear(const std::vector<double>& w) override { amp_ = w[0]; }
@@ -427,9 +439,8 @@ class Temperature : public Candidate {
     t0_ = p.params.count("t0_c") ? p.params.at("t0_c") : 20.0;
   }
   bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    std::vector<double> d(r.n);
-    for (size_t i = 0; i < r.n; ++i) d[i] = std::isfinite(r.temp[i]) ? r.temp[i] - t0_ : 0.0;
-    cols = {axis_column(r, 0, d), axis_column(r, 1, d)};
+    auto d = [&](size_t i) { return std::isfinite(r.temp[i]) ? r.temp[i] - t0_ : 0.0; };
+    cols = columns_of(axis_column(r, 0, d), axis_column(r, 1, d));
     return true;
   }
   void set_linear(const std::vector<double>& w) override { k_[0] = w[0]; k_[1] = w[1]; }

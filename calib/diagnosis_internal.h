@@ -17,10 +17,17 @@ double mean_square(const Recording& r, const Contribution* c, const std::vector<
 
 double penalised(double ms, double ms0, int k, double N);
 
+// One candidate fitted and scored. Its contribution is not kept (eleven of them would be most of
+// the diagnosis's memory): it is rebuilt from the fitted candidate when needed.
 struct Scored {
-  std::unique_ptr<Candidate> cand;
-  Contribution contrib;
+  std::unique_ptr<Candidate> cand;  // null for none
   EffectResult result;
+  Contribution contribution(const Recording& r) const {
+    Contribution c;
+    c.resize(r.n);
+    if (cand) cand->contribute(r, c);
+    return c;
+  }
 };
 
 // Why two effects can look alike, for the ambiguity note.
@@ -31,13 +38,15 @@ std::string why_alike(const std::string& a, const std::string& b);
 void second_effect(const Recording& r, const std::vector<Scored>& all, const Scored& best, double ms0, double N,
                    double material, Diagnosis& d, Contribution& combined);
 
-std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec,
+std::vector<WhereEntry> where_of(const Recording& r, const std::vector<float> e_in[2], double noise_arcsec,
                                  nlohmann::ordered_json* flexible = nullptr);
 nlohmann::ordered_json where_json(const std::vector<WhereEntry>& w);
 
 // Pooled within-step scatter of one sample about its step mean (dwells with three or more
 // frames, outliers left out), RMS over both axes; NaN when no dwell has three frames.
-double within_step_scatter(const Recording& r, const std::vector<double> e[2]);
+double within_step_scatter(const Recording& r, const std::vector<float> e[2]);
+// The report's data (diagnosis_figures) from the prepared recording and the causes' contribution.
+DiagnosisFigures figures(const Recording& r, const Contribution& causes);
 nlohmann::ordered_json detection_limit(const Recording& r, const EffectResult& e, double noise, double N);
 void decide_verdict(const Recording& r, Diagnosis& d, const nlohmann::ordered_json& flexible);
 

@@ -25,23 +25,26 @@ struct Step {
   bool moves[2] = {false, false};  // motion steps: which axes move
 };
 
-// Per-row arrays, index 0 pitch (alpha), 1 yaw (beta). Angles arcsec, times s.
+// Per-row arrays, index 0 pitch (alpha), 1 yaw (beta). Angles arcsec, times s. Column-major and
+// lean (about 77 bytes a row): what needs full precision (time, reference, counts, residual) is
+// double, derived features (rates, clocks, temperature) float.
 struct Recording {
   std::string origin;
   size_t n = 0;
   std::vector<double> t;
   std::vector<double> ref[2];
-  std::vector<double> counts[2];
-  std::vector<double> meas[2];  // model(counts)
-  std::vector<double> res[2];   // meas - ref
-  std::vector<double> temp;     // temperature_c, NaN when absent
+  std::vector<float> counts[2];  // for the transfer-function refit (whole counts are exact in float)
+  std::vector<double> res[2];    // model(counts) - ref, from the recorded counts
+  std::vector<float> temp;      // temperature_c, NaN when absent
   bool has_temperature = false;
+  bool has_since_move = false;    // the recording had a time_since_move_s column
   std::vector<uint32_t> step_of;  // index into steps
   std::vector<Step> steps;
-  std::vector<double> vel[2];       // reference rate, arcsec/s (0 in dwells)
+  std::vector<float> vel[2];        // reference rate, arcsec/s (0 in dwells)
   std::vector<int8_t> dir[2];       // backlash: the axis's direction of motion at this row (0 before any)
   std::vector<int8_t> move_dir[2];  // settling: direction of the axis in the last move, 0 if it did not move
-  std::vector<double> since_move;   // s since the last arrival; NaN while moving
+  std::vector<float> since_move;    // s since the last arrival; NaN while moving
+  double meas(int a, size_t i) const { return res[a][i] + ref[a][i]; }  // model(counts)
   std::vector<Use> use;
   // Isolated frames far from their step (calib/outliers.h): kept out of every fit and score.
   std::vector<bool> outlier;
@@ -56,13 +59,17 @@ struct Recording {
   size_t dwells = 0, motions = 0, excluded_rows = 0;
 };
 
-// Builds the features. Throws InputError/DataError when the data cannot be used at all.
-Recording prepare(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts);
+// Builds the features from the columns (taken over: the recording is not copied). Throws
+// InputError/DataError when the data cannot be used at all.
+Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const DiagnosisOptions& opts);
 
-// The residual (meas - ref) an effect adds, per axis and row, arcsec.
+// The residual (meas - ref) an effect adds, per axis and row, arcsec. Float: a contribution is a
+// small correction (float's 1e-7 relative is far below any noise), and a joint fit holds several.
+// A column (Candidate::columns) may leave an axis empty: zero there.
 struct Contribution {
-  std::vector<double> v[2];
-  void resize(size_t n) { v[0].assign(n, 0.0); v[1].assign(n, 0.0); }
+  std::vector<float> v[2];
+  void resize(size_t n) { v[0].assign(n, 0.0f); v[1].assign(n, 0.0f); }
+  float at(int a, size_t i) const { return v[a].empty() ? 0.0f : v[a][i]; }
 };
 
 // One candidate: its forward model and its fit. `target` is what the effect should explain

@@ -25,9 +25,21 @@ bool contained(const std::string& a, const std::string& b) {
 // of squares settles.
 struct JointFit {
   EffectResult e[2];
-  Contribution sum;
+  std::unique_ptr<Candidate> c[2];  // fitted: their contributions make the pair's (rebuilt when kept)
   double score = 0;
 };
+
+// Mean square over both axes of residual - k1 - k2 on `rows`.
+double mean_square2(const Recording& r, const Contribution& k1, const Contribution& k2, const std::vector<uint32_t>& rows) {
+  double s = 0;
+  for (uint32_t i : rows) {
+    for (int a = 0; a < 2; ++a) {
+      const double e = r.res[a][i] - k1.v[a][i] - k2.v[a][i];
+      s += e * e;
+    }
+  }
+  return rows.empty() ? 0.0 : s / (2.0 * static_cast<double>(rows.size()));
+}
 
 void joint_linear_step(const Recording& r, Candidate* c[2], Contribution* k[2]) {
   std::vector<Contribution> cols[2];
@@ -44,10 +56,10 @@ void joint_linear_step(const Recording& r, Candidate* c[2], Contribution* k[2]) 
       double target = r.res[a][i];
       for (int q = 0; q < 2; ++q) if (!has[q]) target -= k[q]->v[a][i];
       for (int x = 0; x < m; ++x) {
-        const double vx = all_cols[x]->v[a][i];
+        const double vx = all_cols[x]->at(a, i);
         if (vx == 0) continue;
         b(x) += vx * target;
-        for (int y = 0; y <= x; ++y) G(x, y) += vx * all_cols[y]->v[a][i];
+        for (int y = 0; y <= x; ++y) G(x, y) += vx * all_cols[y]->at(a, i);
       }
     }
   }
@@ -67,10 +79,10 @@ void joint_linear_step(const Recording& r, Candidate* c[2], Contribution* k[2]) 
 JointFit joint_fit(const Recording& r, const Scored& first, const std::string& name2, double ms0, double N) {
   auto c1 = first.cand->clone();
   auto c2 = diag::make_candidate(name2);
-  Contribution k1 = first.contrib, k2, t, sum;
+  // Two contributions only (the memory of a large recording): each fit's target is written into
+  // the buffer its own contribution then overwrites.
+  Contribution k1 = first.contribution(r), k2;
   k2.resize(r.n);
-  t.resize(r.n);
-  sum.resize(r.n);
   Candidate* c[2] = {c1.get(), c2.get()};
   Contribution* k[2] = {&k1, &k2};
   // A temperature's zero point and a constant offset (a bias, or the C1 of a refitted transfer
@@ -85,23 +97,23 @@ JointFit joint_fit(const Recording& r, const Scored& first, const std::string& n
   }
   double prev = std::numeric_limits<double>::infinity();
   for (int it = 0; it < 20; ++it) {
-    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k1.v[a][i];
-    c2->fit(r, t, r.fit_rows);
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) k2.v[a][i] = static_cast<float>(r.res[a][i] - k1.v[a][i]);
+    c2->fit(r, k2, r.fit_rows);
     c2->contribute(r, k2);
     // The first's single fit had to absorb the second too; once the second is in, it starts
     // afresh (a refitted transfer function may otherwise stay in a wrong basin).
     if (it == 0) c1->restart();
-    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) t.v[a][i] = r.res[a][i] - k2.v[a][i];
-    c1->fit(r, t, r.fit_rows);
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) k1.v[a][i] = static_cast<float>(r.res[a][i] - k2.v[a][i]);
+    c1->fit(r, k1, r.fit_rows);
     c1->contribute(r, k1);
     joint_linear_step(r, c, k);
-    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) sum.v[a][i] = k1.v[a][i] + k2.v[a][i];
-    const double sse = mean_square(r, &sum, r.fit_rows);
+    const double sse = mean_square2(r, k1, k2, r.fit_rows);
     if (prev - sse <= 1e-7 * sse) break;
     prev = sse;
   }
   JointFit j;
-  const double ms = mean_square(r, &sum, r.heldout_rows);
+  const double ms = mean_square2(r, k1, k2, r.heldout_rows);
+  const double fit_ms = mean_square2(r, k1, k2, r.fit_rows);
   j.score = penalised(ms, ms0, c1->parameters() + c2->parameters(), N);
   for (int q = 0; q < 2; ++q) {
     j.e[q].name = c[q]->name();
@@ -109,11 +121,12 @@ JointFit joint_fit(const Recording& r, const Scored& first, const std::string& n
     j.e[q].parameters = c[q]->parameters();
     j.e[q].notes = c[q]->notes();
     j.e[q].degenerate = c[q]->degenerate();
-    j.e[q].fit_rms_arcsec = std::sqrt(mean_square(r, &sum, r.fit_rows));  // jointly
+    j.e[q].fit_rms_arcsec = std::sqrt(fit_ms);  // jointly
     j.e[q].heldout_rms_arcsec = std::sqrt(ms);
     j.e[q].score = j.score;
   }
-  j.sum = std::move(sum);
+  j.c[0] = std::move(c1);
+  j.c[1] = std::move(c2);
   return j;
 }
 
@@ -147,11 +160,11 @@ std::optional<JointFit> best_pair(const Recording& r, const std::vector<Scored>&
   std::optional<JointFit> pair;
   for (const Scored* fp : firsts) {
     const Scored& f = *fp;
-    Contribution left, k2;
-    left.resize(r.n);
-    k2.resize(r.n);
-    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) left.v[a][i] = r.res[a][i] - f.contrib.v[a][i];
     std::vector<std::pair<double, std::string>> screened;
+    {
+    const Contribution f_contrib = f.contribution(r);
+    Contribution k1, k2;
+    k2.resize(r.n);
     for (const auto& s2 : all) {
       const std::string& name2 = s2.result.name;
       if (name2 == "none" || name2 == f.result.name || contained(f.result.name, name2)) continue;
@@ -159,9 +172,11 @@ std::optional<JointFit> best_pair(const Recording& r, const std::vector<Scored>&
       // together (a single's fit can be a compromise only a joint solve undoes).
       auto c1 = f.cand->clone();
       auto c2 = diag::make_candidate(name2);
-      c2->fit(r, left, r.fit_rows);
+      // What the first leaves, in the buffer the second's contribution then overwrites.
+      for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) k2.v[a][i] = static_cast<float>(r.res[a][i] - f_contrib.v[a][i]);
+      c2->fit(r, k2, r.fit_rows);
       c2->contribute(r, k2);
-      Contribution k1 = f.contrib;
+      k1 = f_contrib;
       Candidate* cc[2] = {c1.get(), c2.get()};
       Contribution* kk[2] = {&k1, &k2};
       joint_linear_step(r, cc, kk);
@@ -174,6 +189,7 @@ std::optional<JointFit> best_pair(const Recording& r, const std::vector<Scored>&
       }
       screened.push_back({penalised(ms / N, ms0, c1->parameters() + c2->parameters(), N), name2});
     }
+    }  // the screening's buffers are freed before the joint fits
     std::sort(screened.begin(), screened.end());
     if (screened.size() > 3) screened.resize(3);
     for (const auto& sc : screened) {
@@ -237,7 +253,13 @@ void second_effect(const Recording& r, const std::vector<Scored>& all, const Sco
     d.gap_after_arcsec = lead.result.heldout_rms_arcsec;
     d.causes = {e1, e2};
     d.gap_after_all_arcsec = e2.heldout_rms_arcsec;
-    combined = pair->sum;
+    combined.resize(r.n);
+    Contribution k;
+    k.resize(r.n);
+    for (const auto& c : pair->c) {
+      c->contribute(r, k);
+      for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) combined.v[a][i] += k.v[a][i];
+    }
   }
 }
 

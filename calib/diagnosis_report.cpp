@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "calib/diagnosis.h"
+#include "calib/diagnosis_internal.h"
 #include "calib/diagnosis_model.h"
 
 namespace fpss {
@@ -43,8 +44,13 @@ Contribution contributions(const Recording& r, const std::vector<EffectResult>& 
 
 DiagnosisFigures diagnosis_figures(const SampleTable& data, const CoefficientSet& model, const Diagnosis& d,
                                    const DiagnosisOptions& opts) {
-  const Recording r = diag::prepare(data, model, opts);
-  const Contribution c = contributions(r, d.causes);
+  const Recording r = diag::prepare(DiagnosisColumns::of(data), model, opts);
+  return diag::figures(r, contributions(r, d.causes));
+}
+
+namespace diag {
+
+DiagnosisFigures figures(const Recording& r, const Contribution& c) {
   DiagnosisFigures f;
   struct Spec {
     const char* name;
@@ -102,4 +108,5 @@ DiagnosisFigures diagnosis_figures(const SampleTable& data, const CoefficientSet
   return f;
 }
 
+}  // namespace diag
 }  // namespace fpss

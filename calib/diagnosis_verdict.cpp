@@ -18,7 +18,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 }  // namespace
 
-double within_step_scatter(const Recording& r, const std::vector<double> e[2]) {
+double within_step_scatter(const Recording& r, const std::vector<float> e[2]) {
   double ss[2] = {0, 0};
   double dof = 0;
   for (const auto& s : r.steps) {

@@ -48,8 +48,15 @@ struct Scale {
   double operator()(double x) const { return hi > lo ? 2 * (x - lo) / (hi - lo) - 1 : 0.0; }
 };
 
-// Hat functions of a linear spline with k knots evenly over [-1, 1].
-constexpr int kAngleKnots = 24;
+// Hat functions of a linear spline with k knots evenly over [-1, 1]: over a +-1500 arcsec field a
+// knot every ~50 arcsec, so a cyclic error of a few hundred arcsec period (a gimbal encoder's) is
+// resolved wherever slews pass.
+constexpr int kAngleKnots = 64;
+// A spline knot the fit rows barely reach (less than this much hat weight) says nothing: rows
+// that lean on it are neither predicted nor judged. Dwells 200 arcsec apart sample a cyclic error
+// of a few hundred arcsec below its Nyquist rate; interpolating between them would blame the
+// factor for a pattern the fit rows never showed.
+constexpr double kMinKnotSupport = 2.0;
 void hat(double x, int k, double* phi) {
   std::fill(phi, phi + k, 0.0);
   const double u = std::clamp((x + 1) * 0.5 * (k - 1), 0.0, k - 1.0);
@@ -71,7 +78,7 @@ void cubic(double x, double* phi) {
 // fit rows, judged on the held-out rows. A large shrink says the remainder is a smooth function
 // of that factor that no catalogued effect has; a small one that it is not (noise, outliers, or
 // a factor the list lacks).
-ojson flexible_shrink(const Recording& r, const std::vector<double> e_in[2], const std::vector<Factor>& factors,
+ojson flexible_shrink(const Recording& r, const std::vector<float> e_in[2], const std::vector<Factor>& factors,
                       const std::vector<WhereEntry>& lead) {
   std::vector<const Factor*> use;
   for (const auto& w : lead) {
@@ -90,7 +97,7 @@ ojson flexible_shrink(const Recording& r, const std::vector<double> e_in[2], con
     j["ratio"] = 1.0;
     return j;
   }
-  std::vector<double> e[2] = {e_in[0], e_in[1]};
+  std::vector<float> e[2] = {{e_in[0].begin(), e_in[0].end()}, {e_in[1].begin(), e_in[1].end()}};
   constexpr int kKnots = 16;
   for (const Factor* f : use) {
     j["factors"].push_back(f->name);
@@ -143,13 +150,22 @@ ojson flexible_shrink(const Recording& r, const std::vector<double> e_in[2], con
 struct Pick {
   double gain[2] = {0, 0};
   Eigen::VectorXd x[2];
+  Eigen::VectorXd support[2];  // spline factors: each knot's hat weight on the fit rows
 };
+
+// Whether a spline factor's fit says anything at a row with basis phi: every knot it leans on
+// is supported by the fit rows (other factors: always).
+bool supported(const Eigen::VectorXd& phi, const Eigen::VectorXd& support) {
+  if (support.size() == 0) return true;
+  for (int k = 0; k < phi.size(); ++k) if (phi(k) != 0 && support(k) < kMinKnotSupport) return false;
+  return true;
+}
 
 // The state the search for where the residual lies shares between its steps. Factors' basis
 // functions refer to its members, so it stays where it was built.
 class WhereSearch {
  public:
-  WhereSearch(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec)
+  WhereSearch(const Recording& r, const std::vector<float> e_in[2], double noise_arcsec)
       : r(r), e_in(e_in), F(r.fit_rows), H(r.heldout_rows), noise_arcsec(noise_arcsec) {
     for (uint32_t i : H) total += e_in[0][i] * e_in[0][i] + e_in[1][i] * e_in[1][i];
   }
@@ -162,14 +178,16 @@ class WhereSearch {
     // Greedy: the factor whose fit (on the fit rows) removes most of what is left on the held-out
     // rows, less 2 noise variances per parameter so that a flexible factor does not win by noise,
     // takes its share; its fit is removed and the next is sought. Shares therefore add up.
-    e[0] = e_in[0];
-    e[1] = e_in[1];
+    e[0].assign(e_in[0].begin(), e_in[0].end());
+    e[1].assign(e_in[1].begin(), e_in[1].end());
     penalty = 2.0 * noise_arcsec * noise_arcsec;
     used.assign(factors.size(), false);
     for (int round = 0; round < 5; ++round) {
       if (!greedy_round()) break;
     }
     std::stable_sort(out.begin(), out.end(), [](const WhereEntry& a, const WhereEntry& b) { return a.share > b.share; });
+    e[0] = {};  // the flexible model works on its own copy
+    e[1] = {};
     if (flexible) *flexible = flexible_shrink(r, e_in, factors, out);
     return out;
   }
@@ -190,12 +208,12 @@ class WhereSearch {
     return r.steps[r.step_of[i]].kind == StepKind::motion && std::abs(r.vel[a][i]) > 1.0;
   }
   void build_factors();
-  double fit_factor(const Factor& f, int a, Eigen::VectorXd& x) const;
+  double fit_factor(const Factor& f, int a, Eigen::VectorXd& x, Eigen::VectorXd& support) const;
   std::string describe(const Factor& f, int a) const;
   bool greedy_round();
 
   const Recording& r;
-  const std::vector<double>* e_in;
+  const std::vector<float>* e_in;
   const std::vector<uint32_t>& F;
   const std::vector<uint32_t>& H;
   const double noise_arcsec;
@@ -204,7 +222,7 @@ class WhereSearch {
   std::vector<WhereEntry> out;
   Scale ang[2], rate[2], time, since, temp;
   std::vector<Factor> factors;
-  std::vector<double> e[2];
+  std::vector<float> e[2];  // what is left, float: shares need no more (and a large recording's memory does)
   double penalty = 0;
   std::vector<bool> used;
 };
@@ -269,13 +287,15 @@ void WhereSearch::build_factors() {
   }
 }
 
-double WhereSearch::fit_factor(const Factor& f, int a, Eigen::VectorXd& x) const {
+double WhereSearch::fit_factor(const Factor& f, int a, Eigen::VectorXd& x, Eigen::VectorXd& support) const {
   Eigen::MatrixXd G = Eigen::MatrixXd::Zero(f.dims, f.dims);
   Eigen::VectorXd b = Eigen::VectorXd::Zero(f.dims), phi(f.dims);
+  support = f.spline ? Eigen::VectorXd::Zero(f.dims) : Eigen::VectorXd();
   for (uint32_t i : F) {
     f.basis(i, a, phi.data());
     G.selfadjointView<Eigen::Lower>().rankUpdate(phi);
     b += phi * e[a][i];
+    if (f.spline) support += phi.cwiseAbs();
   }
   G = G.selfadjointView<Eigen::Lower>();
   if (f.spline) {
@@ -293,7 +313,7 @@ double WhereSearch::fit_factor(const Factor& f, int a, Eigen::VectorXd& x) const
   double before = 0, after = 0;
   for (uint32_t i : H) {
     f.basis(i, a, phi.data());
-    const double pred = phi.dot(x);
+    const double pred = supported(phi, support) ? phi.dot(x) : 0.0;
     before += e[a][i] * e[a][i];
     after += (e[a][i] - pred) * (e[a][i] - pred);
   }
@@ -353,7 +373,7 @@ bool WhereSearch::greedy_round() {
   for (size_t k = 0; k < factors.size(); ++k) {
     if (used[k]) continue;
     Pick p;
-    for (int a = 0; a < 2; ++a) p.gain[a] = fit_factor(factors[k], a, p.x[a]);
+    for (int a = 0; a < 2; ++a) p.gain[a] = fit_factor(factors[k], a, p.x[a], p.support[a]);
     const double adj = p.gain[0] + p.gain[1] - penalty * 2 * factors[k].dims;
     raw.push_back({p.gain[0] + p.gain[1], static_cast<int>(k)});
     if (adj > best_adj) { best_adj = adj; best = static_cast<int>(k); best_pick = p; }
@@ -396,7 +416,7 @@ bool WhereSearch::greedy_round() {
     if (best_pick.gain[a] <= 0) continue;
     for (size_t i = 0; i < r.n; ++i) {
       f.basis(i, a, phi.data());
-      e[a][i] -= phi.dot(best_pick.x[a]);
+      if (supported(phi, best_pick.support[a])) e[a][i] -= phi.dot(best_pick.x[a]);
     }
   }
   return true;
@@ -404,7 +424,7 @@ bool WhereSearch::greedy_round() {
 
 }  // namespace
 
-std::vector<WhereEntry> where_of(const Recording& r, const std::vector<double> e_in[2], double noise_arcsec,
+std::vector<WhereEntry> where_of(const Recording& r, const std::vector<float> e_in[2], double noise_arcsec,
                                  ojson* flexible) {
   WhereSearch search(r, e_in, noise_arcsec);
   return search.run(flexible);

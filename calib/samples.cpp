@@ -266,8 +266,22 @@ namespace {
 
 size_t for_each_sample_csv(const std::filesystem::path& path, const std::function<void(const Sample&)>& on_row,
                            size_t chunk_lines) {
+  return for_each_sample_chunk(
+      path,
+      [&](const SampleTable& t, size_t first, double) {
+        for (size_t i = first; i < t.size(); ++i) on_row(t.row(i));
+      },
+      chunk_lines);
+}
+
+size_t for_each_sample_chunk(
+    const std::filesystem::path& path,
+    const std::function<void(const SampleTable& chunk, size_t first_new, double fraction_read)>& on_chunk,
+    size_t chunk_lines) {
   const std::string origin = path.string();
   check_input_file(path, "samples file", kMaxTextFileBytes);
+  std::error_code size_ec;
+  const double file_bytes = static_cast<double>(std::filesystem::file_size(path, size_ec));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(fmt::format("{}: cannot open {}: {}", origin, "samples file", std::strerror(errno)));
   std::string line, header;
@@ -317,7 +331,9 @@ size_t for_each_sample_csv(const std::filesystem::path& path, const std::functio
     } catch (const InputError& e) {
       rethrow_at_file_line(e, origin, header_line, carry_line, first_line, carried);
     }
-    for (size_t i = carried ? 1 : 0; i < t.size(); ++i) on_row(t.row(i));
+    const auto pos = in.tellg();
+    const double read = in.eof() || pos < 0 || size_ec || file_bytes <= 0 ? 1.0 : static_cast<double>(pos) / file_bytes;
+    on_chunk(t, carried ? 1 : 0, std::clamp(read, 1e-9, 1.0));
     rows += t.size() - (carried ? 1 : 0);
     if (!last.empty()) {
       carry = std::move(last);

@@ -72,6 +72,13 @@ SampleTable parse_samples_csv(std::string_view text, const std::string& origin);
 // so the order checks hold across chunks). Returns the number of rows.
 size_t for_each_sample_csv(const std::filesystem::path& path, const std::function<void(const Sample&)>& on_row,
                            size_t chunk_lines = 4096);
+// The same, a chunk at a time: `on_chunk` gets each chunk as a table (extra columns included),
+// the index of its first new row (row 0 of a later chunk repeats the previous chunk's last row)
+// and the fraction of the file read so far (for reserving).
+size_t for_each_sample_chunk(
+    const std::filesystem::path& path,
+    const std::function<void(const SampleTable& chunk, size_t first_new, double fraction_read)>& on_chunk,
+    size_t chunk_lines = 4096);
 
 // Writes a whole table (required columns first, then extras).
 void write_samples_csv(const std::filesystem::path& path, const SampleTable& t);

@@ -14,6 +14,14 @@ namespace fpss {
 
 using namespace engine_detail;
 
+namespace {
+// At rest in position at a target (pitch, yaw) within tol.
+bool in_position_at(const GimbalState& st, std::pair<double, double> target, double tol) {
+  return st.has(kInPosition) && !st.has(kMoving) && std::fabs(st.pitch_arcsec - target.first) <= tol &&
+         std::fabs(st.yaw_arcsec - target.second) <= tol;
+}
+}  // namespace
+
 void Engine::measure_dwell(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
     const GimbalState arrived = move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
@@ -195,22 +203,22 @@ void Engine::measure_slew(const Action& a, int session) {
         Timed t(stats_.device_s);
         command_move(a.pitch_arcsec, a.yaw_arcsec);
       }
-      const double span = std::fabs(a.axis == StandAxis::pitch ? a.pitch_arcsec - a.start_pitch_arcsec
-                                                               : a.yaw_arcsec - a.start_yaw_arcsec);
-      const double timeout_wall = b_.wall(span / a.rate_arcsec_s * 2 + b_.move_timeout_s) + 2.0;
+      const double leg_s = a.slew_span_arcsec() / a.rate_arcsec_s * 2 + b_.move_timeout_s;
+      const double timeout_wall = b_.wall(leg_s * (a.reversals + 1)) + 2.0;
       const auto start = Clock::now();
       const double tol = b_.in_position_tolerance_arcsec;
       const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
-      for (;;) {
+      for (int leg = 0;;) {  // legs: Action::leg_target, each from the instant the last is in position
         check_abort();
         GimbalState st = read_gimbal();
         fix(st);
         if (st.has(kFault) || st.fault != GimbalFault::none) {
           throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
         }
-        if (st.has(kInPosition) && !st.has(kMoving) && std::fabs(st.pitch_arcsec - a.pitch_arcsec) <= tol &&
-            std::fabs(st.yaw_arcsec - a.yaw_arcsec) <= tol) {
-          break;
+        if (in_position_at(st, a.leg_target(leg), tol)) {
+          if (leg++ == a.reversals) break;
+          Timed t(stats_.device_s);
+          command_move(a.leg_target(leg).first, a.leg_target(leg).second);
         }
         if (seconds_since(start) > timeout_wall) {
           throw GimbalFailure(fmt::format("slew did not reach its end within {:.1f} s (at pitch {}, yaw {})",

@@ -238,6 +238,7 @@ class Expander {
         a.rate_arcsec_s = rate;
         a.sample_period_s = s.sample_period_s;
         a.settle_s = s.settle_s;
+        a.reversals = s.reversals;
         const double from = -dir * s.amplitude_arcsec, to = dir * s.amplitude_arcsec;
         if (s.axis == StandAxis::pitch) {
           a.start_pitch_arcsec = from; a.pitch_arcsec = to;
@@ -249,7 +250,10 @@ class Expander {
         travel(a.start_pitch_arcsec, a.start_yaw_arcsec, 0);
         plan_.physical_s += s.settle_s;
         const double before = plan_.physical_s;
-        travel(a.pitch_arcsec, a.yaw_arcsec, rate);
+        for (int leg = 0; leg <= s.reversals; ++leg) {
+          if (leg % 2 == 0) travel(a.pitch_arcsec, a.yaw_arcsec, rate);
+          else travel(a.start_pitch_arcsec, a.start_yaw_arcsec, rate);
+        }
         plan_.frames += static_cast<size_t>((plan_.physical_s - before) / s.sample_period_s);
         push(a);
       }
@@ -310,9 +314,12 @@ std::string Action::describe() const {
       return fmt::format("point {:>4} {:<6} pitch {}, yaw {}: settle {} s, {} frames", point + 1, to_string(phase),
                          deg(pitch_arcsec), deg(yaw_arcsec), settle_s, frames);
     case Kind::slew:
-      return fmt::format("point {:>4} slew   {} {} -> {} at {} arcsec/s, one sample per {} s", point + 1,
+      return fmt::format("point {:>4} slew   {} {} -> {}{} at {} arcsec/s, one sample per {} s", point + 1,
                          to_string(axis), deg(axis == StandAxis::pitch ? start_pitch_arcsec : start_yaw_arcsec),
-                         deg(axis == StandAxis::pitch ? pitch_arcsec : yaw_arcsec), rate_arcsec_s, sample_period_s);
+                         deg(axis == StandAxis::pitch ? pitch_arcsec : yaw_arcsec),
+                         reversals > 0 ? fmt::format(" and back ({} reversal{})", reversals, reversals > 1 ? "s" : "")
+                                       : "",
+                         rate_arcsec_s, sample_period_s);
     case Kind::calibrate:
       return fmt::format("calibrate ({}) on the points so far", calibrate ? calibrate->method : "?");
     case Kind::check: return "check the calibration's residuals against limits";

@@ -1,7 +1,9 @@
 // A procedure expanded for one stand: a flat list of actions with numbered points, checked against the soft limits.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "procedures/settings.h"
@@ -20,7 +22,7 @@ struct Action {
   // Point identity: index 0.. among points; the samples file's `step` column is point + 1.
   int64_t point = -1;
   Phase phase = Phase::move;
-  // Targets in the stand frame (dwell: where to measure; slew: where the segment ends).
+  // Targets in the stand frame (dwell: where to measure; slew: the far end, where the first leg goes).
   double pitch_arcsec = 0, yaw_arcsec = 0;
   double rate_arcsec_s = 0;  // move/slew profile speed; 0: stand default
   double settle_s = 0;       // settle: its duration; dwell/slew: wait after arriving, before sampling
@@ -30,6 +32,7 @@ struct Action {
   // slew: start point and sampling
   double start_pitch_arcsec = 0, start_yaw_arcsec = 0;
   double sample_period_s = 0;
+  int reversals = 0;  // slew: turns inside the segment, legs alternate far end / start (last target: end_*)
   StandAxis axis = StandAxis::pitch;  // slew: the axis; adaptive stop: the group's axis
   // Adaptive stop (a grid's `until`): the points of one group (a grid axis, or the whole grid
   // when its points move both axes) end once the live fit's largest 1-sigma is at most this.
@@ -40,6 +43,16 @@ struct Action {
   const CheckStep* check = nullptr;
   const DiagnoseStep* diagnose = nullptr;
 
+  // slew: where the segment ends (the far end, or the start after an odd number of reversals).
+  double end_pitch_arcsec() const { return reversals % 2 ? start_pitch_arcsec : pitch_arcsec; }
+  double end_yaw_arcsec() const { return reversals % 2 ? start_yaw_arcsec : yaw_arcsec; }
+  // slew: where leg k goes (legs alternate far end / start; a.reversals turns inside the segment).
+  std::pair<double, double> leg_target(int k) const {
+    return k % 2 == 0 ? std::pair{pitch_arcsec, yaw_arcsec} : std::pair{start_pitch_arcsec, start_yaw_arcsec};
+  }
+  double slew_span_arcsec() const {
+    return axis == StandAxis::pitch ? std::abs(pitch_arcsec - start_pitch_arcsec) : std::abs(yaw_arcsec - start_yaw_arcsec);
+  }
   bool is_point() const { return kind == Kind::dwell || kind == Kind::slew; }
   std::string describe() const;  // one line for --dry-run and the log
 };

@@ -324,6 +324,7 @@ StepBody parse_slew(MapReader& r) {
   }
   if (auto v = r.positive("sample_period_s", true)) s.sample_period_s = *v;
   if (auto v = r.non_negative("settle_s")) s.settle_s = *v;
+  if (auto v = r.integer("reversals", false, 0, kMaxSlewReversals)) s.reversals = static_cast<int>(*v);
   return s;
 }
 

@@ -74,7 +74,11 @@ struct GridStep {
   bool listed() const { return !pitch_offsets_arcsec.empty() || !yaw_offsets_arcsec.empty(); }
 };
 
-// Bang-bang slews along one axis between -amplitude and +amplitude, one segment per rate and direction.
+// Turns inside one slew segment at most: a segment is one point, recorded whole in memory.
+inline constexpr int kMaxSlewReversals = 20;
+
+// Bang-bang slews along one axis between -amplitude and +amplitude, one segment per rate and direction;
+// with reversals, each segment goes back and forth (the axis reverses inside the recorded segment).
 struct SlewStep {
   enum class Directions { both, positive, negative };
   StandAxis axis = StandAxis::pitch;
@@ -83,6 +87,7 @@ struct SlewStep {
   Directions directions = Directions::both;
   double sample_period_s = 0;  // one recorded sample per period (sensor time)
   double settle_s = 0.5;       // at the start of each segment
+  int reversals = 0;           // turns inside each segment: start -> far end -> start -> ... (reversals + 1 legs)
 };
 
 // Fit at this point of the procedure, on every point recorded before it.

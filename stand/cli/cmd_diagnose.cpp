@@ -53,13 +53,14 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
         }
       }
       const CoefficientSet model = load_coefficients(o->model);
-      const SampleTable data = read_samples_csv(o->data);
-      Diagnosis d = diagnose(data, model, o->d);
+      // Straight into the columns the diagnosis reads (no whole table of every column in memory).
+      DiagnosisFigures figures;
+      Diagnosis d = diagnose(read_diagnosis_columns(o->data), model, o->d, o->report.empty() ? nullptr : &figures);
       nlohmann::ordered_json j = d.to_json();
       j["model"] = o->model;
       write_json_file(o->out, j);
       if (!o->emit_bench.empty()) write_emitted_bench(o->emit_bench, d, o->model);
-      if (!o->report.empty()) write_diagnosis_page(o->report, d, diagnosis_figures(data, model, d, o->d));
+      if (!o->report.empty()) write_diagnosis_page(o->report, d, figures);
       std::printf("verdict: %s\n%s\ncause: %s", d.verdict.c_str(), d.verdict_sentence.c_str(), d.cause.c_str());
       for (size_t k = 1; k < d.causes.size(); ++k) std::printf(", then %s", d.causes[k].name.c_str());
       std::printf("\ngap: %.4f arcsec before, %.4f after (noise floor %.4f), held-out rows %zu\n", d.gap_before_arcsec,

@@ -9,19 +9,20 @@
 
 namespace fpss {
 
-DiagnoseStepResult run_diagnose_step(const SampleTable& rows, const DiagnoseStep& step,
-                                     const std::filesystem::path& run_dir, int nth) {
+DiagnoseStepResult run_diagnose_step(const std::filesystem::path& samples_csv, int64_t last_step,
+                                     const DiagnoseStep& step, const std::filesystem::path& run_dir, int nth) {
   const CoefficientSet model = load_coefficients(step.model);
   DiagnosisOptions opts;
   opts.settle_s = step.settle_s;
-  const Diagnosis d = diagnose(rows, model, opts);
+  DiagnosisFigures figures;
+  const Diagnosis d = diagnose(read_diagnosis_columns(samples_csv, last_step), model, opts, &figures);
   const std::string stem = nth == 1 ? "GAP" : fmt::format("GAP-{}", nth);
   DiagnoseStepResult r{run_dir / (stem + ".json"), run_dir / (stem + ".html"), d.verdict, d.verdict_sentence,
                        d.cause, d.incomplete_recording()};
   nlohmann::ordered_json j = d.to_json();
   j["model"] = step.model.string();
   write_text_atomic(r.json, j.dump(2) + "\n");
-  write_diagnosis_page(r.html.string(), d, diagnosis_figures(rows, model, d, opts));
+  write_diagnosis_page(r.html.string(), d, figures);
   return r;
 }
 

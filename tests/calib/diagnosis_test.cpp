@@ -286,7 +286,7 @@ TEST(Diagnosis, ASingleDwellIsBadInputNamingWhatCannotBeToldApart) {
 
 TEST(Diagnosis, SplitKeepsEveryStepWholeAndBothSidesCoverDwellsAndSlews) {
   const SampleTable t = record(bench(91, {}));
-  const diag::Recording r = diag::prepare(t, default_bench_config().truth, options());
+  const diag::Recording r = diag::prepare(DiagnosisColumns::of(t), default_bench_config().truth, options());
   size_t fit_d = 0, held_d = 0, fit_m = 0, held_m = 0;
   for (const auto& s : r.steps) {
     std::set<diag::Use> uses;

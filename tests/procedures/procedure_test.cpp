@@ -125,6 +125,33 @@ TEST(Procedure, SlewSegmentsBothRatesBothDirections) {
   EXPECT_EQ(segs.size(), 8u);
 }
 
+// A slew that reverses inside one segment: one point whose legs alternate far end / start, the
+// estimate counting every leg; a reversal count out of range is an error at the field.
+TEST(Procedure, SlewReversalsStayInOneSegment) {
+  auto plan_of = [](const std::string& text, Diagnostics& d) {
+    Procedure p = parse_procedure(text, "r.yaml", d);
+    return expand(p, bench(), d);
+  };
+  const std::string base =
+      "steps:\n  - continuous_slew: {axis: yaw, amplitude_arcsec: 900, rate_arcsec_s: 300, sample_period_s: 0.1, "
+      "directions: positive";
+  Diagnostics d0("r.yaml"), d2("r.yaml");
+  const Plan one_way = plan_of(base + "}\n", d0);
+  const Plan there_and_back = plan_of(base + ", reversals: 2}\n", d2);
+  ASSERT_TRUE(d0.empty() && d2.empty()) << d0.text() << d2.text();
+  ASSERT_EQ(there_and_back.points, 1u);
+  const Action& a = there_and_back.actions[there_and_back.point_action[0]];
+  EXPECT_EQ(a.reversals, 2);
+  EXPECT_DOUBLE_EQ(a.start_yaw_arcsec, -900);
+  EXPECT_DOUBLE_EQ(a.yaw_arcsec, 900);         // the far end
+  EXPECT_DOUBLE_EQ(a.end_yaw_arcsec(), 900);   // even: ends at the far end
+  EXPECT_GT(there_and_back.estimated_s, one_way.estimated_s + 2 * 1800 / 300.0 - 1e-9);  // two more legs
+  EXPECT_NE(a.describe().find("and back (2 reversals)"), std::string::npos) << a.describe();
+  Diagnostics bad("r.yaml");
+  plan_of(base + ", reversals: 21}\n", bad);
+  EXPECT_NE(bad.text().find("reversals"), std::string::npos) << bad.text();
+}
+
 TEST(Procedure, EveryErrorAtOnceWithLineAndColumn) {
   const std::string text =
       "name: broken\n"                       // 1
