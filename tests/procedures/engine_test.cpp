@@ -224,6 +224,25 @@ TEST(Engine, AGimbalCommandedByAnotherClientIsNoticedAndThePointMeasuredAgainOrT
 // A link's round trip (one Modbus request on loopback, one sensor command on a pty), wall seconds.
 constexpr double kLinkRoundTrip_s = 30e-6;
 
+// Both fake devices on a virtual-clock bench at `speed` (a request costs the link's round trip
+// times the speed-up), and a recorder of `run_dir` on the event stream.
+struct VirtualBench {
+  VirtualBench(double speed, const fs::path& run_dir) : fake{default_bench_config(), speed}, recorder(run_dir) {
+    fake.use_virtual_clock(kLinkRoundTrip_s * speed);
+    gimbal.connect();
+    sensor.connect();
+    record_with(bus, recorder);
+  }
+  Engine engine(const EngineSettings& b, const Plan& plan) { return Engine(gimbal, sensor, b, plan, bus, *log, ctl); }
+  test::FakeBench fake;
+  test::FakeGimbal gimbal{fake};
+  test::FakeSensor sensor{fake};
+  RunRecorder recorder;
+  EventBus bus;
+  RunControl ctl;
+  std::shared_ptr<spdlog::logger> log = quiet_log();
+};
+
 // How the engine waits, in bench seconds, at every speed-up: on a virtual clock bench time moves
 // only when a device is asked (each request costs the link's round trip times the speed-up: at
 // 1000x a 30 us round trip is 30 ms of bench time) and when the sensor's next frame is waited
@@ -239,19 +258,10 @@ TEST(Engine, TheDiscreteGridTakesWithin10PercentOfItsPhysicalMinimumAtEverySpeed
     b.clock = ClockSync::shared;
     b.time_scale = 1e9;
     b.link_round_trip_s = kLinkRoundTrip_s * speed / b.time_scale;  // the dry run's model of the link
-    test::FakeBench fake{default_bench_config(), speed};
-    fake.use_virtual_clock(kLinkRoundTrip_s * speed);
-    test::FakeGimbal gimbal{fake};
-    test::FakeSensor sensor{fake};
-    gimbal.connect();
-    sensor.connect();
+    VirtualBench v(speed, tmp / "run");
+    test::FakeBench& fake = v.fake;
     const Plan plan = plan_of(load_procedure(test::source_dir() / "procedures" / "discrete_grid.yaml"), b);
-    RunRecorder recorder(tmp / "run");
-    EventBus bus;
-    record_with(bus, recorder);
-    RunControl ctl;
-    const auto log = quiet_log();
-    Engine engine(gimbal, sensor, b, plan, bus, *log, ctl);
+    Engine engine = v.engine(b, plan);
     const EngineResult r = engine.run();
     ASSERT_EQ(r.outcome, RunOutcome::completed) << r.reason;
     EXPECT_EQ(r.points_done, 113);
@@ -280,19 +290,9 @@ TEST(Engine, LongWaitsFeedTheGimbalsWatchdog) {
   b.clock = ClockSync::shared;
   b.time_scale = 1e9;
   b.watchdog_s = 0.3;
-  test::FakeBench fake{default_bench_config(), 1000};
-  fake.use_virtual_clock(kLinkRoundTrip_s * 1000);
-  test::FakeGimbal gimbal{fake};
-  test::FakeSensor sensor{fake};
-  gimbal.connect();
-  sensor.connect();
+  VirtualBench v(1000, tmp / "run");
   const Plan plan = plan_of(grid(), b);
-  RunRecorder recorder(tmp / "run");
-  EventBus bus;
-  record_with(bus, recorder);
-  RunControl ctl;
-  const auto log = quiet_log();
-  Engine engine(gimbal, sensor, b, plan, bus, *log, ctl);
+  Engine engine = v.engine(b, plan);
   const EngineResult r = engine.run();
   EXPECT_EQ(r.outcome, RunOutcome::completed) << r.reason;
   EXPECT_EQ(engine.stats().recoveries, 0);
