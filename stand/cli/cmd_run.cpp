@@ -104,8 +104,10 @@ int run_command(const RunArgs& a) {
   const SessionResult r = run_session(req);
   const std::string dir = r.run_dir.string();
   if (r.outcome == RunOutcome::completed) {
-    std::printf("run completed: %lld/%lld points in %.1f s -> %s\n", static_cast<long long>(r.points_done),
-                static_cast<long long>(r.points_total), r.wall_s, dir.c_str());
+    const std::string skipped =
+        r.points_skipped ? fmt::format(" ({} skipped by the adaptive stop)", r.points_skipped) : std::string();
+    std::printf("run completed: %lld/%lld points%s in %.1f s -> %s\n", static_cast<long long>(r.points_done),
+                static_cast<long long>(r.points_total), skipped.c_str(), r.wall_s, dir.c_str());
   } else {
     if (a.quiet) std::fprintf(stderr, "fpss-stand run: %s: %s\n", to_string(r.outcome), r.reason.c_str());
     std::printf("run %s: %lld/%lld points -> %s\n", to_string(r.outcome), static_cast<long long>(r.points_done),

@@ -437,6 +437,7 @@ void Session::finish(const EngineResult& er) {
   if (!er.reason.empty()) doc_["reason"] = er.reason;
   doc_["ended_utc"] = end_utc;
   doc_["points"]["completed"] = er.points_done;
+  res_.points_skipped = doc_["points"].value("skipped", int64_t{0});
   doc_["safe_state"] = er.safe_state;
   auto& s = doc_["sessions"].back();
   s["ended_utc"] = end_utc;

@@ -47,6 +47,7 @@ struct SessionResult {
   std::filesystem::path run_dir;
   std::optional<std::filesystem::path> calibration, report;
   int64_t points_done = 0, points_total = 0;
+  int64_t points_skipped = 0;  // of points_done: left out by a grid's adaptive stop
   EngineStats stats;
   double wall_s = 0;  // whole session, emulator start to report
   std::map<std::string, std::string> answers;  // the prompts' answers, by id

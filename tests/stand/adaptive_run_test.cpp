@@ -49,6 +49,8 @@ TEST(AdaptiveRun, TheShippedAdaptiveGridStopsEachAxisAtItsTargetAndSaysWhy) {
   EXPECT_GT(skipped, 20u);
   EXPECT_EQ(run["points"]["skipped"], skipped);
   EXPECT_EQ(run["points"]["completed"], run["points"]["total"]);
+  EXPECT_NE(r.out.find("run completed: 113/113 points (" + std::to_string(skipped) + " skipped by the adaptive stop)"),
+            std::string::npos) << r.out;
 
   size_t journal_skipped = 0;
   for (const auto& j : json_lines(dir / "points.jsonl")) journal_skipped += j.contains("skipped") ? 1 : 0;
