@@ -226,7 +226,7 @@ void RunRecorder::append_point(int64_t point, const std::vector<RecordedRow>& ro
     last_time_s_ = std::max(last_time_s_, r.sample.time_s);
   }
   writer_->sync();
-  journal(point, rows.size(), attempts, session, {});
+  journal_point(point, rows.size(), attempts, session, {});
   has_rows_ = has_rows_ || !rows.empty();
 }
 
@@ -234,10 +234,10 @@ void RunRecorder::skip_point(int64_t point, int session, const std::string& why)
   if (point != next_point()) {
     throw std::logic_error(fmt::format("recorder: point {} out of order (next is {})", point + 1, next_point() + 1));
   }
-  journal(point, 0, 0, session, why);
+  journal_point(point, 0, 0, session, why);
 }
 
-void RunRecorder::journal(int64_t point, size_t rows, int attempts, int session, const std::string& skipped) {
+void RunRecorder::journal_point(int64_t point, size_t rows, int attempts, int session, const std::string& skipped) {
   JournalEntry je;
   je.point = point;
   je.step = point + 1;

@@ -108,7 +108,7 @@ class RunRecorder {
   bool has_rows_ = false;
   uint64_t cut_bytes_ = 0;
 
-  void journal(int64_t point, size_t rows, int attempts, int session, const std::string& skipped);
+  void journal_point(int64_t point, size_t rows, int attempts, int session, const std::string& skipped);
 
  public:
   ~RunRecorder();
