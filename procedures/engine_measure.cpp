@@ -207,7 +207,9 @@ void Engine::measure_slew(const Action& a, int session) {
       const double timeout_wall = b_.wall(leg_s * (a.reversals + 1)) + 2.0;
       const auto start = Clock::now();
       const double tol = b_.in_position_tolerance_arcsec;
-      const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
+      // A reading at least every quarter frame period: every frame is then referenced between two
+      // readings close around it, even when the host is late (max_reference_gap_s).
+      const double reading_wait = b_.wall(0.25 / b_.sample_rate_hz);
       for (int leg = 0;;) {  // legs: Action::leg_target, each from the instant the last is in position
         check_abort();
         GimbalState st = read_gimbal();
@@ -227,7 +229,7 @@ void Engine::measure_slew(const Action& a, int session) {
         // Paced by the sensor: with no frame since the last reading, the next one is waited for.
         if (!drain()) {
           Timed t(stats_.device_s);
-          if (auto f = s_.next_sample(frame_wait)) frames.push_back(*f);
+          if (auto f = s_.next_sample(reading_wait)) frames.push_back(*f);
         }
       }
       // Frames sampled before the arrival may still be on the line: wait one frame period more.

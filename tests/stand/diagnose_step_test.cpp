@@ -49,13 +49,14 @@ TEST(DiagnoseStep, WritesTheGapFilesIntoTheRunFolder) {
 
 // The shipped sim_to_real.yaml on the emulator with a backlash and a time shift: its slews reverse
 // inside their segments, and its own diagnose step (no `partial`) finds both with nothing
-// unobservable that every diagnosis needs. Bench time ~4 min, ~12 s wall at speed-up 20 (at 50, a
-// loaded host's late gimbal reading can leave one slew frame with a poor reference: an outlier
-// frame, which the diagnosis rightly reports as a remainder of its own).
+// unobservable that every diagnosis needs. Bench time ~4 min, ~25 s wall at speed-up 10: a slew frame
+// is kept only between gimbal readings at most 0.05 bench seconds apart, which at higher speed-ups
+// a loaded host misses (frames lost at the segments' ends, or one kept with a poor reference: an
+// outlier the diagnosis rightly reports as a remainder of its own).
 TEST(DiagnoseStep, TheShippedSimToRealRunIsDiagnosableWhole) {
   TempDir tmp("diagnose-sim-to-real");
   const auto r = run_stand({"run", (test::source_dir() / "procedures/sim_to_real.yaml").string(), "--emulate",
-                            "--speed", "20", "--runs-dir", (tmp / "runs").string(), "--no-progress", "--effect",
+                            "--speed", "10", "--runs-dir", (tmp / "runs").string(), "--no-progress", "--effect",
                             "backlash:width_arcsec=2", "--effect", "time_skew:skew_s=0.03"},
                            tmp.path());
   ASSERT_EQ(r.code, 0) << r.err;
