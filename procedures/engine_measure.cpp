@@ -207,9 +207,7 @@ void Engine::measure_slew(const Action& a, int session) {
       const double timeout_wall = b_.wall(leg_s * (a.reversals + 1)) + 2.0;
       const auto start = Clock::now();
       const double tol = b_.in_position_tolerance_arcsec;
-      // A reading at least every quarter frame period: every frame is then referenced between two
-      // readings close around it, even when the host is late (max_reference_gap_s).
-      const double reading_wait = b_.wall(0.25 / b_.sample_rate_hz);
+      const double reading_wait = b_.wall(0.25 / b_.sample_rate_hz);  // frames between close readings
       for (int leg = 0;;) {  // legs: Action::leg_target, each from the instant the last is in position
         check_abort();
         GimbalState st = read_gimbal();
@@ -226,7 +224,7 @@ void Engine::measure_slew(const Action& a, int session) {
           throw GimbalFailure(fmt::format("slew did not reach its end within {:.1f} s (at pitch {}, yaw {})",
                                           timeout_wall, deg(st.pitch_arcsec), deg(st.yaw_arcsec)));
         }
-        // Paced by the sensor: with no frame since the last reading, the next one is waited for.
+        // No frame since the last reading: the next is waited for, a quarter frame period at most.
         if (!drain()) {
           Timed t(stats_.device_s);
           if (auto f = s_.next_sample(reading_wait)) frames.push_back(*f);
