@@ -40,24 +40,23 @@ LiveFit::Ranges LiveFit::ranges_of(const Plan& plan, size_t step_index) const {
   return r;
 }
 
-double LiveFit::sigma(fit::Axis axis, const Ranges& r, size_t key) {
-  const auto ck = std::make_pair(key, static_cast<int>(axis));
+double LiveFit::sigma(fit::Axis axis, const Ranges& r) {
+  const Range& range = axis == fit::Axis::alpha ? r.pitch : r.yaw;
+  // A range of one angle (an axis the plan never moves) has no spread to judge a fit over.
+  if (!range || !((*range)[1] > (*range)[0])) return kInf;
+  const auto ck = std::make_tuple(static_cast<int>(axis), (*range)[0], (*range)[1]);
   auto it = cache_.find(ck);
   if (it != cache_.end() && it->second.pairs == cal_.pairs()) return it->second.sigma;
   double s = kInf;
-  const Range& range = axis == fit::Axis::alpha ? r.pitch : r.yaw;
-  // A range of one angle (an axis the plan never moves) has no spread to judge a fit over.
-  if (range && (*range)[1] > (*range)[0]) {
-    CalibrationOptions o = cal_.options();
-    o.threads = 1;  // a small fit between points: the pool costs more than it gives
-    (axis == fit::Axis::alpha ? o.sigma_range_pitch_arcsec : o.sigma_range_yaw_arcsec) = range;
-    try {
-      s = cal_.fit_so_far(axis, o).listed_sigma_max_arcsec();
-    } catch (const DataError&) {
-      // not enough changes of this axis yet
-    } catch (const std::runtime_error&) {
-      // the solver failed on too little data: no word yet
-    }
+  CalibrationOptions o = cal_.options();
+  o.threads = 1;  // a small fit between points: the pool costs more than it gives
+  (axis == fit::Axis::alpha ? o.sigma_range_pitch_arcsec : o.sigma_range_yaw_arcsec) = range;
+  try {
+    s = cal_.fit_so_far(axis, o).listed_sigma_max_arcsec();
+  } catch (const DataError&) {
+    // not enough changes of this axis yet
+  } catch (const std::runtime_error&) {
+    // the solver failed on too little data: no word yet
   }
   cache_[ck] = {cal_.pairs(), s};
   return s;
@@ -76,8 +75,8 @@ std::optional<FitUpdated> LiveFit::update(int64_t points, bool force) {
   f.rms_pitch_arcsec = est.rms_pitch_arcsec;
   f.rms_yaw_arcsec = est.rms_yaw_arcsec;
   auto finite_or_nan = [](double v) { return std::isfinite(v) ? v : std::numeric_limits<double>::quiet_NaN(); };
-  f.sigma_max_pitch_arcsec = finite_or_nan(sigma(fit::Axis::alpha, run_ranges_, 0));
-  f.sigma_max_yaw_arcsec = finite_or_nan(sigma(fit::Axis::beta, run_ranges_, 0));
+  f.sigma_max_pitch_arcsec = finite_or_nan(sigma(fit::Axis::alpha, run_ranges_));
+  f.sigma_max_yaw_arcsec = finite_or_nan(sigma(fit::Axis::beta, run_ranges_));
   text_ = fmt::format("live residual rms pitch {:.2f} yaw {:.2f} arcsec ({} pairs)", est.rms_pitch_arcsec,
                       est.rms_yaw_arcsec, est.pairs);
   if (std::isfinite(f.sigma_max_pitch_arcsec) && std::isfinite(f.sigma_max_yaw_arcsec)) {
@@ -93,8 +92,8 @@ double LiveFit::until_sigma(const Action& a) {
   const bool both = a.until_both_axes;
   const auto sensor = a.axis == StandAxis::pitch ? axes_.pitch_axis : axes_.yaw_axis;
   double worst = 0;
-  if (both || sensor == AxisMapping::alpha) worst = std::max(worst, sigma(fit::Axis::alpha, it->second, a.step_index));
-  if (both || sensor == AxisMapping::beta) worst = std::max(worst, sigma(fit::Axis::beta, it->second, a.step_index));
+  if (both || sensor == AxisMapping::alpha) worst = std::max(worst, sigma(fit::Axis::alpha, it->second));
+  if (both || sensor == AxisMapping::beta) worst = std::max(worst, sigma(fit::Axis::beta, it->second));
   return worst;
 }
 

@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "calib/streaming.h"
@@ -42,8 +43,9 @@ class LiveFit {
     Range pitch, yaw;  // sensor frame: what alpha and beta measure
   };
   Ranges ranges_of(const Plan& plan, size_t step_index) const;  // step 0: every dwell of the plan
-  // Largest listed sigma of one sensor axis over `r` (cached per number of changes).
-  double sigma(fit::Axis axis, const Ranges& r, size_t key);
+  // Largest listed sigma of one sensor axis over `r` (cached per axis and range, until the next
+  // change: the run's range and a grid's are often the same, and then fitted once).
+  double sigma(fit::Axis axis, const Ranges& r);
 
   StreamingCalibrator cal_;
   AxisMapping axes_;
@@ -53,7 +55,7 @@ class LiveFit {
     size_t pairs = 0;
     double sigma = 0;
   };
-  std::map<std::pair<size_t, int>, Cached> cache_;  // (range key, axis) -> sigma at `pairs` changes
+  std::map<std::tuple<int, double, double>, Cached> cache_;  // (axis, lo, hi) -> sigma at `pairs` changes
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now() - std::chrono::seconds(10);
   std::optional<StreamingCalibrator::Estimate> est_;
   std::string text_;
