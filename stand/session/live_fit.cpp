@@ -65,9 +65,10 @@ double LiveFit::sigma(fit::Axis axis, const Ranges& r) {
 std::optional<FitUpdated> LiveFit::update(int64_t points, bool force) {
   const auto now = std::chrono::steady_clock::now();
   if (!force && now - last_ < std::chrono::milliseconds(500)) return std::nullopt;
-  last_ = now;
   const auto est = cal_.current();
+  // No estimate yet leaves the refresh budget unspent, so the first valid one is published at once.
   if (!est.valid) return std::nullopt;
+  last_ = now;
   est_ = est;
   FitUpdated f;
   f.points = points;

@@ -25,8 +25,9 @@ class LiveFit {
 
   void add(const Sample& s) { cal_.add_sample(s); }
 
-  // After a point: the estimate, refreshed at most twice a second unless `force`. The sigmas are
-  // the batch fit's honest ones (GLS) over the run's planned range, NaN until an axis can be fitted.
+  // After a point: the estimate, refreshed at most twice a second of wall time (a display's rate)
+  // unless `force`. The sigmas are the batch fit's honest ones (GLS) over the run's planned range,
+  // NaN until an axis can be fitted. Nothing while no estimate is valid.
   std::optional<FitUpdated> update(int64_t points, bool force);
 
   // For the engine's adaptive stop: the largest 1-sigma over the range of `a`'s grid, for the

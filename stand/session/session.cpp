@@ -110,6 +110,7 @@ class Session {
   void subscribe();
   void on_point_done(const PointDone& p);
   void on_step_stopped(const StepStopped& s);
+  void publish_live_fit(int64_t points, bool force = true);
   int64_t points_before(const Action& a) const;  // points planned before a computation step
   void ask_prompts(ControlPoller& poller, RunControl& control);
   void on_calibrate(const Action& a);
@@ -312,14 +313,15 @@ void Session::on_point_done(const PointDone& p) {
   if (live_) {
     try {
       for (const auto& r : *p.rows) live_->add(r.sample);
-      // The estimate costs a few thousand small solves: refresh it twice a second at most.
-      const bool last = progress_->done() + 1 >= plan_.points;
-      if (auto f = live_->update(p.action->point + 1, last)) bus_.publish(*f);
     } catch (const std::exception& e) {
       log_->warn("live residual off: {}", e.what());
       live_.reset();
     }
   }
+  // The estimate costs a few thousand small solves: refreshed twice a second at most, and always
+  // after the last point.
+  const bool last = progress_->done() + 1 >= plan_.points;
+  publish_live_fit(p.action->point + 1, last);
   // Each point against the latest live fit, for the console's residual chart and map; the points
   // before the first valid fit are written once it exists.
   if (p.stats.rows > 0) unplotted_.push_back({p.action->point + 1, p.stats});
@@ -337,6 +339,16 @@ void Session::on_point_done(const PointDone& p) {
   progress_->point_done(live_ ? live_->text() : std::string());
 }
 
+void Session::publish_live_fit(int64_t points, bool force) {
+  if (!live_) return;
+  try {
+    if (auto f = live_->update(points, force)) bus_.publish(*f);
+  } catch (const std::exception& e) {
+    log_->warn("live residual off: {}", e.what());
+    live_.reset();
+  }
+}
+
 void Session::on_step_stopped(const StepStopped& s) {
   nlohmann::json j = nlohmann::json::parse(to_json(Event{s}).dump());
   j.erase("type");
@@ -346,6 +358,9 @@ void Session::on_step_stopped(const StepStopped& s) {
   for (const auto& st : doc_["adaptive_stops"]) skipped += st.value("points_skipped", size_t{0});
   doc_["points"]["skipped"] = skipped;
   progress_->skipped(s.skipped.size());
+  // The fit that stopped the step is always published, whatever the display's refresh rate: the
+  // console and events.jsonl show the sigma that met the target.
+  publish_live_fit(s.skipped.empty() ? 0 : s.skipped.front());
   progress_->note(j.value("reason", "") + fmt::format(" (step {}, {}: {} points not measured)", s.step_index, s.axes,
                                                       s.skipped.size()));
 }
