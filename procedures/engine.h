@@ -100,6 +100,8 @@ class Engine {
                   std::vector<double>& s_times, std::vector<double>& g_times) const;
   // Runs attempt(1), attempt(2), ... until one succeeds or the stand's re-measurements run out.
   void with_remeasure(const Action& a, const std::function<void(int)>& attempt);
+  // Moves and waits until a reading finds the gimbal in position; arrived_s_ is then when it got
+  // there (docs/procedures.md, "How the engine waits"), which settles count from.
   GimbalState move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing = false);
   void sleep_physical(double physical_s);
   // The bench clock (the devices' own) now: the latest device time stamp, advanced by the host
@@ -175,13 +177,16 @@ class Engine {
   std::optional<double> sensor_t0_;
   double time_base_ = 0, last_time_ = 0;
   double last_gimbal_time_s_ = 0;
+  double arrived_s_ = 0;  // the last move's arrival (bench clock), however late a reading saw it
   double last_pitch_arcsec_ = 0, last_yaw_arcsec_ = 0;  // the latest encoder reading
   double last_bench_s_ = 0, last_bench_host_s_ = 0;     // the latest device time stamp and its receipt
   double bench_start_s_ = -1, off_bench_s_ = 0;
   size_t action_ = 0;           // plan_.actions index being done
-  // A move commanded ahead (command_next_move): its target and predicted arrival (bench clock).
+  // A move commanded ahead (command_next_move): its target and predicted arrival (bench clock),
+  // from the latest stamp before the command (the first look, never late) and from the bench
+  // time once the command was surely sent (the latest it can arrive if it follows its profile).
   struct PendingMove {
-    double pitch_arcsec = 0, yaw_arcsec = 0, arrival_s = 0;
+    double pitch_arcsec = 0, yaw_arcsec = 0, arrival_s = 0, arrival_latest_s = 0;
   };
   std::optional<PendingMove> pending_;
 };

@@ -37,11 +37,11 @@ void Engine::measure_dwell(const Action& a, int session) {
                                         deg(st.pitch_arcsec), deg(st.yaw_arcsec), st.status));
       }
     };
-    // The settle counts from the reading that found the gimbal there. One clock for both devices:
-    // the frames say when it is over, and the first frame after it is the dwell's first; else the
-    // host clock says, and a reading after it starts the dwell.
+    // The settle counts from the gimbal's arrival. One clock for both devices: the frames say when
+    // it is over, and the first frame after it is the dwell's first; else the host clock says, and
+    // a reading after it starts the dwell.
     const bool shared = b_.clock == ClockSync::shared;
-    const double settled_bench = last_gimbal_time_s_ + a.settle_s;
+    const double settled_bench = arrived_s_ + a.settle_s;
     std::optional<SensorSample> first = wait_bench_until(settled_bench);
     const double settled_host = host_now_s();
     if (!first && !shared) {
@@ -167,7 +167,7 @@ void Engine::slew_times(const std::vector<SensorSample>& frames, const std::vect
 void Engine::measure_slew(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
     move_and_wait(a.start_pitch_arcsec, a.start_yaw_arcsec, b_.move_timeout_s);
-    wait_bench_until(last_gimbal_time_s_ + a.settle_s);
+    wait_bench_until(arrived_s_ + a.settle_s);
     struct RateGuard {
       Engine& e;
       ~RateGuard() {

@@ -2,6 +2,7 @@
 // on the sensor's frames, moves predicted from the gimbal's profile, the next move commanded early.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "procedures/engine.h"
@@ -108,9 +109,11 @@ void Engine::off_bench(const std::function<void()>& f) {
 
 GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing) {
   const double rate = commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
-  double arrival = 0;  // when the profile says the gimbal arrives (bench clock)
+  double arrival = 0;         // when the profile says the gimbal arrives (bench clock): the next look
+  double arrival_latest = 0;  // the same from the latest instant the motion can have started
   if (!homing && pending_ && pending_->pitch_arcsec == pitch && pending_->yaw_arcsec == yaw) {
     arrival = pending_->arrival_s;  // commanded while the last point was being stored
+    arrival_latest = pending_->arrival_latest_s;
   } else {
     pending_.reset();
     // From the latest device time stamp (no later than the command): the first look may come
@@ -124,13 +127,16 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
       target_known_ = false;  // a home need not write the target registers
     }
     else command_move(pitch, yaw);
-    arrival = t0 + move_duration_s(from_p, from_y, homing ? 0 : pitch, homing ? 0 : yaw, rate, b_.acceleration_arcsec_s2);
+    const double dur = move_duration_s(from_p, from_y, homing ? 0 : pitch, homing ? 0 : yaw, rate, b_.acceleration_arcsec_s2);
+    arrival = t0 + dur;
+    arrival_latest = bench_now_s() + dur;
   }
   pending_.reset();
   // Communication slack on top of the physical time: a slow link must not look like a stuck axis.
   const double timeout_wall = b_.wall(timeout_physical_s) + 2.0;
   const auto start = Clock::now();
   const double tol = b_.in_position_tolerance_arcsec;
+  double on_its_way_s = last_bench_s_;  // the last instant known to be before the arrival
   GimbalState st;
   for (;;) {
     check_abort();
@@ -142,7 +148,14 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
     }
     const bool there = homing ? st.has(kHomed)
                               : std::fabs(st.pitch_arcsec - pitch) <= tol && std::fabs(st.yaw_arcsec - yaw) <= tol;
-    if (there && st.has(kInPosition) && !st.has(kMoving)) return st;
+    if (there && st.has(kInPosition) && !st.has(kMoving)) {
+      // A settle counts from the arrival, not from when the host came to look (a late look, by a
+      // frame, a round trip or a busy host, would lengthen every settle): the profile's arrival,
+      // within what the readings bracket. A gimbal slower than its profile is caught by the
+      // reading in motion, whose remaining time then sets the arrival.
+      arrived_s_ = std::min(std::max(arrival_latest, on_its_way_s), last_gimbal_time_s_);
+      return st;
+    }
     if (seconds_since(start) > timeout_wall) {
       throw GimbalFailure(fmt::format("gimbal not in position at pitch {}, yaw {} within {:.1f} s (at pitch {}, yaw "
                                       "{}, status 0x{:02x})",
@@ -154,7 +167,9 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
     const double left = std::max(axis_remaining_s(pitch - st.pitch_arcsec, st.pitch_rate_arcsec_s, rate, b_.acceleration_arcsec_s2),
                                  axis_remaining_s(yaw - st.yaw_arcsec, st.yaw_rate_arcsec_s, rate, b_.acceleration_arcsec_s2));
     const double floor_s = b_.clock == ClockSync::shared ? 0.0 : b_.poll_interval_s * b_.time_scale;
+    on_its_way_s = last_gimbal_time_s_;
     arrival = last_gimbal_time_s_ + std::max(left, floor_s);
+    arrival_latest = last_gimbal_time_s_ + left;
   }
 }
 
@@ -177,8 +192,8 @@ void Engine::command_next_move() {
   }
   moved_ = true;
   const double rate = commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
-  pending_ = PendingMove{n.pitch_arcsec, n.yaw_arcsec,
-                         t0 + move_duration_s(from_p, from_y, n.pitch_arcsec, n.yaw_arcsec, rate, b_.acceleration_arcsec_s2)};
+  const double dur = move_duration_s(from_p, from_y, n.pitch_arcsec, n.yaw_arcsec, rate, b_.acceleration_arcsec_s2);
+  pending_ = PendingMove{n.pitch_arcsec, n.yaw_arcsec, t0 + dur, bench_now_s() + dur};
 }
 
 }  // namespace fpss
