@@ -10,7 +10,7 @@ namespace fpss {
 // Status register bits (ICD, input register 8).
 enum GimbalStatusBit : uint16_t {
   kHomed = 1u << 0, kMoving = 1u << 1, kInPosition = 1u << 2, kFault = 1u << 3,
-  kPitchLimit = 1u << 4, kYawLimit = 1u << 5, kRateMode = 1u << 6,
+  kPitchLimit = 1u << 4, kYawLimit = 1u << 5, kRateMode = 1u << 6, kMovePending = 1u << 7,
 };
 
 // Fault codes (ICD, input register 9).
@@ -52,7 +52,7 @@ struct GimbalCommand {
   double target_pitch_arcsec = 0, target_yaw_arcsec = 0;
   double max_rate_arcsec_s = 0;
   double watchdog_s = 0;
-  uint16_t command = 0;  // the command register's last value (1 move, 2 stop, 3 home, 4 clear fault, 5 rate)
+  uint16_t command = 0;  // the command register's last value (1 move, 2 stop, 3 home, 4 clear fault, 5 rate, 6 move at)
 };
 
 class Gimbal {
@@ -66,6 +66,16 @@ class Gimbal {
   virtual void set_max_rate(double arcsec_s) = 0;
   // Absolute move; throws LimitError outside the soft limits, nothing sent.
   virtual void move_to(double pitch_arcsec, double yaw_arcsec) = 0;
+  // Whether the gimbal can start a move at a set time of its own clock (known once connected).
+  virtual bool timed_moves() const { return false; }
+  // From rest: the move to the target starts when the gimbal's clock reaches start_us
+  // (GimbalState::sample_time_us); until then it holds still and its status has kMovePending. A
+  // time already past is refused (DeviceError; a move already pending stays), so an accepted move
+  // starts exactly then. Any other command cancels it. Only where timed_moves().
+  virtual void move_at(double pitch_arcsec, double yaw_arcsec, uint64_t start_us) {
+    (void)pitch_arcsec, (void)yaw_arcsec, (void)start_us;
+    throw DeviceError("this gimbal cannot start a move at a set time");
+  }
   // Polls until in position and not moving; throws DeviceError on fault or timeout (wall seconds).
   virtual GimbalState wait_in_position(double timeout_s) = 0;
   virtual void start_rate(double pitch_arcsec_s, double yaw_arcsec_s) = 0;

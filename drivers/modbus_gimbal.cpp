@@ -27,12 +27,13 @@ const char* input_name(int addr) {
   return addr >= 0 && addr < kInputCount ? names[addr] : "unmapped";
 }
 const char* holding_name(int addr) {
-  static const char* names[kHoldingCount] = {
+  static const char* names[kMoveAtUs + kMoveAtCount] = {
       "pitch_target_mas",     "pitch_target_mas",     "yaw_target_mas",         "yaw_target_mas",
       "pitch_rate_cmd_mas_s", "pitch_rate_cmd_mas_s", "yaw_rate_cmd_mas_s",     "yaw_rate_cmd_mas_s",
       "max_rate_mas_s",       "max_rate_mas_s",       "in_position_window_mas", "command",
-      "watchdog_ms"};
-  return addr >= 0 && addr < kHoldingCount ? names[addr] : "unmapped";
+      "watchdog_ms",          "move_at_us",           "move_at_us",             "move_at_us",
+      "move_at_us"};
+  return addr >= 0 && addr < kMoveAtUs + kMoveAtCount ? names[addr] : "unmapped";
 }
 }  // namespace gimbal_reg
 
@@ -329,7 +330,7 @@ void ModbusGimbal::set_max_rate(double arcsec_s) {
   transact(Op::write_multiple, gimbal_reg::kMaxRateMasS, 2, r);
 }
 
-void ModbusGimbal::move_to(double pitch_arcsec, double yaw_arcsec) {
+void ModbusGimbal::write_targets(double pitch_arcsec, double yaw_arcsec) {
   const auto& L = options_.limits;
   check_range("pitch target", pitch_arcsec, L.pitch_min_arcsec, L.pitch_max_arcsec, "arcsec");
   check_range("yaw target", yaw_arcsec, L.yaw_min_arcsec, L.yaw_max_arcsec, "arcsec");
@@ -337,7 +338,20 @@ void ModbusGimbal::move_to(double pitch_arcsec, double yaw_arcsec) {
   put_i32(r, to_mas(pitch_arcsec));
   put_i32(r + 2, to_mas(yaw_arcsec));
   transact(Op::write_multiple, gimbal_reg::kPitchTargetMas, 4, r);
+}
+
+void ModbusGimbal::move_to(double pitch_arcsec, double yaw_arcsec) {
+  write_targets(pitch_arcsec, yaw_arcsec);
   command(gimbal_reg::kCmdMove);
+}
+
+void ModbusGimbal::move_at(double pitch_arcsec, double yaw_arcsec, uint64_t start_us) {
+  if (!timed_moves()) Gimbal::move_at(pitch_arcsec, yaw_arcsec, start_us);
+  write_targets(pitch_arcsec, yaw_arcsec);
+  uint16_t r[gimbal_reg::kMoveAtCount];
+  for (int i = 0; i < gimbal_reg::kMoveAtCount; ++i) r[i] = static_cast<uint16_t>(start_us >> (48 - 16 * i));
+  transact(Op::write_multiple, gimbal_reg::kMoveAtUs, gimbal_reg::kMoveAtCount, r);
+  command(gimbal_reg::kCmdMoveAt);
 }
 
 GimbalState ModbusGimbal::wait_in_position(double timeout_s) {

@@ -21,9 +21,12 @@ inline constexpr int kInputCount = 15;
 // Holding registers (functions 03, 06, 16).
 inline constexpr int kPitchTargetMas = 0, kYawTargetMas = 2, kPitchRateCmdMasS = 4, kYawRateCmdMasS = 6;
 inline constexpr int kMaxRateMasS = 8, kInPositionWindowMas = 10, kCommand = 11, kWatchdogMs = 12;
-inline constexpr int kHoldingCount = 13;
+inline constexpr int kHoldingCount = 13;  // 0..12, every gimbal
+// The scheduled move's start, uint64 us of the gimbal's clock (13..16), on a gimbal that has it.
+inline constexpr int kMoveAtUs = 13, kMoveAtCount = 4;
 // Values of the command register.
-inline constexpr uint16_t kCmdMove = 1, kCmdStop = 2, kCmdHome = 3, kCmdClearFault = 4, kCmdStartRate = 5;
+inline constexpr uint16_t kCmdMove = 1, kCmdStop = 2, kCmdHome = 3, kCmdClearFault = 4, kCmdStartRate = 5,
+                          kCmdMoveAt = 6;
 // Names for messages: "input register 9 (fault_code)".
 const char* input_name(int addr);
 const char* holding_name(int addr);
@@ -67,6 +70,8 @@ class ModbusGimbal : public Gimbal {
   GimbalState read_state() override;  // input registers 0..14 in one request
   void set_max_rate(double arcsec_s) override;
   void move_to(double pitch_arcsec, double yaw_arcsec) override;
+  bool timed_moves() const override { return options_.timed_moves; }  // the stand's word (GimbalOptions)
+  void move_at(double pitch_arcsec, double yaw_arcsec, uint64_t start_us) override;
   GimbalState wait_in_position(double timeout_s) override;
   void start_rate(double pitch_arcsec_s, double yaw_arcsec_s) override;
   void stop() override;
@@ -95,6 +100,7 @@ class ModbusGimbal : public Gimbal {
   void close_link();
   void discard_stale_rtu_input(bool until_quiet);
   void command(uint16_t cmd);
+  void write_targets(double pitch_arcsec, double yaw_arcsec);  // soft limits, then holding 0..3
 
   GimbalOptions options_;
   std::unique_ptr<_modbus, ContextDeleter> ctx_;

@@ -19,6 +19,8 @@ struct GimbalOptions {
   double backoff_s = 0.05;      // before the first retry; doubles each time ...
   double max_backoff_s = 1.0;   // ... up to this
   double poll_interval_s = 0.02;  // wait_in_position status polling
+  // The gimbal has the scheduled move (docs/icd.md: holding 13..16 and command 6); a stand says so.
+  bool timed_moves = false;
 };
 
 struct SensorOptions {

@@ -3,6 +3,7 @@
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -47,6 +48,7 @@ struct EngineStats {
   int64_t points = 0;        // points measured in this session
   int64_t remeasured = 0;    // extra attempts
   int64_t recoveries = 0;    // fault clears, stream restarts
+  int64_t scheduled_moves = 0;  // moves the gimbal started on its own clock (Gimbal::move_at)
   // The controller's own work: everything but waiting on devices, sleeping, the disk's fsync and fits.
   double own_s() const { return wall_s - device_s - sleep_s - storage_s - calibrate_s; }
 };
@@ -94,6 +96,22 @@ class Engine {
   void compute(const Action& a, const char* what, const std::function<void(const Action&)>& hook, StopCause cause);
   void do_move(const Action& a);
   void measure_dwell(const Action& a, int session);
+  // A dwell's frames and the encoder readings they are referenced to (ref_of: each frame's reading).
+  struct DwellFrames {
+    std::vector<SensorSample> frames;
+    std::vector<GimbalState> refs;
+    std::vector<size_t> ref_of;
+    int invalid = 0;  // frames skipped as invalid
+  };
+  DwellFrames take_dwell(const Action& a, const GimbalState& arrived);
+  // Waits out the settle after the arrival; the dwell's first frame when the frames told.
+  std::optional<SensorSample> settle(const Action& a, const GimbalState& arrived, double& settled_host_s);
+  std::optional<SensorSample> next_dwell_frame(std::optional<SensorSample>& first);
+  // GimbalFailure unless the gimbal is still at `a`'s point, unfaulted and not moving.
+  void check_still(const Action& a, const GimbalState& st, const char* when);
+  // Puts the scheduled next move back to `start_s` (a dwell lengthened by an invalid frame, or
+  // begun later than the frame grid said); PointFailure if it has begun already.
+  void reschedule_next_move(const Action& a, double& move_at_s, double start_s);
   void measure_slew(const Action& a, int session);
   // Each slew frame's time on the sensor's clock and the same instant on the gimbal's clock.
   void slew_times(const std::vector<SensorSample>& frames, const std::vector<GimbalFix>& fixes,
@@ -117,6 +135,13 @@ class Engine {
   // Commands the move of the action after the current one while this point is still being
   // stored (its fsync overlaps the motion); move_and_wait then only waits for it.
   void command_next_move();
+  // With a gimbal that starts moves at a set time of its clock: the next point's move, scheduled
+  // to start at start_s (bench clock) from `a`'s point; the start, or nullopt when not scheduled.
+  std::optional<double> schedule_next_move(const Action& a, double start_s);
+  void schedule_pending(const Action& n, const Action& from, double start_s);
+  const Action* next_dwell_to_command() const;  // the next action if its move may be commanded now
+  void set_pending(const Action& n, double start_lo_s, double dur_s, double start_hi_s, bool scheduled);
+  double move_s(double from_pitch_arcsec, double from_yaw_arcsec, const Action& to) const;  // profile duration
   // Excludes a computation step's bench time from EngineStats::bench_s.
   void off_bench(const std::function<void()>& f);
   void wait_while_paused();
@@ -172,12 +197,15 @@ class Engine {
   GimbalCommand commanded_;
   bool target_known_ = false;
   bool stopping_ = false;  // during the safe stop an abort request no longer interrupts
+  bool timed_moves_refused_ = false;  // the gimbal refused a scheduled move in time: not asked again
   double host_t0_ = 0;
   // Stand time: base + (sensor time - sensor t0), kept non-decreasing across sensor restarts.
   std::optional<double> sensor_t0_;
   double time_base_ = 0, last_time_ = 0;
   double last_gimbal_time_s_ = 0;
   double arrived_s_ = 0;  // the last move's arrival (bench clock), however late a reading saw it
+  // A frame's time (shared clock): the sensor's frames come on a grid of its period from it.
+  double frame_grid_s_ = std::numeric_limits<double>::quiet_NaN();
   double last_pitch_arcsec_ = 0, last_yaw_arcsec_ = 0;  // the latest encoder reading
   double last_bench_s_ = 0, last_bench_host_s_ = 0;     // the latest device time stamp and its receipt
   double bench_start_s_ = -1, off_bench_s_ = 0;
@@ -187,6 +215,8 @@ class Engine {
   // time once the command was surely sent (the latest it can arrive if it follows its profile).
   struct PendingMove {
     double pitch_arcsec = 0, yaw_arcsec = 0, arrival_s = 0, arrival_latest_s = 0;
+    double start_s = 0;      // no later than the motion's start: the arrival's lower bound
+    bool scheduled = false;  // started by the gimbal's clock at start_s (Gimbal::move_at)
   };
   std::optional<PendingMove> pending_;
 };

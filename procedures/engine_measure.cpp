@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <thread>
+#include <utility>
 
 #include "procedures/align.h"
 #include "procedures/engine.h"
@@ -22,114 +23,172 @@ bool in_position_at(const GimbalState& st, std::pair<double, double> target, dou
 }
 }  // namespace
 
+void Engine::check_still(const Action& a, const GimbalState& st, const char* when) {
+  if (st.has(kFault) || st.fault != GimbalFault::none) {
+    throw GimbalFailure(fmt::format("gimbal fault ({}) {} sampling", fault_name(st), when));
+  }
+  const double tol = b_.in_position_tolerance_arcsec;
+  if (st.has(kMoving) || std::fabs(st.pitch_arcsec - a.pitch_arcsec) > tol || std::fabs(st.yaw_arcsec - a.yaw_arcsec) > tol) {
+    verify_command();  // another client's move explains it: say so
+    throw GimbalFailure(fmt::format("gimbal left the point {} sampling (pitch {}, yaw {}, status 0x{:02x})", when,
+                                    deg(st.pitch_arcsec), deg(st.yaw_arcsec), st.status));
+  }
+}
+
+std::optional<SensorSample> Engine::settle(const Action& a, const GimbalState& arrived, double& settled_host_s) {
+  // The settle counts from the gimbal's arrival. One clock for both devices: the frames say when
+  // it is over, and the first frame after it is the dwell's first; else the host clock says, and
+  // a reading after it starts the dwell.
+  std::optional<SensorSample> first = wait_bench_until(arrived_s_ + a.settle_s);
+  settled_host_s = host_now_s();
+  if (!first && b_.clock != ClockSync::shared) {
+    try {
+      {
+        Timed t(stats_.device_s);
+        s_.flush();
+      }
+      check_still(a, read_gimbal(), "before");
+    } catch (const DeviceError& e) {
+      throw PointFailure(e.what());
+    }
+  } else {
+    check_still(a, arrived, "before");
+  }
+  return first;
+}
+
+std::optional<SensorSample> Engine::next_dwell_frame(std::optional<SensorSample>& first) {
+  if (first) return std::exchange(first, std::nullopt);
+  try {
+    Timed t(stats_.device_s);
+    return s_.next_sample(b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s);
+  } catch (const DeviceError& e) {
+    throw SensorFailure(e.what());
+  }
+}
+
+void Engine::reschedule_next_move(const Action& a, double& move_at_s, double start_s) {
+  // Only if it has not started (a reading says: still pending), else the point is measured again.
+  move_at_s = start_s;
+  pending_.reset();
+  GimbalState st;
+  try {
+    {
+      Timed t(stats_.device_s);
+      const Action& n = plan_.actions[action_ + 1];
+      g_.move_at(n.pitch_arcsec, n.yaw_arcsec, static_cast<uint64_t>(std::llround(move_at_s * 1e6)));
+    }
+    st = read_gimbal();
+  } catch (const DeviceError& e) {
+    throw PointFailure(fmt::format("the next move, scheduled for the dwell's end, could not be put back: {}", e.what()));
+  }
+  if (!st.has(kMovePending)) throw PointFailure("the next move had started before the dwell's last frame");
+  check_still(a, st, "while");
+  schedule_pending(plan_.actions[action_ + 1], a, move_at_s);
+}
+
+Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arrived) {
+  const bool shared = b_.clock == ClockSync::shared;
+  double settled_host = 0;
+  const double settled_bench = arrived_s_ + a.settle_s;
+  const double period_s = 1.0 / b_.sample_rate_hz;
+  const bool link_slower_than_frames = b_.link_round_trip_s * b_.time_scale > period_s;
+  DwellFrames d;
+  d.frames.reserve(static_cast<size_t>(a.frames));
+  // The next move's start, scheduled on the gimbal's clock for half a frame period after the
+  // dwell's last frame, so no round trip of the host's lies between two dwells however late the
+  // host is (docs/procedures.md, "How the engine waits"): before the settle when the frame grid
+  // says where the dwell's frames fall, else at its first frame.
+  const auto end_of_dwell = [&](double first_s) { return first_s + (a.frames - 0.5) * period_s; };
+  std::optional<double> move_at_s;
+  if (shared && std::isfinite(frame_grid_s_)) {
+    const double k = std::ceil((settled_bench - frame_grid_s_) / period_s - 1e-6);
+    move_at_s = schedule_next_move(a, end_of_dwell(frame_grid_s_ + k * period_s));
+  }
+  std::optional<SensorSample> first = settle(a, arrived, settled_host);
+  bool reading = true;  // readings after the next move's start are no reference of this dwell
+  uint8_t last_bad_status = 0;
+  while (static_cast<int>(d.frames.size()) < a.frames) {
+    check_abort();
+    std::optional<SensorSample> f = next_dwell_frame(first);
+    if (!f) throw SensorFailure(fmt::format("the sensor sent no frame within {:.2f} s", b_.wall(period_s) + b_.frame_timeout_s));
+    // One clock for both devices: a frame stamped before the settle ended was taken during
+    // it, however late it arrives (a sensor stream catching up after a stall).
+    if (shared && sensor_clock_s(*f) + 1e-6 < settled_bench) continue;
+    if (!shared && f->host_time_s < settled_host) continue;  // on its way before the settle ended
+    if (move_at_s && sensor_clock_s(*f) + 1e-6 >= *move_at_s) {
+      throw PointFailure("a frame came after the next move's scheduled start (frames missing from the stream)");
+    }
+    if (!f->valid()) {
+      last_bad_status = f->status;
+      if (++d.invalid > a.max_invalid) {
+        throw SensorFailure(fmt::format("{} invalid frame(s) (status 0x{:02x}; {} tolerated)", d.invalid,
+                                        last_bad_status, a.max_invalid),
+                            StopCause::sensor_invalid);
+      }
+      if (move_at_s) reschedule_next_move(a, *move_at_s, *move_at_s + period_s);  // one frame more
+      continue;
+    }
+    d.frames.push_back(*f);
+    if (shared) frame_grid_s_ = sensor_clock_s(*f);
+    if (d.frames.size() == 1 && shared) {
+      const double end_s = end_of_dwell(sensor_clock_s(*f));
+      if (!move_at_s) move_at_s = schedule_next_move(a, end_s);
+      else if (end_s > *move_at_s + 1e-6) reschedule_next_move(a, *move_at_s, end_s);  // frames missing
+    }
+    const bool last = static_cast<int>(d.frames.size()) == a.frames;
+    // Each frame is referenced to the first encoder reading after it: the gimbal is read after
+    // every frame (the dwell's reference is then the mean of as many readings as frames, not of
+    // two: the encoders' noise dominates a dwell's error otherwise), unless the stand's link
+    // takes longer than a frame period at its speed-up (an emulator at 1000x): then after each
+    // run of frames that came during a reading, so the readings never hold the dwell back. With
+    // the next move scheduled, the frames after the last reading before its start take that one.
+    if (!reading || (last && move_at_s)) continue;
+    if (link_slower_than_frames && !last) {
+      try {
+        Timed t(stats_.device_s);
+        first = s_.next_sample(0.0);
+      } catch (const DeviceError& e) {
+        throw SensorFailure(e.what());
+      }
+      if (first) continue;
+    }
+    GimbalState st;
+    try {
+      st = read_gimbal();
+    } catch (const DeviceError& e) {
+      throw GimbalFailure(e.what());
+    }
+    if (move_at_s && last_gimbal_time_s_ + 1e-6 >= *move_at_s) {
+      reading = false;  // the move has begun: no reference, no stillness to check
+      continue;
+    }
+    check_still(a, st, "while");
+    d.refs.push_back(st);
+    d.ref_of.resize(d.frames.size(), d.refs.size() - 1);
+  }
+  if (d.refs.empty()) d.refs.push_back(arrived);  // a host so late that every reading came after the start
+  d.ref_of.resize(d.frames.size(), d.refs.size() - 1);
+  return d;
+}
+
 void Engine::measure_dwell(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
     const GimbalState arrived = move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
-    auto check_still = [&](const GimbalState& st, const char* when) {
-      if (st.has(kFault) || st.fault != GimbalFault::none) {
-        throw GimbalFailure(fmt::format("gimbal fault ({}) {} sampling", fault_name(st), when));
-      }
-      const double tol = b_.in_position_tolerance_arcsec;
-      if (st.has(kMoving) || std::fabs(st.pitch_arcsec - a.pitch_arcsec) > tol ||
-          std::fabs(st.yaw_arcsec - a.yaw_arcsec) > tol) {
-        verify_command();  // another client's move explains it: say so
-        throw GimbalFailure(fmt::format("gimbal left the point {} sampling (pitch {}, yaw {}, status 0x{:02x})", when,
-                                        deg(st.pitch_arcsec), deg(st.yaw_arcsec), st.status));
-      }
-    };
-    // The settle counts from the gimbal's arrival. One clock for both devices: the frames say when
-    // it is over, and the first frame after it is the dwell's first; else the host clock says, and
-    // a reading after it starts the dwell.
-    const bool shared = b_.clock == ClockSync::shared;
-    const double settled_bench = arrived_s_ + a.settle_s;
-    std::optional<SensorSample> first = wait_bench_until(settled_bench);
-    const double settled_host = host_now_s();
-    if (!first && !shared) {
-      try {
-        {
-          Timed t(stats_.device_s);
-          s_.flush();
-        }
-        check_still(read_gimbal(), "before");
-      } catch (const DeviceError& e) {
-        throw PointFailure(e.what());
-      }
-    } else {
-      check_still(arrived, "before");
-    }
-    const double frame_wait = b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s;
-    const bool link_slower_than_frames = b_.link_round_trip_s * b_.time_scale > 1.0 / b_.sample_rate_hz;
-    std::vector<SensorSample> frames;
-    std::vector<GimbalState> refs;
-    std::vector<size_t> ref_of;  // each frame's reading in refs
-    frames.reserve(static_cast<size_t>(a.frames));
-    refs.reserve(static_cast<size_t>(a.frames));
-    int invalid = 0;
-    uint8_t last_bad_status = 0;
-    while (static_cast<int>(frames.size()) < a.frames) {
-      check_abort();
-      std::optional<SensorSample> f;
-      if (first) {
-        f = first;
-        first.reset();
-      } else {
-        try {
-          Timed t(stats_.device_s);
-          f = s_.next_sample(frame_wait);
-        } catch (const DeviceError& e) {
-          throw SensorFailure(e.what());
-        }
-      }
-      if (!f) throw SensorFailure(fmt::format("the sensor sent no frame within {:.2f} s", frame_wait));
-      // One clock for both devices: a frame stamped before the settle ended was taken during
-      // it, however late it arrives (a sensor stream catching up after a stall).
-      if (shared && sensor_clock_s(*f) + 1e-6 < settled_bench) continue;
-      if (!shared && f->host_time_s < settled_host) continue;  // on its way before the settle ended
-      if (!f->valid()) {
-        last_bad_status = f->status;
-        if (++invalid > a.max_invalid) {
-          throw SensorFailure(fmt::format("{} invalid frame(s) (status 0x{:02x}; {} tolerated)", invalid,
-                                          last_bad_status, a.max_invalid),
-                              StopCause::sensor_invalid);
-        }
-        continue;
-      }
-      frames.push_back(*f);
-      // Each frame is referenced to the first encoder reading after it: the gimbal is read after
-      // every frame (the dwell's reference is then the mean of as many readings as frames, not of
-      // two: the encoders' noise dominates a dwell's error otherwise), unless the stand's link
-      // takes longer than a frame period at its speed-up (an emulator at 1000x): then after each
-      // run of frames that came during a reading, so the readings never hold the dwell back.
-      if (link_slower_than_frames && static_cast<int>(frames.size()) < a.frames) {
-        try {
-          Timed t(stats_.device_s);
-          first = s_.next_sample(0.0);
-        } catch (const DeviceError& e) {
-          throw SensorFailure(e.what());
-        }
-        if (first) continue;
-      }
-      try {
-        refs.push_back(read_gimbal());
-      } catch (const DeviceError& e) {
-        throw GimbalFailure(e.what());
-      }
-      check_still(refs.back(), "while");
-      ref_of.resize(frames.size(), refs.size() - 1);
-    }
-    // Everything the gimbal had to do here is done: its next move starts now, and the checks
-    // and the storing below overlap it.
+    const DwellFrames d = take_dwell(a, arrived);
+    // Everything the gimbal had to do here is done: its next move starts now (unless scheduled
+    // already), and the checks and the storing below overlap it.
     command_next_move();
     verify_command();
     const double temp = read_temperature_c(a);
     std::vector<RecordedRow> rows;
-    rows.reserve(frames.size());
-    for (size_t i = 0; i < frames.size(); ++i) {
-      const GimbalState& g = refs[ref_of[i]];
+    rows.reserve(d.frames.size());
+    for (size_t i = 0; i < d.frames.size(); ++i) {
+      const GimbalState& g = d.refs[d.ref_of[i]];
       const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
-      rows.push_back(make_row(a, a.phase, frames[i], sensor_clock_s(frames[i]), ref, temp, attempt, session));
+      rows.push_back(make_row(a, a.phase, d.frames[i], sensor_clock_s(d.frames[i]), ref, temp, attempt, session));
     }
-    publish_point(a, rows, attempt, session, invalid);
+    publish_point(a, rows, attempt, session, d.invalid);
   });
 }
 

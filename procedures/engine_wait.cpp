@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "procedures/engine.h"
 #include "procedures/engine_detail.h"
@@ -13,6 +14,8 @@ namespace fpss {
 using namespace engine_detail;
 
 namespace {
+constexpr double kUnknown = std::numeric_limits<double>::infinity();
+
 // Seconds an axis needs to stop at a target `e` away, moving at `v` now, with the profile's
 // top speed and acceleration (the trapezoid of move_duration_s, entered part-way).
 double axis_remaining_s(double e, double v, double vmax, double acc) {
@@ -83,6 +86,7 @@ std::optional<SensorSample> Engine::wait_bench_until(double t_s) {
     }
     const double ts = sensor_clock_s(*f);
     note_bench(ts, f->host_time_s);
+    frame_grid_s_ = ts;
     if (ts + 1e-9 >= t_s) return f;
   }
 }
@@ -111,14 +115,17 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
   const double rate = commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
   double arrival = 0;         // when the profile says the gimbal arrives (bench clock): the next look
   double arrival_latest = 0;  // the same from the latest instant the motion can have started
+  double on_its_way_s = 0;    // the last instant known to be before the arrival
   if (!homing && pending_ && pending_->pitch_arcsec == pitch && pending_->yaw_arcsec == yaw) {
-    arrival = pending_->arrival_s;  // commanded while the last point was being stored
+    arrival = pending_->arrival_s;  // commanded, or scheduled, while the last point was measured
     arrival_latest = pending_->arrival_latest_s;
+    on_its_way_s = pending_->start_s;
   } else {
     pending_.reset();
     // From the latest device time stamp (no later than the command): the first look may come
     // early, never late.
     const double from_p = last_pitch_arcsec_, from_y = last_yaw_arcsec_, t0 = last_bench_s_;
+    on_its_way_s = t0;
     Timed t(stats_.device_s);
     moved_ = true;
     if (homing) {
@@ -129,14 +136,13 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
     else command_move(pitch, yaw);
     const double dur = move_duration_s(from_p, from_y, homing ? 0 : pitch, homing ? 0 : yaw, rate, b_.acceleration_arcsec_s2);
     arrival = t0 + dur;
-    arrival_latest = bench_now_s() + dur;
+    arrival_latest = kUnknown;  // when the command reached the gimbal no stamp can tell
   }
   pending_.reset();
   // Communication slack on top of the physical time: a slow link must not look like a stuck axis.
   const double timeout_wall = b_.wall(timeout_physical_s) + 2.0;
   const auto start = Clock::now();
   const double tol = b_.in_position_tolerance_arcsec;
-  double on_its_way_s = last_bench_s_;  // the last instant known to be before the arrival
   GimbalState st;
   for (;;) {
     check_abort();
@@ -150,9 +156,9 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
                               : std::fabs(st.pitch_arcsec - pitch) <= tol && std::fabs(st.yaw_arcsec - yaw) <= tol;
     if (there && st.has(kInPosition) && !st.has(kMoving)) {
       // A settle counts from the arrival, not from when the host came to look (a late look, by a
-      // frame, a round trip or a busy host, would lengthen every settle): the profile's arrival,
-      // within what the readings bracket. A gimbal slower than its profile is caught by the
-      // reading in motion, whose remaining time then sets the arrival.
+      // frame, a round trip or a busy host, would lengthen every settle): the profile's arrival
+      // from a known start (a scheduled move's) or from a reading in motion (its position and
+      // speed), within what the readings bracket; without either, the reading that found it there.
       arrived_s_ = std::min(std::max(arrival_latest, on_its_way_s), last_gimbal_time_s_);
       return st;
     }
@@ -173,27 +179,90 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
   }
 }
 
-void Engine::command_next_move() {
-  pending_.reset();
+const Action* Engine::next_dwell_to_command() const {
   // A pause or an abort holds the gimbal where it is.
-  if (ctl_.pause.load() || ctl_.abort.load() || action_ + 1 >= plan_.actions.size()) return;
+  if (ctl_.pause.load() || ctl_.abort.load() || action_ + 1 >= plan_.actions.size()) return nullptr;
   const Action& n = plan_.actions[action_ + 1];
-  if (n.kind != Action::Kind::dwell || n.point < cursor_.first) return;
+  if (n.kind != Action::Kind::dwell || n.point < cursor_.first) return nullptr;
   // A point of an adaptive-stop group is decided on the fit that includes the point now ending.
-  if (n.until_group >= 0) return;
+  if (n.until_group >= 0) return nullptr;
+  return &n;
+}
+
+void Engine::set_pending(const Action& n, double start_lo_s, double dur_s, double start_hi_s, bool scheduled) {
+  commanded_.target_pitch_arcsec = n.pitch_arcsec;
+  commanded_.target_yaw_arcsec = n.yaw_arcsec;
+  target_known_ = true;
+  moved_ = true;
+  pending_ = PendingMove{n.pitch_arcsec, n.yaw_arcsec, start_lo_s + dur_s, start_hi_s + dur_s, start_lo_s, scheduled};
+}
+
+double Engine::move_s(double from_p, double from_y, const Action& to) const {
+  const double rate = commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
+  return move_duration_s(from_p, from_y, to.pitch_arcsec, to.yaw_arcsec, rate, b_.acceleration_arcsec_s2);
+}
+
+std::optional<double> Engine::schedule_next_move(const Action& a, double start_s) {
+  const Action* n = g_.timed_moves() && !timed_moves_refused_ ? next_dwell_to_command() : nullptr;
+  if (!n) return std::nullopt;
+  try {
+    Timed t(stats_.device_s);
+    g_.move_at(n->pitch_arcsec, n->yaw_arcsec, static_cast<uint64_t>(std::llround(start_s * 1e6)));
+  } catch (const DeviceError& e) {
+    // Refused: too late (the host was away past the start), or a gimbal that cannot, which a
+    // reading stamped before the start tells; that one is not asked again this run. Either way
+    // the move is commanded when this dwell ends.
+    target_known_ = false;  // the targets may be written
+    try {
+      read_gimbal();
+    } catch (const DeviceError&) {
+      return std::nullopt;  // the dwell's own readings will say what the link does
+    }
+    if (last_gimbal_time_s_ < start_s) {
+      timed_moves_refused_ = true;
+      log_.warn("the gimbal refused a scheduled move ({}); each move is commanded when its dwell ends", e.what());
+    } else {
+      log_.debug("{}: move not scheduled in time ({})", label(*n), e.what());
+    }
+    return std::nullopt;
+  }
+  schedule_pending(*n, a, start_s);
+  ++stats_.scheduled_moves;
+  return start_s;
+}
+
+void Engine::schedule_pending(const Action& n, const Action& from, double start_s) {
+  // The gimbal's own clock starts it: the arrival is the profile's from that instant, exactly.
+  set_pending(n, start_s, move_s(from.pitch_arcsec, from.yaw_arcsec, n), start_s, true);
+}
+
+void Engine::command_next_move() {
+  if (pending_ && pending_->scheduled) {
+    // A pause or an abort asked for during the dwell: the scheduled move is called off (a stop
+    // cancels it; if it has begun, the gimbal stops where it is and the next move starts afresh).
+    if (!ctl_.pause.load() && !ctl_.abort.load()) return;
+    pending_.reset();
+    try {
+      Timed t(stats_.device_s);
+      g_.stop();
+    } catch (const DeviceError& e) {
+      log_.warn("the scheduled move could not be called off: {}", e.what());
+    }
+    return;
+  }
+  pending_.reset();
+  const Action* n = next_dwell_to_command();
+  if (!n) return;
   const double from_p = last_pitch_arcsec_, from_y = last_yaw_arcsec_, t0 = last_bench_s_;
   try {
     Timed t(stats_.device_s);
-    command_move(n.pitch_arcsec, n.yaw_arcsec);
+    command_move(n->pitch_arcsec, n->yaw_arcsec);
   } catch (const DeviceError& e) {
-    log_.debug("{}: move commanded ahead not sent ({}); sent again when its turn comes", label(n), e.what());
+    log_.debug("{}: move commanded ahead not sent ({}); sent again when its turn comes", label(*n), e.what());
     target_known_ = false;
     return;
   }
-  moved_ = true;
-  const double rate = commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
-  const double dur = move_duration_s(from_p, from_y, n.pitch_arcsec, n.yaw_arcsec, rate, b_.acceleration_arcsec_s2);
-  pending_ = PendingMove{n.pitch_arcsec, n.yaw_arcsec, t0 + dur, bench_now_s() + dur};
+  set_pending(*n, t0, move_s(from_p, from_y, *n), kUnknown, false);
 }
 
 }  // namespace fpss

@@ -126,6 +126,13 @@ class Expander {
   // A device request's round trip in bench seconds.
   double link() const { return b_.link_round_trip_s * b_.time_scale; }
 
+  // Whether the engine schedules the move to dwell `a` while the dwell before it is measured.
+  bool scheduled_after_last_dwell(const Action& a) const {
+    if (!b_.timed_moves || b_.clock != ClockSync::shared || a.until_group >= 0 || plan_.actions.empty()) return false;
+    const Action& last = plan_.actions.back();
+    return last.kind == Action::Kind::dwell && (last.frames - 0.5) / b_.sample_rate_hz >= 3 * link();
+  }
+
   void travel(double p, double y, double rate) {
     plan_.physical_s += move_duration_s(p_, y_, p, y, rate > 0 ? rate : b_.profile_rate_arcsec_s,
                                          b_.acceleration_arcsec_s2);
@@ -145,8 +152,10 @@ class Expander {
     travel(p, y, 0);
     plan_.physical_s += settle_s + a.frames / b_.sample_rate_hz;
     // The links: the move's command (targets, then go), the reading that finds the gimbal there,
-    // and the encoder reading after the last frame (the others overlap the frames).
-    link_s_ += 3 * link();
+    // and the encoder reading after the last frame (the others overlap the frames); none when
+    // the move was scheduled on the gimbal's clock during the dwell before, if its three requests
+    // fit in that dwell (docs/procedures.md, "How the engine waits").
+    if (!scheduled_after_last_dwell(a)) link_s_ += 3 * link();
     plan_.frames += a.frames;
     push(a);
   }

@@ -28,6 +28,7 @@ nlohmann::json to_json(const EngineSettings& b) {
       {"max_reference_gap_s", b.max_reference_gap_s},
       {"time_scale", b.time_scale},
       {"link_round_trip_s", b.link_round_trip_s},
+      {"timed_moves", b.timed_moves},
   };
 }
 

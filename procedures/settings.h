@@ -37,6 +37,9 @@ struct EngineSettings {
   // emulator's is set for it).
   double link_round_trip_s = 0;
   double poll_interval_s = 0.002;        // wall seconds between gimbal polls when no sensor frame paces them
+  // The gimbal starts moves at a set time of its clock (docs/icd.md, the scheduled move): what the
+  // dry run's estimate assumes. The engine itself asks the connected gimbal (Gimbal::timed_moves).
+  bool timed_moves = false;
 
   // Physical seconds -> wall seconds to wait.
   double wall(double physical_s) const { return physical_s / time_scale; }

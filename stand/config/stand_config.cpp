@@ -80,6 +80,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
     if (auto v = r.positive("move_timeout_s")) b.move_timeout_s = *v;
     if (auto v = r.positive("home_timeout_s")) b.home_timeout_s = *v;
     if (auto v = r.non_negative("watchdog_s")) b.watchdog_s = *v;
+    if (auto v = r.boolean("timed_moves")) c.gimbal.timed_moves = b.timed_moves = *v;
     r.finish();
   }
   // sensor
@@ -183,6 +184,9 @@ void adapt_to_emulator(StandConfig& c, double speed) {
   // A Modbus request to the emulator on loopback, or a command on its pty, measured with the
   // drivers on a 2-core machine (docs/procedures.md, "Speed"): at 1000x it is 30 ms of bench time.
   c.bench.link_round_trip_s = 30e-6;
+  // The emulated gimbal starts moves at a set time (a bench file may say it cannot: the scheduled
+  // moves are then refused, and the engine commands each move when its dwell ends).
+  c.gimbal.timed_moves = c.bench.timed_moves = true;
 }
 
 StandConfig emulated_stand(double speed) {
@@ -206,7 +210,8 @@ nlohmann::json to_json(const StandConfig& s) {
        {{"endpoint", s.gimbal.endpoint},
         {"unit_id", s.gimbal.unit_id},
         {"response_timeout_s", s.gimbal.response_timeout_s},
-        {"retries", s.gimbal.retries}}},
+        {"retries", s.gimbal.retries},
+        {"timed_moves", s.gimbal.timed_moves}}},
       {"sensor",
        {{"endpoint", s.sensor.endpoint},
         {"command_timeout_s", s.sensor.command_timeout_s},

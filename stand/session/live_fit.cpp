@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "calib/errors.h"
+#include "calib/transfer_function.h"
 
 namespace fpss {
 
@@ -84,6 +85,19 @@ std::optional<FitUpdated> LiveFit::update(int64_t points, bool force) {
     text_ += fmt::format(", 1-sigma {:.3f}/{:.3f}", f.sigma_max_pitch_arcsec, f.sigma_max_yaw_arcsec);
   }
   return f;
+}
+
+std::vector<LiveFit::PointResidual> LiveFit::residuals(int64_t point, const PointStats& st) {
+  if (st.rows > 0) unplotted_.push_back({point, st});
+  std::vector<PointResidual> out;
+  if (!est_) return out;
+  for (const auto& [p, s] : unplotted_) {
+    const double rp = rad_to_arcsec(transfer_angle(est_->alpha.data(), s.counts_alpha)) - s.ref_pitch_arcsec;
+    const double ry = rad_to_arcsec(transfer_angle(est_->beta.data(), s.counts_beta)) - s.ref_yaw_arcsec;
+    out.push_back({p, s.ref_pitch_arcsec, s.ref_yaw_arcsec, rp, ry});
+  }
+  unplotted_.clear();
+  return out;
 }
 
 double LiveFit::until_sigma(const Action& a) {

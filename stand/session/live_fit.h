@@ -34,8 +34,13 @@ class LiveFit {
   // axes of its group; infinite while the data cannot tell.
   double until_sigma(const Action& a);
 
-  // The latest valid estimate (for residuals of each point), if any.
-  const std::optional<StreamingCalibrator::Estimate>& estimate() const { return est_; }
+  // A point done: its residual against the latest valid estimate, with those of the points done
+  // before the first one (kept until it came); empty while there is none.
+  struct PointResidual {
+    int64_t point = 0;  // 1-based
+    double ref_pitch_arcsec = 0, ref_yaw_arcsec = 0, residual_pitch_arcsec = 0, residual_yaw_arcsec = 0;
+  };
+  std::vector<PointResidual> residuals(int64_t point, const PointStats& stats);
   const std::string& text() const { return text_; }
 
  private:
@@ -59,6 +64,7 @@ class LiveFit {
   std::map<std::tuple<int, double, double>, Cached> cache_;  // (axis, lo, hi) -> sigma at `pairs` changes
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now() - std::chrono::seconds(10);
   std::optional<StreamingCalibrator::Estimate> est_;
+  std::vector<std::pair<int64_t, PointStats>> unplotted_;  // points done before the first valid estimate
   std::string text_;
 };
 

@@ -30,6 +30,7 @@
 #include "stand/session/live_fit.h"
 #include "stand/session/progress.h"
 #include "stand/session/run_folder.h"
+#include "stand/session/signals.h"
 #include "stand/session/terminal_keys.h"
 #include "stand/report/report.h"
 #include "procedures/recorder.h"
@@ -45,45 +46,7 @@ std::string serial_from_id(const std::string& id) {
   return id.substr(p + 3, e == std::string::npos ? std::string::npos : e - p - 3);
 }
 
-// ---------------------------------------------------------------------------------------------
-// Signals
-
 namespace {
-
-RunControl* g_control = nullptr;
-
-extern "C" void on_signal(int sig) {
-  if (!g_control) return;
-  if (sig == SIGUSR1) {
-    g_control->pause.store(!g_control->pause.load());
-    return;
-  }
-  g_control->signal.store(sig);
-  g_control->abort.store(true);
-}
-
-class SignalScope {
- public:
-  explicit SignalScope(RunControl& c) {
-    g_control = &c;
-    struct sigaction sa {};
-    sa.sa_handler = on_signal;
-    sigemptyset(&sa.sa_mask);
-    sa.sa_flags = 0;  // no SA_RESTART: a blocking wait returns and the engine looks at the flag
-    ::sigaction(SIGINT, &sa, &old_int_);
-    ::sigaction(SIGTERM, &sa, &old_term_);
-    ::sigaction(SIGUSR1, &sa, &old_usr1_);
-  }
-  ~SignalScope() {
-    ::sigaction(SIGINT, &old_int_, nullptr);
-    ::sigaction(SIGTERM, &old_term_, nullptr);
-    ::sigaction(SIGUSR1, &old_usr1_, nullptr);
-    g_control = nullptr;
-  }
-
- private:
-  struct sigaction old_int_ {}, old_term_ {}, old_usr1_ {};
-};
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
@@ -111,6 +74,8 @@ class Session {
   void on_point_done(const PointDone& p);
   void on_step_stopped(const StepStopped& s);
   void publish_live_fit(int64_t points, bool force = true);
+  template <typename F>
+  void live_guarded(F&& f);  // f() on the live fit, which is switched off if it throws
   int64_t points_before(const Action& a) const;  // points planned before a computation step
   void ask_prompts(ControlPoller& poller, RunControl& control);
   void on_calibrate(const Action& a);
@@ -143,7 +108,6 @@ class Session {
   bool catalogue_away_ = false;  // the server was unreachable (worth waiting for), not a refusal
   SampleTable recorded_;  // every row so far, old (a resume) and new: what calibrate steps fit
   std::unique_ptr<LiveFit> live_;
-  std::vector<std::pair<int64_t, PointStats>> unplotted_;  // points done before the first valid live fit
   std::unique_ptr<Progress> progress_;
   std::optional<CalibrationReport> last_cal_;
   int calibrations_ = 0;
@@ -297,11 +261,12 @@ void Session::subscribe() {
   bus_.subscribe([this](const Event& e) { event_log_->write(e); });
   try {
     live_ = std::make_unique<LiveFit>(plan_, stand_.bench.axes);
-    for (size_t i = 0; i < recorded_.size(); ++i) live_->add(recorded_.row(i));
   } catch (const std::exception& e) {
     log_->warn("live residual off: {}", e.what());
-    live_.reset();
   }
+  live_guarded([&] {
+    for (size_t i = 0; i < recorded_.size(); ++i) live_->add(recorded_.row(i));
+  });
   progress_ = std::make_unique<Progress>(plan_.points, static_cast<size_t>(rec_->next_point()), req_.tty, *log_);
   bus_.subscribe([this](const Event& e) {
     if (const auto* p = std::get_if<PointDone>(&e)) on_point_done(*p);
@@ -310,40 +275,37 @@ void Session::subscribe() {
 }
 
 void Session::on_point_done(const PointDone& p) {
-  if (live_) {
-    try {
-      for (const auto& r : *p.rows) live_->add(r.sample);
-    } catch (const std::exception& e) {
-      log_->warn("live residual off: {}", e.what());
-      live_.reset();
-    }
-  }
+  live_guarded([&] {
+    for (const auto& r : *p.rows) live_->add(r.sample);
+  });
   // The estimate costs a few thousand small solves: refreshed twice a second at most, and always
   // after the last point.
-  const bool last = progress_->done() + 1 >= plan_.points;
-  publish_live_fit(p.action->point + 1, last);
-  // Each point against the latest live fit, for the console's residual chart and map; the points
-  // before the first valid fit are written once it exists.
-  if (p.stats.rows > 0) unplotted_.push_back({p.action->point + 1, p.stats});
-  if (live_ && live_->estimate()) {
-    const auto& est = *live_->estimate();
-    for (const auto& [point, st] : unplotted_) {
-      const double rp = rad_to_arcsec(transfer_angle(est.alpha.data(), st.counts_alpha)) - st.ref_pitch_arcsec;
-      const double ry = rad_to_arcsec(transfer_angle(est.beta.data(), st.counts_beta)) - st.ref_yaw_arcsec;
-      event_log_->write_note("point_residual", {{"point", point}, {"ref_pitch_arcsec", st.ref_pitch_arcsec},
-                                                {"ref_yaw_arcsec", st.ref_yaw_arcsec}, {"residual_pitch_arcsec", rp},
-                                                {"residual_yaw_arcsec", ry}});
+  publish_live_fit(p.action->point + 1, progress_->done() + 1 >= plan_.points);
+  // Each point against the latest live fit, for the console's residual chart and map.
+  live_guarded([&] {
+    for (const auto& r : live_->residuals(p.action->point + 1, p.stats)) {
+      event_log_->write_note("point_residual", {{"point", r.point}, {"ref_pitch_arcsec", r.ref_pitch_arcsec},
+                                                {"ref_yaw_arcsec", r.ref_yaw_arcsec},
+                                                {"residual_pitch_arcsec", r.residual_pitch_arcsec},
+                                                {"residual_yaw_arcsec", r.residual_yaw_arcsec}});
     }
-    unplotted_.clear();
-  }
+  });
   progress_->point_done(live_ ? live_->text() : std::string());
 }
 
 void Session::publish_live_fit(int64_t points, bool force) {
+  live_guarded([&] {
+    if (auto f = live_->update(points, force)) bus_.publish(*f);
+  });
+}
+
+template <typename F>
+void Session::live_guarded(F&& f) {
   if (!live_) return;
   try {
-    if (auto f = live_->update(points, force)) bus_.publish(*f);
+    f();
   } catch (const std::exception& e) {
+    // The live fit is for the operator's eyes: the run goes on without it.
     log_->warn("live residual off: {}", e.what());
     live_.reset();
   }
@@ -464,7 +426,7 @@ void Session::finish(const EngineResult& er) {
                  {"storage_s", st.storage_s},   {"calibrate_s", st.calibrate_s}, {"own_s", st.own_s()},
                  {"points", st.points},         {"remeasured", st.remeasured},   {"recoveries", st.recoveries},
                  {"bench_s", st.bench_s},       {"physical_s", plan_.physical_s},
-                 {"estimated_s", plan_.estimated_s}};
+                 {"estimated_s", plan_.estimated_s}, {"scheduled_moves", st.scheduled_moves}};
   if (sensor_) {
     const SensorStats ss = sensor_->stats();
     s["sensor_stats"] = {{"frames", ss.frames},           {"crc_errors", ss.crc_errors},

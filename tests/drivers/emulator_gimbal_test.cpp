@@ -1,6 +1,7 @@
 // ModbusGimbal against the emulated gimbal over real loopback TCP (and RTU on a real pty): moves, and every
 // gimbal-side fault of docs/emulator.md ending in a successful retry or a clear error and a safe state.
 #include <gmock/gmock.h>
+#include <cmath>
 #include <gtest/gtest.h>
 
 #include "emulator_fixture.h"
@@ -62,6 +63,46 @@ TEST_F(GimbalOnEmulator, MoveCompletesInPositionThroughTheDriver) {
   EXPECT_NEAR(truth.yaw_arcsec, 1500, 0.1);
   EXPECT_EQ(gimbal->counters().retries, 0u);
   EXPECT_EQ(gimbal->counters().reconnects, 0u);
+}
+
+// A scheduled move through the driver (a stand that says timed_moves): the targets, the start
+// on the gimbal's clock and command 6; the gimbal holds with move_pending until its clock reaches
+// the start, then moves, and arrives when its profile says from that instant. A start already past
+// is refused, and a gimbal the stand does not say has them is never sent one.
+TEST(GimbalOnEmulatorClock, AScheduledMoveStartsWhenTheGimbalsClockSays) {
+  EmulatorOptions o = e2e::emulator_options();
+  o.manual_clock = true;
+  Emulator emu(o);
+  emu.start();
+  GimbalOptions go = gimbal_options(emu.endpoints().gimbal(), 5.0);
+  go.timed_moves = true;
+  ModbusGimbal g(go);
+  g.connect();
+  ASSERT_TRUE(g.timed_moves());
+  emu.advance_to(2.0);
+  g.move_at(-720.0, 360.0, 3'250'000);
+  GimbalState s = g.read_state();
+  EXPECT_TRUE(s.has(kMovePending));
+  EXPECT_FALSE(s.has(kMoving));
+  EXPECT_EQ(g.read_command()->command, gimbal_reg::kCmdMoveAt);
+  EXPECT_EQ(g.read_holding_registers(gimbal_reg::kMoveAtUs, 4), (std::vector<uint16_t>{0, 0, 0x0031, 0x9750}));
+  emu.advance_to(3.249);
+  EXPECT_NEAR(g.read_state().pitch_arcsec, 0.0, 0.5);
+  emu.advance_to(3.3);
+  s = g.read_state();
+  EXPECT_FALSE(s.has(kMovePending));
+  EXPECT_TRUE(s.has(kMoving));
+  EXPECT_LT(s.pitch_arcsec, 0.0);
+  emu.advance_to(10.0);
+  EXPECT_NEAR(emu.with_bench([](Bench& b) { return b.last_arrival_s(); }) - 3.25, 2 * std::sqrt(720.0 / 3600.0), 0.025);
+  EXPECT_THAT(error_of([&] { g.move_at(0, 0, 9'000'000); }), HasSubstr("exception 03"));
+
+  ModbusGimbal plain(gimbal_options(emu.endpoints().gimbal(), 5.0));
+  plain.connect();
+  EXPECT_FALSE(plain.timed_moves());
+  const uint64_t before = emu.stats().modbus_tcp.requests;
+  EXPECT_THROW(plain.move_at(0, 0, 20'000'000), DeviceError);
+  EXPECT_EQ(emu.stats().modbus_tcp.requests, before);
 }
 
 TEST_F(GimbalOnEmulator, DroppedConnectionIsReconnectedAndTheNextReadAndMoveSucceed) {

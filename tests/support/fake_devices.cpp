@@ -20,8 +20,19 @@ void FakeBench::use_virtual_clock(double request_s) {
   request_s_ = request_s;
 }
 
+void FakeBench::host_stalls(uint64_t seed, double probability, double max_s) {
+  stall_rng_.seed(seed);
+  stall_probability_ = probability;
+  stall_max_s_ = max_s;
+}
+
 void FakeBench::charge_request() {
-  if (virtual_) advance_to(virtual_t_ + request_s_);
+  if (!virtual_) return;
+  double away_s = 0;
+  if (stall_probability_ > 0 && std::uniform_real_distribution<double>(0, 1)(stall_rng_) < stall_probability_) {
+    away_s = std::uniform_real_distribution<double>(0, stall_max_s_)(stall_rng_);
+  }
+  advance_to(virtual_t_ + away_s + request_s_);
 }
 
 void FakeBench::advance_to(double t_s) {
@@ -72,15 +83,33 @@ void FakeGimbal::set_max_rate(double arcsec_s) {
 }
 
 void FakeGimbal::move_to(double pitch_arcsec, double yaw_arcsec) {
-  if (pitch_arcsec < limits_.pitch_min_arcsec || pitch_arcsec > limits_.pitch_max_arcsec ||
-      yaw_arcsec < limits_.yaw_min_arcsec || yaw_arcsec > limits_.yaw_max_arcsec) {
-    throw LimitError(fmt::format("fake gimbal: target {}, {} arcsec beyond the soft limits", pitch_arcsec, yaw_arcsec));
-  }
+  check_limits(pitch_arcsec, yaw_arcsec);
   std::lock_guard lock(b_.mutex());
   request();
   if (b_.bench().set_target(pitch_arcsec, yaw_arcsec) != Bench::Reply::ok) throw DeviceError("fake gimbal: target refused");
   b_.bench().command(1);
   last_command_ = 1;
+}
+
+void FakeGimbal::check_limits(double pitch_arcsec, double yaw_arcsec) const {
+  if (pitch_arcsec < limits_.pitch_min_arcsec || pitch_arcsec > limits_.pitch_max_arcsec ||
+      yaw_arcsec < limits_.yaw_min_arcsec || yaw_arcsec > limits_.yaw_max_arcsec) {
+    throw LimitError(fmt::format("fake gimbal: target {}, {} arcsec beyond the soft limits", pitch_arcsec, yaw_arcsec));
+  }
+}
+
+void FakeGimbal::move_at(double pitch_arcsec, double yaw_arcsec, uint64_t start_us) {
+  if (!timed_moves()) Gimbal::move_at(pitch_arcsec, yaw_arcsec, start_us);
+  check_limits(pitch_arcsec, yaw_arcsec);
+  std::lock_guard lock(b_.mutex());
+  request();
+  request();
+  request();
+  if (b_.bench().set_target(pitch_arcsec, yaw_arcsec) != Bench::Reply::ok) throw DeviceError("fake gimbal: target refused");
+  if (b_.bench().command_move_at(static_cast<double>(start_us) * 1e-6) != Bench::Reply::ok) {
+    throw DeviceError("fake gimbal: move at a set time refused (not at rest, or faulted)");
+  }
+  last_command_ = 6;
 }
 
 std::optional<GimbalCommand> FakeGimbal::read_command() {

@@ -4,6 +4,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <random>
 
 #include "drivers/gimbal.h"
 #include "drivers/sensor.h"
@@ -25,6 +26,10 @@ class FakeBench {
   // same bench time: what a controller's waiting costs, in bench seconds, to the microsecond.
   void use_virtual_clock(double request_s);
   bool virtual_clock() const { return virtual_; }
+  // Virtual clock: a busy host. Before a request, with `probability`, the host was away for a
+  // time drawn uniformly up to `max_s` of bench time (seeded): what a descheduled controller
+  // costs at a speed-up, where a millisecond of wall time is a second of bench time at 1000x.
+  void host_stalls(uint64_t seed, double probability, double max_s);
   // Virtual clock: a request's round trip, or a wait up to bench time t_s.
   void charge_request();
   void advance_to(double t_s);
@@ -42,6 +47,8 @@ class FakeBench {
   double speed_;
   bool virtual_ = false;
   double request_s_ = 0, virtual_t_ = 0;  // the virtual clock, exact (the bench keeps whole ticks)
+  std::mt19937_64 stall_rng_;
+  double stall_probability_ = 0, stall_max_s_ = 0;
   std::chrono::steady_clock::time_point t0_ = std::chrono::steady_clock::now();
 };
 
@@ -54,6 +61,9 @@ class FakeGimbal : public Gimbal {
   GimbalState read_state() override;
   void set_max_rate(double arcsec_s) override;
   void move_to(double pitch_arcsec, double yaw_arcsec) override;
+  bool timed_moves() const override { return b_.bench().config().timed_moves; }
+  // Three requests, as the Modbus driver sends: the targets, the start time, the command.
+  void move_at(double pitch_arcsec, double yaw_arcsec, uint64_t start_us) override;
   GimbalState wait_in_position(double timeout_s) override;
   void start_rate(double pitch_arcsec_s, double yaw_arcsec_s) override;
   void stop() override { command(2); }
@@ -67,6 +77,7 @@ class FakeGimbal : public Gimbal {
 
  private:
   void request();  // counts a request; fires the following error when it is due
+  void check_limits(double pitch_arcsec, double yaw_arcsec) const;  // LimitError beyond the soft limits
   void command(uint16_t code);
   FakeBench& b_;
   SoftLimits limits_;
