@@ -47,6 +47,15 @@ std::vector<uint8_t> random_bytes(std::size_t n, unsigned seed) {
   return b;
 }
 
+// `in` from the peer's end of the link to the stream, then `out` back: every byte arrives, in order.
+void expect_both_ways(ByteStream& s, int peer, const std::vector<uint8_t>& in, const std::vector<uint8_t>& out) {
+  std::thread writer([&] { test::write_all(peer, in.data(), in.size()); });
+  EXPECT_EQ(read_exactly(s, in.size()), in);
+  writer.join();
+  s.write(out.data(), out.size());
+  EXPECT_EQ(read_fd_exactly(peer, out.size()), out);
+}
+
 // What opening `endpoint` throws.
 std::string open_error(const std::string& endpoint) {
   auto s = make_byte_stream(endpoint);
@@ -62,13 +71,7 @@ TEST(PtyStream, RawBytesBothWaysOverARealPty) {
   // Every byte value, including \r \n ^C ^S ^Q and 0xFF, must pass untouched (raw mode).
   auto data = random_bytes(20000, 3);
   for (int v = 0; v < 256; ++v) data.push_back(static_cast<uint8_t>(v));
-  std::thread writer([&] { test::write_all(pty.master(), data.data(), data.size()); });
-  EXPECT_EQ(read_exactly(*s, data.size()), data);
-  writer.join();
-
-  auto back = random_bytes(3000, 4);
-  s->write(back.data(), back.size());
-  EXPECT_EQ(read_fd_exactly(pty.master(), back.size()), back);
+  expect_both_ways(*s, pty.master(), data, random_bytes(3000, 4));
 }
 
 TEST(PtyStream, ReadTimesOutWithZeroAndHangupIsAnError) {
@@ -78,17 +81,9 @@ TEST(PtyStream, ReadTimesOutWithZeroAndHangupIsAnError) {
   uint8_t buf[16];
   EXPECT_EQ(s->read(buf, sizeof buf, 0.01), 0u);
   pty.close_master();
-  std::string msg;
-  EXPECT_TRUE(test::wait_until([&] {
-    try {
-      s->read(buf, sizeof buf, 0.05);
-    } catch (const DeviceError& e) {
-      msg = e.what();
-      return true;
-    }
-    return false;
-  }));
-  EXPECT_THAT(msg, HasSubstr(pty.slave_path()));
+  const auto msg = test::error_within<DeviceError>([&] { s->read(buf, sizeof buf, 0.05); });
+  EXPECT_TRUE(msg.has_value());
+  EXPECT_THAT(msg.value_or(""), HasSubstr(pty.slave_path()));
   EXPECT_TRUE(s->is_open());  // the owner closes, never the stream behind its back
   s->close();
   EXPECT_FALSE(s->is_open());
@@ -111,37 +106,17 @@ TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
   s->open();
   int peer = listener.accept();
   ASSERT_GE(peer, 0);
-  auto data = random_bytes(100000, 5);
-  std::thread writer([&] { test::write_all(peer, data.data(), data.size()); });
-  EXPECT_EQ(read_exactly(*s, data.size()), data);
-  writer.join();
-  auto back = random_bytes(5000, 6);
-  s->write(back.data(), back.size());
-  EXPECT_EQ(read_fd_exactly(peer, back.size()), back);
+  const auto back = random_bytes(5000, 6);
+  expect_both_ways(*s, peer, random_bytes(100000, 5), back);
 
   ::close(peer);
   uint8_t buf[8];
-  std::string msg;
-  EXPECT_TRUE(test::wait_until([&] {
-    try {
-      s->read(buf, sizeof buf, 0.05);
-    } catch (const DeviceError& e) {
-      msg = e.what();
-      return true;
-    }
-    return false;
-  }));
-  EXPECT_THAT(msg, HasSubstr("hung up"));
+  const auto msg = test::error_within<DeviceError>([&] { s->read(buf, sizeof buf, 0.05); });
+  EXPECT_TRUE(msg.has_value());
+  EXPECT_THAT(msg.value_or(""), HasSubstr("hung up"));
   // Writing into a dead socket is an error, not a SIGPIPE (the first write may still be accepted
   // by the kernel; the reset shows on a later one).
-  EXPECT_TRUE(test::wait_until([&] {
-    try {
-      s->write(back.data(), back.size());
-    } catch (const DeviceError&) {
-      return true;
-    }
-    return false;
-  }));
+  EXPECT_TRUE(test::error_within<DeviceError>([&] { s->write(back.data(), back.size()); }).has_value());
   s->close();
   EXPECT_FALSE(s->is_open());
 }

@@ -147,6 +147,25 @@ std::string error_of(F&& f) {
   return "(no exception)";
 }
 
+// The message of the first E that f throws when called again and again (a hang-up the link notices
+// on a later read, say); nullopt when it has not thrown within timeout_s.
+template <class E = std::exception, class F>
+std::optional<std::string> error_within(F&& f, double timeout_s = 10.0) {
+  std::optional<std::string> msg;
+  wait_until(
+      [&] {
+        try {
+          f();
+        } catch (const E& e) {
+          msg = e.what();
+          return true;
+        }
+        return false;
+      },
+      timeout_s);
+  return msg;
+}
+
 // ---------------------------------------------------------------- child processes
 
 // Exit code of a child, 128 + signal when a signal ended it, -1 if it cannot be waited for.
