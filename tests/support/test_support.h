@@ -180,6 +180,36 @@ inline int wait_exit_code(pid_t pid) {
   return -1;
 }
 
+// How children started together ended: each one's exit code (as wait_exit_code gives it), and the
+// seconds from their release to the last one's end.
+struct TogetherDone {
+  std::vector<int> exit_codes;
+  double seconds = 0;
+};
+
+// Runs body(0) .. body(n - 1) in n forked children (as fork_child) released at one moment: each
+// waits until a pipe closes, which the parent does once all are forked. Waits for them all.
+inline TogetherDone fork_together(int n, const std::function<void(int)>& body) {
+  int go[2];
+  if (::pipe(go) != 0) throw std::runtime_error("pipe failed");
+  std::vector<pid_t> kids;
+  for (int i = 0; i < n; ++i) {
+    kids.push_back(fork_child([&, i] {
+      ::close(go[1]);
+      char c;
+      if (::read(go[0], &c, 1) != 0) throw std::runtime_error("barrier");  // end of file: all start together
+      body(i);
+    }));
+  }
+  ::close(go[0]);
+  const auto t0 = std::chrono::steady_clock::now();
+  ::close(go[1]);
+  TogetherDone done;
+  for (pid_t k : kids) done.exit_codes.push_back(wait_exit_code(k));
+  done.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return done;
+}
+
 // A program started as a child: stdout into a file, or (out_file empty) into a pipe the test reads
 // line by line; stderr into a file. A child still running when the object goes is killed and reaped.
 class Child {
