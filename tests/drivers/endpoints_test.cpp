@@ -4,6 +4,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <tuple>
+
 #include "drivers/modbus_gimbal.h"
 #include "drivers/serial_sensor.h"
 
@@ -11,44 +13,52 @@ using testing::HasSubstr;
 namespace fpss {
 namespace {
 
-// Every documented form and all it parses to: a network kind leaves the serial fields at their
-// defaults and a serial kind the network ones.
+// What a parsed endpoint says, field by field, for comparing one with another.
+auto fields(const Endpoint& e) {
+  return std::tie(e.kind, e.host, e.port, e.path, e.baud, e.parity, e.data_bits, e.stop_bits);
+}
+
+// An endpoint on the network; the serial fields keep their defaults.
+Endpoint at_host(Endpoint::Kind kind, const std::string& host, int port) {
+  Endpoint e;
+  e.kind = kind;
+  e.host = host;
+  e.port = port;
+  return e;
+}
+
+// An endpoint on a device path, 8 data bits and 1 stop bit; the network fields keep their defaults.
+Endpoint at_path(Endpoint::Kind kind, const std::string& path, int baud = 115200, char parity = 'N') {
+  Endpoint e;
+  e.kind = kind;
+  e.path = path;
+  e.baud = baud;
+  e.parity = parity;
+  return e;
+}
+
+// Every documented form and all it parses to.
 TEST(Endpoints, EveryDocumentedFormGivesItsFields) {
   using K = Endpoint::Kind;
-  struct Case {
+  const struct {
     const char* text;
-    K kind;
-    const char* host;
-    int port;
-    const char* path;
-    int baud;
-    char parity;
-    int data_bits, stop_bits;
+    Endpoint expected;
   } cases[] = {
-      {"modbus-tcp:127.0.0.1:1502", K::modbus_tcp, "127.0.0.1", 1502, "", 115200, 'N', 8, 1},
-      {"modbus-tcp:[::1]:502", K::modbus_tcp, "::1", 502, "", 115200, 'N', 8, 1},
-      {"modbus-tcp:gimbal.lab:1502", K::modbus_tcp, "gimbal.lab", 1502, "", 115200, 'N', 8, 1},
-      {"modbus-rtu:/dev/ttyUSB1", K::modbus_rtu, "", 0, "/dev/ttyUSB1", 115200, 'N', 8, 1},
-      {"modbus-rtu:/dev/ttyUSB1:19200", K::modbus_rtu, "", 0, "/dev/ttyUSB1", 19200, 'N', 8, 1},
-      {"modbus-rtu:/dev/ttyUSB1:9600:8E1", K::modbus_rtu, "", 0, "/dev/ttyUSB1", 9600, 'E', 8, 1},
-      {"serial:/dev/ttyUSB0", K::serial, "", 0, "/dev/ttyUSB0", 115200, 'N', 8, 1},
-      {"serial:/dev/ttyUSB0:57600", K::serial, "", 0, "/dev/ttyUSB0", 57600, 'N', 8, 1},
-      {"pty:/dev/pts/7", K::pty, "", 0, "/dev/pts/7", 115200, 'N', 8, 1},
-      // a link path may contain colons
-      {"pty:/tmp/run:3/sensor", K::pty, "", 0, "/tmp/run:3/sensor", 115200, 'N', 8, 1},
-      {"tcp:terminal-server:4001", K::tcp, "terminal-server", 4001, "", 115200, 'N', 8, 1},
+      {"modbus-tcp:127.0.0.1:1502", at_host(K::modbus_tcp, "127.0.0.1", 1502)},
+      {"modbus-tcp:[::1]:502", at_host(K::modbus_tcp, "::1", 502)},
+      {"modbus-tcp:gimbal.lab:1502", at_host(K::modbus_tcp, "gimbal.lab", 1502)},
+      {"modbus-rtu:/dev/ttyUSB1", at_path(K::modbus_rtu, "/dev/ttyUSB1", 115200, 'N')},
+      {"modbus-rtu:/dev/ttyUSB1:19200", at_path(K::modbus_rtu, "/dev/ttyUSB1", 19200)},
+      {"modbus-rtu:/dev/ttyUSB1:9600:8E1", at_path(K::modbus_rtu, "/dev/ttyUSB1", 9600, 'E')},
+      {"serial:/dev/ttyUSB0", at_path(K::serial, "/dev/ttyUSB0", 115200)},
+      {"serial:/dev/ttyUSB0:57600", at_path(K::serial, "/dev/ttyUSB0", 57600)},
+      {"pty:/dev/pts/7", at_path(K::pty, "/dev/pts/7")},
+      {"pty:/tmp/run:3/sensor", at_path(K::pty, "/tmp/run:3/sensor")},  // a link path may contain colons
+      {"tcp:terminal-server:4001", at_host(K::tcp, "terminal-server", 4001)},
   };
   for (const auto& c : cases) {
-    SCOPED_TRACE(c.text);
     const Endpoint e = parse_endpoint(c.text);
-    EXPECT_EQ(e.kind, c.kind);
-    EXPECT_EQ(e.host, c.host);
-    EXPECT_EQ(e.port, c.port);
-    EXPECT_EQ(e.path, c.path);
-    EXPECT_EQ(e.baud, c.baud);
-    EXPECT_EQ(e.parity, c.parity);
-    EXPECT_EQ(e.data_bits, c.data_bits);
-    EXPECT_EQ(e.stop_bits, c.stop_bits);
+    EXPECT_EQ(fields(e), fields(c.expected)) << c.text;
     EXPECT_EQ(e.text, c.text);
   }
   EXPECT_THROW(parse_endpoint("modbus-rtu:/dev/ttyUSB1:8E1"), EndpointError);  // framing needs the baud before it
