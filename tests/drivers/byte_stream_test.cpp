@@ -56,11 +56,6 @@ void expect_both_ways(ByteStream& s, int peer, const std::vector<uint8_t>& in, c
   EXPECT_EQ(read_fd_exactly(peer, out.size()), out);
 }
 
-// What opening `endpoint` throws.
-std::string open_error(const std::string& endpoint) {
-  auto s = make_byte_stream(endpoint);
-  return error_of([&] { s->open(); });
-}
 
 TEST(PtyStream, RawBytesBothWaysOverARealPty) {
   test::PtyPair pty;
@@ -90,16 +85,6 @@ TEST(PtyStream, ReadTimesOutWithZeroAndHangupIsAnError) {
   EXPECT_THROW(s->open(), DeviceError);  // the pty is gone with its master
 }
 
-TEST(PtyStream, MissingDeviceNamesThePathAndErrno) {
-  const std::string msg = open_error("pty:/dev/pts/does-not-exist");
-  EXPECT_THAT(msg, HasSubstr("/dev/pts/does-not-exist"));
-  EXPECT_THAT(msg, HasSubstr("errno 2"));
-}
-
-TEST(PtyStream, ARegularFileIsNotATerminal) {
-  EXPECT_THAT(open_error("pty:/dev/null"), HasSubstr("not a terminal"));
-}
-
 TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
   test::TcpListener listener;
   auto s = make_byte_stream("tcp:127.0.0.1:" + std::to_string(listener.port()));
@@ -121,15 +106,24 @@ TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
   EXPECT_FALSE(s->is_open());
 }
 
-TEST(TcpStream, ConnectionRefusedNamesErrno) {
+// What cannot be opened: a missing pty, a file that is not a terminal, a port that refuses, a host
+// that does not exist. The message names it and why.
+TEST(ByteStream, OpenErrorsNameTheDeviceAndTheReason) {
   test::RefusingPort refusing;
-  const std::string msg = open_error("tcp:127.0.0.1:" + std::to_string(refusing.port()));
-  EXPECT_THAT(msg, HasSubstr("cannot connect"));
-  EXPECT_THAT(msg, HasSubstr("errno 111"));
-}
-
-TEST(TcpStream, UnknownHostIsAClearError) {
-  EXPECT_THAT(open_error("tcp:no-such-host.invalid:4000"), HasSubstr("no-such-host.invalid"));
+  const struct {
+    std::string endpoint;
+    std::vector<std::string> says;
+  } cases[] = {
+      {"pty:/dev/pts/does-not-exist", {"/dev/pts/does-not-exist", "errno 2"}},
+      {"pty:/dev/null", {"not a terminal"}},
+      {"tcp:127.0.0.1:" + std::to_string(refusing.port()), {"cannot connect", "errno 111"}},
+      {"tcp:no-such-host.invalid:4000", {"no-such-host.invalid"}},
+  };
+  for (const auto& c : cases) {
+    auto s = make_byte_stream(c.endpoint);
+    const std::string msg = error_of([&] { s->open(); });
+    for (const auto& part : c.says) EXPECT_THAT(msg, HasSubstr(part)) << c.endpoint;
+  }
 }
 
 TEST(SerialStream, ListingWorksAndNeverShowsPtys) {
