@@ -114,9 +114,19 @@ std::vector<Record> all_rows(SQLite::Statement& st, Record (*read)(const SqliteR
   return out;
 }
 
-// The first row the statement gives, as a record; none when it gives none.
-template <typename Record>
-std::optional<Record> first_row(SQLite::Statement& st, Record (*read)(const SqliteRow&)) {
+// The records `sql` selects with `key` as its one parameter: all of them, or the first (if any).
+template <typename Record, typename Key>
+std::vector<Record> select_all(SQLite::Database& db, const std::string& sql, const Key& key,
+                               Record (*read)(const SqliteRow&)) {
+  SQLite::Statement st(db, sql);
+  st.bind(1, key);
+  return all_rows(st, read);
+}
+template <typename Record, typename Key>
+std::optional<Record> select_first(SQLite::Database& db, const std::string& sql, const Key& key,
+                                   Record (*read)(const SqliteRow&)) {
+  SQLite::Statement st(db, sql);
+  st.bind(1, key);
   if (!st.executeStep()) return std::nullopt;
   return read(SqliteRow{st});
 }
@@ -405,44 +415,37 @@ std::vector<RunRecord> SqliteCatalogue::list_runs(const RunFilter& filter) const
 
 std::optional<RunRecord> SqliteCatalogue::find_run(const std::string& run_id) const {
   return guarded(path_, "cannot look up run " + run_id, [&] {
-    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM runs WHERE run_id = ?", kRunColumns));
-    st.bind(1, run_id);
-    return first_row(st, run_of_row<SqliteRow>);
+    const auto sql = fmt::format("SELECT {} FROM runs WHERE run_id = ?", kRunColumns);
+    return select_first(*db_, sql, run_id, run_of_row<SqliteRow>);
   });
 }
 
 std::vector<CalibrationRecord> SqliteCatalogue::unit_history(const std::string& serial) const {
   return guarded(path_, "cannot read the history of " + serial, [&] {
-    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE unit = ? ORDER BY date_utc, id",
-                                           calibration_columns()));
-    st.bind(1, serial);
-    return all_rows(st, calibration_of_row<SqliteRow>);
+    const auto sql =
+        fmt::format("SELECT {} FROM calibrations WHERE unit = ? ORDER BY date_utc, id", calibration_columns());
+    return select_all(*db_, sql, serial, calibration_of_row<SqliteRow>);
   });
 }
 
 std::optional<CalibrationRecord> SqliteCatalogue::find_calibration(int64_t id) const {
   return guarded(path_, fmt::format("cannot look up calibration {}", id), [&] {
-    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE id = ?", calibration_columns()));
-    st.bind(1, id);
-    return first_row(st, calibration_of_row<SqliteRow>);
+    const auto sql = fmt::format("SELECT {} FROM calibrations WHERE id = ?", calibration_columns());
+    return select_first(*db_, sql, id, calibration_of_row<SqliteRow>);
   });
 }
 
 std::vector<CalibrationRecord> SqliteCatalogue::run_calibrations(const std::string& run_id) const {
   return guarded(path_, "cannot read the calibrations of run " + run_id, [&] {
-    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE run_id = ? ORDER BY id",
-                                           calibration_columns()));
-    st.bind(1, run_id);
-    return all_rows(st, calibration_of_row<SqliteRow>);
+    const auto sql = fmt::format("SELECT {} FROM calibrations WHERE run_id = ? ORDER BY id", calibration_columns());
+    return select_all(*db_, sql, run_id, calibration_of_row<SqliteRow>);
   });
 }
 
 std::vector<AcceptanceRecord> SqliteCatalogue::unit_acceptances(const std::string& serial) const {
   return guarded(path_, "cannot read the acceptances of " + serial, [&] {
-    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM acceptances WHERE unit = ? ORDER BY date_utc, id",
-                                           kAcceptanceColumns));
-    st.bind(1, serial);
-    return all_rows(st, acceptance_of_row<SqliteRow>);
+    const auto sql = fmt::format("SELECT {} FROM acceptances WHERE unit = ? ORDER BY date_utc, id", kAcceptanceColumns);
+    return select_all(*db_, sql, serial, acceptance_of_row<SqliteRow>);
   });
 }
 
