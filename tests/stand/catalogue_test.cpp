@@ -18,6 +18,7 @@
 #include "calib/errors.h"
 #include "tests/stand/catalogue_fixtures.h"
 #include "tests/support/test_support.h"
+#include "tests/support/text_order.h"
 
 namespace fpss {
 namespace {
@@ -490,11 +491,8 @@ class CatalogueCli : public ::testing::Test {
 TEST_F(CatalogueCli, RunsListsEveryRunMostRecentFirst) {
   const auto r = test::run_stand_shell(fmt::format("runs --runs-dir '{}'", runs_dir_.string()), dir_.path());
   ASSERT_EQ(r.code, 0) << r.err;
-  const auto first = r.out.find("20240502T090000Z-SN-7-full_grid");
-  const auto second = r.out.find("20240501T120000Z-FPSS1-discrete_grid");
-  ASSERT_NE(first, std::string::npos) << r.out;
-  ASSERT_NE(second, std::string::npos) << r.out;
-  EXPECT_LT(first, second);
+  EXPECT_TRUE(
+      test::appear_in_order(r.out, {"20240502T090000Z-SN-7-full_grid", "20240501T120000Z-FPSS1-discrete_grid"}));
   EXPECT_NE(r.out.find("failed"), std::string::npos);
   EXPECT_NE(r.out.find("completed"), std::string::npos);
   EXPECT_NE(r.out.find("OUTCOME"), std::string::npos);
@@ -512,11 +510,7 @@ TEST_F(CatalogueCli, RunsListsEveryRunMostRecentFirst) {
 TEST_F(CatalogueCli, HistoryListsTheUnitsCalibrationsOldestFirst) {
   const auto r = test::run_stand_shell(fmt::format("history FPSS1 --runs-dir '{}'", runs_dir_.string()), dir_.path());
   ASSERT_EQ(r.code, 0) << r.err;
-  const auto imported = r.out.find("import a-7-fpss1.json");
-  const auto from_run = r.out.find("run 20240501T120000Z-FPSS1-discrete_grid");
-  ASSERT_NE(imported, std::string::npos) << r.out;
-  ASSERT_NE(from_run, std::string::npos) << r.out;
-  EXPECT_LT(imported, from_run);
+  EXPECT_TRUE(test::appear_in_order(r.out, {"import a-7-fpss1.json", "run 20240501T120000Z-FPSS1-discrete_grid"}));
   EXPECT_NE(r.out.find("0.26 +- 0.20"), std::string::npos) << r.out;  // pitch mean +- sd
   EXPECT_NE(r.out.find("-0.41..+0.41"), std::string::npos) << r.out;  // yaw range
 
