@@ -397,13 +397,8 @@ Procedure parse_procedure(std::string_view text, const std::string& origin, Diag
   p.origin = origin;
   p.text = std::string(text);
   p.name = std::filesystem::path(origin).stem().string();
-  YAML::Node root = parse_yaml(text, d);
+  YAML::Node root = parse_yaml_map(text, d, "procedure: expected a map with name, description and steps");
   if (!d.empty()) return p;
-  if (!root.IsMap()) {
-    d.error(root, fmt::format("procedure: expected a map with name, description and steps, got {}",
-                              describe_node(root)));
-    return p;
-  }
   MapReader top(root, "procedure", d);
   if (auto n = top.string("name")) p.name = *n;
   if (auto s = top.string("description")) p.description = *s;

@@ -66,6 +66,17 @@ YAML::Node parse_yaml(std::string_view text, Diagnostics& d) {
   }
 }
 
+YAML::Node parse_yaml_map(std::string_view text, Diagnostics& d, const std::string& expected) {
+  const size_t before = d.size();
+  YAML::Node root = parse_yaml(text, d);
+  if (d.size() != before) return YAML::Node();
+  if (!root.IsMap()) {
+    d.error(root, fmt::format("{}, got {}", expected, describe_node(root)));
+    return YAML::Node();
+  }
+  return root;
+}
+
 std::string describe_node(const YAML::Node& n) {
   if (!n.IsDefined() || n.IsNull()) return "nothing";
   if (n.IsSequence()) return "a list";

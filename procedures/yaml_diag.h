@@ -57,6 +57,9 @@ class Diagnostics {
 
 // Loads a YAML document; a syntax error becomes a diagnostic (returns a null node).
 YAML::Node parse_yaml(std::string_view text, Diagnostics& d);
+// The same for a file whose top must be a map: a top that is not one is an error at its place,
+// "<expected>, got <what it is>", and gives a null node too.
+YAML::Node parse_yaml_map(std::string_view text, Diagnostics& d, const std::string& expected);
 
 // What a YAML node is, for "expected X, got Y" messages.
 std::string describe_node(const YAML::Node& n);

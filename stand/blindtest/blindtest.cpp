@@ -257,54 +257,70 @@ BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Ef
   return c;
 }
 
+namespace {
+
+// Every unordered pair of different effects but the two a refitted transfer function contains.
+std::vector<std::vector<std::string>> effect_pairs() {
+  const auto& names = diagnosis_effect_names();
+  std::vector<std::vector<std::string>> all;
+  for (size_t a = 0; a < names.size(); ++a) {
+    for (size_t b = a + 1; b < names.size(); ++b) {
+      const bool contained = (names[a] == "coefficients" || names[b] == "coefficients") &&
+                             (names[a] == "bias" || names[b] == "bias" || names[a] == "scale_factor" || names[b] == "scale_factor");
+      if (!contained) all.push_back({names[a], names[b]});
+    }
+  }
+  return all;
+}
+
+// A cycle through `items` in shuffled blocks: each block holds every item once, in an order drawn
+// from the seed, the salt and the block's number, so every item comes equally often.
+class ShuffledBlocks {
+ public:
+  ShuffledBlocks(std::vector<std::vector<std::string>> items, uint64_t seed, uint64_t salt)
+      : items_(std::move(items)), seed_(seed), salt_(salt) {}
+
+  // The i-th item; called with i = 0, 1, 2, ... in turn.
+  const std::vector<std::string>& next(int i) {
+    const size_t k = static_cast<size_t>(i) % items_.size();
+    if (k == 0) {
+      block_ = items_;
+      std::mt19937_64 g(mix(seed_, salt_ + static_cast<uint64_t>(i) / items_.size()));
+      std::shuffle(block_.begin(), block_.end(), g);
+    }
+    return block_[k];
+  }
+
+ private:
+  std::vector<std::vector<std::string>> items_, block_;
+  uint64_t seed_, salt_;
+};
+
+}  // namespace
+
 BlindTestReport run_blindtest(const BlindTestOptions& opts, const std::function<void(const BlindCase&)>& progress) {
   BlindTestReport rep;
   rep.pairs = opts.pairs;
-  const auto& classes = blindtest_classes();
-  std::vector<std::string> block;
+  // What each case draws: one class, or (pairs) two different effects at once.
+  std::vector<std::vector<std::string>> kinds;
   if (opts.pairs) {
-    // Every unordered pair of different effects but the two a refitted transfer function
-    // contains, in shuffled blocks.
-    const auto& names = diagnosis_effect_names();
-    std::vector<std::pair<std::string, std::string>> all;
-    for (size_t a = 0; a < names.size(); ++a) {
-      for (size_t b = a + 1; b < names.size(); ++b) {
-        const bool contained = (names[a] == "coefficients" || names[b] == "coefficients") &&
-                               (names[a] == "bias" || names[b] == "bias" || names[a] == "scale_factor" || names[b] == "scale_factor");
-        if (!contained) all.emplace_back(names[a], names[b]);
-      }
-    }
-    std::vector<std::pair<std::string, std::string>> order;
-    for (int i = 0; i < opts.cases; ++i) {
-      const size_t k = static_cast<size_t>(i) % all.size();
-      if (k == 0) {
-        order = all;
-        std::mt19937_64 g(mix(opts.seed, 0x9A1B + static_cast<uint64_t>(i) / all.size()));
-        std::shuffle(order.begin(), order.end(), g);
-      }
-      const auto& [a, b] = order[k];
-      const uint64_t seed = mix(opts.seed, static_cast<uint64_t>(i) + 1);
-      const BenchConfig cfg = blindtest_bench(seed);
-      std::vector<Effect> effects = draw_effects(a, mix(seed, 0xEFFEC7), cfg);
-      const auto second = draw_effects(b, mix(seed, 0xEFFEC8), cfg);
-      effects.insert(effects.end(), second.begin(), second.end());
-      rep.cases.push_back(run_blind_case(i, a + "+" + b, effects, seed, opts.save_dir));
-      if (progress) progress(rep.cases.back());
-    }
-    return rep;
+    kinds = effect_pairs();
+  } else {
+    for (const auto& cls : blindtest_classes()) kinds.push_back({cls});
   }
+  ShuffledBlocks draws(std::move(kinds), opts.seed, opts.pairs ? 0x9A1B : 0xB10C);
   for (int i = 0; i < opts.cases; ++i) {
-    const size_t k = static_cast<size_t>(i) % classes.size();
-    if (k == 0) {
-      block = classes;
-      std::mt19937_64 g(mix(opts.seed, 0xB10C + static_cast<uint64_t>(i) / classes.size()));
-      std::shuffle(block.begin(), block.end(), g);
-    }
-    const std::string& cls = block[k];
+    const std::vector<std::string>& names = draws.next(i);
     const uint64_t seed = mix(opts.seed, static_cast<uint64_t>(i) + 1);
     const BenchConfig cfg = blindtest_bench(seed);
-    const auto effects = draw_effects(cls, mix(seed, 0xEFFEC7), cfg);
-    rep.cases.push_back(run_blind_case(i, cls, effects, seed, opts.save_dir));
+    std::vector<Effect> effects;
+    std::string label;
+    for (size_t e = 0; e < names.size(); ++e) {
+      const auto drawn = draw_effects(names[e], mix(seed, 0xEFFEC7 + e), cfg);
+      effects.insert(effects.end(), drawn.begin(), drawn.end());
+      label += (e == 0 ? "" : "+") + names[e];
+    }
+    rep.cases.push_back(run_blind_case(i, label, effects, seed, opts.save_dir));
     if (progress) progress(rep.cases.back());
   }
   return rep;

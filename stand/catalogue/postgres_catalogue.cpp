@@ -20,7 +20,6 @@
 namespace fpss {
 namespace {
 
-namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 static_assert(std::size(postgres_schema::kMigrations) == Catalogue::kSchemaVersion);
@@ -50,23 +49,6 @@ class Args {
   std::vector<std::optional<std::string>> v_;
 };
 
-std::optional<std::string> opt_text(const pqxx::field& f) {
-  if (f.is_null()) return std::nullopt;
-  return f.as<std::string>();
-}
-std::optional<double> opt_double(const pqxx::field& f) {
-  if (f.is_null()) return std::nullopt;
-  return f.as<double>();
-}
-
-std::string stat_columns() {
-  std::string out;
-  for (const char* axis : {"pitch", "yaw"}) {
-    for (const char* k : kStatColumns) out += fmt::format("{}{}_{}", out.empty() ? "" : ", ", axis, k);
-  }
-  return out;
-}
-
 void add_stats(Args& a, const std::optional<AxisResidualStats>& s) {
   const AxisResidualStats none;
   const AxisResidualStats& v = s ? *s : none;
@@ -74,90 +56,41 @@ void add_stats(Args& a, const std::optional<AxisResidualStats>& s) {
   a.od(v.range_lo_deg).od(v.range_hi_deg);
 }
 
-std::optional<AxisResidualStats> read_stats(const pqxx::row& r, const std::string& axis) {
-  auto col = [&](const char* k) { return r[axis + "_" + k]; };
-  AxisResidualStats s;
-  s.mean_abs_arcsec = opt_double(col("mean_abs_arcsec"));
-  s.sd_arcsec = opt_double(col("sd_arcsec"));
-  s.max_abs_arcsec = opt_double(col("max_abs_arcsec"));
-  s.rms_arcsec = opt_double(col("rms_arcsec"));
-  if (!col("points").is_null()) s.points = col("points").as<int64_t>();
-  s.range_lo_deg = opt_double(col("range_lo_deg"));
-  s.range_hi_deg = opt_double(col("range_hi_deg"));
-  if (s.empty()) return std::nullopt;
-  return s;
-}
+// One row of a result, read by column name for the shared record readers (record_rules.h).
+struct PgRow {
+  const pqxx::row& r;
 
-const char* const kRunColumns =
-    "run_id, unit, procedure, procedure_hash, started_utc, ended_utc, outcome, run_dir, emulated, "
-    "stand, software_version, resumes, pid, host";
-
-RunRecord read_run(const pqxx::row& r) {
-  RunRecord x;
-  x.run_id = r["run_id"].as<std::string>();
-  x.unit = r["unit"].as<std::string>();
-  x.procedure = r["procedure"].as<std::string>();
-  x.procedure_hash = r["procedure_hash"].as<std::string>();
-  x.started_utc = r["started_utc"].as<std::string>();
-  x.ended_utc = opt_text(r["ended_utc"]);
-  x.outcome = r["outcome"].as<std::string>();
-  x.run_dir = r["run_dir"].as<std::string>();
-  x.emulated = r["emulated"].as<bool>();
-  x.stand = r["stand"].as<std::string>();
-  x.software_version = r["software_version"].as<std::string>();
-  x.resumes = r["resumes"].as<int64_t>();
-  x.pid = r["pid"].as<int64_t>();
-  x.host = r["host"].as<std::string>();
-  return x;
-}
-
-const std::string kCalibrationColumns =
-    "id, unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, coefficients_json, stand, host, " +
-    stat_columns();
-
-CalibrationRecord read_calibration(const pqxx::row& r) {
-  CalibrationRecord c;
-  c.id = r["id"].as<int64_t>();
-  c.unit = r["unit"].as<std::string>();
-  c.source = r["source"].as<std::string>();
-  c.run_id = opt_text(r["run_id"]);
-  c.source_ref = r["source_ref"].as<std::string>();
-  c.label = r["label"].as<std::string>();
-  c.date_utc = r["date_utc"].as<std::string>();
-  c.recorded_utc = r["recorded_utc"].as<std::string>();
-  c.method = r["method"].as<std::string>();
-  c.coefficients = nlohmann::json::parse(r["coefficients_json"].as<std::string>());
-  c.stand = r["stand"].as<std::string>();
-  c.host = r["host"].as<std::string>();
-  c.pitch = read_stats(r, "pitch");
-  c.yaw = read_stats(r, "yaw");
-  return c;
-}
-
-const char* const kAcceptanceColumns =
-    "id, unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, host";
-
-AcceptanceRecord read_acceptance(const pqxx::row& r) {
-  AcceptanceRecord a;
-  a.id = r["id"].as<int64_t>();
-  a.unit = r["unit"].as<std::string>();
-  a.run_id = opt_text(r["run_id"]);
-  a.passed = r["passed"].as<bool>();
-  a.date_utc = r["date_utc"].as<std::string>();
-  a.recorded_utc = r["recorded_utc"].as<std::string>();
-  a.certificate = nlohmann::json::parse(r["certificate_json"].as<std::string>());
-  a.stand = r["stand"].as<std::string>();
-  a.host = r["host"].as<std::string>();
-  return a;
-}
+  std::string text(const std::string& c) const { return r[c].as<std::string>(); }
+  int64_t integer(const std::string& c) const { return r[c].as<int64_t>(); }
+  bool flag(const std::string& c) const { return r[c].as<bool>(); }
+  std::optional<std::string> opt_text(const std::string& c) const {
+    if (r[c].is_null()) return std::nullopt;
+    return text(c);
+  }
+  std::optional<int64_t> opt_integer(const std::string& c) const {
+    if (r[c].is_null()) return std::nullopt;
+    return integer(c);
+  }
+  std::optional<double> opt_real(const std::string& c) const {
+    if (r[c].is_null()) return std::nullopt;
+    return r[c].as<double>();
+  }
+};
 
 // Every row of a result as a record, in the result's order.
 template <typename Record>
-std::vector<Record> records_of(const pqxx::result& rows, Record (*read)(const pqxx::row&)) {
+std::vector<Record> records_of(const pqxx::result& rows, Record (*read)(const PgRow&)) {
   std::vector<Record> out;
   out.reserve(rows.size());
-  for (const auto& r : rows) out.push_back(read(r));
+  for (const auto& r : rows) out.push_back(read(PgRow{r}));
   return out;
+}
+
+// The first row of a result as a record; none when it is empty.
+template <typename Record>
+std::optional<Record> first_record(const pqxx::result& rows, Record (*read)(const PgRow&)) {
+  if (rows.empty()) return std::nullopt;
+  return read(PgRow{rows[0]});
 }
 
 bool insert_unit(pqxx::transaction_base& w, const std::string& serial) {
@@ -182,17 +115,16 @@ void back_off(int attempt) {
   std::this_thread::sleep_for(std::chrono::milliseconds(1 + rng() % cap_ms));
 }
 
-int64_t insert_calibration(pqxx::transaction_base& w, const CalibrationRecord& cal) {
-  if (cal.run_id && !run_exists(w, *cal.run_id)) {
-    throw std::invalid_argument(fmt::format("record_calibration: no run {}", *cal.run_id));
+int64_t insert_calibration(pqxx::transaction_base& w, const CalibrationRecord& given) {
+  if (given.run_id && !run_exists(w, *given.run_id)) {
+    throw std::invalid_argument(fmt::format("record_calibration: no run {}", *given.run_id));
   }
-  insert_unit(w, cal.unit);
-  const std::string now = utc_now_iso();
+  insert_unit(w, given.unit);
+  const CalibrationRecord cal = as_recorded(given);
   Args a;
-  a.s(cal.unit).s(cal.source).os(cal.run_id);
-  a.s(cal.source_ref.empty() && cal.run_id ? *cal.run_id : cal.source_ref).s(cal.label);
-  a.s(cal.date_utc.empty() ? now : cal.date_utc).s(now).s(cal.method).s(cal.coefficients.dump());
-  a.s(cal.stand).s(cal.host.empty() ? this_host() : cal.host);
+  a.s(cal.unit).s(cal.source).os(cal.run_id).s(cal.source_ref).s(cal.label);
+  a.s(cal.date_utc).s(cal.recorded_utc).s(cal.method).s(cal.coefficients.dump());
+  a.s(cal.stand).s(cal.host);
   add_stats(a, cal.pitch);
   add_stats(a, cal.yaw);
   std::string values;
@@ -364,20 +296,18 @@ bool PostgresCatalogue::add_unit(const std::string& serial) {
   return write("add unit " + serial, [&](pqxx::transaction_base& w) { return insert_unit(w, serial); });
 }
 
-void PostgresCatalogue::record_run_start(const RunStart& run) {
-  if (run.run_id.empty()) throw std::invalid_argument("record_run_start: empty run id");
-  require_unit(run.unit);
-  write("record the start of run " + run.run_id, [&](pqxx::transaction_base& w) {
-    const auto q = Args().s(run.run_id).exec(w, "SELECT unit FROM runs WHERE run_id = $1");
-    if (!q.empty() && q[0][0].as<std::string>() != run.unit) {
+void PostgresCatalogue::record_run_start(const RunStart& start) {
+  check_run_start(start);
+  write("record the start of run " + start.run_id, [&](pqxx::transaction_base& w) {
+    const auto q = Args().s(start.run_id).exec(w, "SELECT unit FROM runs WHERE run_id = $1");
+    if (!q.empty() && q[0][0].as<std::string>() != start.unit) {
       throw std::invalid_argument(
-          fmt::format("run {} belongs to unit {}, not {}", run.run_id, q[0][0].as<std::string>(), run.unit));
+          fmt::format("run {} belongs to unit {}, not {}", start.run_id, q[0][0].as<std::string>(), start.unit));
     }
-    insert_unit(w, run.unit);
+    insert_unit(w, start.unit);
+    const RunStart run = as_recorded(start);
     Args a;
-    a.s(run.run_id).s(run.unit).s(run.procedure).s(run.procedure_hash);
-    a.s(run.started_utc.empty() ? utc_now_iso() : run.started_utc);
-    a.s(run.run_dir.empty() ? std::string() : fs::absolute(run.run_dir).lexically_normal().string());
+    a.s(run.run_id).s(run.unit).s(run.procedure).s(run.procedure_hash).s(run.started_utc).s(run.run_dir.string());
     a.b(run.emulated).s(run.stand).s(run.software_version).i(::getpid()).s(this_host());
     a.exec(w, R"sql(
       INSERT INTO runs(run_id, unit, procedure, procedure_hash, started_utc, outcome, run_dir,
@@ -392,9 +322,7 @@ void PostgresCatalogue::record_run_start(const RunStart& run) {
 
 void PostgresCatalogue::record_run_end(const std::string& run_id, const std::string& outcome,
                                        const std::string& ended_utc) {
-  if (outcome.empty() || outcome == outcome::running) {
-    throw std::invalid_argument("record_run_end: the outcome must be a final one");
-  }
+  check_run_end(outcome);
   write("record the end of run " + run_id, [&](pqxx::transaction_base& w) {
     const auto r = Args()
                        .s(ended_utc.empty() ? utc_now_iso() : ended_utc)
@@ -427,9 +355,7 @@ int64_t PostgresCatalogue::record_calibration(const CalibrationRecord& cal) {
 }
 
 std::pair<int64_t, bool> PostgresCatalogue::record_import_once(const CalibrationRecord& cal) {
-  check_calibration(cal);
-  if (cal.source != "import") throw std::invalid_argument("record_import_once: the calibration is not an import");
-  if (cal.date_utc.empty()) throw std::invalid_argument("record_import_once: an import needs its date");
+  check_import(cal);
   // SERIALIZABLE makes check-then-insert safe: of two imports at once, one is redone and finds the other's.
   return write("import a calibration of " + cal.unit, [&](pqxx::transaction_base& w) -> std::pair<int64_t, bool> {
     const auto q = Args().s(cal.unit).s(cal.date_utc).s(cal.coefficients.dump()).exec(
@@ -440,23 +366,23 @@ std::pair<int64_t, bool> PostgresCatalogue::record_import_once(const Calibration
   });
 }
 
-int64_t PostgresCatalogue::record_acceptance(const AcceptanceRecord& acc) {
-  require_unit(acc.unit);
-  return write("record an acceptance of " + acc.unit, [&](pqxx::transaction_base& w) {
-    if (acc.run_id && !run_exists(w, *acc.run_id)) {
-      throw std::invalid_argument(fmt::format("record_acceptance: no run {}", *acc.run_id));
+int64_t PostgresCatalogue::record_acceptance(const AcceptanceRecord& given) {
+  require_unit(given.unit);
+  return write("record an acceptance of " + given.unit, [&](pqxx::transaction_base& w) {
+    if (given.run_id && !run_exists(w, *given.run_id)) {
+      throw std::invalid_argument(fmt::format("record_acceptance: no run {}", *given.run_id));
     }
-    insert_unit(w, acc.unit);
-    const std::string now = utc_now_iso();
+    insert_unit(w, given.unit);
+    const AcceptanceRecord acc = as_recorded(given);
     return Args()
         .s(acc.unit)
         .os(acc.run_id)
         .b(acc.passed)
-        .s(acc.date_utc.empty() ? now : acc.date_utc)
-        .s(now)
+        .s(acc.date_utc)
+        .s(acc.recorded_utc)
         .s(acc.certificate.dump())
         .s(acc.stand)
-        .s(acc.host.empty() ? this_host() : acc.host)
+        .s(acc.host)
         .exec(w, "INSERT INTO acceptances(unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, "
                  "host) VALUES($1, $2, $3, $4, $5, $6, $7, $8) RETURNING id")[0][0]
         .as<int64_t>();
@@ -490,47 +416,43 @@ std::vector<RunRecord> PostgresCatalogue::list_runs(const RunFilter& filter) con
       a.i(static_cast<int64_t>(filter.limit));
       sql += fmt::format(" LIMIT ${}", filter.unit ? 2 : 1);
     }
-    return records_of(a.exec(w, sql), read_run);
+    return records_of(a.exec(w, sql), run_of_row<PgRow>);
   });
 }
 
 std::optional<RunRecord> PostgresCatalogue::find_run(const std::string& run_id) const {
-  return read("look up run " + run_id, [&](pqxx::transaction_base& w) -> std::optional<RunRecord> {
-    const auto r = Args().s(run_id).exec(w, fmt::format("SELECT {} FROM runs WHERE run_id = $1", kRunColumns));
-    if (r.empty()) return std::nullopt;
-    return read_run(r[0]);
+  return read("look up run " + run_id, [&](pqxx::transaction_base& w) {
+    const auto sql = fmt::format("SELECT {} FROM runs WHERE run_id = $1", kRunColumns);
+    return first_record(Args().s(run_id).exec(w, sql), run_of_row<PgRow>);
   });
 }
 
 std::vector<CalibrationRecord> PostgresCatalogue::unit_history(const std::string& serial) const {
   return read("read the history of " + serial, [&](pqxx::transaction_base& w) {
-    return records_of(Args().s(serial).exec(w, fmt::format(
-                          "SELECT {} FROM calibrations WHERE unit = $1 ORDER BY date_utc, id", kCalibrationColumns)),
-                      read_calibration);
+    const auto sql =
+        fmt::format("SELECT {} FROM calibrations WHERE unit = $1 ORDER BY date_utc, id", calibration_columns());
+    return records_of(Args().s(serial).exec(w, sql), calibration_of_row<PgRow>);
   });
 }
 
 std::optional<CalibrationRecord> PostgresCatalogue::find_calibration(int64_t id) const {
-  return read(fmt::format("look up calibration {}", id), [&](pqxx::transaction_base& w) -> std::optional<CalibrationRecord> {
-    const auto r = Args().i(id).exec(w, fmt::format("SELECT {} FROM calibrations WHERE id = $1", kCalibrationColumns));
-    if (r.empty()) return std::nullopt;
-    return read_calibration(r[0]);
+  return read(fmt::format("look up calibration {}", id), [&](pqxx::transaction_base& w) {
+    const auto sql = fmt::format("SELECT {} FROM calibrations WHERE id = $1", calibration_columns());
+    return first_record(Args().i(id).exec(w, sql), calibration_of_row<PgRow>);
   });
 }
 
 std::vector<CalibrationRecord> PostgresCatalogue::run_calibrations(const std::string& run_id) const {
   return read("read the calibrations of run " + run_id, [&](pqxx::transaction_base& w) {
-    return records_of(Args().s(run_id).exec(
-                          w, fmt::format("SELECT {} FROM calibrations WHERE run_id = $1 ORDER BY id", kCalibrationColumns)),
-                      read_calibration);
+    const auto sql = fmt::format("SELECT {} FROM calibrations WHERE run_id = $1 ORDER BY id", calibration_columns());
+    return records_of(Args().s(run_id).exec(w, sql), calibration_of_row<PgRow>);
   });
 }
 
 std::vector<AcceptanceRecord> PostgresCatalogue::unit_acceptances(const std::string& serial) const {
   return read("read the acceptances of " + serial, [&](pqxx::transaction_base& w) {
-    return records_of(Args().s(serial).exec(w, fmt::format(
-                          "SELECT {} FROM acceptances WHERE unit = $1 ORDER BY date_utc, id", kAcceptanceColumns)),
-                      read_acceptance);
+    const auto sql = fmt::format("SELECT {} FROM acceptances WHERE unit = $1 ORDER BY date_utc, id", kAcceptanceColumns);
+    return records_of(Args().s(serial).exec(w, sql), acceptance_of_row<PgRow>);
   });
 }
 

@@ -1,20 +1,121 @@
-// What both catalogue backends share about records: the rules a record must keep before it is
-// written, and the names of the Table-1 statistic columns.
+// What both catalogue backends share about records: the rules a record keeps before it is written
+// and the values the catalogue fills in, the columns records are stored in, and a record read back
+// from a row of either backend's result.
 #pragma once
+#include <optional>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "stand/catalogue/catalogue.h"
 
 namespace fpss {
 
+// InputError for an empty serial.
+void require_unit(const std::string& serial);
+// std::invalid_argument for a run start without its id; InputError without its unit.
+void check_run_start(const RunStart& run);
+// std::invalid_argument for an outcome that is not a final one.
+void check_run_end(const std::string& outcome);
+// std::invalid_argument for a calibration no backend may store (unknown source, a run's without
+// its run id, an import with one, coefficients that are not an object).
+void check_calibration(const CalibrationRecord& cal);
+// The same, and std::invalid_argument for anything but an import with its date.
+void check_import(const CalibrationRecord& cal);
+
+// The records as the catalogue stores them: a run's start time (now when empty) and its folder made
+// absolute; a calibration's or an acceptance's entry time (now), its date (now when empty) and host
+// (this one when empty), and a calibration's source_ref (its run id when empty).
+RunStart as_recorded(RunStart run);
+CalibrationRecord as_recorded(CalibrationRecord cal);
+AcceptanceRecord as_recorded(AcceptanceRecord acc);
+
 // The residual statistics stored per axis, as columns `<axis>_<name>` (pitch_mean_abs_arcsec, ...).
 inline constexpr const char* kStatColumns[] = {"mean_abs_arcsec", "sd_arcsec",    "max_abs_arcsec", "rms_arcsec",
                                                "points",          "range_lo_deg", "range_hi_deg"};
 
-// InputError for an empty serial.
-void require_unit(const std::string& serial);
-// std::invalid_argument for a calibration no backend may store (unknown source, a run's without
-// its run id, an import with one, coefficients that are not an object).
-void check_calibration(const CalibrationRecord& cal);
+// Every axis's statistic columns, comma-separated, each written with `format` from the axis and the
+// statistic: "{}_{}" gives the names, ":{}_{}" SQLite's named parameters.
+std::string stat_columns(const char* format = "{}_{}");
+
+// The columns each record is selected with, in the order of the record's fields.
+inline constexpr const char* kRunColumns =
+    "run_id, unit, procedure, procedure_hash, started_utc, ended_utc, outcome, run_dir, emulated, "
+    "stand, software_version, resumes, pid, host";
+const std::string& calibration_columns();
+inline constexpr const char* kAcceptanceColumns =
+    "id, unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, host";
+
+// The records read from one row of a result. `Row` reads a column by name, as a backend's types
+// give it: text(c), opt_text(c), integer(c), opt_integer(c), opt_real(c) and flag(c) (a boolean).
+template <typename Row>
+std::optional<AxisResidualStats> stats_of_row(const Row& r, const std::string& axis) {
+  auto col = [&](const char* k) { return axis + "_" + k; };
+  AxisResidualStats s;
+  s.mean_abs_arcsec = r.opt_real(col("mean_abs_arcsec"));
+  s.sd_arcsec = r.opt_real(col("sd_arcsec"));
+  s.max_abs_arcsec = r.opt_real(col("max_abs_arcsec"));
+  s.rms_arcsec = r.opt_real(col("rms_arcsec"));
+  s.points = r.opt_integer(col("points"));
+  s.range_lo_deg = r.opt_real(col("range_lo_deg"));
+  s.range_hi_deg = r.opt_real(col("range_hi_deg"));
+  if (s.empty()) return std::nullopt;
+  return s;
+}
+
+template <typename Row>
+RunRecord run_of_row(const Row& r) {
+  RunRecord x;
+  x.run_id = r.text("run_id");
+  x.unit = r.text("unit");
+  x.procedure = r.text("procedure");
+  x.procedure_hash = r.text("procedure_hash");
+  x.started_utc = r.text("started_utc");
+  x.ended_utc = r.opt_text("ended_utc");
+  x.outcome = r.text("outcome");
+  x.run_dir = r.text("run_dir");
+  x.emulated = r.flag("emulated");
+  x.stand = r.text("stand");
+  x.software_version = r.text("software_version");
+  x.resumes = r.integer("resumes");
+  x.pid = r.integer("pid");
+  x.host = r.text("host");
+  return x;
+}
+
+template <typename Row>
+CalibrationRecord calibration_of_row(const Row& r) {
+  CalibrationRecord c;
+  c.id = r.integer("id");
+  c.unit = r.text("unit");
+  c.source = r.text("source");
+  c.run_id = r.opt_text("run_id");
+  c.source_ref = r.text("source_ref");
+  c.label = r.text("label");
+  c.date_utc = r.text("date_utc");
+  c.recorded_utc = r.text("recorded_utc");
+  c.method = r.text("method");
+  c.coefficients = nlohmann::json::parse(r.text("coefficients_json"));
+  c.pitch = stats_of_row(r, "pitch");
+  c.yaw = stats_of_row(r, "yaw");
+  c.stand = r.text("stand");
+  c.host = r.text("host");
+  return c;
+}
+
+template <typename Row>
+AcceptanceRecord acceptance_of_row(const Row& r) {
+  AcceptanceRecord a;
+  a.id = r.integer("id");
+  a.unit = r.text("unit");
+  a.run_id = r.opt_text("run_id");
+  a.passed = r.flag("passed");
+  a.date_utc = r.text("date_utc");
+  a.recorded_utc = r.text("recorded_utc");
+  a.certificate = nlohmann::json::parse(r.text("certificate_json"));
+  a.stand = r.text("stand");
+  a.host = r.text("host");
+  return a;
+}
 
 }  // namespace fpss

@@ -6,7 +6,6 @@
 #include "calib/coefficients.h"
 #include "calib/errors.h"
 #include "stand/catalogue/catalogue.h"
-#include "stand/catalogue/record_rules.h"
 
 namespace fpss {
 
@@ -78,21 +77,6 @@ CalibrationRecord CalibrationRecord::from_calibration_json(const nlohmann::json&
     }
   }
   return c;
-}
-
-void require_unit(const std::string& serial) {
-  if (serial.empty()) throw InputError("unit serial must not be empty");
-}
-
-void check_calibration(const CalibrationRecord& cal) {
-  require_unit(cal.unit);
-  if (cal.source != "run" && cal.source != "import") {
-    throw std::invalid_argument(fmt::format("calibration source must be run or import, not \"{}\"", cal.source));
-  }
-  if ((cal.source == "run") != cal.run_id.has_value()) {
-    throw std::invalid_argument("a calibration from a run names its run id, an import none");
-  }
-  if (!cal.coefficients.is_object()) throw std::invalid_argument("calibration coefficients must be a JSON object");
 }
 
 }  // namespace fpss

@@ -54,13 +54,23 @@ auto write_txn(SQLite::Database& db, F&& body) {
   }
 }
 
-// The residual columns of one axis, in one place for the insert and the select.
+// Runs `body`; an SQLite error becomes fail()'s, naming the file and what was being done.
+template <typename F>
+auto guarded(const fs::path& path, const std::string& what, F&& body) {
+  try {
+    return body();
+  } catch (const SQLite::Exception& e) {
+    fail(path, what, e);
+  }
+}
+
 template <typename T>
 void bind_opt(SQLite::Statement& st, const std::string& name, const std::optional<T>& v) {
   if (v) st.bind(name, *v);
   else st.bind(name);
 }
 
+// The residual columns of one axis, bound by name.
 void bind_stats(SQLite::Statement& st, const std::string& axis, const std::optional<AxisResidualStats>& s) {
   const auto p = ":" + axis + "_";
   const AxisResidualStats none;
@@ -74,102 +84,51 @@ void bind_stats(SQLite::Statement& st, const std::string& axis, const std::optio
   bind_opt(st, p + "range_hi_deg", v.range_hi_deg);
 }
 
-std::optional<std::string> opt_text(const SQLite::Column& c) {
-  if (c.isNull()) return std::nullopt;
-  return c.getString();
-}
+// A statement's current row, read by column name for the shared record readers (record_rules.h).
+struct SqliteRow {
+  SQLite::Statement& st;
 
-std::optional<double> opt_double(const SQLite::Column& c) {
-  if (c.isNull()) return std::nullopt;
-  return c.getDouble();
-}
-
-std::optional<AxisResidualStats> read_stats(SQLite::Statement& st, const std::string& axis) {
-  auto col = [&](const char* k) { return st.getColumn((axis + "_" + k).c_str()); };
-  AxisResidualStats s;
-  s.mean_abs_arcsec = opt_double(col("mean_abs_arcsec"));
-  s.sd_arcsec = opt_double(col("sd_arcsec"));
-  s.max_abs_arcsec = opt_double(col("max_abs_arcsec"));
-  s.rms_arcsec = opt_double(col("rms_arcsec"));
-  if (!col("points").isNull()) s.points = col("points").getInt64();
-  s.range_lo_deg = opt_double(col("range_lo_deg"));
-  s.range_hi_deg = opt_double(col("range_hi_deg"));
-  if (s.empty()) return std::nullopt;
-  return s;
-}
-
-std::string stat_columns(const char* prefix_fmt) {
-  std::string out;
-  for (const char* axis : {"pitch", "yaw"}) {
-    for (const char* k : kStatColumns) {
-      if (!out.empty()) out += ", ";
-      out += fmt::format(fmt::runtime(prefix_fmt), axis, k);
-    }
+  SQLite::Column col(const std::string& c) const { return st.getColumn(c.c_str()); }
+  std::string text(const std::string& c) const { return col(c).getString(); }
+  int64_t integer(const std::string& c) const { return col(c).getInt64(); }
+  bool flag(const std::string& c) const { return col(c).getInt() != 0; }
+  std::optional<std::string> opt_text(const std::string& c) const {
+    if (col(c).isNull()) return std::nullopt;
+    return text(c);
   }
+  std::optional<int64_t> opt_integer(const std::string& c) const {
+    if (col(c).isNull()) return std::nullopt;
+    return integer(c);
+  }
+  std::optional<double> opt_real(const std::string& c) const {
+    if (col(c).isNull()) return std::nullopt;
+    return col(c).getDouble();
+  }
+};
+
+// Every row the statement gives, as records.
+template <typename Record>
+std::vector<Record> all_rows(SQLite::Statement& st, Record (*read)(const SqliteRow&)) {
+  std::vector<Record> out;
+  while (st.executeStep()) out.push_back(read(SqliteRow{st}));
   return out;
 }
 
-const char* const kRunColumns =
-    "run_id, unit, procedure, procedure_hash, started_utc, ended_utc, outcome, run_dir, emulated, "
-    "stand, software_version, resumes, pid, host";
-
-RunRecord read_run(SQLite::Statement& st) {
-  RunRecord r;
-  r.run_id = st.getColumn("run_id").getString();
-  r.unit = st.getColumn("unit").getString();
-  r.procedure = st.getColumn("procedure").getString();
-  r.procedure_hash = st.getColumn("procedure_hash").getString();
-  r.started_utc = st.getColumn("started_utc").getString();
-  r.ended_utc = opt_text(st.getColumn("ended_utc"));
-  r.outcome = st.getColumn("outcome").getString();
-  r.run_dir = st.getColumn("run_dir").getString();
-  r.emulated = st.getColumn("emulated").getInt() != 0;
-  r.stand = st.getColumn("stand").getString();
-  r.software_version = st.getColumn("software_version").getString();
-  r.resumes = st.getColumn("resumes").getInt64();
-  r.pid = st.getColumn("pid").getInt64();
-  r.host = st.getColumn("host").getString();
-  return r;
+// The records `sql` selects with `key` as its one parameter: all of them, or the first (if any).
+template <typename Record, typename Key>
+std::vector<Record> select_all(SQLite::Database& db, const std::string& sql, const Key& key,
+                               Record (*read)(const SqliteRow&)) {
+  SQLite::Statement st(db, sql);
+  st.bind(1, key);
+  return all_rows(st, read);
 }
-
-const std::string kCalibrationColumns =
-    "id, unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, coefficients_json, stand, host, " +
-    stat_columns("{}_{}");
-
-CalibrationRecord read_calibration(SQLite::Statement& st) {
-  CalibrationRecord c;
-  c.id = st.getColumn("id").getInt64();
-  c.unit = st.getColumn("unit").getString();
-  c.source = st.getColumn("source").getString();
-  c.run_id = opt_text(st.getColumn("run_id"));
-  c.source_ref = st.getColumn("source_ref").getString();
-  c.label = st.getColumn("label").getString();
-  c.date_utc = st.getColumn("date_utc").getString();
-  c.recorded_utc = st.getColumn("recorded_utc").getString();
-  c.method = st.getColumn("method").getString();
-  c.coefficients = nlohmann::json::parse(st.getColumn("coefficients_json").getString());
-  c.pitch = read_stats(st, "pitch");
-  c.yaw = read_stats(st, "yaw");
-  c.stand = st.getColumn("stand").getString();
-  c.host = st.getColumn("host").getString();
-  return c;
-}
-
-const char* const kAcceptanceColumns =
-    "id, unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, host";
-
-AcceptanceRecord read_acceptance(SQLite::Statement& st) {
-  AcceptanceRecord a;
-  a.id = st.getColumn("id").getInt64();
-  a.unit = st.getColumn("unit").getString();
-  a.run_id = opt_text(st.getColumn("run_id"));
-  a.passed = st.getColumn("passed").getInt() != 0;
-  a.date_utc = st.getColumn("date_utc").getString();
-  a.recorded_utc = st.getColumn("recorded_utc").getString();
-  a.certificate = nlohmann::json::parse(st.getColumn("certificate_json").getString());
-  a.stand = st.getColumn("stand").getString();
-  a.host = st.getColumn("host").getString();
-  return a;
+template <typename Record, typename Key>
+std::optional<Record> select_first(SQLite::Database& db, const std::string& sql, const Key& key,
+                                   Record (*read)(const SqliteRow&)) {
+  SQLite::Statement st(db, sql);
+  st.bind(1, key);
+  if (!st.executeStep()) return std::nullopt;
+  return read(SqliteRow{st});
 }
 
 bool insert_unit(SQLite::Database& db, const std::string& serial) {
@@ -258,27 +217,24 @@ void SqliteCatalogue::init_schema() {
 
 bool SqliteCatalogue::add_unit(const std::string& serial) {
   require_unit(serial);
-  try {
-    return write_txn(*db_, [&] { return insert_unit(*db_, serial); });
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot add unit " + serial, e);
-  }
+  return guarded(path_, "cannot add unit " + serial,
+                 [&] { return write_txn(*db_, [&] { return insert_unit(*db_, serial); }); });
 }
 
-void SqliteCatalogue::record_run_start(const RunStart& run) {
-  if (run.run_id.empty()) throw std::invalid_argument("record_run_start: empty run id");
-  require_unit(run.unit);
-  try {
+void SqliteCatalogue::record_run_start(const RunStart& start) {
+  check_run_start(start);
+  guarded(path_, "cannot record the start of run " + start.run_id, [&] {
     write_txn(*db_, [&] {
       {
         SQLite::Statement q(*db_, "SELECT unit FROM runs WHERE run_id = ?");
-        q.bind(1, run.run_id);
-        if (q.executeStep() && q.getColumn(0).getString() != run.unit) {
-          throw std::invalid_argument(fmt::format("run {} belongs to unit {}, not {}", run.run_id,
-                                                  q.getColumn(0).getString(), run.unit));
+        q.bind(1, start.run_id);
+        if (q.executeStep() && q.getColumn(0).getString() != start.unit) {
+          throw std::invalid_argument(fmt::format("run {} belongs to unit {}, not {}", start.run_id,
+                                                  q.getColumn(0).getString(), start.unit));
         }
       }
-      insert_unit(*db_, run.unit);
+      insert_unit(*db_, start.unit);
+      const RunStart run = as_recorded(start);
       SQLite::Statement st(*db_, R"sql(
         INSERT INTO runs(run_id, unit, procedure, procedure_hash, started_utc, outcome, run_dir,
                          emulated, stand, software_version, pid, host)
@@ -291,8 +247,8 @@ void SqliteCatalogue::record_run_start(const RunStart& run) {
       st.bind(":unit", run.unit);
       st.bind(":procedure", run.procedure);
       st.bind(":hash", run.procedure_hash);
-      st.bind(":started", run.started_utc.empty() ? utc_now_iso() : run.started_utc);
-      st.bind(":dir", run.run_dir.empty() ? std::string() : fs::absolute(run.run_dir).lexically_normal().string());
+      st.bind(":started", run.started_utc);
+      st.bind(":dir", run.run_dir.string());
       st.bind(":emulated", run.emulated ? 1 : 0);
       st.bind(":stand", run.stand);
       st.bind(":version", run.software_version);
@@ -300,17 +256,13 @@ void SqliteCatalogue::record_run_start(const RunStart& run) {
       st.bind(":host", this_host());
       st.exec();
     });
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot record the start of run " + run.run_id, e);
-  }
+  });
 }
 
 void SqliteCatalogue::record_run_end(const std::string& run_id, const std::string& outcome,
-                               const std::string& ended_utc) {
-  if (outcome.empty() || outcome == outcome::running) {
-    throw std::invalid_argument("record_run_end: the outcome must be a final one");
-  }
-  try {
+                                     const std::string& ended_utc) {
+  check_run_end(outcome);
+  guarded(path_, "cannot record the end of run " + run_id, [&] {
     write_txn(*db_, [&] {
       SQLite::Statement st(*db_, "UPDATE runs SET ended_utc = ?, outcome = ? WHERE run_id = ?");
       st.bind(1, ended_utc.empty() ? utc_now_iso() : ended_utc);
@@ -318,14 +270,12 @@ void SqliteCatalogue::record_run_end(const std::string& run_id, const std::strin
       st.bind(3, run_id);
       if (st.exec() != 1) throw std::invalid_argument(fmt::format("record_run_end: no run {}", run_id));
     });
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot record the end of run " + run_id, e);
-  }
+  });
 }
 
 bool SqliteCatalogue::copy_run(const RunRecord& r) {
   require_unit(r.unit);
-  try {
+  return guarded(path_, "cannot copy run " + r.run_id, [&] {
     return write_txn(*db_, [&] {
       insert_unit(*db_, r.unit);
       SQLite::Statement st(*db_, fmt::format("INSERT OR IGNORE INTO runs({}) VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -347,37 +297,35 @@ bool SqliteCatalogue::copy_run(const RunRecord& r) {
       st.bind(14, r.host);
       return st.exec() == 1;
     });
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot copy run " + r.run_id, e);
-  }
+  });
 }
 
 namespace {
 
 // The insert itself, inside the caller's transaction.
-int64_t insert_calibration(SQLite::Database& db, const CalibrationRecord& cal) {
-  if (cal.run_id && !run_exists(db, *cal.run_id)) {
-    throw std::invalid_argument(fmt::format("record_calibration: no run {}", *cal.run_id));
+int64_t insert_calibration(SQLite::Database& db, const CalibrationRecord& given) {
+  if (given.run_id && !run_exists(db, *given.run_id)) {
+    throw std::invalid_argument(fmt::format("record_calibration: no run {}", *given.run_id));
   }
-  insert_unit(db, cal.unit);
-  const std::string now = utc_now_iso();
+  insert_unit(db, given.unit);
+  const CalibrationRecord cal = as_recorded(given);
   static const std::string sql = fmt::format(
       "INSERT INTO calibrations(unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, "
       "coefficients_json, stand, host, {}) VALUES(:unit, :source, :run_id, :source_ref, :label, :date, :recorded, "
       ":method, :coefficients, :stand, :host, {})",
-      stat_columns("{}_{}"), stat_columns(":{}_{}"));
+      stat_columns(), stat_columns(":{}_{}"));
   SQLite::Statement st(db, sql);
   st.bind(":unit", cal.unit);
   st.bind(":source", cal.source);
   bind_opt(st, ":run_id", cal.run_id);
-  st.bind(":source_ref", cal.source_ref.empty() && cal.run_id ? *cal.run_id : cal.source_ref);
+  st.bind(":source_ref", cal.source_ref);
   st.bind(":label", cal.label);
-  st.bind(":date", cal.date_utc.empty() ? now : cal.date_utc);
-  st.bind(":recorded", now);
+  st.bind(":date", cal.date_utc);
+  st.bind(":recorded", cal.recorded_utc);
   st.bind(":method", cal.method);
   st.bind(":coefficients", cal.coefficients.dump());
   st.bind(":stand", cal.stand);
-  st.bind(":host", cal.host.empty() ? this_host() : cal.host);
+  st.bind(":host", cal.host);
   bind_stats(st, "pitch", cal.pitch);
   bind_stats(st, "yaw", cal.yaw);
   st.exec();
@@ -388,18 +336,13 @@ int64_t insert_calibration(SQLite::Database& db, const CalibrationRecord& cal) {
 
 int64_t SqliteCatalogue::record_calibration(const CalibrationRecord& cal) {
   check_calibration(cal);
-  try {
-    return write_txn(*db_, [&] { return insert_calibration(*db_, cal); });
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot record a calibration of " + cal.unit, e);
-  }
+  return guarded(path_, "cannot record a calibration of " + cal.unit,
+                 [&] { return write_txn(*db_, [&] { return insert_calibration(*db_, cal); }); });
 }
 
 std::pair<int64_t, bool> SqliteCatalogue::record_import_once(const CalibrationRecord& cal) {
-  check_calibration(cal);
-  if (cal.source != "import") throw std::invalid_argument("record_import_once: the calibration is not an import");
-  if (cal.date_utc.empty()) throw std::invalid_argument("record_import_once: an import needs its date");
-  try {
+  check_import(cal);
+  return guarded(path_, "cannot import a calibration of " + cal.unit, [&] {
     return write_txn(*db_, [&]() -> std::pair<int64_t, bool> {
       SQLite::Statement q(*db_,
                           "SELECT id FROM calibrations WHERE unit = ? AND source = 'import' AND date_utc = ? "
@@ -410,20 +353,18 @@ std::pair<int64_t, bool> SqliteCatalogue::record_import_once(const CalibrationRe
       if (q.executeStep()) return {q.getColumn(0).getInt64(), false};
       return {insert_calibration(*db_, cal), true};
     });
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot import a calibration of " + cal.unit, e);
-  }
+  });
 }
 
-int64_t SqliteCatalogue::record_acceptance(const AcceptanceRecord& acc) {
-  require_unit(acc.unit);
-  try {
+int64_t SqliteCatalogue::record_acceptance(const AcceptanceRecord& given) {
+  require_unit(given.unit);
+  return guarded(path_, "cannot record an acceptance of " + given.unit, [&] {
     return write_txn(*db_, [&]() -> int64_t {
-      if (acc.run_id && !run_exists(*db_, *acc.run_id)) {
-        throw std::invalid_argument(fmt::format("record_acceptance: no run {}", *acc.run_id));
+      if (given.run_id && !run_exists(*db_, *given.run_id)) {
+        throw std::invalid_argument(fmt::format("record_acceptance: no run {}", *given.run_id));
       }
-      insert_unit(*db_, acc.unit);
-      const std::string now = utc_now_iso();
+      insert_unit(*db_, given.unit);
+      const AcceptanceRecord acc = as_recorded(given);
       SQLite::Statement st(*db_, R"sql(
         INSERT INTO acceptances(unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, host)
         VALUES(?, ?, ?, ?, ?, ?, ?, ?))sql");
@@ -431,42 +372,36 @@ int64_t SqliteCatalogue::record_acceptance(const AcceptanceRecord& acc) {
       if (acc.run_id) st.bind(2, *acc.run_id);
       else st.bind(2);
       st.bind(3, acc.passed ? 1 : 0);
-      st.bind(4, acc.date_utc.empty() ? now : acc.date_utc);
-      st.bind(5, now);
+      st.bind(4, acc.date_utc);
+      st.bind(5, acc.recorded_utc);
       st.bind(6, acc.certificate.dump());
       st.bind(7, acc.stand);
-      st.bind(8, acc.host.empty() ? this_host() : acc.host);
+      st.bind(8, acc.host);
       st.exec();
       return db_->getLastInsertRowid();
     });
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot record an acceptance of " + acc.unit, e);
-  }
+  });
 }
 
 std::vector<std::string> SqliteCatalogue::units() const {
-  try {
+  return guarded(path_, "cannot list units", [&] {
     std::vector<std::string> out;
     SQLite::Statement st(*db_, "SELECT serial FROM units ORDER BY serial");
     while (st.executeStep()) out.push_back(st.getColumn(0).getString());
     return out;
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot list units", e);
-  }
+  });
 }
 
 bool SqliteCatalogue::has_unit(const std::string& serial) const {
-  try {
+  return guarded(path_, "cannot look up unit " + serial, [&] {
     SQLite::Statement st(*db_, "SELECT 1 FROM units WHERE serial = ?");
     st.bind(1, serial);
     return st.executeStep();
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot look up unit " + serial, e);
-  }
+  });
 }
 
 std::vector<RunRecord> SqliteCatalogue::list_runs(const RunFilter& filter) const {
-  try {
+  return guarded(path_, "cannot list runs", [&] {
     std::string sql = fmt::format("SELECT {} FROM runs", kRunColumns);
     if (filter.unit) sql += " WHERE unit = :unit";
     sql += " ORDER BY started_utc DESC, rowid DESC";
@@ -474,73 +409,44 @@ std::vector<RunRecord> SqliteCatalogue::list_runs(const RunFilter& filter) const
     SQLite::Statement st(*db_, sql);
     if (filter.unit) st.bind(":unit", *filter.unit);
     if (filter.limit) st.bind(":limit", static_cast<int64_t>(filter.limit));
-    std::vector<RunRecord> out;
-    while (st.executeStep()) out.push_back(read_run(st));
-    return out;
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot list runs", e);
-  }
+    return all_rows(st, run_of_row<SqliteRow>);
+  });
 }
 
 std::optional<RunRecord> SqliteCatalogue::find_run(const std::string& run_id) const {
-  try {
-    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM runs WHERE run_id = ?", kRunColumns));
-    st.bind(1, run_id);
-    if (!st.executeStep()) return std::nullopt;
-    return read_run(st);
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot look up run " + run_id, e);
-  }
+  return guarded(path_, "cannot look up run " + run_id, [&] {
+    const auto sql = fmt::format("SELECT {} FROM runs WHERE run_id = ?", kRunColumns);
+    return select_first(*db_, sql, run_id, run_of_row<SqliteRow>);
+  });
 }
 
 std::vector<CalibrationRecord> SqliteCatalogue::unit_history(const std::string& serial) const {
-  try {
-    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE unit = ? ORDER BY date_utc, id",
-                                           kCalibrationColumns));
-    st.bind(1, serial);
-    std::vector<CalibrationRecord> out;
-    while (st.executeStep()) out.push_back(read_calibration(st));
-    return out;
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot read the history of " + serial, e);
-  }
+  return guarded(path_, "cannot read the history of " + serial, [&] {
+    const auto sql =
+        fmt::format("SELECT {} FROM calibrations WHERE unit = ? ORDER BY date_utc, id", calibration_columns());
+    return select_all(*db_, sql, serial, calibration_of_row<SqliteRow>);
+  });
 }
 
 std::optional<CalibrationRecord> SqliteCatalogue::find_calibration(int64_t id) const {
-  try {
-    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE id = ?", kCalibrationColumns));
-    st.bind(1, id);
-    if (!st.executeStep()) return std::nullopt;
-    return read_calibration(st);
-  } catch (const SQLite::Exception& e) {
-    fail(path_, fmt::format("cannot look up calibration {}", id), e);
-  }
+  return guarded(path_, fmt::format("cannot look up calibration {}", id), [&] {
+    const auto sql = fmt::format("SELECT {} FROM calibrations WHERE id = ?", calibration_columns());
+    return select_first(*db_, sql, id, calibration_of_row<SqliteRow>);
+  });
 }
 
 std::vector<CalibrationRecord> SqliteCatalogue::run_calibrations(const std::string& run_id) const {
-  try {
-    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM calibrations WHERE run_id = ? ORDER BY id",
-                                           kCalibrationColumns));
-    st.bind(1, run_id);
-    std::vector<CalibrationRecord> out;
-    while (st.executeStep()) out.push_back(read_calibration(st));
-    return out;
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot read the calibrations of run " + run_id, e);
-  }
+  return guarded(path_, "cannot read the calibrations of run " + run_id, [&] {
+    const auto sql = fmt::format("SELECT {} FROM calibrations WHERE run_id = ? ORDER BY id", calibration_columns());
+    return select_all(*db_, sql, run_id, calibration_of_row<SqliteRow>);
+  });
 }
 
 std::vector<AcceptanceRecord> SqliteCatalogue::unit_acceptances(const std::string& serial) const {
-  try {
-    SQLite::Statement st(*db_, fmt::format("SELECT {} FROM acceptances WHERE unit = ? ORDER BY date_utc, id",
-                                           kAcceptanceColumns));
-    st.bind(1, serial);
-    std::vector<AcceptanceRecord> out;
-    while (st.executeStep()) out.push_back(read_acceptance(st));
-    return out;
-  } catch (const SQLite::Exception& e) {
-    fail(path_, "cannot read the acceptances of " + serial, e);
-  }
+  return guarded(path_, "cannot read the acceptances of " + serial, [&] {
+    const auto sql = fmt::format("SELECT {} FROM acceptances WHERE unit = ? ORDER BY date_utc, id", kAcceptanceColumns);
+    return select_all(*db_, sql, serial, acceptance_of_row<SqliteRow>);
+  });
 }
 
 std::string SqliteCatalogue::integrity_check() const {

@@ -52,13 +52,8 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
   StandConfig c;
   c.origin = origin;
   c.text = std::string(text);
-  YAML::Node root = parse_yaml(text, d);
+  YAML::Node root = parse_yaml_map(text, d, "stand file: expected a map with gimbal, sensor, soft_limits, axes, ...");
   if (!d.empty()) return c;
-  if (!root.IsMap()) {
-    d.error(root, fmt::format("stand file: expected a map with gimbal, sensor, soft_limits, axes, ..., got {}",
-                              describe_node(root)));
-    return c;
-  }
   EngineSettings& b = c.bench;
   MapReader top(root, "stand file", d);
   if (auto s = top.string("stand")) c.stand_id = *s;

@@ -1,6 +1,7 @@
 // The console's JSON API (docs/console.md): status, stand, procedures, jobs, runs, control, prompts, units, compare.
 #include <algorithm>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -143,38 +144,56 @@ void add_job_routes(httplib::Server& s, Context& c) {
   });
 }
 
-// Pause, resume, abort and prompt answers go to RUN_DIR/control.json, which the run polls.
+// A change to RUN_DIR/control.json, which the run polls: the body a JSON object, the run named in
+// the path running. Under the control lock, `change` applies the body to the request and returns
+// the fields its reply adds, or nothing when it has refused the request (and answered it).
+using ControlChange = std::function<std::optional<json>(const json& body, ControlRequest& cr)>;
+
+void change_control(Context& c, const httplib::Request& req, httplib::Response& res, const ControlChange& change) {
+  const auto b = body_object(req, res);
+  if (!b) return;
+  const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
+  if (!run) return fail(res, 404, "no such run");
+  if (!run->live) return fail(res, 409, "the run is not running");
+  std::lock_guard<std::mutex> g(c.control_mutex);
+  ControlRequest cr = read_control(run->dir).value_or(ControlRequest{});
+  std::optional<json> fields = change(*b, cr);
+  if (!fields) return;
+  write_control(run->dir, cr);
+  (*fields)["run_id"] = run->run_id;
+  (*fields)["accepted"] = true;
+  reply(res, *fields);
+}
+
+// Pause, resume, abort and prompt answers.
 void add_control_routes(httplib::Server& s, Context& c) {
   s.Post(R"(/api/runs/([A-Za-z0-9._-]+)/control)", [&c](const httplib::Request& req, httplib::Response& res) {
-    const auto b = body_object(req, res);
-    if (!b) return;
-    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
-    if (!run) return fail(res, 404, "no such run");
-    if (!run->live) return fail(res, 409, "the run is not running");
-    const std::string action = str(*b, "action");
-    std::lock_guard<std::mutex> g(c.control_mutex);
-    ControlRequest cr = read_control(run->dir).value_or(ControlRequest{});
-    if (action == "pause") cr.pause = true;
-    else if (action == "resume") cr.pause = false;
-    else if (action == "abort") cr.abort = true;
-    else return fail(res, 400, "action: pause, resume or abort");
-    write_control(run->dir, cr);
-    reply(res, {{"run_id", run->run_id}, {"action", action}, {"accepted", true}});
+    change_control(c, req, res, [&res](const json& b, ControlRequest& cr) -> std::optional<json> {
+      const std::string action = str(b, "action");
+      if (action == "pause") cr.pause = true;
+      else if (action == "resume") cr.pause = false;
+      else if (action == "abort") cr.abort = true;
+      else {
+        fail(res, 400, "action: pause, resume or abort");
+        return std::nullopt;
+      }
+      return json{{"action", action}};
+    });
   });
   s.Post(R"(/api/runs/([A-Za-z0-9._-]+)/answer)", [&c](const httplib::Request& req, httplib::Response& res) {
-    const auto b = body_object(req, res);
-    if (!b) return;
-    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
-    if (!run) return fail(res, 404, "no such run");
-    if (!run->live) return fail(res, 409, "the run is not running");
-    const std::string id = str(*b, "id"), value = str(*b, "value");
-    if (!safe_name(id) || value.size() > 200) return fail(res, 400, "id: a prompt id; value: at most 200 characters");
-    std::lock_guard<std::mutex> g(c.control_mutex);
-    ControlRequest cr = read_control(run->dir).value_or(ControlRequest{});
-    if (cr.answers.size() >= 50) return fail(res, 400, "too many answers");
-    cr.answers[id] = value;
-    write_control(run->dir, cr);
-    reply(res, {{"run_id", run->run_id}, {"id", id}, {"accepted", true}});
+    change_control(c, req, res, [&res](const json& b, ControlRequest& cr) -> std::optional<json> {
+      const std::string id = str(b, "id"), value = str(b, "value");
+      if (!safe_name(id) || value.size() > 200) {
+        fail(res, 400, "id: a prompt id; value: at most 200 characters");
+        return std::nullopt;
+      }
+      if (cr.answers.size() >= 50) {
+        fail(res, 400, "too many answers");
+        return std::nullopt;
+      }
+      cr.answers[id] = value;
+      return json{{"id", id}};
+    });
   });
 }
 

@@ -47,11 +47,15 @@ std::vector<uint8_t> random_bytes(std::size_t n, unsigned seed) {
   return b;
 }
 
-// What opening `endpoint` throws.
-std::string open_error(const std::string& endpoint) {
-  auto s = make_byte_stream(endpoint);
-  return error_of([&] { s->open(); });
+// `in` from the peer's end of the link to the stream, then `out` back: every byte arrives, in order.
+void expect_both_ways(ByteStream& s, int peer, const std::vector<uint8_t>& in, const std::vector<uint8_t>& out) {
+  std::thread writer([&] { test::write_all(peer, in.data(), in.size()); });
+  EXPECT_EQ(read_exactly(s, in.size()), in);
+  writer.join();
+  s.write(out.data(), out.size());
+  EXPECT_EQ(read_fd_exactly(peer, out.size()), out);
 }
+
 
 TEST(PtyStream, RawBytesBothWaysOverARealPty) {
   test::PtyPair pty;
@@ -62,13 +66,7 @@ TEST(PtyStream, RawBytesBothWaysOverARealPty) {
   // Every byte value, including \r \n ^C ^S ^Q and 0xFF, must pass untouched (raw mode).
   auto data = random_bytes(20000, 3);
   for (int v = 0; v < 256; ++v) data.push_back(static_cast<uint8_t>(v));
-  std::thread writer([&] { test::write_all(pty.master(), data.data(), data.size()); });
-  EXPECT_EQ(read_exactly(*s, data.size()), data);
-  writer.join();
-
-  auto back = random_bytes(3000, 4);
-  s->write(back.data(), back.size());
-  EXPECT_EQ(read_fd_exactly(pty.master(), back.size()), back);
+  expect_both_ways(*s, pty.master(), data, random_bytes(3000, 4));
 }
 
 TEST(PtyStream, ReadTimesOutWithZeroAndHangupIsAnError) {
@@ -78,31 +76,13 @@ TEST(PtyStream, ReadTimesOutWithZeroAndHangupIsAnError) {
   uint8_t buf[16];
   EXPECT_EQ(s->read(buf, sizeof buf, 0.01), 0u);
   pty.close_master();
-  std::string msg;
-  EXPECT_TRUE(test::wait_until([&] {
-    try {
-      s->read(buf, sizeof buf, 0.05);
-    } catch (const DeviceError& e) {
-      msg = e.what();
-      return true;
-    }
-    return false;
-  }));
-  EXPECT_THAT(msg, HasSubstr(pty.slave_path()));
+  const auto msg = test::error_within<DeviceError>([&] { s->read(buf, sizeof buf, 0.05); });
+  EXPECT_TRUE(msg.has_value());
+  EXPECT_THAT(msg.value_or(""), HasSubstr(pty.slave_path()));
   EXPECT_TRUE(s->is_open());  // the owner closes, never the stream behind its back
   s->close();
   EXPECT_FALSE(s->is_open());
   EXPECT_THROW(s->open(), DeviceError);  // the pty is gone with its master
-}
-
-TEST(PtyStream, MissingDeviceNamesThePathAndErrno) {
-  const std::string msg = open_error("pty:/dev/pts/does-not-exist");
-  EXPECT_THAT(msg, HasSubstr("/dev/pts/does-not-exist"));
-  EXPECT_THAT(msg, HasSubstr("errno 2"));
-}
-
-TEST(PtyStream, ARegularFileIsNotATerminal) {
-  EXPECT_THAT(open_error("pty:/dev/null"), HasSubstr("not a terminal"));
 }
 
 TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
@@ -111,50 +91,39 @@ TEST(TcpStream, BytesBothWaysOverLoopbackAndHangup) {
   s->open();
   int peer = listener.accept();
   ASSERT_GE(peer, 0);
-  auto data = random_bytes(100000, 5);
-  std::thread writer([&] { test::write_all(peer, data.data(), data.size()); });
-  EXPECT_EQ(read_exactly(*s, data.size()), data);
-  writer.join();
-  auto back = random_bytes(5000, 6);
-  s->write(back.data(), back.size());
-  EXPECT_EQ(read_fd_exactly(peer, back.size()), back);
+  const auto back = random_bytes(5000, 6);
+  expect_both_ways(*s, peer, random_bytes(100000, 5), back);
 
   ::close(peer);
   uint8_t buf[8];
-  std::string msg;
-  EXPECT_TRUE(test::wait_until([&] {
-    try {
-      s->read(buf, sizeof buf, 0.05);
-    } catch (const DeviceError& e) {
-      msg = e.what();
-      return true;
-    }
-    return false;
-  }));
-  EXPECT_THAT(msg, HasSubstr("hung up"));
+  const auto msg = test::error_within<DeviceError>([&] { s->read(buf, sizeof buf, 0.05); });
+  EXPECT_TRUE(msg.has_value());
+  EXPECT_THAT(msg.value_or(""), HasSubstr("hung up"));
   // Writing into a dead socket is an error, not a SIGPIPE (the first write may still be accepted
   // by the kernel; the reset shows on a later one).
-  EXPECT_TRUE(test::wait_until([&] {
-    try {
-      s->write(back.data(), back.size());
-    } catch (const DeviceError&) {
-      return true;
-    }
-    return false;
-  }));
+  EXPECT_TRUE(test::error_within<DeviceError>([&] { s->write(back.data(), back.size()); }).has_value());
   s->close();
   EXPECT_FALSE(s->is_open());
 }
 
-TEST(TcpStream, ConnectionRefusedNamesErrno) {
+// What cannot be opened: a missing pty, a file that is not a terminal, a port that refuses, a host
+// that does not exist. The message names it and why.
+TEST(ByteStream, OpenErrorsNameTheDeviceAndTheReason) {
   test::RefusingPort refusing;
-  const std::string msg = open_error("tcp:127.0.0.1:" + std::to_string(refusing.port()));
-  EXPECT_THAT(msg, HasSubstr("cannot connect"));
-  EXPECT_THAT(msg, HasSubstr("errno 111"));
-}
-
-TEST(TcpStream, UnknownHostIsAClearError) {
-  EXPECT_THAT(open_error("tcp:no-such-host.invalid:4000"), HasSubstr("no-such-host.invalid"));
+  const struct {
+    std::string endpoint;
+    std::vector<std::string> says;
+  } cases[] = {
+      {"pty:/dev/pts/does-not-exist", {"/dev/pts/does-not-exist", "errno 2"}},
+      {"pty:/dev/null", {"not a terminal"}},
+      {"tcp:127.0.0.1:" + std::to_string(refusing.port()), {"cannot connect", "errno 111"}},
+      {"tcp:no-such-host.invalid:4000", {"no-such-host.invalid"}},
+  };
+  for (const auto& c : cases) {
+    auto s = make_byte_stream(c.endpoint);
+    const std::string msg = error_of([&] { s->open(); });
+    for (const auto& part : c.says) EXPECT_THAT(msg, HasSubstr(part)) << c.endpoint;
+  }
 }
 
 TEST(SerialStream, ListingWorksAndNeverShowsPtys) {

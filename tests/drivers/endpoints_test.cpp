@@ -4,6 +4,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <tuple>
+
 #include "drivers/modbus_gimbal.h"
 #include "drivers/serial_sensor.h"
 
@@ -11,51 +13,55 @@ using testing::HasSubstr;
 namespace fpss {
 namespace {
 
-TEST(Endpoints, ModbusTcp) {
-  Endpoint e = parse_endpoint("modbus-tcp:127.0.0.1:1502");
-  EXPECT_EQ(e.kind, Endpoint::Kind::modbus_tcp);
-  EXPECT_EQ(e.host, "127.0.0.1");
-  EXPECT_EQ(e.port, 1502);
-  e = parse_endpoint("modbus-tcp:[::1]:502");
-  EXPECT_EQ(e.host, "::1");
-  EXPECT_EQ(e.port, 502);
-  e = parse_endpoint("modbus-tcp:gimbal.lab:1502");
-  EXPECT_EQ(e.host, "gimbal.lab");
+// What a parsed endpoint says, field by field, for comparing one with another.
+auto fields(const Endpoint& e) {
+  return std::tie(e.kind, e.host, e.port, e.path, e.baud, e.parity, e.data_bits, e.stop_bits);
 }
 
-TEST(Endpoints, ModbusRtuWithOptionalBaudAndFraming) {
-  Endpoint e = parse_endpoint("modbus-rtu:/dev/ttyUSB1");
-  EXPECT_EQ(e.kind, Endpoint::Kind::modbus_rtu);
-  EXPECT_EQ(e.path, "/dev/ttyUSB1");
-  EXPECT_EQ(e.baud, 115200);
-  EXPECT_EQ(e.parity, 'N');
-  e = parse_endpoint("modbus-rtu:/dev/ttyUSB1:19200");
-  EXPECT_EQ(e.baud, 19200);
-  e = parse_endpoint("modbus-rtu:/dev/ttyUSB1:9600:8E1");
-  EXPECT_EQ(e.baud, 9600);
-  EXPECT_EQ(e.parity, 'E');
-  EXPECT_EQ(e.stop_bits, 1);
-  EXPECT_EQ(e.path, "/dev/ttyUSB1");
-  EXPECT_THROW(parse_endpoint("modbus-rtu:/dev/ttyUSB1:8E1"), EndpointError);
+// An endpoint on the network; the serial fields keep their defaults.
+Endpoint at_host(Endpoint::Kind kind, const std::string& host, int port) {
+  Endpoint e;
+  e.kind = kind;
+  e.host = host;
+  e.port = port;
+  return e;
 }
 
-TEST(Endpoints, SerialPtyTcp) {
-  Endpoint e = parse_endpoint("serial:/dev/ttyUSB0");
-  EXPECT_EQ(e.kind, Endpoint::Kind::serial);
-  EXPECT_EQ(e.path, "/dev/ttyUSB0");
-  EXPECT_EQ(e.baud, 115200);
-  e = parse_endpoint("serial:/dev/ttyUSB0:57600");
-  EXPECT_EQ(e.baud, 57600);
-  EXPECT_EQ(e.path, "/dev/ttyUSB0");
-  e = parse_endpoint("pty:/dev/pts/7");
-  EXPECT_EQ(e.kind, Endpoint::Kind::pty);
-  EXPECT_EQ(e.path, "/dev/pts/7");
-  e = parse_endpoint("pty:/tmp/run:3/sensor");  // a link path may contain colons
-  EXPECT_EQ(e.path, "/tmp/run:3/sensor");
-  e = parse_endpoint("tcp:terminal-server:4001");
-  EXPECT_EQ(e.kind, Endpoint::Kind::tcp);
-  EXPECT_EQ(e.host, "terminal-server");
-  EXPECT_EQ(e.port, 4001);
+// An endpoint on a device path, 8 data bits and 1 stop bit; the network fields keep their defaults.
+Endpoint at_path(Endpoint::Kind kind, const std::string& path, int baud = 115200, char parity = 'N') {
+  Endpoint e;
+  e.kind = kind;
+  e.path = path;
+  e.baud = baud;
+  e.parity = parity;
+  return e;
+}
+
+// Every documented form and all it parses to.
+TEST(Endpoints, EveryDocumentedFormGivesItsFields) {
+  using K = Endpoint::Kind;
+  const struct {
+    const char* text;
+    Endpoint expected;
+  } cases[] = {
+      {"modbus-tcp:127.0.0.1:1502", at_host(K::modbus_tcp, "127.0.0.1", 1502)},
+      {"modbus-tcp:[::1]:502", at_host(K::modbus_tcp, "::1", 502)},
+      {"modbus-tcp:gimbal.lab:1502", at_host(K::modbus_tcp, "gimbal.lab", 1502)},
+      {"modbus-rtu:/dev/ttyUSB1", at_path(K::modbus_rtu, "/dev/ttyUSB1", 115200, 'N')},
+      {"modbus-rtu:/dev/ttyUSB1:19200", at_path(K::modbus_rtu, "/dev/ttyUSB1", 19200)},
+      {"modbus-rtu:/dev/ttyUSB1:9600:8E1", at_path(K::modbus_rtu, "/dev/ttyUSB1", 9600, 'E')},
+      {"serial:/dev/ttyUSB0", at_path(K::serial, "/dev/ttyUSB0", 115200)},
+      {"serial:/dev/ttyUSB0:57600", at_path(K::serial, "/dev/ttyUSB0", 57600)},
+      {"pty:/dev/pts/7", at_path(K::pty, "/dev/pts/7")},
+      {"pty:/tmp/run:3/sensor", at_path(K::pty, "/tmp/run:3/sensor")},  // a link path may contain colons
+      {"tcp:terminal-server:4001", at_host(K::tcp, "terminal-server", 4001)},
+  };
+  for (const auto& c : cases) {
+    const Endpoint e = parse_endpoint(c.text);
+    EXPECT_EQ(fields(e), fields(c.expected)) << c.text;
+    EXPECT_EQ(e.text, c.text);
+  }
+  EXPECT_THROW(parse_endpoint("modbus-rtu:/dev/ttyUSB1:8E1"), EndpointError);  // framing needs the baud before it
 }
 
 TEST(Endpoints, BadStringsNameTheStringAndTheReason) {

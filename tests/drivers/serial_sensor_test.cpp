@@ -249,18 +249,10 @@ TEST(SerialSensor, HangupWithNoWayBackEndsInDeviceError) {
   fake.stop();
   std::filesystem::remove(link);
   pty.close_master();
-  std::string msg;
-  EXPECT_TRUE(wait_until([&] {
-    try {
-      sensor->next_sample(0.05);
-    } catch (const DeviceError& e) {
-      msg = e.what();
-      return true;
-    }
-    return false;
-  }));
-  EXPECT_THAT(msg, HasSubstr("link lost"));
-  EXPECT_THAT(msg, HasSubstr(link));
+  const auto msg = test::error_within<DeviceError>([&] { sensor->next_sample(0.05); });
+  EXPECT_TRUE(msg.has_value());
+  EXPECT_THAT(msg.value_or(""), HasSubstr("link lost"));
+  EXPECT_THAT(msg.value_or(""), HasSubstr(link));
   EXPECT_FALSE(sensor->connected());
   EXPECT_THROW(sensor->identify(), DeviceError);
 }

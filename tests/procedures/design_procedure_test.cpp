@@ -14,7 +14,7 @@
 namespace fpss {
 namespace {
 
-using test::has_error;
+using test::has_exactly;
 
 // The offset points of a plan, in recording order, as (pitch, yaw) arcsec; checks that every
 // offset lies between two nulls.
@@ -60,11 +60,10 @@ TEST(DesignedGrid, ListedOffsetsAreCheckedWithTheirPlace) {
       "      extent_deg: 0.4\n"                              // 5  extent with a list
       "      frames: 5\n",
       "bad.yaml", d);
-  EXPECT_TRUE(has_error(d, 3, 32, "an offset must be non-zero and within +-180 deg, got 0")) << d.text();
-  EXPECT_TRUE(has_error(d, 3, 35, "200 is outside [-180, 180]")) << d.text();
-  EXPECT_TRUE(has_error(d, 4, 24, "expected a list of offsets")) << d.text();
-  EXPECT_TRUE(has_error(d, 5, 19, "extent_deg does not go with listed offsets")) << d.text();
-  EXPECT_EQ(d.size(), 4u) << d.text();
+  EXPECT_TRUE(has_exactly(d, {{3, 32, "an offset must be non-zero and within +-180 deg, got 0"},
+                              {3, 35, "200 is outside [-180, 180]"},
+                              {4, 24, "expected a list of offsets"},
+                              {5, 19, "extent_deg does not go with listed offsets"}}));
 }
 
 TEST(DesignedGrid, TheWrittenProcedureIsTheDesign) {

@@ -15,6 +15,7 @@ namespace fpss {
 namespace {
 
 using test::has_error;
+using test::has_exactly;
 using test::TempDir;
 
 Procedure parse_ok(const std::string& text, const std::string& origin = "p.yaml") {
@@ -169,14 +170,13 @@ TEST(Procedure, EveryErrorAtOnceWithLineAndColumn) {
       "      extent_deg: 0.4\n"              // 13 missing step and frames
       "      axes: [pitch, roll]\n";         // 14 wrong value
   Diagnostics d = parse_bad(text);
-  EXPECT_TRUE(has_error(d, 4, 5, "unknown step \"jump\"")) << d.text();
-  EXPECT_TRUE(has_error(d, 7, 18, "expected a number, got \"abc\"")) << d.text();
-  EXPECT_TRUE(has_error(d, 8, 13, "missing field duration_s")) << d.text();
-  EXPECT_TRUE(has_error(d, 11, 7, "unknown field \"colour\"")) << d.text();
-  EXPECT_TRUE(has_error(d, 13, 7, "missing field step_deg or step_arcsec")) << d.text();
-  EXPECT_TRUE(has_error(d, 13, 7, "missing field frames or duration_s")) << d.text();
-  EXPECT_TRUE(has_error(d, 14, 21, "expected pitch or yaw, got \"roll\"")) << d.text();
-  EXPECT_EQ(d.size(), 7u) << d.text();
+  EXPECT_TRUE(has_exactly(d, {{4, 5, "unknown step \"jump\""},
+                              {7, 18, "expected a number, got \"abc\""},
+                              {8, 13, "missing field duration_s"},
+                              {11, 7, "unknown field \"colour\""},
+                              {13, 7, "missing field step_deg or step_arcsec"},
+                              {13, 7, "missing field frames or duration_s"},
+                              {14, 21, "expected pitch or yaw, got \"roll\""}}));
   // The text names the file for each.
   EXPECT_NE(d.text().find("bad.yaml:4:5: step 2: unknown step \"jump\""), std::string::npos) << d.text();
 }
@@ -286,11 +286,10 @@ TEST(Plan, TargetsOutsideSoftLimitsAreErrorsAtTheStep) {
   b.limits.max_rate_arcsec_s = 3600;
   Diagnostics d("limits.yaml");
   expand(p, b, d);
-  EXPECT_TRUE(has_error(d, 3, 5, "step 2 (null_offset_grid): target out of soft limits: pitch +0.4200 deg")) << d.text();
-  EXPECT_TRUE(has_error(d, 4, 5, "step 3 (move): target out of soft limits: yaw -0.6000 deg")) << d.text();
-  EXPECT_TRUE(has_error(d, 5, 5, "rate 5000 arcsec/s is above the soft limit")) << d.text();
-  EXPECT_TRUE(has_error(d, 5, 5, "shorter than the sensor's frame period")) << d.text();
-  EXPECT_EQ(d.size(), 4u) << d.text();
+  EXPECT_TRUE(has_exactly(d, {{3, 5, "step 2 (null_offset_grid): target out of soft limits: pitch +0.4200 deg"},
+                              {4, 5, "step 3 (move): target out of soft limits: yaw -0.6000 deg"},
+                              {5, 5, "rate 5000 arcsec/s is above the soft limit"},
+                              {5, 5, "shorter than the sensor's frame period"}}));
 }
 
 TEST(Plan, MoveDurationIsTrapezoidal) {

@@ -28,7 +28,7 @@ namespace fpss {
 namespace {
 namespace fs = std::filesystem;
 
-const fs::path kProcedures = fs::path(FPSS_SOURCE_DIR) / "procedures";
+const fs::path kProcedures = test::source_dir() / "procedures";
 
 using test::CommandResult;
 using test::read_file;

@@ -10,7 +10,6 @@
 
 #include <atomic>
 #include <functional>
-#include <random>
 #include <set>
 
 #include "calib/coefficients.h"
@@ -227,31 +226,13 @@ TEST_P(Backends, ReadOnlyRefusesWhatIsNoCatalogue) {
 // nothing lost, nothing duplicated, every row its writer's.
 TEST_P(Backends, ConcurrentWritersLoseAndDuplicateNothing) {
   constexpr int kWriters = 6, kRunsEach = 15;
-  int go[2];
-  ASSERT_EQ(::pipe(go), 0);
-  std::vector<pid_t> kids;
-  for (int w = 0; w < kWriters; ++w) {
-    kids.push_back(fork_child([&, w] {
-      ::close(go[1]);
-      char ch;
-      if (::read(go[0], &ch, 1) != 0) throw std::runtime_error("barrier");
-      auto cat = open();
-      std::mt19937 rng(99 + w);
-      for (int i = 0; i < kRunsEach; ++i) {
-        const std::string unit = fmt::format("SN-{}", rng() % 3);  // shared units: contention
-        const std::string id = fmt::format("w{}-r{:03}", w, i);
-        cat->record_run_start(make_run(id, unit));
-        auto cal = CalibrationRecord::from_calibration_json(calibration_json(unit, 0.1 * w + 0.001 * i), id);
-        cal.source = "run";
-        cal.run_id = id;
-        cat->record_calibration(cal);
-        cat->record_run_end(id, outcome::completed);
-      }
-    }));
-  }
-  ::close(go[0]);
-  ::close(go[1]);
-  for (pid_t k : kids) EXPECT_EQ(test::wait_exit_code(k), 0);
+  const auto done = test::fork_together(kWriters, [&](int w) {
+    auto cat = open();
+    test::write_runs(*cat, w, kRunsEach, 3, 99, [](const std::string& id, const std::string& unit) {
+      return make_run(id, unit);
+    }, calibration_json);
+  });
+  for (int code : done.exit_codes) EXPECT_EQ(code, 0);
   auto c = open(Catalogue::Mode::read_only);
   const auto runs = c->list_runs();
   EXPECT_EQ(runs.size(), static_cast<size_t>(kWriters * kRunsEach));
@@ -265,8 +246,8 @@ TEST_P(Backends, ConcurrentWritersLoseAndDuplicateNothing) {
   for (const auto& u : c->units()) {
     for (const auto& cal : c->unit_history(u)) {
       int w = -1, i = -1;
-      ASSERT_EQ(std::sscanf(cal.run_id.value().c_str(), "w%d-r%d", &w, &i), 2);
-      EXPECT_NEAR(cal.pitch->mean_abs_arcsec.value(), 0.1 * w + 0.001 * i, 1e-12);
+      ASSERT_TRUE(test::writer_of_run(cal.run_id.value(), w, i));
+      EXPECT_NEAR(cal.pitch->mean_abs_arcsec.value(), test::writer_pitch_mean(w, i), 1e-12);
       EXPECT_TRUE(cal_ids.insert(cal.id).second);
     }
   }
@@ -276,28 +257,18 @@ TEST_P(Backends, ConcurrentWritersLoseAndDuplicateNothing) {
 TEST_P(Backends, ConcurrentImportsOfOneFileRecordItOnce) {
   open();  // the schema first: this test is about the import, not the creation
   constexpr int kProcs = 6;
-  int go[2];
-  ASSERT_EQ(::pipe(go), 0);
-  std::vector<pid_t> kids;
-  for (int p = 0; p < kProcs; ++p) {
-    kids.push_back(fork_child([&] {
-      ::close(go[1]);
-      char ch;
-      if (::read(go[0], &ch, 1) != 0) throw std::runtime_error("barrier");
-      auto cat = open();
-      for (const char* name : {"a-1-fpss1", "a-6-fpss1"}) {
-        auto cal = CalibrationRecord::from_calibration_json(to_json(load_published(name)), name);
-        cal.unit = "FPSS1";
-        cal.source = "import";
-        cal.source_ref = name;
-        cal.date_utc = "2024-01-01";
-        cat->record_import_once(cal);
-      }
-    }));
-  }
-  ::close(go[0]);
-  ::close(go[1]);
-  for (pid_t k : kids) EXPECT_EQ(test::wait_exit_code(k), 0);
+  const auto done = test::fork_together(kProcs, [&](int) {
+    auto cat = open();
+    for (const char* name : {"a-1-fpss1", "a-6-fpss1"}) {
+      auto cal = CalibrationRecord::from_calibration_json(to_json(load_published(name)), name);
+      cal.unit = "FPSS1";
+      cal.source = "import";
+      cal.source_ref = name;
+      cal.date_utc = "2024-01-01";
+      cat->record_import_once(cal);
+    }
+  });
+  for (int code : done.exit_codes) EXPECT_EQ(code, 0);
   EXPECT_EQ(open()->unit_history("FPSS1").size(), 2u);
 }
 

@@ -9,17 +9,16 @@
 #include <SQLiteCpp/SQLiteCpp.h>
 #include <fmt/format.h>
 
-#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <functional>
-#include <random>
 #include <set>
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
 #include "tests/stand/catalogue_fixtures.h"
 #include "tests/support/test_support.h"
+#include "tests/support/text_order.h"
 
 namespace fpss {
 namespace {
@@ -286,34 +285,15 @@ TEST(Catalogue, ConcurrentWritersLoseNothing) {
   constexpr int kWriters = 4;
   constexpr int kRunsEach = 100;
 
-  int go[2];
-  ASSERT_EQ(::pipe(go), 0);
-  std::vector<pid_t> kids;
-  for (int w = 0; w < kWriters; ++w) {
-    kids.push_back(fork_child([&, w] {
-      ::close(go[1]);
-      char c;
-      if (::read(go[0], &c, 1) != 0) throw std::runtime_error("barrier");  // EOF: all start together
-      SqliteCatalogue cat(db);
-      std::mt19937 rng(1234 + w);
-      for (int i = 0; i < kRunsEach; ++i) {
-        const std::string unit = fmt::format("SN-{}", rng() % 5);  // units shared between writers
-        const std::string id = fmt::format("w{}-run{:04}", w, i);
-        cat.record_run_start(make_run(id, unit));
-        auto cal = CalibrationRecord::from_calibration_json(calibration_json(unit, 0.1 * w + 0.001 * i), id);
-        cal.run_id = id;
-        cat.record_calibration(cal);
-        cat.record_run_end(id, outcome::completed);
-      }
-    }));
-  }
-  ::close(go[0]);
-  const auto t0 = std::chrono::steady_clock::now();
-  ::close(go[1]);  // release them all at once
-  for (pid_t k : kids) EXPECT_EQ(test::wait_exit_code(k), 0);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto done = test::fork_together(kWriters, [&](int w) {
+    SqliteCatalogue cat(db);
+    test::write_runs(cat, w, kRunsEach, 5, 1234, [](const std::string& id, const std::string& unit) {
+      return make_run(id, unit);
+    }, calibration_json);
+  });
+  for (int code : done.exit_codes) EXPECT_EQ(code, 0);
   std::printf("%d writers x %d runs (3 transactions each): %.2f s, %.0f commits/s\n", kWriters, kRunsEach,
-              seconds, kWriters * kRunsEach * 3 / seconds);
+              done.seconds, kWriters * kRunsEach * 3 / done.seconds);
 
   SqliteCatalogue cat(db, Catalogue::Mode::read_only);
   EXPECT_EQ(cat.integrity_check(), "ok");
@@ -324,15 +304,15 @@ TEST(Catalogue, ConcurrentWritersLoseNothing) {
   std::set<std::string> ids;
   for (const auto& r : cat.list_runs()) ids.insert(r.run_id);
   for (int w = 0; w < kWriters; ++w) {
-    for (int i = 0; i < kRunsEach; ++i) EXPECT_TRUE(ids.count(fmt::format("w{}-run{:04}", w, i)));
+    for (int i = 0; i < kRunsEach; ++i) EXPECT_TRUE(ids.count(test::writer_run_id(w, i)));
   }
   // Each calibration carries its own writer's residuals: no row was mixed with another.
   size_t cals = 0;
   for (const auto& u : cat.units()) {
     for (const auto& c : cat.unit_history(u)) {
       int w = -1, i = -1;
-      ASSERT_EQ(std::sscanf(c.run_id.value().c_str(), "w%d-run%d", &w, &i), 2);
-      EXPECT_NEAR(c.pitch->mean_abs_arcsec.value(), 0.1 * w + 0.001 * i, 1e-12);
+      ASSERT_TRUE(test::writer_of_run(c.run_id.value(), w, i));
+      EXPECT_NEAR(c.pitch->mean_abs_arcsec.value(), test::writer_pitch_mean(w, i), 1e-12);
       EXPECT_EQ(c.unit, cat.find_run(*c.run_id)->unit);
       ++cals;
     }
@@ -354,30 +334,22 @@ TEST(Catalogue, ConcurrentImportsOfOneFileRecordItOnce) {
     c.date_utc = set.extra.at("date").get<std::string>();
     return c;
   };
-  int go[2], done[2];
-  ASSERT_EQ(::pipe(go), 0);
+  constexpr int kImporters = 4;
+  int done[2];
   ASSERT_EQ(::pipe(done), 0);
-  std::vector<pid_t> kids;
-  for (int w = 0; w < 4; ++w) {
-    kids.push_back(fork_child([&] {
-      ::close(go[1]);
-      ::close(done[0]);
-      char c;
-      if (::read(go[0], &c, 1) != 0) throw std::runtime_error("barrier");
-      SqliteCatalogue cat(db);
-      int inserted = 0;
-      for (int round = 0; round < 10; ++round) {
-        for (const auto& n : names) inserted += cat.record_import_once(import_of(n)).second ? 1 : 0;
-      }
-      write_all(done[1], fmt::format("{}\n", inserted));
-    }));
-  }
-  ::close(go[0]);
+  const auto ended = test::fork_together(kImporters, [&](int) {
+    ::close(done[0]);
+    SqliteCatalogue cat(db);
+    int inserted = 0;
+    for (int round = 0; round < 10; ++round) {
+      for (const auto& n : names) inserted += cat.record_import_once(import_of(n)).second ? 1 : 0;
+    }
+    write_all(done[1], fmt::format("{}\n", inserted));
+  });
   ::close(done[1]);
-  ::close(go[1]);
+  for (int code : ended.exit_codes) EXPECT_EQ(code, 0);
   int inserted = 0;
-  for (size_t i = 0; i < kids.size(); ++i) inserted += std::stoi(read_line(done[0]));
-  for (pid_t k : kids) EXPECT_EQ(test::wait_exit_code(k), 0);
+  for (int i = 0; i < kImporters; ++i) inserted += std::stoi(read_line(done[0]));
   ::close(done[0]);
   EXPECT_EQ(inserted, 3);
   EXPECT_EQ(count_rows(db, "calibrations"), 3);
@@ -519,11 +491,8 @@ class CatalogueCli : public ::testing::Test {
 TEST_F(CatalogueCli, RunsListsEveryRunMostRecentFirst) {
   const auto r = test::run_stand_shell(fmt::format("runs --runs-dir '{}'", runs_dir_.string()), dir_.path());
   ASSERT_EQ(r.code, 0) << r.err;
-  const auto first = r.out.find("20240502T090000Z-SN-7-full_grid");
-  const auto second = r.out.find("20240501T120000Z-FPSS1-discrete_grid");
-  ASSERT_NE(first, std::string::npos) << r.out;
-  ASSERT_NE(second, std::string::npos) << r.out;
-  EXPECT_LT(first, second);
+  EXPECT_TRUE(
+      test::appear_in_order(r.out, {"20240502T090000Z-SN-7-full_grid", "20240501T120000Z-FPSS1-discrete_grid"}));
   EXPECT_NE(r.out.find("failed"), std::string::npos);
   EXPECT_NE(r.out.find("completed"), std::string::npos);
   EXPECT_NE(r.out.find("OUTCOME"), std::string::npos);
@@ -541,11 +510,7 @@ TEST_F(CatalogueCli, RunsListsEveryRunMostRecentFirst) {
 TEST_F(CatalogueCli, HistoryListsTheUnitsCalibrationsOldestFirst) {
   const auto r = test::run_stand_shell(fmt::format("history FPSS1 --runs-dir '{}'", runs_dir_.string()), dir_.path());
   ASSERT_EQ(r.code, 0) << r.err;
-  const auto imported = r.out.find("import a-7-fpss1.json");
-  const auto from_run = r.out.find("run 20240501T120000Z-FPSS1-discrete_grid");
-  ASSERT_NE(imported, std::string::npos) << r.out;
-  ASSERT_NE(from_run, std::string::npos) << r.out;
-  EXPECT_LT(imported, from_run);
+  EXPECT_TRUE(test::appear_in_order(r.out, {"import a-7-fpss1.json", "run 20240501T120000Z-FPSS1-discrete_grid"}));
   EXPECT_NE(r.out.find("0.26 +- 0.20"), std::string::npos) << r.out;  // pitch mean +- sd
   EXPECT_NE(r.out.find("-0.41..+0.41"), std::string::npos) << r.out;  // yaw range
 

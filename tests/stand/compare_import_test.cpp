@@ -17,7 +17,7 @@ namespace fpss {
 namespace {
 namespace fs = std::filesystem;
 
-const fs::path kPublished = fs::path(FPSS_SOURCE_DIR) / "calib/data/published";
+const fs::path kPublished = test::source_dir() / "calib/data/published";
 
 using test::CommandResult;
 using test::run_stand_shell;

@@ -9,7 +9,8 @@
 namespace fpss {
 namespace {
 
-using test::has_error;
+using test::has_errors;
+using test::has_exactly;
 
 TEST(StandConfig, ExampleStandFile) {
   const StandConfig c = load_stand_file(test::source_dir() / "procedures" / "example_stand.yaml");
@@ -62,15 +63,14 @@ TEST(StandConfig, EveryErrorAtOnce) {
       "colour: red\n";                               // 12 unknown field
   Diagnostics d("stand.yaml");
   parse_stand(text, "stand.yaml", d);
-  EXPECT_TRUE(has_error(d, 3, 13, "is a serial endpoint; expected modbus-tcp")) << d.text();
-  EXPECT_TRUE(has_error(d, 4, 12, "field retries: expected an integer, got \"many\"")) << d.text();
-  EXPECT_TRUE(has_error(d, 6, 13, "sensor: field endpoint:")) << d.text();
-  EXPECT_TRUE(has_error(d, 7, 19, "expected an integer in 1..200")) << d.text();
-  EXPECT_TRUE(has_error(d, 9, 14, "expected min < max")) << d.text();
-  EXPECT_TRUE(has_error(d, 10, 3, "unknown field \"roll_deg\"")) << d.text();
-  EXPECT_TRUE(has_error(d, 11, 7, "pitch and yaw both map to alpha")) << d.text();
-  EXPECT_TRUE(has_error(d, 12, 1, "unknown field \"colour\"")) << d.text();
-  EXPECT_EQ(d.size(), 8u) << d.text();
+  EXPECT_TRUE(has_exactly(d, {{3, 13, "is a serial endpoint; expected modbus-tcp"},
+                              {4, 12, "field retries: expected an integer, got \"many\""},
+                              {6, 13, "sensor: field endpoint:"},
+                              {7, 19, "expected an integer in 1..200"},
+                              {9, 14, "expected min < max"},
+                              {10, 3, "unknown field \"roll_deg\""},
+                              {11, 7, "pitch and yaw both map to alpha"},
+                              {12, 1, "unknown field \"colour\""}}));
 }
 
 TEST(StandConfig, NumbersOutsideTheirRangeNamePlaceAndField) {
@@ -79,19 +79,19 @@ TEST(StandConfig, NumbersOutsideTheirRangeNamePlaceAndField) {
               "  profile_rate_arcsec_s: 1e9\nsensor: {endpoint: 'pty:/dev/pts/9'}\n"
               "soft_limits:\n  pitch_deg: [-1e6, 0.75]\nclock:\n  sensor_offset_s: -1e300\n",
               "s.yaml", d);
-  EXPECT_TRUE(test::has_error(d, 3, 23, "field response_timeout_s: 1e308 is outside [-86400, 86400]")) << d.text();
-  EXPECT_TRUE(test::has_error(d, 4, 26, "field profile_rate_arcsec_s: 1e9 is outside [-360000, 360000]")) << d.text();
-  EXPECT_TRUE(test::has_error(d, 7, 15, "-1e6 is outside [-180, 180]")) << d.text();
-  EXPECT_TRUE(test::has_error(d, 9, 20, "field sensor_offset_s: -1e300 is outside")) << d.text();
+  EXPECT_TRUE(has_errors(d, {{3, 23, "field response_timeout_s: 1e308 is outside [-86400, 86400]"},
+                             {4, 26, "field profile_rate_arcsec_s: 1e9 is outside [-360000, 360000]"},
+                             {7, 15, "-1e6 is outside [-180, 180]"},
+                             {9, 20, "field sensor_offset_s: -1e300 is outside"}}));
 }
 
 TEST(StandConfig, MissingDevicesAndBadMapping) {
   Diagnostics d("s.yaml");
   parse_stand("axes: {pitch: gamma}\nsoft_limits: {yaw_arcsec: [100, 200]}\n", "s.yaml", d);
-  EXPECT_TRUE(has_error(d, 1, 1, "missing field gimbal")) << d.text();
-  EXPECT_TRUE(has_error(d, 1, 1, "missing field sensor")) << d.text();
-  EXPECT_TRUE(has_error(d, 1, 15, "expected alpha, beta, +alpha")) << d.text();
-  EXPECT_TRUE(has_error(d, 2, 14, "must contain the null")) << d.text();
+  EXPECT_TRUE(has_errors(d, {{1, 1, "missing field gimbal"},
+                             {1, 1, "missing field sensor"},
+                             {1, 15, "expected alpha, beta, +alpha"},
+                             {2, 14, "must contain the null"}}));
 }
 
 TEST(StandConfig, ProfileRateAboveTheLimit) {

@@ -147,6 +147,25 @@ std::string error_of(F&& f) {
   return "(no exception)";
 }
 
+// The message of the first E that f throws when called again and again (a hang-up the link notices
+// on a later read, say); nullopt when it has not thrown within timeout_s.
+template <class E = std::exception, class F>
+std::optional<std::string> error_within(F&& f, double timeout_s = 10.0) {
+  std::optional<std::string> msg;
+  wait_until(
+      [&] {
+        try {
+          f();
+        } catch (const E& e) {
+          msg = e.what();
+          return true;
+        }
+        return false;
+      },
+      timeout_s);
+  return msg;
+}
+
 // ---------------------------------------------------------------- child processes
 
 // Exit code of a child, 128 + signal when a signal ended it, -1 if it cannot be waited for.
@@ -159,6 +178,36 @@ inline int wait_exit_code(pid_t pid) {
   if (WIFEXITED(status)) return WEXITSTATUS(status);
   if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
   return -1;
+}
+
+// How children started together ended: each one's exit code (as wait_exit_code gives it), and the
+// seconds from their release to the last one's end.
+struct TogetherDone {
+  std::vector<int> exit_codes;
+  double seconds = 0;
+};
+
+// Runs body(0) .. body(n - 1) in n forked children (as fork_child) released at one moment: each
+// waits until a pipe closes, which the parent does once all are forked. Waits for them all.
+inline TogetherDone fork_together(int n, const std::function<void(int)>& body) {
+  int go[2];
+  if (::pipe(go) != 0) throw std::runtime_error("pipe failed");
+  std::vector<pid_t> kids;
+  for (int i = 0; i < n; ++i) {
+    kids.push_back(fork_child([&, i] {
+      ::close(go[1]);
+      char c;
+      if (::read(go[0], &c, 1) != 0) throw std::runtime_error("barrier");  // end of file: all start together
+      body(i);
+    }));
+  }
+  ::close(go[0]);
+  const auto t0 = std::chrono::steady_clock::now();
+  ::close(go[1]);
+  TogetherDone done;
+  for (pid_t k : kids) done.exit_codes.push_back(wait_exit_code(k));
+  done.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return done;
 }
 
 // A program started as a child: stdout into a file, or (out_file empty) into a pipe the test reads

@@ -26,6 +26,12 @@ async function api(method, path, body) {
 }
 const esc = (s) => String(s === undefined || s === null ? '' : s).replace(/[&<>"']/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;', "'": '&#39;' }[c]));
 const fmt = (v, d = 2) => (typeof v === 'number' && isFinite(v) ? v.toFixed(d) : '-');
+// A <select> refilled with `names`, keeping the operator's choice when it is still offered.
+function fillSelect(sel, names) {
+  const old = sel.value;
+  sel.innerHTML = names.map((n) => '<option>' + esc(n) + '</option>').join('');
+  if (old) sel.value = old;
+}
 
 // ---- router ----
 function every(ms, f) { f(); state.timers.push(setInterval(f, ms)); }
@@ -58,11 +64,7 @@ async function standPage() {
 
 // ---- start and queue ----
 async function loadProcedures() {
-  const list = await api('GET', '/api/procedures').catch(() => []);
-  const sel = $('start-procedure');
-  const old = sel.value;
-  sel.innerHTML = list.map((p) => '<option>' + esc(p) + '</option>').join('');
-  if (old) sel.value = old;
+  fillSelect($('start-procedure'), await api('GET', '/api/procedures').catch(() => []));
 }
 async function queuePage() {
   const jobs = await api('GET', '/api/jobs').catch(() => []);
@@ -309,9 +311,7 @@ $('runs-filter').onsubmit = (ev) => { ev.preventDefault(); runsPage(); };
 async function unitsPage() {
   const units = await api('GET', '/api/units').catch(() => []);
   const sel = $('unit-select');
-  const old = sel.value;
-  sel.innerHTML = units.map((u) => '<option>' + esc(u) + '</option>').join('');
-  if (old) sel.value = old;
+  fillSelect(sel, units);
   sel.onchange = unitHistory;
   unitHistory();
 }
