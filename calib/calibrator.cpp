@@ -76,9 +76,7 @@ uint32_t dwell_row(AxisData& d, Axis axis, const Dwell& dw) {
   r.counts = counts_of(dw, axis);
   r.ref_arcsec = ref_of(dw, axis);
   r.link = static_cast<uint32_t>(n);
-  r.info = static_cast<uint32_t>(std::min<size_t>(dw.samples, AxisData::DwellRow::kSamplesMask)) |
-           (dw.phase == Phase::null ? AxisData::DwellRow::kNullBit : 0u) |
-           (whole_of(dw, axis) ? AxisData::DwellRow::kWholeBit : 0u);
+  r.info = AxisData::DwellRow::pack(dw.samples, dw.ref_readings_eff, dw.phase == Phase::null, whole_of(dw, axis));
   d.dwells.push_back(r);
   d.recent_steps[n % kLook] = dw.step;
   // The scatter as float (what a dwell record used to keep): the pooled sums stay as they were.
@@ -87,10 +85,15 @@ uint32_t dwell_row(AxisData& d, Axis axis, const Dwell& dw) {
   d.all_whole_counts = d.all_whole_counts && r.whole_counts();
   if (r.samples() >= 2) {
     const double f = r.samples() - 1.0;
-    d.ref_scatter_ss += f * sd_ref * sd_ref;
     d.count_scatter_ss += f * sd_counts * sd_counts;
     d.scatter_dof += f;
     d.count_scatter.add({r.counts, sd_counts * sd_counts, r.samples()});
+  }
+  // The reference's scatter over its readings (frames sharing one repeat it).
+  if (dw.ref_readings >= 2) {
+    const double f = static_cast<double>(dw.ref_readings) - 1.0;
+    d.ref_scatter_ss += f * sd_ref * sd_ref;
+    d.ref_scatter_dof += f;
   }
   return static_cast<uint32_t>(n);
 }
@@ -210,7 +213,7 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
     ni.count_noise_source = "coefficient file";
   }
   const bool whole = d.all_whole_counts;
-  const double ref_dof = d.scatter_dof, raw_dof = d.scatter_dof;
+  const double ref_dof = d.ref_scatter_dof, raw_dof = d.scatter_dof;
   if (!s) {
     if (whole) s = d.count_scatter.estimate();
     else if (raw_dof > 0) s = std::sqrt(d.count_scatter_ss / raw_dof);

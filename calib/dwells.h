@@ -20,7 +20,12 @@ struct Dwell {
   double counts_alpha = 0, counts_beta = 0;
   double ref_pitch_arcsec = 0, ref_yaw_arcsec = 0;
   double sd_counts_alpha = 0, sd_counts_beta = 0;
+  // The reference's scatter over the dwell's encoder readings (not its frames: frames that share
+  // one reading repeat its value, calib/dwells.cpp) and how many independent readings its mean is
+  // worth, n^2 / sum of m^2 over readings shared by m frames: `samples` when each frame has its own.
   double sd_ref_pitch_arcsec = 0, sd_ref_yaw_arcsec = 0;
+  size_t ref_readings = 0;          // distinct readings
+  double ref_readings_eff = 0;      // the mean's worth in independent readings
   // Every frame's counts were whole numbers (the sensor's own output, not averaged upstream):
   // the quantisation correction applies.
   bool whole_counts_alpha = true, whole_counts_beta = true;
@@ -49,12 +54,17 @@ class DwellBuilder {
  private:
   struct Sums {
     double n = 0, t0 = 0, t1 = 0;
-    // Shifted sums (first value as origin) keep the variance exact for large counts.
+    // Shifted sums (first value as origin) keep the variance exact for large counts: counts and
+    // references over frames (the means), the references again over readings (their scatter).
     double o[4] = {0, 0, 0, 0}, s[4] = {0, 0, 0, 0}, ss[4] = {0, 0, 0, 0};
+    double rs[2] = {0, 0}, rss[2] = {0, 0};
+    double readings = 0, run = 0, run_ss = 0;  // readings, frames on the current one, sum of runs^2
+    double last_ref[2] = {0, 0};
     bool whole[2] = {true, true};
     size_t skipped = 0;
     bool origin_set = false;
   };
+  void add_reference(const double* ref);
   std::optional<Dwell> close();
   std::string origin_;
   bool open_ = false;

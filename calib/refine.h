@@ -66,7 +66,7 @@ struct GlsData {
   uint32_t level_of(size_t k) const { return level.empty() ? 0u : level[k]; }
   // Variance of the dwell's reference mean.
   float var_ref_arcsec2(size_t k) const {
-    return static_cast<float>(ref_var_arcsec2 / static_cast<double>(std::max<uint32_t>(1, (*dwells)[k].samples())));
+    return static_cast<float>(ref_var_arcsec2 / std::max(1.0, (*dwells)[k].ref_readings()));
   }
 };
 

@@ -3,6 +3,7 @@
 #pragma once
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -42,11 +43,26 @@ struct AxisData {
   struct DwellRow {
     double counts = 0, ref_arcsec = 0;
     uint32_t link = 0;
-    uint32_t info = 0;  // samples (low 30 bits), kNullBit, kWholeBit
-    static constexpr uint32_t kNullBit = 1u << 31, kWholeBit = 1u << 30, kSamplesMask = kWholeBit - 1;
+    // samples (low 20 bits, at most 1,048,575), the reference's independent readings as a share
+    // of them (10 bits, of 1023: 1023 when each frame has its own), kWholeBit, kNullBit.
+    uint32_t info = 0;
+    static constexpr uint32_t kNullBit = 1u << 31, kWholeBit = 1u << 30, kSamplesMask = (1u << 20) - 1;
+    static constexpr int kShareShift = 20;
+    static constexpr uint32_t kShareMax = 1023;
     uint32_t samples() const { return info & kSamplesMask; }
     bool null() const { return (info & kNullBit) != 0; }
     bool whole_counts() const { return (info & kWholeBit) != 0; }
+    // What the reference mean is worth in independent readings (samples() when each frame has its own).
+    double ref_readings() const {
+      const uint32_t share = (info >> kShareShift) & kShareMax;
+      return share == kShareMax ? static_cast<double>(samples()) : samples() * (share / static_cast<double>(kShareMax));
+    }
+    static uint32_t pack(size_t samples, double ref_readings_eff, bool null, bool whole) {
+      const size_t n = std::min<size_t>(samples, kSamplesMask);
+      const double share = samples > 0 ? std::clamp(ref_readings_eff / static_cast<double>(samples), 0.0, 1.0) : 1.0;
+      const auto q = static_cast<uint32_t>(std::max(1.0, std::round(share * kShareMax)));
+      return static_cast<uint32_t>(n) | (q << kShareShift) | (null ? kNullBit : 0u) | (whole ? kWholeBit : 0u);
+    }
   };
   // Chunked (no reallocation peak of twice the size while growing).
   std::deque<DwellRow> dwells;
@@ -57,7 +73,7 @@ struct AxisData {
   // The dwells' within-dwell scatter, pooled as they are added (what the noise model needs of it):
   // sums over dwells of two or more frames of (frames - 1) x variance, and the count scatter by
   // the fractional part of the count (the count noise's estimate, calib/quantisation.h).
-  double ref_scatter_ss = 0, count_scatter_ss = 0, scatter_dof = 0;
+  double ref_scatter_ss = 0, count_scatter_ss = 0, scatter_dof = 0, ref_scatter_dof = 0;
   bool all_whole_counts = true;
   CountNoiseEstimator count_scatter;
   // Steps of the latest dwells (pairs and nulls arrive in recording order): finds a dwell again.

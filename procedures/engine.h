@@ -198,6 +198,7 @@ class Engine {
   bool target_known_ = false;
   bool stopping_ = false;  // during the safe stop an abort request no longer interrupts
   bool timed_moves_refused_ = false;  // the gimbal refused a scheduled move in time: not asked again
+  bool late_for_schedule_ = false;    // the last scheduled dwell could not be read before its move began
   double host_t0_ = 0;
   // Stand time: base + (sensor time - sensor t0), kept non-decreasing across sensor restarts.
   std::optional<double> sensor_t0_;

@@ -167,7 +167,11 @@ Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arriv
     d.refs.push_back(st);
     d.ref_of.resize(d.frames.size(), d.refs.size() - 1);
   }
-  if (d.refs.empty()) d.refs.push_back(arrived);  // a host so late that every reading came after the start
+  // A host so late that the gimbal had left before it could read it during the dwell: the frames
+  // take the reading that found it there (at rest at the point, one reading for all), and the next
+  // move waits for this dwell's end, so the gimbal stays put until the host has read it.
+  late_for_schedule_ = move_at_s && d.refs.size() < 2;
+  if (d.refs.empty()) d.refs.push_back(arrived);
   d.ref_of.resize(d.frames.size(), d.refs.size() - 1);
   return d;
 }

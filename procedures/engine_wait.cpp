@@ -203,7 +203,8 @@ double Engine::move_s(double from_p, double from_y, const Action& to) const {
 }
 
 std::optional<double> Engine::schedule_next_move(const Action& a, double start_s) {
-  const Action* n = g_.timed_moves() && !timed_moves_refused_ ? next_dwell_to_command() : nullptr;
+  const bool schedule = g_.timed_moves() && !timed_moves_refused_ && !late_for_schedule_;
+  const Action* n = schedule ? next_dwell_to_command() : nullptr;
   if (!n) return std::nullopt;
   try {
     Timed t(stats_.device_s);

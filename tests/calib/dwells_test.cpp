@@ -56,6 +56,26 @@ TEST(Dwells, ScatterStaysExactAtLargeCounts) {
   EXPECT_EQ(d[0].sd_counts_beta, 0.0);
 }
 
+// Frames that repeat the frame before's two reference angles share its encoder reading: the
+// reference's scatter is over readings, and the mean is worth n^2 / sum(m^2) readings.
+TEST(Dwells, FramesSharingAnEncoderReadingCountItOnce) {
+  SampleTable t;
+  const double refs[6][2] = {{1.0, 2.0}, {1.0, 2.0}, {1.0, 2.0}, {1.2, 2.0}, {1.2, 2.0}, {1.4, 2.1}};
+  for (int i = 0; i < 6; ++i) add(t, 0.1 * i, Phase::offset, 3, refs[i][0], refs[i][1], 100 + i % 2, 50);
+  // One frame per reading, even when a coordinate repeats: both angles must agree.
+  add(t, 1.0, Phase::null, 4, 0.0, 0.1, 0, 0);
+  add(t, 1.1, Phase::null, 4, 0.0, 0.2, 0, 0);
+  const auto d = average_dwells(t);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_EQ(d[0].samples, 6u);
+  EXPECT_EQ(d[0].ref_readings, 3u);
+  EXPECT_DOUBLE_EQ(d[0].ref_readings_eff, 36.0 / (9 + 4 + 1));
+  EXPECT_NEAR(d[0].ref_pitch_arcsec, (3 * 1.0 + 2 * 1.2 + 1.4) / 6, 1e-12);  // the frames' mean
+  EXPECT_NEAR(d[0].sd_ref_pitch_arcsec, 0.2, 1e-12);                       // over 1.0, 1.2, 1.4
+  EXPECT_EQ(d[1].ref_readings, 2u);
+  EXPECT_DOUBLE_EQ(d[1].ref_readings_eff, 2.0);
+}
+
 TEST(Dwells, AStepWithBothNullAndOffsetRowsIsADataError) {
   SampleTable t;
   t.origin = "rec.csv";

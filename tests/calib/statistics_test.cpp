@@ -70,6 +70,39 @@ TEST(Statistics, GeneratorAndFitAgreeOnErrorsAndTheirSigma) {
   EXPECT_LT(mean_z2, 1.6);
 }
 
+// A recorder that reads the encoder once per ten frames (20 frames a dwell: two readings each): the
+// reference's scatter is taken over readings and a dwell's mean weighs as two readings, not twenty
+// frames, so the fit is neither flagged as a model remainder nor overconfident (weighing the frames as
+// twenty readings put chi2/dof near 5 and the noise estimate at a third of the truth).
+TEST(Statistics, FramesThatShareAnEncoderReadingCountAsOneReading) {
+  test::TempDir dir("calib-statistics-shared");
+  const CoefficientSet truth = load_published(kTruth);
+  mc::Design design;
+  design.samples_per_dwell = 20;
+  design.frames_per_reading = 10;
+  const auto files = mc::generate(published_dir() / (kTruth + ".json"), dir / "rec", 8, 977, design);
+  ASSERT_EQ(files.size(), 8u);
+  const auto cp = mc::range_counts(truth.alpha, design), cy = mc::range_counts(truth.beta, design);
+  mc::AxisTally pitch, yaw;
+  double chi2 = 0;
+  CalibrationOptions opts;
+  opts.threads = 1;
+  for (const auto& f : files) {
+    const CalibrationReport r = calibrate(read_samples_csv(f), opts);
+    for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+      EXPECT_NEAR(a->noise.ref_noise_arcsec, 0.05, 0.01);
+      EXPECT_FALSE(a->model_remainder) << a->reduced_chi2;
+      chi2 += a->reduced_chi2 / 16;
+    }
+    pitch.add(r.pitch, truth.alpha, cp);
+    yaw.add(r.yaw, truth.beta, cy);
+  }
+  EXPECT_NEAR(chi2, 1.0, 0.25);
+  const double mean_z2 = (pitch.sum_z2 + yaw.sum_z2) / static_cast<double>(pitch.angles + yaw.angles);
+  EXPECT_GT(mean_z2, 0.5);
+  EXPECT_LT(mean_z2, 2.0);
+}
+
 // Table A-5 FPSS2's yaw has a slow sinusoid (less than half a period over the range): its cost is flat
 // and curved along that frequency, and an undamped Gauss-Newton stopped short of the minimum on one
 // of these ten recordings (the eighth) and on about one in nine of a longer run (docs/calibration.md).

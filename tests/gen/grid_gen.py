@@ -6,14 +6,16 @@ null -> offset -> null along pitch and along yaw over the field of view) and the
 fpss_physics.py (eq. 1, 2, whole-count rounding), not from the C++ bench or emulator.
 
 Per dwell: `samples` frames; each frame's counts are round(N_true + Gaussian count noise), each
-frame's reference the true angle plus Gaussian reference noise. The true angle is the commanded
+frame's reference the true angle plus Gaussian reference noise (with --frames-per-reading K, one
+encoder reading serves K consecutive frames: a recorder that reads the gimbal less often than the
+sensor sends frames, each frame taking the latest reading). The true angle is the commanded
 offset exactly (noise-only recordings: no gimbal dynamics, no misalignment). pitch = alpha(N_alpha),
 yaw = beta(N_beta), as the coefficient files define.
 
 Usage:
   /usr/bin/python3 tests/gen/grid_gen.py --truth FILE --out-dir DIR --recordings K --seed S
       [--samples-per-dwell M] [--count-noise-counts 0.3] [--ref-noise-arcsec 0.05]
-      [--extent-deg 0.45] [--step-deg 0.03] [--outlier-rate 0]
+      [--extent-deg 0.45] [--step-deg 0.03] [--outlier-rate 0] [--frames-per-reading 1]
 Writes DIR/rec-0000.csv ... and prints one line per file.
 """
 import argparse
@@ -48,7 +50,7 @@ def plan(extent, step):
     return dwells
 
 
-def recording(alpha, beta, dwells, m, count_noise, ref_noise, outlier_rate, rng):
+def recording(alpha, beta, dwells, m, count_noise, ref_noise, outlier_rate, rng, per_reading=1):
     rows = []
     t = 0.0
     n_dw = len(dwells)
@@ -65,6 +67,9 @@ def recording(alpha, beta, dwells, m, count_noise, ref_noise, outlier_rate, rng)
         ca = np.where(hit, ca + rng.choice([-1, 1], shape) * rng.integers(20, 200, shape), ca)
     rp = pitch[:, None] + rng.normal(0.0, ref_noise, shape)
     ry = yaw[:, None] + rng.normal(0.0, ref_noise, shape)
+    if per_reading > 1:
+        first = (np.arange(m) // per_reading) * per_reading  # each frame's reading: the block's first
+        rp, ry = rp[:, first], ry[:, first]
     time = np.arange(n_dw * m, dtype=float).reshape(shape) * 0.1 + np.arange(n_dw)[:, None] * 2.0
     for k, d in enumerate(dwells):
         for i in range(m):
@@ -84,6 +89,7 @@ def main():
     ap.add_argument("--extent-deg", type=float, default=0.45)
     ap.add_argument("--step-deg", type=float, default=0.03)
     ap.add_argument("--outlier-rate", type=float, default=0.0)
+    ap.add_argument("--frames-per-reading", type=int, default=1)
     a = ap.parse_args()
     alpha, beta = phys.load_coefficients(a.truth)
     dwells = plan(a.extent_deg, a.step_deg)
@@ -91,7 +97,7 @@ def main():
     os.makedirs(a.out_dir, exist_ok=True)
     for r in range(a.recordings):
         text = recording(alpha, beta, dwells, a.samples_per_dwell, a.count_noise_counts, a.ref_noise_arcsec,
-                         a.outlier_rate, rng)
+                         a.outlier_rate, rng, a.frames_per_reading)
         path = os.path.join(a.out_dir, "rec-%04d.csv" % r)
         with open(path, "w") as f:
             f.write(text)
