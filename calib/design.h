@@ -20,6 +20,11 @@
 // candidate offset (every `candidate_step_deg`) that lowers the largest predicted sigma over the
 // range most per second of bench time (G-optimal), until the target is met; the cheapest design
 // over the frames-per-dwell candidates wins. Order: outward (+s, -s, +2s, ...) along pitch, then yaw.
+//
+// Robust design: a design G-optimal for one transfer function can leave another's sigma well above
+// the target (the a-6-fpss1 design's pitch sigma under a-1-fpss2 is 1.5x it), so `also_for` lists
+// other transfer functions the unit may have (the published sets); the design then meets the target
+// under each of them, the greedy step lowering the largest sigma over all (minimax G-optimal).
 #pragma once
 #include <string>
 #include <vector>
@@ -30,6 +35,7 @@ namespace fpss {
 
 struct DesignInputs {
   CoefficientSet prior;  // a transfer function near the unit's (published or last calibration)
+  std::vector<CoefficientSet> also_for;  // the target must hold under these too (robust design)
   double target_sigma_arcsec = 0.02;  // largest 1-sigma of the fitted angle over the range, both axes
   double extent_deg = 0.45;           // offsets within +-extent along pitch and along yaw
   double candidate_step_deg = 0.01;   // candidate offsets every this much
@@ -54,13 +60,15 @@ struct ExperimentDesign {
   std::vector<DesignOffset> offsets;  // recording order, each between two nulls
   int samples_per_dwell = 0;
   double bench_time_s = 0;
-  double max_sigma_arcsec_pitch = 0, max_sigma_arcsec_yaw = 0;
+  double max_sigma_arcsec_pitch = 0, max_sigma_arcsec_yaw = 0;  // the largest over the prior and also_for
+  std::string limited_by_pitch, limited_by_yaw;  // whose sigma that is: "prior" or an also_for set's unit
 };
 
 // Throws std::invalid_argument for inputs that cannot describe a bench (non-positive rate, ...).
 ExperimentDesign design_experiment(const DesignInputs& in);
 
-// The predicted largest 1-sigma (arcsec) over +-extent_deg of one axis for a given design.
+// The predicted largest 1-sigma (arcsec) over +-extent_deg of one axis for a given design, under
+// the prior and each of also_for (the largest).
 double predicted_max_sigma_arcsec(const DesignInputs& in, const std::vector<DesignOffset>& offsets,
                                   int samples_per_dwell, bool pitch);
 // Bench time of a design (slews, settles, frames).

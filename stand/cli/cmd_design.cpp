@@ -27,7 +27,7 @@ namespace {
 struct DesignArgs {
   double target_sigma_arcsec = 0;
   std::string stand_file, bench_file, prior_file, out;
-  bool emulate = false, json = false;
+  bool emulate = false, json = false, prior_only = false;
   double extent_deg = 0.42, settle_s = 0.5;
   std::optional<double> count_noise_counts, ref_noise_arcsec;
 };
@@ -78,6 +78,15 @@ DesignInputs design_inputs(const DesignArgs& a, Sources& src) {
     src.count_noise = "prior coefficient file";
   }
   if (a.ref_noise_arcsec) in.ref_noise_arcsec = *a.ref_noise_arcsec;
+  // Robust unless told otherwise: the unit may have any of the published transfer functions.
+  if (!a.prior_only) {
+    for (const auto& name : published_names()) {
+      CoefficientSet set = load_published(name);
+      if (is_suspect(set)) continue;
+      set.unit = name;
+      in.also_for.push_back(std::move(set));
+    }
+  }
   return in;
 }
 
@@ -109,9 +118,13 @@ nlohmann::ordered_json design_json(const ExperimentDesign& d, const DesignInputs
       {"frame_rate_hz", in.frame_rate_hz}, {"count_noise_counts", in.count_noise_counts},
       {"count_noise_source", src.count_noise}, {"ref_noise_arcsec", in.ref_noise_arcsec},
       {"prior", src.prior},          {"extent_deg", in.extent_deg}};
+  nlohmann::ordered_json robust = nlohmann::ordered_json::array();
+  for (const auto& set : in.also_for) robust.push_back(set.unit);
+  inputs["robust_over"] = robust;
   nlohmann::ordered_json j = {{"reached", d.reached}, {"target_sigma_arcsec", in.target_sigma_arcsec},
                               {"bench_time_s", d.bench_time_s}, {"max_sigma_arcsec_pitch", d.max_sigma_arcsec_pitch},
                               {"max_sigma_arcsec_yaw", d.max_sigma_arcsec_yaw},
+                              {"limited_by_pitch", d.limited_by_pitch}, {"limited_by_yaw", d.limited_by_yaw},
                               {"samples_per_dwell", d.samples_per_dwell}, {"offsets", d.offsets.size()},
                               {"inputs", inputs}, {"paper_grid", paper_grid(in)}};
   if (!d.note.empty()) j["note"] = d.note;
@@ -131,6 +144,11 @@ void print_design(const nlohmann::ordered_json& j, const std::string& out) {
   std::printf("  noise %.3g counts (%s); prior %s\n", j["inputs"]["count_noise_counts"].get<double>(),
               j["inputs"]["count_noise_source"].get<std::string>().c_str(),
               j["inputs"]["prior"].get<std::string>().c_str());
+  if (const size_t n = j["inputs"]["robust_over"].size(); n > 0) {
+    std::printf("  robust: the sigmas hold under the prior and %zu published transfer functions (largest under %s, "
+                "%s; --prior-only: for the prior alone)\n",
+                n, j["limited_by_pitch"].get<std::string>().c_str(), j["limited_by_yaw"].get<std::string>().c_str());
+  }
   if (!out.empty()) std::printf("  procedure: %s\n", out.c_str());
 }
 
@@ -172,6 +190,9 @@ void add_design(CLI::App& app, Runner& run) {
   sub->add_option("--bench", a->bench_file, "with --emulate: the emulator's bench file");
   sub->add_option("--prior", a->prior_file, "coefficient file near the unit's (default: the bench's truth, or "
                                              "the published set a-6-fpss1 with --stand)");
+  sub->add_flag("--prior-only", a->prior_only,
+                "design for the prior alone (a unit whose transfer function is well known); by default the sigmas "
+                "hold under every published transfer function too");
   sub->add_option("--count-noise-counts", a->count_noise_counts, "count noise per frame before rounding");
   sub->add_option("--ref-noise-arcsec", a->ref_noise_arcsec, "reference noise per frame (arcsec)");
   sub->add_option("--extent-deg", a->extent_deg, "offsets within +-this along each axis (default 0.42)");

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "calib/calibrator.h"
@@ -44,6 +45,37 @@ TEST(Design, MeetsTheTargetAndATighterTargetCostsMoreTime) {
   const ExperimentDesign d = design_experiment(in);
   ASSERT_TRUE(d.reached) << d.note;
   EXPECT_LT(d.bench_time_s, design_time_s(in, grid, 10));
+}
+
+// A design G-optimal for one transfer function can leave another's sigma well above the target;
+// the robust design (also_for: the published sets) meets it under each, its largest sigma named.
+TEST(Design, ARobustDesignHoldsUnderEveryPublishedTransferFunction) {
+  DesignInputs one = inputs(0.0206);
+  one.extent_deg = 0.42;
+  one.frame_rate_hz = 50;
+  DesignInputs robust = one;
+  for (const auto& name : published_names()) {
+    CoefficientSet set = load_published(name);
+    if (is_suspect(set)) continue;
+    set.unit = name;
+    robust.also_for.push_back(set);
+  }
+  const ExperimentDesign d1 = design_experiment(one), dr = design_experiment(robust);
+  ASSERT_TRUE(d1.reached && dr.reached);
+  double worst_one = 0;
+  for (const auto& set : robust.also_for) {
+    DesignInputs under = one;
+    under.prior = set;
+    for (bool pitch : {true, false}) {
+      worst_one = std::max(worst_one, predicted_max_sigma_arcsec(under, d1.offsets, d1.samples_per_dwell, pitch));
+      EXPECT_LE(predicted_max_sigma_arcsec(under, dr.offsets, dr.samples_per_dwell, pitch), 0.0206) << set.unit;
+    }
+  }
+  EXPECT_GT(worst_one, 1.3 * 0.0206);  // the one-prior design, under a-1-fpss2
+  EXPECT_EQ(dr.limited_by_pitch, "a-1-fpss2");
+  EXPECT_LE(std::max(dr.max_sigma_arcsec_pitch, dr.max_sigma_arcsec_yaw), 0.0206);
+  EXPECT_NEAR(predicted_max_sigma_arcsec(robust, dr.offsets, dr.samples_per_dwell, true), dr.max_sigma_arcsec_pitch, 1e-12);
+  EXPECT_GT(dr.bench_time_s, d1.bench_time_s);  // robustness costs bench time
 }
 
 TEST(Design, ThePredictionIsTheCalibratorsReportedSigma) {

@@ -2,6 +2,7 @@
 // procedure file the stand runs; targets it cannot reach and bad input are said, not written.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 
 #include <nlohmann/json.hpp>
@@ -16,18 +17,24 @@ namespace fs = std::filesystem;
 using test::run_stand;
 using test::TempDir;
 
+// The target is the paper grid's own largest sigma on this bench (the design prints it, judged like
+// its own under every published transfer function): the design reaches it in under half the time.
 TEST(Design, ReachesThePapersGridSigmaInHalfItsBenchTimeAndWritesTheProcedure) {
   TempDir tmp("design");
+  const auto first = run_stand({"design", "--target-sigma-arcsec", "0.05", "--emulate", "--json"}, tmp.path());
+  ASSERT_EQ(first.code, 0) << first.err;
+  const auto grid = nlohmann::json::parse(first.out)["paper_grid"];
+  const double target = std::max(grid["max_sigma_arcsec_pitch"].get<double>(), grid["max_sigma_arcsec_yaw"].get<double>());
+  EXPECT_NEAR(target, 0.021, 0.001);
   const fs::path out = tmp / "designed.yaml";
-  const auto r = run_stand({"design", "--target-sigma-arcsec", "0.0206", "--emulate", "--out", out.string(),
-                            "--json"}, tmp.path());
+  const auto r = run_stand({"design", "--target-sigma-arcsec", std::to_string(target), "--emulate", "--out",
+                            out.string(), "--json"}, tmp.path());
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_TRUE(j["reached"].get<bool>());
-  EXPECT_LE(j["max_sigma_arcsec_pitch"].get<double>(), 0.0206);
-  EXPECT_LE(j["max_sigma_arcsec_yaw"].get<double>(), 0.0206);
-  // The paper's grid on the same bench reaches about the same sigma: the design in half its time.
-  EXPECT_LE(j["paper_grid"]["max_sigma_arcsec_pitch"].get<double>(), 0.0207);
+  EXPECT_LE(j["max_sigma_arcsec_pitch"].get<double>(), target);
+  EXPECT_LE(j["max_sigma_arcsec_yaw"].get<double>(), target);
+  EXPECT_EQ(j["inputs"]["robust_over"].size(), 11u);  // the 14 published sets but the three suspect
   EXPECT_LE(j["bench_time_s"].get<double>(), 0.5 * j["paper_grid"]["bench_time_s"].get<double>());
   // The file is a procedure whose dry run predicts the design's bench time.
   const Procedure p = load_procedure(out);
