@@ -186,8 +186,8 @@ class WhereSearch {
       if (!greedy_round()) break;
     }
     std::stable_sort(out.begin(), out.end(), [](const WhereEntry& a, const WhereEntry& b) { return a.share > b.share; });
-    e[0] = {};  // the flexible model works on its own copy
-    e[1] = {};
+    release(e[0]);  // the flexible model works on its own copy
+    release(e[1]);
     if (flexible) *flexible = flexible_shrink(r, e_in, factors, out);
     return out;
   }
