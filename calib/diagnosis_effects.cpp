@@ -26,24 +26,6 @@ double get(const EffectParams& p, const char* key) {
 // Least squares of one scale factor: target ~ c * x over rows, both axes pooled when asked.
 double ratio(double sxy, double sxx) { return sxx > 0 ? sxy / sxx : 0.0; }
 
-// A column with values f(row) on one axis only (the other left empty: zero).
-template <typename F>
-Contribution axis_column(const Recording& r, int axis, F&& f) {
-  Contribution c;
-  c.v[axis].resize(r.n);
-  for (size_t i = 0; i < r.n; ++i) c.v[axis][i] = static_cast<float>(f(i));
-  return c;
-}
-
-// The columns moved into a vector (an initializer list would copy each one).
-template <typename... C>
-std::vector<Contribution> columns_of(C&&... c) {
-  std::vector<Contribution> v;
-  v.reserve(sizeof...(c));
-  (v.push_back(std::move(c)), ...);
-  return v;
-}
-
 // ------------------------------------------------------------------ bias
 class Bias : public Candidate {
  public:
@@ -62,10 +44,10 @@ class Bias : public Candidate {
   }
   ojson params() const override { return {{"pitch_arcsec", b_[0]}, {"yaw_arcsec", b_[1]}}; }
   void set(const EffectParams& p) override { b_[0] = get(p, "pitch_arcsec"); b_[1] = get(p, "yaw_arcsec"); }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    auto one = [](size_t) { return 1.0; };
-    cols = columns_of(axis_column(r, 0, one), axis_column(r, 1, one));
-    return true;
+  int columns() const override { return 2; }  // one constant per axis
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    v[0] = a == 0 ? 1.0 : 0.0;
+    v[1] = a == 1 ? 1.0 : 0.0;
   }
   void set_linear(const std::vector<double>& w) override { b_[0] = w[0]; b_[1] = w[1]; }
 
@@ -94,10 +76,10 @@ class Drift : public Candidate {
     k_[0] = get(p, "pitch_arcsec_per_s");
     k_[1] = get(p, "yaw_arcsec_per_s");
   }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    auto t = [&](size_t i) { return r.t[i]; };
-    cols = columns_of(axis_column(r, 0, t), axis_column(r, 1, t));
-    return true;
+  int columns() const override { return 2; }  // time, one per axis
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    v[0] = a == 0 ? r.t[i] : 0.0;
+    v[1] = a == 1 ? r.t[i] : 0.0;
   }
   void set_linear(const std::vector<double>& w) override { k_[0] = w[0]; k_[1] = w[1]; }
 
@@ -128,10 +110,10 @@ class ScaleFactor : public Candidate {
   }
   ojson params() const override { return {{"pitch_ppm", ppm_[0]}, {"yaw_ppm", ppm_[1]}}; }
   void set(const EffectParams& p) override { ppm_[0] = get(p, "pitch_ppm"); ppm_[1] = get(p, "yaw_ppm"); }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    cols = columns_of(axis_column(r, 0, [&](size_t i) { return r.ref[0][i]; }),
-            axis_column(r, 1, [&](size_t i) { return r.ref[1][i]; }));
-    return true;
+  int columns() const override { return 2; }  // the reference, one per axis
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    v[0] = a == 0 ? r.ref[0][i] : 0.0;
+    v[1] = a == 1 ? r.ref[1][i] : 0.0;
   }
   void set_linear(const std::vector<double>& w) override {
     for (int a = 0; a < 2; ++a) ppm_[a] = (1.0 / (1.0 + w[a]) - 1.0) * 1e6;
@@ -170,12 +152,9 @@ class BoresightRoll : public Candidate {
   ojson params() const override { return {{"roll_arcsec", rad_to_arcsec(phi_)}}; }
   void set(const EffectParams& p) override { phi_ = arcsec_to_rad(get(p, "roll_arcsec")); }
   // Linear in sin(phi) once cos(phi) - 1 (below 1e-5 of the angle for rolls under 15 arcmin) is left out.
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    Contribution c;
-    c.resize(r.n);
-    for (size_t i = 0; i < r.n; ++i) { c.v[0][i] = -r.ref[1][i]; c.v[1][i] = r.ref[0][i]; }
-    cols = columns_of(c);
-    return true;
+  int columns() const override { return 1; }
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    v[0] = a == 0 ? -r.ref[1][i] : r.ref[0][i];
   }
   void set_linear(const std::vector<double>& w) override { phi_ = std::asin(std::clamp(w[0], -1.0, 1.0)); }
 
@@ -201,9 +180,9 @@ class AxisNonorthogonality : public Candidate {
   }
   ojson params() const override { return {{"skew_arcsec", rad_to_arcsec(std::asin(s_))}}; }
   void set(const EffectParams& p) override { s_ = std::sin(arcsec_to_rad(get(p, "skew_arcsec"))); }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    cols = columns_of(axis_column(r, 1, [&](size_t i) { return r.ref[0][i]; }));
-    return true;
+  int columns() const override { return 1; }  // pitch, on yaw only
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    v[0] = a == 1 ? r.ref[0][i] : 0.0;
   }
   void set_linear(const std::vector<double>& w) override { s_ = std::clamp(w[0], -1.0, 1.0); }
 
@@ -234,13 +213,8 @@ class Backlash : public Candidate {
   }
   ojson params() const override { return {{"width_arcsec", w_}}; }
   void set(const EffectParams& p) override { w_ = get(p, "width_arcsec"); }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    Contribution c;
-    c.resize(r.n);
-    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) c.v[a][i] = -0.5 * r.dir[a][i];
-    cols = columns_of(c);
-    return true;
-  }
+  int columns() const override { return 1; }
+  void column_values(const Recording& r, size_t i, int a, double* v) const override { v[0] = -0.5 * r.dir[a][i]; }
   void set_linear(const std::vector<double>& w) override { w_ = w[0]; }
 
  private:
@@ -283,8 +257,7 @@ class Settling : public Candidate {
   }
   void contribute(const Recording& r, Contribution& out) const override {
     for (size_t i = 0; i < r.n; ++i) {
-      const double tm = r.since_move[i];
-      const double e = std::isfinite(tm) && tm >= 0 && tau_ > 0 ? amp_ * std::exp(-tm / tau_) : 0.0;
+      const double e = amp_ * decay(r, i);
       for (int a = 0; a < 2; ++a) out.v[a][i] = r.move_dir[a][i] * e;
     }
   }
@@ -294,18 +267,17 @@ class Settling : public Candidate {
     return {{"tau_s", "at the search limit: the dwells do not resolve a decay"}};
   }
   void set(const EffectParams& p) override { amp_ = get(p, "amplitude_arcsec"); tau_ = get(p, "tau_s"); }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    Settling unit = *this;
-    unit.amp_ = 1.0;
-    Contribution c;
-    c.resize(r.n);
-    unit.contribute(r, c);
-    cols = columns_of(c);
-    return true;
-  }
+  int columns() const override { return 1; }  // the decay of unit amplitude at this tau
+  void column_values(const Recording& r, size_t i, int a, double* v) const override { v[0] = r.move_dir[a][i] * decay(r, i); }
   void set_linear(const std::vector<double>& w) override { amp_ = w[0]; }
 
  private:
+  // exp(-t_since/tau) at row i, 0 where no arrival rings.
+  double decay(const Recording& r, size_t i) const {
+    const double tm = r.since_move[i];
+    return std::isfinite(tm) && tm >= 0 && tau_ > 0 ? std::exp(-tm / tau_) : 0.0;
+  }
+
   double amp_ = 0, tau_ = 1;
 };
 
@@ -438,10 +410,11 @@ class Temperature : public Candidate {
     k_[1] = get(p, "yaw_arcsec_per_c");
     t0_ = p.params.count("t0_c") ? p.params.at("t0_c") : 20.0;
   }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    auto d = [&](size_t i) { return std::isfinite(r.temp[i]) ? r.temp[i] - t0_ : 0.0; };
-    cols = columns_of(axis_column(r, 0, d), axis_column(r, 1, d));
-    return true;
+  int columns() const override { return 2; }  // T - T0, one per axis
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    const double d = std::isfinite(r.temp[i]) ? r.temp[i] - t0_ : 0.0;
+    v[0] = a == 0 ? d : 0.0;
+    v[1] = a == 1 ? d : 0.0;
   }
   void set_linear(const std::vector<double>& w) override { k_[0] = w[0]; k_[1] = w[1]; }
   void hold(const std::string& key, double value) override {
