@@ -106,20 +106,49 @@ void refine(std::array<double, 8>& u, const std::vector<double>& n, const std::v
   ceres::Solve(o, &problem, &summary);
 }
 
+// What one axis's refit sees of the fit rows: the counts and the angle the sensor's true function
+// gives there (the recorded angle less the other effects), on the two even strides the refit
+// uses (its grid at most ~4000 rows, its refinement ~6000: eight coefficients are pinned far
+// below the noise by that many), and the counts' range over all of them. Only the strided rows
+// are held (all of them, two doubles a row, were 10 MB at 1M rows).
+struct AxisRows {
+  std::vector<double> n_grid, y_grid, n_fine, y_fine;
+  size_t count = 0;
+  double lo = 0, hi = 0;
+};
+
+AxisRows axis_rows(const Recording& r, int a, const Contribution& tg, const Rows& rows) {
+  AxisRows s;
+  s.count = rows.size();
+  const size_t grid = std::max<size_t>(1, s.count / 4000), fine = std::max<size_t>(1, s.count / 6000);
+  for (size_t k = 0; k < s.count; ++k) {
+    const uint32_t i = rows[k];
+    const double n = r.counts[a][i];
+    if (k == 0 || n < s.lo) s.lo = n;
+    if (k == 0 || n > s.hi) s.hi = n;
+    if (k % grid != 0 && k % fine != 0) continue;
+    const double y = r.meas(a, i) - tg.v[a][i];
+    if (k % grid == 0) { s.n_grid.push_back(n); s.y_grid.push_back(y); }
+    if (k % fine == 0) { s.n_fine.push_back(n); s.y_fine.push_back(y); }
+  }
+  return s;
+}
+
 // Variable projection: a log grid over both sinusoid frequencies (0.4e-4 .. 8e-4 rad/count, the
 // published sets' span and more) with the linear parameters solved exactly at every node from one
 // Gram matrix, then Ceres from the best node and from the model itself.
-AxisCoeffs refit_axis(const AxisCoeffs& model, const std::vector<double>& n, const std::vector<double>& y) {
+AxisCoeffs refit_axis(const AxisCoeffs& model, const AxisRows& s) {
   constexpr int kW = 24;
   std::vector<double> f(kW);
   for (int j = 0; j < kW; ++j) f[j] = 0.4e-4 * std::pow(20.0, j / (kW - 1.0)) * kS;
-  const size_t stride = std::max<size_t>(1, n.size() / 4000);
+  const std::vector<double>& n = s.n_grid;
+  const std::vector<double>& y = s.y_grid;
   const int dim = 2 + 2 * kW;
   Eigen::MatrixXd G = Eigen::MatrixXd::Zero(dim, dim);
   Eigen::VectorXd b = Eigen::VectorXd::Zero(dim);
   Eigen::VectorXd row(dim);
   double yy = 0;
-  for (size_t i = 0; i < n.size(); i += stride) {
+  for (size_t i = 0; i < n.size(); ++i) {
     const double x = n[i] / kS;
     row(0) = 1;
     row(1) = x;
@@ -155,11 +184,8 @@ AxisCoeffs refit_axis(const AxisCoeffs& model, const std::vector<double>& n, con
       }
     }
   }
-  // The refinement sees at most ~6000 rows (evenly strided): eight coefficients are pinned
-  // far below the noise by that many.
-  const size_t rs = std::max<size_t>(1, n.size() / 6000);
-  std::vector<double> nr, yr;
-  for (size_t i = 0; i < n.size(); i += rs) { nr.push_back(n[i]); yr.push_back(y[i]); }
+  const std::vector<double>& nr = s.n_fine;
+  const std::vector<double>& yr = s.y_fine;
   std::array<double, 8> from_model = to_u(model);
   refine(best_u, nr, yr);
   refine(from_model, nr, yr);
@@ -175,28 +201,18 @@ class Coefficients : public Candidate {
     const AxisCoeffs model[2] = {r.model.alpha, r.model.beta};
     for (int a = 0; a < 2; ++a) {
       model_amp_[a] = std::max(std::abs(rad_to_arcsec(model[a][2])), std::abs(rad_to_arcsec(model[a][5])));
-      std::vector<double> n, y;
-      n.reserve(rows.size());
-      y.reserve(rows.size());
-      for (uint32_t i : rows) {
-        n.push_back(r.counts[a][i]);
-        y.push_back(r.meas(a, i) - tg.v[a][i]);  // the angle the sensor's true function gives here
-      }
-      if (n.size() < 8) {
+      const AxisRows s = axis_rows(r, a, tg, rows);
+      if (s.count < 8) {
         c_[a] = model[a];
       } else if (fitted_) {
         // Refitted again (a joint fit with another effect): the last solution is a good start.
-        const size_t rs = std::max<size_t>(1, n.size() / 6000);
-        std::vector<double> nr, yr;
-        for (size_t i = 0; i < n.size(); i += rs) { nr.push_back(n[i]); yr.push_back(y[i]); }
         std::array<double, 8> u = to_u(c_[a]);
-        refine(u, nr, yr);
+        refine(u, s.n_fine, s.y_fine);
         c_[a] = from_u(u);
       } else {
-        c_[a] = refit_axis(model[a], n, y);
+        c_[a] = refit_axis(model[a], s);
       }
-      const auto [lo, hi] = std::minmax_element(n.begin(), n.end());
-      if (!n.empty()) { lo_[a] = *lo; hi_[a] = *hi; }
+      if (s.count > 0) { lo_[a] = s.lo; hi_[a] = s.hi; }
     }
     fitted_ = true;
   }
