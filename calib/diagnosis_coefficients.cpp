@@ -1,5 +1,4 @@
 // The coefficients candidate: the transfer function refitted to what the residual says each count reads.
-#include <ceres/ceres.h>
 #include <fmt/format.h>
 
 #include <Eigen/Dense>
@@ -32,44 +31,6 @@ struct Eq1Arcsec {  // u: C1 arcsec, C2 arcsec per kS counts, C3 arcsec, C4 rad 
   }
 };
 
-// Eq1Arcsec's residuals with their Jacobian written out: the derivatives automatic
-// differentiation would give (same products, same order), at a fraction of its cost (the refit
-// is the pair search's inner loop).
-class Eq1Residuals : public ceres::CostFunction {
- public:
-  Eq1Residuals(const double* n, const double* y, int count) : n_(n), y_(y), count_(count) {
-    set_num_residuals(count);
-    mutable_parameter_block_sizes()->push_back(8);
-  }
-  bool Evaluate(double const* const* p, double* out, double** jac) const override {
-    const double* u = p[0];
-    double* J = jac ? jac[0] : nullptr;
-    for (int i = 0; i < count_; ++i) {
-      const double x = n_[i] / kS;
-      const double a3 = u[3] * x + u[4], a6 = u[6] * x + u[7];
-      const double s3 = std::sin(a3), s6 = std::sin(a6);
-      out[i] = u[0] + u[1] * x + u[2] * s3 + u[5] * s6 - y_[i];
-      if (!J) continue;
-      const double c3 = std::cos(a3), c6 = std::cos(a6);
-      double* g = J + 8 * i;
-      g[0] = 1;
-      g[1] = x;
-      g[2] = s3;
-      g[3] = u[2] * (c3 * x);
-      g[4] = u[2] * c3;
-      g[5] = s6;
-      g[6] = u[5] * (c6 * x);
-      g[7] = u[5] * c6;
-    }
-    return true;
-  }
-
- private:
-  const double* n_;
-  const double* y_;
-  int count_;
-};
-
 std::array<double, 8> to_u(const AxisCoeffs& c) {
   return {rad_to_arcsec(c[0]), rad_to_arcsec(c[1]) * kS, rad_to_arcsec(c[2]), c[3] * kS, c[4],
           rad_to_arcsec(c[5]), c[6] * kS, c[7]};
@@ -88,22 +49,78 @@ double cost_of(const std::array<double, 8>& u, const std::vector<double>& n, con
   return c;
 }
 
-void refine(std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y) {
-  ceres::Problem problem;
-  constexpr int kBlock = 256;
-  for (size_t i = 0; i < n.size(); i += kBlock) {
-    const int m = static_cast<int>(std::min<size_t>(kBlock, n.size() - i));
-    problem.AddResidualBlock(new Eq1Residuals(n.data() + i, y.data() + i, m), nullptr, u.data());
+// The sum of squared residuals at u with its normal equations: A = J^T J (lower triangle),
+// g = J^T r. One pass, two sincos a row (the Jacobian of eq. 1 written out).
+struct NormalEquations {
+  Eigen::Matrix<double, 8, 8> A = Eigen::Matrix<double, 8, 8>::Zero();
+  Eigen::Matrix<double, 8, 1> g = Eigen::Matrix<double, 8, 1>::Zero();
+  double cost = 0;
+};
+
+NormalEquations normal_equations(const std::array<double, 8>& u, const std::vector<double>& n,
+                                 const std::vector<double>& y) {
+  NormalEquations ne;
+  double j[8];
+  for (size_t i = 0; i < n.size(); ++i) {
+    const double x = n[i] / kS;
+    const double a3 = u[3] * x + u[4], a6 = u[6] * x + u[7];
+    const double s3 = std::sin(a3), c3 = std::cos(a3), s6 = std::sin(a6), c6 = std::cos(a6);
+    const double r = u[0] + u[1] * x + u[2] * s3 + u[5] * s6 - y[i];
+    j[0] = 1;
+    j[1] = x;
+    j[2] = s3;
+    j[3] = u[2] * c3 * x;
+    j[4] = u[2] * c3;
+    j[5] = s6;
+    j[6] = u[5] * c6 * x;
+    j[7] = u[5] * c6;
+    ne.cost += r * r;
+    for (int p = 0; p < 8; ++p) {
+      ne.g(p) += j[p] * r;
+      for (int q = 0; q <= p; ++q) ne.A(p, q) += j[p] * j[q];
+    }
   }
-  ceres::Solver::Options o;
-  o.linear_solver_type = ceres::DENSE_QR;
-  o.max_num_iterations = 100;
-  o.logging_type = ceres::SILENT;
-  o.minimizer_progress_to_stdout = false;
-  o.function_tolerance = 1e-12;
-  o.parameter_tolerance = 1e-12;
-  ceres::Solver::Summary summary;
-  ceres::Solve(o, &problem, &summary);
+  ne.A = ne.A.selfadjointView<Eigen::Lower>();
+  return ne;
+}
+
+// Levenberg-Marquardt from u to the least-squares minimum of eq. 1 on (n, y), with the
+// tolerances the refit always had (relative cost change or step 1e-12, at most 100 iterations).
+// Written out rather than Ceres: eight parameters need only 8 x 8 normal equations, and the trial
+// point's pass gives them for the next step, so an iteration is one pass of two sincos a row
+// (Ceres evaluated each accepted point twice and factored the whole Jacobian): the refit is the
+// inner loop of every joint fit with a refitted transfer function.
+void refine(std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y) {
+  using Vec8 = Eigen::Matrix<double, 8, 1>;
+  constexpr int kMaxIterations = 100;
+  constexpr double kTolerance = 1e-12, kGradientTolerance = 1e-10, kMinRelativeDecrease = 1e-3;
+  NormalEquations ne = normal_equations(u, n, y);
+  double mu = 1e-4, nu = 2;  // damping relative to diag(J^T J), and its growth on a rejected step
+  for (int it = 0; it < kMaxIterations && std::isfinite(ne.cost); ++it) {
+    if (ne.g.cwiseAbs().maxCoeff() <= kGradientTolerance) return;
+    Eigen::Matrix<double, 8, 8> M = ne.A;
+    M.diagonal() += mu * ne.A.diagonal().cwiseMax(1e-6).cwiseMin(1e32);
+    const Vec8 step = M.ldlt().solve(-ne.g);
+    std::array<double, 8> trial = u;
+    for (int p = 0; p < 8; ++p) trial[p] += step(p);
+    NormalEquations next = normal_equations(trial, n, y);
+    // Gain ratio: the cost's fall against the fall the linearised model predicts.
+    const double predicted = -(2 * ne.g.dot(step) + step.dot(ne.A * step));
+    const double rho = predicted > 0 ? (ne.cost - next.cost) / predicted : -1.0;
+    if (!(std::isfinite(next.cost) && rho > kMinRelativeDecrease)) {
+      mu *= nu;
+      nu *= 2;
+      continue;
+    }
+    const double fall = ne.cost - next.cost;
+    const double u_norm = Eigen::Map<const Vec8>(u.data()).norm();
+    u = trial;
+    const bool done = fall <= kTolerance * ne.cost || step.norm() <= kTolerance * (u_norm + kTolerance);
+    ne = std::move(next);
+    if (done) return;
+    mu *= std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3));
+    nu = 2;
+  }
 }
 
 // What one axis's refit sees of the fit rows: the counts and the angle the sensor's true function
