@@ -295,33 +295,19 @@ class TimeSkew : public Candidate {
     // The grid stage (it only has to land in the right valley) sees at most ~4000 rows.
     const size_t stride = std::max<size_t>(1, moving.size() / 4000);
     for (size_t k = 0; k < moving.size(); k += stride) coarse.push_back(moving[k]);
-    auto cost = [&](const std::vector<uint32_t>& use, double s) {
-      double c = 0;
-      size_t j = 0;
-      uint32_t cur = UINT32_MAX;
-      for (uint32_t i : use) {
-        const Step& st = r.steps[r.step_of[i]];
-        if (r.step_of[i] != cur) { cur = r.step_of[i]; j = st.begin; }
-        double p[2];
-        shown(r, st, r.t[i] - s, j, p);
-        for (int a = 0; a < 2; ++a) {
-          const double e = tg.v[a][i] - (st.moves[a] ? p[a] - r.ref[a][i] : 0.0);
-          c += e * e;
-        }
-      }
-      return c;
-    };
+    const std::vector<StepRows> all_steps = by_step(r, moving), coarse_steps = by_step(r, coarse);
     const double lim = r.guard_s;
     if (!(lim > 0) || moving.empty()) { skew_ = 0; return; }
     constexpr double kStep = 0.004;  // s; the reference is sampled every 20 ms or more
     const int steps = std::max(20, static_cast<int>(std::ceil(2 * lim / kStep)));
     double best = -lim, best_c = std::numeric_limits<double>::infinity();
     for (int k = 0; k <= steps; ++k) {
-      const double sk = -lim + 2 * lim * k / steps, c = cost(coarse, sk);
+      const double sk = -lim + 2 * lim * k / steps, c = cost(r, tg, coarse_steps, sk);
       if (c < best_c) { best_c = c; best = sk; }
     }
     const double d = 2 * lim / steps;
-    skew_ = minimise_1d([&](double sk) { return cost(moving, sk); }, std::max(-lim, best - 2 * d), std::min(lim, best + 2 * d), 8, 1e-6);
+    skew_ = minimise_1d([&](double sk) { return cost(r, tg, all_steps, sk); }, std::max(-lim, best - 2 * d),
+                        std::min(lim, best + 2 * d), 8, 1e-6);
   }
   void contribute(const Recording& r, Contribution& out) const override {
     out.resize(r.n);
@@ -340,7 +326,8 @@ class TimeSkew : public Candidate {
 
  private:
   // The reference of step `st` at time tq (both axes): linear between its samples, held at its
-  // ends. `j` is the segment found last; queries come in time order, so it only moves forward.
+  // ends. `j` is where the search for the segment starts (the one found last, or a guess); the
+  // segment found, the last sample at or before tq, is the same from any start.
   static void shown(const Recording& r, const Step& st, double tq, size_t& j, double* p) {
     const auto& t = r.t;
     if (st.end - st.begin < 2 || tq <= t[st.begin]) {
@@ -357,6 +344,42 @@ class TimeSkew : public Candidate {
     const double dt = t[j + 1] - t[j];
     const double w = dt > 0 ? (tq - t[j]) / dt : 0.0;
     for (int a = 0; a < 2; ++a) p[a] = r.ref[a][j] + w * (r.ref[a][j + 1] - r.ref[a][j]);
+  }
+
+  // The rows of one slew segment that a cost sums, in time order (the segment looked up once).
+  struct StepRows {
+    const Step* step;
+    std::vector<uint32_t> rows;
+  };
+  static std::vector<StepRows> by_step(const Recording& r, const std::vector<uint32_t>& rows) {
+    std::vector<StepRows> out;
+    for (uint32_t i : rows) {
+      const Step* st = &r.steps[r.step_of[i]];
+      if (out.empty() || out.back().step != st) out.push_back({st, {}});
+      out.back().rows.push_back(i);
+    }
+    return out;
+  }
+  // Sum over the rows and both axes of (target - what a skew s adds)^2.
+  static double cost(const Recording& r, const Contribution& tg, const std::vector<StepRows>& steps, double s) {
+    double c = 0;
+    for (const StepRows& sr : steps) {
+      const Step& st = *sr.step;
+      // The segment of the row before, moved on by as many rows (times never decrease, so the
+      // search ends where it would from the segment's start, a step or two away).
+      size_t j = st.begin, prev = st.begin;
+      for (uint32_t i : sr.rows) {
+        j += i - prev;
+        prev = i;
+        double p[2];
+        shown(r, st, r.t[i] - s, j, p);
+        for (int a = 0; a < 2; ++a) {
+          const double e = tg.v[a][i] - (st.moves[a] ? p[a] - r.ref[a][i] : 0.0);
+          c += e * e;
+        }
+      }
+    }
+    return c;
   }
 
   double skew_ = 0;
