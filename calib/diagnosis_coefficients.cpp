@@ -233,12 +233,12 @@ class Coefficients : public Candidate {
     }
     fitted_ = true;
   }
+  // model(N) - refit(N); model(N) is the recording's measured angle (residual + reference), so
+  // only the refit is evaluated (a joint fit rebuilds this contribution at every iteration).
   void contribute(const Recording& r, Contribution& out) const override {
-    const AxisCoeffs model[2] = {r.model.alpha, r.model.beta};
     for (int a = 0; a < 2; ++a) {
       for (size_t i = 0; i < r.n; ++i) {
-        const double nn = r.counts[a][i];
-        out.v[a][i] = rad_to_arcsec(transfer_angle(model[a].data(), nn) - transfer_angle(c_[a].data(), nn));
+        out.v[a][i] = r.meas(a, i) - rad_to_arcsec(transfer_angle(c_[a].data(), static_cast<double>(r.counts[a][i])));
       }
     }
   }
