@@ -22,14 +22,12 @@ using ojson = nlohmann::ordered_json;
 // residual says the angle at each count is. Scaled parameters keep the Jacobian balanced.
 constexpr double kS = 16384.0;  // counts over half the field
 
-struct Eq1Arcsec {  // u: C1 arcsec, C2 arcsec per kS counts, C3 arcsec, C4 rad per kS counts, C5, C6, C7, C8
-  template <typename T>
-  static T eval(const T* u, double n) {
-    using std::sin;
-    const double x = n / kS;
-    return u[0] + u[1] * x + u[2] * sin(u[3] * x + u[4]) + u[5] * sin(u[6] * x + u[7]);
-  }
-};
+// Eq. 1 in arcsec at count n. u: C1 arcsec, C2 arcsec per kS counts, C3 arcsec, C4 rad per kS
+// counts, C5, C6, C7, C8.
+double eq1_arcsec(const std::array<double, 8>& u, double n) {
+  const double x = n / kS;
+  return u[0] + u[1] * x + u[2] * std::sin(u[3] * x + u[4]) + u[5] * std::sin(u[6] * x + u[7]);
+}
 
 std::array<double, 8> to_u(const AxisCoeffs& c) {
   return {rad_to_arcsec(c[0]), rad_to_arcsec(c[1]) * kS, rad_to_arcsec(c[2]), c[3] * kS, c[4],
@@ -43,14 +41,14 @@ AxisCoeffs from_u(const std::array<double, 8>& u) {
 double cost_of(const std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y) {
   double c = 0;
   for (size_t i = 0; i < n.size(); ++i) {
-    const double e = Eq1Arcsec::eval(u.data(), n[i]) - y[i];
+    const double e = eq1_arcsec(u, n[i]) - y[i];
     c += e * e;
   }
   return c;
 }
 
-// The sum of squared residuals at u with its normal equations: A = J^T J (lower triangle),
-// g = J^T r. One pass, two sincos a row (the Jacobian of eq. 1 written out).
+// The sum of squared residuals at u with its normal equations: A = J^T J, g = J^T r. One pass,
+// two sincos a row (the Jacobian of eq. 1 written out).
 struct NormalEquations {
   Eigen::Matrix<double, 8, 8> A = Eigen::Matrix<double, 8, 8>::Zero();
   Eigen::Matrix<double, 8, 1> g = Eigen::Matrix<double, 8, 1>::Zero();
