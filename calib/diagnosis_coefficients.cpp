@@ -1,5 +1,4 @@
 // The coefficients candidate: the transfer function refitted to what the residual says each count reads.
-#include <ceres/ceres.h>
 #include <fmt/format.h>
 
 #include <Eigen/Dense>
@@ -23,25 +22,12 @@ using ojson = nlohmann::ordered_json;
 // residual says the angle at each count is. Scaled parameters keep the Jacobian balanced.
 constexpr double kS = 16384.0;  // counts over half the field
 
-struct Eq1Arcsec {  // u: C1 arcsec, C2 arcsec per kS counts, C3 arcsec, C4 rad per kS counts, C5, C6, C7, C8
-  template <typename T>
-  static T eval(const T* u, double n) {
-    using std::sin;
-    const double x = n / kS;
-    return u[0] + u[1] * x + u[2] * sin(u[3] * x + u[4]) + u[5] * sin(u[6] * x + u[7]);
-  }
-};
-
-struct Eq1Residuals {
-  const double* n;
-  const double* y;
-  int count;
-  template <typename T>
-  bool operator()(const T* u, T* out) const {
-    for (int i = 0; i < count; ++i) out[i] = Eq1Arcsec::eval(u, n[i]) - y[i];
-    return true;
-  }
-};
+// Eq. 1 in arcsec at count n. u: C1 arcsec, C2 arcsec per kS counts, C3 arcsec, C4 rad per kS
+// counts, C5, C6, C7, C8.
+double eq1_arcsec(const std::array<double, 8>& u, double n) {
+  const double x = n / kS;
+  return u[0] + u[1] * x + u[2] * std::sin(u[3] * x + u[4]) + u[5] * std::sin(u[6] * x + u[7]);
+}
 
 std::array<double, 8> to_u(const AxisCoeffs& c) {
   return {rad_to_arcsec(c[0]), rad_to_arcsec(c[1]) * kS, rad_to_arcsec(c[2]), c[3] * kS, c[4],
@@ -55,46 +41,129 @@ AxisCoeffs from_u(const std::array<double, 8>& u) {
 double cost_of(const std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y) {
   double c = 0;
   for (size_t i = 0; i < n.size(); ++i) {
-    const double e = Eq1Arcsec::eval(u.data(), n[i]) - y[i];
+    const double e = eq1_arcsec(u, n[i]) - y[i];
     c += e * e;
   }
   return c;
 }
 
-void refine(std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y) {
-  ceres::Problem problem;
-  constexpr int kBlock = 256;
-  for (size_t i = 0; i < n.size(); i += kBlock) {
-    const int m = static_cast<int>(std::min<size_t>(kBlock, n.size() - i));
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Eq1Residuals, ceres::DYNAMIC, 8>(
-                                 new Eq1Residuals{n.data() + i, y.data() + i, m}, m),
-                             nullptr, u.data());
+// The sum of squared residuals at u with its normal equations: A = J^T J, g = J^T r. One pass,
+// two sincos a row (the Jacobian of eq. 1 written out).
+struct NormalEquations {
+  Eigen::Matrix<double, 8, 8> A = Eigen::Matrix<double, 8, 8>::Zero();
+  Eigen::Matrix<double, 8, 1> g = Eigen::Matrix<double, 8, 1>::Zero();
+  double cost = 0;
+};
+
+NormalEquations normal_equations(const std::array<double, 8>& u, const std::vector<double>& n,
+                                 const std::vector<double>& y) {
+  NormalEquations ne;
+  double j[8];
+  for (size_t i = 0; i < n.size(); ++i) {
+    const double x = n[i] / kS;
+    const double a3 = u[3] * x + u[4], a6 = u[6] * x + u[7];
+    const double s3 = std::sin(a3), c3 = std::cos(a3), s6 = std::sin(a6), c6 = std::cos(a6);
+    const double r = u[0] + u[1] * x + u[2] * s3 + u[5] * s6 - y[i];
+    j[0] = 1;
+    j[1] = x;
+    j[2] = s3;
+    j[3] = u[2] * c3 * x;
+    j[4] = u[2] * c3;
+    j[5] = s6;
+    j[6] = u[5] * c6 * x;
+    j[7] = u[5] * c6;
+    ne.cost += r * r;
+    for (int p = 0; p < 8; ++p) {
+      ne.g(p) += j[p] * r;
+      for (int q = 0; q <= p; ++q) ne.A(p, q) += j[p] * j[q];
+    }
   }
-  ceres::Solver::Options o;
-  o.linear_solver_type = ceres::DENSE_QR;
-  o.max_num_iterations = 100;
-  o.logging_type = ceres::SILENT;
-  o.minimizer_progress_to_stdout = false;
-  o.function_tolerance = 1e-12;
-  o.parameter_tolerance = 1e-12;
-  ceres::Solver::Summary summary;
-  ceres::Solve(o, &problem, &summary);
+  ne.A = ne.A.selfadjointView<Eigen::Lower>();
+  return ne;
+}
+
+// Levenberg-Marquardt from u to the least-squares minimum of eq. 1 on (n, y), with the
+// tolerances the refit always had (relative cost change or step 1e-12, at most 100 iterations).
+// Written out rather than Ceres: eight parameters need only 8 x 8 normal equations, and the trial
+// point's pass gives them for the next step, so an iteration is one pass of two sincos a row
+// (Ceres evaluated each accepted point twice and factored the whole Jacobian): the refit is the
+// inner loop of every joint fit with a refitted transfer function.
+void refine(std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y) {
+  using Vec8 = Eigen::Matrix<double, 8, 1>;
+  constexpr int kMaxIterations = 100;
+  constexpr double kTolerance = 1e-12, kGradientTolerance = 1e-10, kMinRelativeDecrease = 1e-3;
+  NormalEquations ne = normal_equations(u, n, y);
+  double mu = 1e-4, nu = 2;  // damping relative to diag(J^T J), and its growth on a rejected step
+  for (int it = 0; it < kMaxIterations && std::isfinite(ne.cost); ++it) {
+    if (ne.g.cwiseAbs().maxCoeff() <= kGradientTolerance) return;
+    Eigen::Matrix<double, 8, 8> M = ne.A;
+    M.diagonal() += mu * ne.A.diagonal().cwiseMax(1e-6).cwiseMin(1e32);
+    const Vec8 step = M.ldlt().solve(-ne.g);
+    std::array<double, 8> trial = u;
+    for (int p = 0; p < 8; ++p) trial[p] += step(p);
+    NormalEquations next = normal_equations(trial, n, y);
+    // Gain ratio: the cost's fall against the fall the linearised model predicts.
+    const double predicted = -(2 * ne.g.dot(step) + step.dot(ne.A * step));
+    const double rho = predicted > 0 ? (ne.cost - next.cost) / predicted : -1.0;
+    if (!(std::isfinite(next.cost) && rho > kMinRelativeDecrease)) {
+      mu *= nu;
+      nu *= 2;
+      continue;
+    }
+    const double fall = ne.cost - next.cost;
+    const double u_norm = Eigen::Map<const Vec8>(u.data()).norm();
+    u = trial;
+    const bool done = fall <= kTolerance * ne.cost || step.norm() <= kTolerance * (u_norm + kTolerance);
+    ne = std::move(next);
+    if (done) return;
+    mu *= std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3));
+    nu = 2;
+  }
+}
+
+// What one axis's refit sees of the fit rows: the counts and the angle the sensor's true function
+// gives there (the recorded angle less the other effects), on the two even strides the refit
+// uses (its grid at most ~4000 rows, its refinement ~6000: eight coefficients are pinned far
+// below the noise by that many), and the counts' range over all of them. Only the strided rows
+// are held (all of them, two doubles a row, were 10 MB at 1M rows).
+struct AxisRows {
+  std::vector<double> n_grid, y_grid, n_fine, y_fine;
+  size_t count = 0;
+  double lo = 0, hi = 0;
+};
+
+AxisRows axis_rows(const Recording& r, int a, const Contribution& tg, const Rows& rows) {
+  AxisRows s;
+  s.count = rows.size();
+  const size_t grid = std::max<size_t>(1, s.count / 4000), fine = std::max<size_t>(1, s.count / 6000);
+  for (size_t k = 0; k < s.count; ++k) {
+    const uint32_t i = rows[k];
+    const double n = r.counts[a][i];
+    if (k == 0 || n < s.lo) s.lo = n;
+    if (k == 0 || n > s.hi) s.hi = n;
+    if (k % grid != 0 && k % fine != 0) continue;
+    const double y = r.meas(a, i) - tg.v[a][i];
+    if (k % grid == 0) { s.n_grid.push_back(n); s.y_grid.push_back(y); }
+    if (k % fine == 0) { s.n_fine.push_back(n); s.y_fine.push_back(y); }
+  }
+  return s;
 }
 
 // Variable projection: a log grid over both sinusoid frequencies (0.4e-4 .. 8e-4 rad/count, the
 // published sets' span and more) with the linear parameters solved exactly at every node from one
 // Gram matrix, then Ceres from the best node and from the model itself.
-AxisCoeffs refit_axis(const AxisCoeffs& model, const std::vector<double>& n, const std::vector<double>& y) {
+AxisCoeffs refit_axis(const AxisCoeffs& model, const AxisRows& s) {
   constexpr int kW = 24;
   std::vector<double> f(kW);
   for (int j = 0; j < kW; ++j) f[j] = 0.4e-4 * std::pow(20.0, j / (kW - 1.0)) * kS;
-  const size_t stride = std::max<size_t>(1, n.size() / 4000);
+  const std::vector<double>& n = s.n_grid;
+  const std::vector<double>& y = s.y_grid;
   const int dim = 2 + 2 * kW;
   Eigen::MatrixXd G = Eigen::MatrixXd::Zero(dim, dim);
   Eigen::VectorXd b = Eigen::VectorXd::Zero(dim);
   Eigen::VectorXd row(dim);
   double yy = 0;
-  for (size_t i = 0; i < n.size(); i += stride) {
+  for (size_t i = 0; i < n.size(); ++i) {
     const double x = n[i] / kS;
     row(0) = 1;
     row(1) = x;
@@ -130,11 +199,8 @@ AxisCoeffs refit_axis(const AxisCoeffs& model, const std::vector<double>& n, con
       }
     }
   }
-  // The refinement sees at most ~6000 rows (evenly strided): eight coefficients are pinned
-  // far below the noise by that many.
-  const size_t rs = std::max<size_t>(1, n.size() / 6000);
-  std::vector<double> nr, yr;
-  for (size_t i = 0; i < n.size(); i += rs) { nr.push_back(n[i]); yr.push_back(y[i]); }
+  const std::vector<double>& nr = s.n_fine;
+  const std::vector<double>& yr = s.y_fine;
   std::array<double, 8> from_model = to_u(model);
   refine(best_u, nr, yr);
   refine(from_model, nr, yr);
@@ -150,37 +216,27 @@ class Coefficients : public Candidate {
     const AxisCoeffs model[2] = {r.model.alpha, r.model.beta};
     for (int a = 0; a < 2; ++a) {
       model_amp_[a] = std::max(std::abs(rad_to_arcsec(model[a][2])), std::abs(rad_to_arcsec(model[a][5])));
-      std::vector<double> n, y;
-      n.reserve(rows.size());
-      y.reserve(rows.size());
-      for (uint32_t i : rows) {
-        n.push_back(r.counts[a][i]);
-        y.push_back(r.meas(a, i) - tg.v[a][i]);  // the angle the sensor's true function gives here
-      }
-      if (n.size() < 8) {
+      const AxisRows s = axis_rows(r, a, tg, rows);
+      if (s.count < 8) {
         c_[a] = model[a];
       } else if (fitted_) {
         // Refitted again (a joint fit with another effect): the last solution is a good start.
-        const size_t rs = std::max<size_t>(1, n.size() / 6000);
-        std::vector<double> nr, yr;
-        for (size_t i = 0; i < n.size(); i += rs) { nr.push_back(n[i]); yr.push_back(y[i]); }
         std::array<double, 8> u = to_u(c_[a]);
-        refine(u, nr, yr);
+        refine(u, s.n_fine, s.y_fine);
         c_[a] = from_u(u);
       } else {
-        c_[a] = refit_axis(model[a], n, y);
+        c_[a] = refit_axis(model[a], s);
       }
-      const auto [lo, hi] = std::minmax_element(n.begin(), n.end());
-      if (!n.empty()) { lo_[a] = *lo; hi_[a] = *hi; }
+      if (s.count > 0) { lo_[a] = s.lo; hi_[a] = s.hi; }
     }
     fitted_ = true;
   }
+  // model(N) - refit(N); model(N) is the recording's measured angle (residual + reference), so
+  // only the refit is evaluated (a joint fit rebuilds this contribution at every iteration).
   void contribute(const Recording& r, Contribution& out) const override {
-    const AxisCoeffs model[2] = {r.model.alpha, r.model.beta};
     for (int a = 0; a < 2; ++a) {
       for (size_t i = 0; i < r.n; ++i) {
-        const double nn = r.counts[a][i];
-        out.v[a][i] = rad_to_arcsec(transfer_angle(model[a].data(), nn) - transfer_angle(c_[a].data(), nn));
+        out.v[a][i] = r.meas(a, i) - rad_to_arcsec(transfer_angle(c_[a].data(), static_cast<double>(r.counts[a][i])));
       }
     }
   }

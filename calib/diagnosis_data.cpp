@@ -42,7 +42,7 @@ void residuals(Recording& r, DiagnosisColumns& data, const CoefficientSet& model
       }
     }
     r.counts[a].assign(counts.begin(), counts.end());
-    counts = {};
+    release(counts);
   }
   if (!data.temperature_c.empty()) {
     r.temp = std::move(data.temperature_c);
@@ -305,7 +305,7 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   }
   residuals(r, data, model);
   find_steps(r, data.step);
-  data.step = {};
+  release(data.step);
   expected_scatter(r, model);
   flag_outlier_frames(r, model, opts);
   rates(r);

@@ -26,24 +26,6 @@ double get(const EffectParams& p, const char* key) {
 // Least squares of one scale factor: target ~ c * x over rows, both axes pooled when asked.
 double ratio(double sxy, double sxx) { return sxx > 0 ? sxy / sxx : 0.0; }
 
-// A column with values f(row) on one axis only (the other left empty: zero).
-template <typename F>
-Contribution axis_column(const Recording& r, int axis, F&& f) {
-  Contribution c;
-  c.v[axis].resize(r.n);
-  for (size_t i = 0; i < r.n; ++i) c.v[axis][i] = static_cast<float>(f(i));
-  return c;
-}
-
-// The columns moved into a vector (an initializer list would copy each one).
-template <typename... C>
-std::vector<Contribution> columns_of(C&&... c) {
-  std::vector<Contribution> v;
-  v.reserve(sizeof...(c));
-  (v.push_back(std::move(c)), ...);
-  return v;
-}
-
 // ------------------------------------------------------------------ bias
 class Bias : public Candidate {
  public:
@@ -62,10 +44,10 @@ class Bias : public Candidate {
   }
   ojson params() const override { return {{"pitch_arcsec", b_[0]}, {"yaw_arcsec", b_[1]}}; }
   void set(const EffectParams& p) override { b_[0] = get(p, "pitch_arcsec"); b_[1] = get(p, "yaw_arcsec"); }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    auto one = [](size_t) { return 1.0; };
-    cols = columns_of(axis_column(r, 0, one), axis_column(r, 1, one));
-    return true;
+  int columns() const override { return 2; }  // one constant per axis
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    v[0] = a == 0 ? 1.0 : 0.0;
+    v[1] = a == 1 ? 1.0 : 0.0;
   }
   void set_linear(const std::vector<double>& w) override { b_[0] = w[0]; b_[1] = w[1]; }
 
@@ -94,10 +76,10 @@ class Drift : public Candidate {
     k_[0] = get(p, "pitch_arcsec_per_s");
     k_[1] = get(p, "yaw_arcsec_per_s");
   }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    auto t = [&](size_t i) { return r.t[i]; };
-    cols = columns_of(axis_column(r, 0, t), axis_column(r, 1, t));
-    return true;
+  int columns() const override { return 2; }  // time, one per axis
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    v[0] = a == 0 ? r.t[i] : 0.0;
+    v[1] = a == 1 ? r.t[i] : 0.0;
   }
   void set_linear(const std::vector<double>& w) override { k_[0] = w[0]; k_[1] = w[1]; }
 
@@ -128,10 +110,10 @@ class ScaleFactor : public Candidate {
   }
   ojson params() const override { return {{"pitch_ppm", ppm_[0]}, {"yaw_ppm", ppm_[1]}}; }
   void set(const EffectParams& p) override { ppm_[0] = get(p, "pitch_ppm"); ppm_[1] = get(p, "yaw_ppm"); }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    cols = columns_of(axis_column(r, 0, [&](size_t i) { return r.ref[0][i]; }),
-            axis_column(r, 1, [&](size_t i) { return r.ref[1][i]; }));
-    return true;
+  int columns() const override { return 2; }  // the reference, one per axis
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    v[0] = a == 0 ? r.ref[0][i] : 0.0;
+    v[1] = a == 1 ? r.ref[1][i] : 0.0;
   }
   void set_linear(const std::vector<double>& w) override {
     for (int a = 0; a < 2; ++a) ppm_[a] = (1.0 / (1.0 + w[a]) - 1.0) * 1e6;
@@ -170,12 +152,9 @@ class BoresightRoll : public Candidate {
   ojson params() const override { return {{"roll_arcsec", rad_to_arcsec(phi_)}}; }
   void set(const EffectParams& p) override { phi_ = arcsec_to_rad(get(p, "roll_arcsec")); }
   // Linear in sin(phi) once cos(phi) - 1 (below 1e-5 of the angle for rolls under 15 arcmin) is left out.
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    Contribution c;
-    c.resize(r.n);
-    for (size_t i = 0; i < r.n; ++i) { c.v[0][i] = -r.ref[1][i]; c.v[1][i] = r.ref[0][i]; }
-    cols = columns_of(c);
-    return true;
+  int columns() const override { return 1; }
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    v[0] = a == 0 ? -r.ref[1][i] : r.ref[0][i];
   }
   void set_linear(const std::vector<double>& w) override { phi_ = std::asin(std::clamp(w[0], -1.0, 1.0)); }
 
@@ -201,9 +180,9 @@ class AxisNonorthogonality : public Candidate {
   }
   ojson params() const override { return {{"skew_arcsec", rad_to_arcsec(std::asin(s_))}}; }
   void set(const EffectParams& p) override { s_ = std::sin(arcsec_to_rad(get(p, "skew_arcsec"))); }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    cols = columns_of(axis_column(r, 1, [&](size_t i) { return r.ref[0][i]; }));
-    return true;
+  int columns() const override { return 1; }  // pitch, on yaw only
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    v[0] = a == 1 ? r.ref[0][i] : 0.0;
   }
   void set_linear(const std::vector<double>& w) override { s_ = std::clamp(w[0], -1.0, 1.0); }
 
@@ -234,13 +213,8 @@ class Backlash : public Candidate {
   }
   ojson params() const override { return {{"width_arcsec", w_}}; }
   void set(const EffectParams& p) override { w_ = get(p, "width_arcsec"); }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    Contribution c;
-    c.resize(r.n);
-    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) c.v[a][i] = -0.5 * r.dir[a][i];
-    cols = columns_of(c);
-    return true;
-  }
+  int columns() const override { return 1; }
+  void column_values(const Recording& r, size_t i, int a, double* v) const override { v[0] = -0.5 * r.dir[a][i]; }
   void set_linear(const std::vector<double>& w) override { w_ = w[0]; }
 
  private:
@@ -283,8 +257,7 @@ class Settling : public Candidate {
   }
   void contribute(const Recording& r, Contribution& out) const override {
     for (size_t i = 0; i < r.n; ++i) {
-      const double tm = r.since_move[i];
-      const double e = std::isfinite(tm) && tm >= 0 && tau_ > 0 ? amp_ * std::exp(-tm / tau_) : 0.0;
+      const double e = amp_ * decay(r, i);
       for (int a = 0; a < 2; ++a) out.v[a][i] = r.move_dir[a][i] * e;
     }
   }
@@ -294,18 +267,17 @@ class Settling : public Candidate {
     return {{"tau_s", "at the search limit: the dwells do not resolve a decay"}};
   }
   void set(const EffectParams& p) override { amp_ = get(p, "amplitude_arcsec"); tau_ = get(p, "tau_s"); }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    Settling unit = *this;
-    unit.amp_ = 1.0;
-    Contribution c;
-    c.resize(r.n);
-    unit.contribute(r, c);
-    cols = columns_of(c);
-    return true;
-  }
+  int columns() const override { return 1; }  // the decay of unit amplitude at this tau
+  void column_values(const Recording& r, size_t i, int a, double* v) const override { v[0] = r.move_dir[a][i] * decay(r, i); }
   void set_linear(const std::vector<double>& w) override { amp_ = w[0]; }
 
  private:
+  // exp(-t_since/tau) at row i, 0 where no arrival rings.
+  double decay(const Recording& r, size_t i) const {
+    const double tm = r.since_move[i];
+    return std::isfinite(tm) && tm >= 0 && tau_ > 0 ? std::exp(-tm / tau_) : 0.0;
+  }
+
   double amp_ = 0, tau_ = 1;
 };
 
@@ -323,33 +295,19 @@ class TimeSkew : public Candidate {
     // The grid stage (it only has to land in the right valley) sees at most ~4000 rows.
     const size_t stride = std::max<size_t>(1, moving.size() / 4000);
     for (size_t k = 0; k < moving.size(); k += stride) coarse.push_back(moving[k]);
-    auto cost = [&](const std::vector<uint32_t>& use, double s) {
-      double c = 0;
-      size_t j = 0;
-      uint32_t cur = UINT32_MAX;
-      for (uint32_t i : use) {
-        const Step& st = r.steps[r.step_of[i]];
-        if (r.step_of[i] != cur) { cur = r.step_of[i]; j = st.begin; }
-        double p[2];
-        shown(r, st, r.t[i] - s, j, p);
-        for (int a = 0; a < 2; ++a) {
-          const double e = tg.v[a][i] - (st.moves[a] ? p[a] - r.ref[a][i] : 0.0);
-          c += e * e;
-        }
-      }
-      return c;
-    };
+    const std::vector<StepRows> all_steps = by_step(r, moving), coarse_steps = by_step(r, coarse);
     const double lim = r.guard_s;
     if (!(lim > 0) || moving.empty()) { skew_ = 0; return; }
     constexpr double kStep = 0.004;  // s; the reference is sampled every 20 ms or more
     const int steps = std::max(20, static_cast<int>(std::ceil(2 * lim / kStep)));
     double best = -lim, best_c = std::numeric_limits<double>::infinity();
     for (int k = 0; k <= steps; ++k) {
-      const double sk = -lim + 2 * lim * k / steps, c = cost(coarse, sk);
+      const double sk = -lim + 2 * lim * k / steps, c = cost(r, tg, coarse_steps, sk);
       if (c < best_c) { best_c = c; best = sk; }
     }
     const double d = 2 * lim / steps;
-    skew_ = minimise_1d([&](double sk) { return cost(moving, sk); }, std::max(-lim, best - 2 * d), std::min(lim, best + 2 * d), 8, 1e-6);
+    skew_ = minimise_1d([&](double sk) { return cost(r, tg, all_steps, sk); }, std::max(-lim, best - 2 * d),
+                        std::min(lim, best + 2 * d), 8, 1e-6);
   }
   void contribute(const Recording& r, Contribution& out) const override {
     out.resize(r.n);
@@ -368,7 +326,8 @@ class TimeSkew : public Candidate {
 
  private:
   // The reference of step `st` at time tq (both axes): linear between its samples, held at its
-  // ends. `j` is the segment found last; queries come in time order, so it only moves forward.
+  // ends. `j` is where the search for the segment starts (the one found last, or a guess); the
+  // segment found, the last sample at or before tq, is the same from any start.
   static void shown(const Recording& r, const Step& st, double tq, size_t& j, double* p) {
     const auto& t = r.t;
     if (st.end - st.begin < 2 || tq <= t[st.begin]) {
@@ -385,6 +344,42 @@ class TimeSkew : public Candidate {
     const double dt = t[j + 1] - t[j];
     const double w = dt > 0 ? (tq - t[j]) / dt : 0.0;
     for (int a = 0; a < 2; ++a) p[a] = r.ref[a][j] + w * (r.ref[a][j + 1] - r.ref[a][j]);
+  }
+
+  // The rows of one slew segment that a cost sums, in time order (the segment looked up once).
+  struct StepRows {
+    const Step* step;
+    std::vector<uint32_t> rows;
+  };
+  static std::vector<StepRows> by_step(const Recording& r, const std::vector<uint32_t>& rows) {
+    std::vector<StepRows> out;
+    for (uint32_t i : rows) {
+      const Step* st = &r.steps[r.step_of[i]];
+      if (out.empty() || out.back().step != st) out.push_back({st, {}});
+      out.back().rows.push_back(i);
+    }
+    return out;
+  }
+  // Sum over the rows and both axes of (target - what a skew s adds)^2.
+  static double cost(const Recording& r, const Contribution& tg, const std::vector<StepRows>& steps, double s) {
+    double c = 0;
+    for (const StepRows& sr : steps) {
+      const Step& st = *sr.step;
+      // The segment of the row before, moved on by as many rows (times never decrease, so the
+      // search ends where it would from the segment's start, a step or two away).
+      size_t j = st.begin, prev = st.begin;
+      for (uint32_t i : sr.rows) {
+        j += i - prev;
+        prev = i;
+        double p[2];
+        shown(r, st, r.t[i] - s, j, p);
+        for (int a = 0; a < 2; ++a) {
+          const double e = tg.v[a][i] - (st.moves[a] ? p[a] - r.ref[a][i] : 0.0);
+          c += e * e;
+        }
+      }
+    }
+    return c;
   }
 
   double skew_ = 0;
@@ -438,10 +433,11 @@ class Temperature : public Candidate {
     k_[1] = get(p, "yaw_arcsec_per_c");
     t0_ = p.params.count("t0_c") ? p.params.at("t0_c") : 20.0;
   }
-  bool columns(const Recording& r, std::vector<Contribution>& cols) const override {
-    auto d = [&](size_t i) { return std::isfinite(r.temp[i]) ? r.temp[i] - t0_ : 0.0; };
-    cols = columns_of(axis_column(r, 0, d), axis_column(r, 1, d));
-    return true;
+  int columns() const override { return 2; }  // T - T0, one per axis
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    const double d = std::isfinite(r.temp[i]) ? r.temp[i] - t0_ : 0.0;
+    v[0] = a == 0 ? d : 0.0;
+    v[1] = a == 1 ? d : 0.0;
   }
   void set_linear(const std::vector<double>& w) override { k_[0] = w[0]; k_[1] = w[1]; }
   void hold(const std::string& key, double value) override {

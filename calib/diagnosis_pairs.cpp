@@ -41,37 +41,36 @@ double mean_square2(const Recording& r, const Contribution& k1, const Contributi
   return rows.empty() ? 0.0 : s / (2.0 * static_cast<double>(rows.size()));
 }
 
+// One least-squares solve over the linear columns of both candidates (those that have them),
+// the other's contribution held; their contributions are then rewritten. The columns are
+// evaluated row by row as the sums are made (no column arrays: a large recording's memory).
 void joint_linear_step(const Recording& r, Candidate* c[2], Contribution* k[2]) {
-  std::vector<Contribution> cols[2];
-  bool has[2];
-  for (int q = 0; q < 2; ++q) has[q] = c[q]->columns(r, cols[q]);
-  if (!has[0] && !has[1]) return;
-  std::vector<const Contribution*> all_cols;
-  for (int q = 0; q < 2; ++q) if (has[q]) for (const auto& col : cols[q]) all_cols.push_back(&col);
-  const int m = static_cast<int>(all_cols.size());
+  const int mq[2] = {c[0]->columns(), c[1]->columns()};
+  const int m = mq[0] + mq[1];
+  if (m == 0) return;
   Eigen::MatrixXd G = Eigen::MatrixXd::Zero(m, m);
   Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
+  std::vector<double> v(m);
   for (uint32_t i : r.fit_rows) {
     for (int a = 0; a < 2; ++a) {
       double target = r.res[a][i];
-      for (int q = 0; q < 2; ++q) if (!has[q]) target -= k[q]->v[a][i];
+      for (int q = 0; q < 2; ++q) if (mq[q] == 0) target -= k[q]->v[a][i];
+      if (mq[0] > 0) c[0]->column_values(r, i, a, v.data());
+      if (mq[1] > 0) c[1]->column_values(r, i, a, v.data() + mq[0]);
       for (int x = 0; x < m; ++x) {
-        const double vx = all_cols[x]->at(a, i);
+        const double vx = v[x];
         if (vx == 0) continue;
         b(x) += vx * target;
-        for (int y = 0; y <= x; ++y) G(x, y) += vx * all_cols[y]->at(a, i);
+        for (int y = 0; y <= x; ++y) G(x, y) += vx * v[y];
       }
     }
   }
   G = G.selfadjointView<Eigen::Lower>();
   G.diagonal().array() += 1e-12 * (G.diagonal().maxCoeff() + 1e-30);
   const Eigen::VectorXd w = G.ldlt().solve(b);
-  int at = 0;
-  for (int q = 0; q < 2; ++q) {
-    if (!has[q]) continue;
-    std::vector<double> wq(w.data() + at, w.data() + at + cols[q].size());
-    at += static_cast<int>(cols[q].size());
-    c[q]->set_linear(wq);
+  for (int q = 0, at = 0; q < 2; at += mq[q], ++q) {
+    if (mq[q] == 0) continue;
+    c[q]->set_linear(std::vector<double>(w.data() + at, w.data() + at + mq[q]));
     c[q]->contribute(r, *k[q]);
   }
 }
@@ -162,9 +161,12 @@ std::optional<JointFit> best_pair(const Recording& r, const std::vector<Scored>&
     const Scored& f = *fp;
     std::vector<std::pair<double, std::string>> screened;
     {
-    const Contribution f_contrib = f.contribution(r);
-    Contribution k1, k2;
+    // Two buffers (a large recording's memory): the first's contribution and the second's,
+    // which first holds what the first leaves. The joint linear step rewrites the first's when
+    // it has linear columns; it is then written afresh for the next.
+    Contribution k1 = f.contribution(r), k2;
     k2.resize(r.n);
+    bool k1_is_single = true;
     for (const auto& s2 : all) {
       const std::string& name2 = s2.result.name;
       if (name2 == "none" || name2 == f.result.name || contained(f.result.name, name2)) continue;
@@ -172,14 +174,14 @@ std::optional<JointFit> best_pair(const Recording& r, const std::vector<Scored>&
       // together (a single's fit can be a compromise only a joint solve undoes).
       auto c1 = f.cand->clone();
       auto c2 = diag::make_candidate(name2);
-      // What the first leaves, in the buffer the second's contribution then overwrites.
-      for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) k2.v[a][i] = static_cast<float>(r.res[a][i] - f_contrib.v[a][i]);
+      if (!k1_is_single) f.cand->contribute(r, k1);
+      for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) k2.v[a][i] = static_cast<float>(r.res[a][i] - k1.v[a][i]);
       c2->fit(r, k2, r.fit_rows);
       c2->contribute(r, k2);
-      k1 = f_contrib;
       Candidate* cc[2] = {c1.get(), c2.get()};
       Contribution* kk[2] = {&k1, &k2};
       joint_linear_step(r, cc, kk);
+      k1_is_single = c1->columns() == 0;
       double ms = 0;
       for (uint32_t i : r.heldout_rows) {
         for (int a = 0; a < 2; ++a) {
