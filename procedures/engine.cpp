@@ -493,6 +493,11 @@ EngineResult Engine::run(int session) {
                                                                          : plan_.actions.size();
   try {
     prepare();
+    // Bench time counts from here, as the plan's physical minimum does: the link's setup (the
+    // sensor's rate and start, the gimbal's rate and watchdog: round trips, a few ms of wall time,
+    // seconds of bench time at 1000x) is not the procedure's.
+    bench_start_s_ = -1;
+    read_gimbal();
     events_.publish(RunStarted{session, cursor_.first, &plan_});
     if (cursor_.resuming) log_.info("resuming at point {} of {}", cursor_.first + 1, plan_.points);
     for (size_t i = 0; i < plan_.actions.size(); ++i) {

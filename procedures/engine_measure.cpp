@@ -170,7 +170,7 @@ Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arriv
   // A host so late that the gimbal had left before it could read it during the dwell: the frames
   // take the reading that found it there (at rest at the point, one reading for all), and the next
   // move waits for this dwell's end, so the gimbal stays put until the host has read it.
-  late_for_schedule_ = move_at_s && d.refs.size() < 2;
+  late_for_schedule_ = move_at_s && d.refs.empty();
   if (d.refs.empty()) d.refs.push_back(arrived);
   d.ref_of.resize(d.frames.size(), d.refs.size() - 1);
   return d;

@@ -92,8 +92,8 @@ std::optional<SensorSample> Engine::wait_bench_until(double t_s) {
 }
 
 void Engine::off_bench(const std::function<void()>& f) {
-  // From the bench clock's estimate before to a gimbal reading after (a host that ran ahead of
-  // the devices' clock counts nothing).
+  // From the latest device stamp before (nothing of the bench's happens after it: the gimbal
+  // rests where the last point left it, and the host stores that point) to a gimbal reading after.
   struct Add {
     Engine& e;
     double t0;
@@ -107,7 +107,7 @@ void Engine::off_bench(const std::function<void()>& f) {
       }
       e.off_bench_s_ += std::max(0.0, t1 - t0);
     }
-  } add{*this, bench_now_s()};
+  } add{*this, last_bench_s_};
   f();
 }
 
