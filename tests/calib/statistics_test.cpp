@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <functional>
 
 #include "calib/errors.h"
 #include "calib/report.h"
@@ -17,37 +19,51 @@ namespace mc = test::mc;
 
 const std::string kTruth = "a-6-fpss1";
 
+// Calibrates each recording (one thread) and tallies both axes' errors against the truth over the
+// design's range; `each` looks at every recording's report and each of its axis fits.
+struct Tallies {
+  mc::AxisTally pitch, yaw;
+  double mean_z2() const { return (pitch.sum_z2 + yaw.sum_z2) / static_cast<double>(pitch.angles + yaw.angles); }
+};
+Tallies fit_all(const std::vector<std::filesystem::path>& files, const CoefficientSet& truth, const mc::Design& design,
+                const std::function<void(const CalibrationReport&, const AxisFit&)>& each) {
+  const auto cp = mc::range_counts(truth.alpha, design), cy = mc::range_counts(truth.beta, design);
+  Tallies t;
+  CalibrationOptions opts;
+  opts.threads = 1;
+  for (const auto& f : files) {
+    const CalibrationReport r = calibrate(read_samples_csv(f), opts);
+    for (const AxisFit* a : {&r.pitch, &r.yaw}) each(r, *a);
+    t.pitch.add(r.pitch, truth.alpha, cp);
+    t.yaw.add(r.yaw, truth.beta, cy);
+  }
+  return t;
+}
+
 TEST(Statistics, GeneratorAndFitAgreeOnErrorsAndTheirSigma) {
   test::TempDir dir("calib-statistics");
   const CoefficientSet truth = load_published(kTruth);
   const mc::Design design;
   const auto files = mc::generate(published_dir() / (kTruth + ".json"), dir / "rec", 20, 4242, design);
   ASSERT_EQ(files.size(), 20u);
-  const auto cp = mc::range_counts(truth.alpha, design), cy = mc::range_counts(truth.beta, design);
-  mc::AxisTally pitch, yaw;
   double noise_sum = 0;
   int noise_n = 0;
-  CalibrationOptions opts;
-  opts.threads = 1;
-  for (const auto& f : files) {
-    const CalibrationReport r = calibrate(read_samples_csv(f), opts);
-    for (const AxisFit* a : {&r.pitch, &r.yaw}) {
-      EXPECT_EQ(a->fit_form, "gls");
-      EXPECT_EQ(a->noise.count_noise_source, "within-dwell scatter");
-      EXPECT_TRUE(a->noise.quantisation_corrected);
-      // 121 dwells x 4 degrees of freedom of lumpy whole-count scatter (61 of them at the null's
-      // one count): one recording's estimate scatters by ~15 %.
-      EXPECT_NEAR(a->noise.count_noise_counts, 0.3, 0.12);
-      noise_sum += a->noise.count_noise_counts;
-      ++noise_n;
-      EXPECT_NEAR(a->noise.ref_noise_arcsec, 0.05, 0.006);
-      EXPECT_GE(a->angle_sigma_arcsec.size(), 41u);
-      EXPECT_FALSE(a->model_remainder) << a->reduced_chi2 << " noise " << a->noise.count_noise_counts << " ref " << a->noise.ref_noise_arcsec;
-    }
+  const Tallies t = fit_all(files, truth, design, [&](const CalibrationReport& r, const AxisFit& a) {
+    EXPECT_EQ(a.fit_form, "gls");
+    EXPECT_EQ(a.noise.count_noise_source, "within-dwell scatter");
+    EXPECT_TRUE(a.noise.quantisation_corrected);
+    // 121 dwells x 4 degrees of freedom of lumpy whole-count scatter (61 of them at the null's
+    // one count): one recording's estimate scatters by ~15 %.
+    EXPECT_NEAR(a.noise.count_noise_counts, 0.3, 0.12);
+    noise_sum += a.noise.count_noise_counts;
+    ++noise_n;
+    EXPECT_NEAR(a.noise.ref_noise_arcsec, 0.05, 0.006);
+    EXPECT_GE(a.angle_sigma_arcsec.size(), 41u);
+    EXPECT_FALSE(a.model_remainder) << a.reduced_chi2 << " noise " << a.noise.count_noise_counts << " ref " << a.noise.ref_noise_arcsec;
     EXPECT_EQ(r.outlier_frames, 0u);
-    pitch.add(r.pitch, truth.alpha, cp);
-    yaw.add(r.yaw, truth.beta, cy);
-  }
+  });
+  const mc::AxisTally &pitch = t.pitch, &yaw = t.yaw;
+  const auto cp = mc::range_counts(truth.alpha, design), cy = mc::range_counts(truth.beta, design);
   // Over 40 estimates: within 10 % (the short-dwell estimate runs a few % high).
   EXPECT_NEAR(noise_sum / noise_n, 0.3, 0.03);
   const double crb_p = mc::rms_of(mc::crb_sigma_arcsec(truth.alpha, design, true, cp));
@@ -65,9 +81,8 @@ TEST(Statistics, GeneratorAndFitAgreeOnErrorsAndTheirSigma) {
   EXPECT_GT(cov1, 0.58);
   EXPECT_LT(cov1, 0.80);
   EXPECT_GT(cov2, 0.88);
-  const double mean_z2 = (pitch.sum_z2 + yaw.sum_z2) / static_cast<double>(pitch.angles + yaw.angles);
-  EXPECT_GT(mean_z2, 0.6);
-  EXPECT_LT(mean_z2, 1.6);
+  EXPECT_GT(t.mean_z2(), 0.6);
+  EXPECT_LT(t.mean_z2(), 1.6);
 }
 
 // A recorder that reads the encoder once per ten frames (20 frames a dwell: two readings each): the
@@ -82,25 +97,15 @@ TEST(Statistics, FramesThatShareAnEncoderReadingCountAsOneReading) {
   design.frames_per_reading = 10;
   const auto files = mc::generate(published_dir() / (kTruth + ".json"), dir / "rec", 8, 977, design);
   ASSERT_EQ(files.size(), 8u);
-  const auto cp = mc::range_counts(truth.alpha, design), cy = mc::range_counts(truth.beta, design);
-  mc::AxisTally pitch, yaw;
   double chi2 = 0;
-  CalibrationOptions opts;
-  opts.threads = 1;
-  for (const auto& f : files) {
-    const CalibrationReport r = calibrate(read_samples_csv(f), opts);
-    for (const AxisFit* a : {&r.pitch, &r.yaw}) {
-      EXPECT_NEAR(a->noise.ref_noise_arcsec, 0.05, 0.01);
-      EXPECT_FALSE(a->model_remainder) << a->reduced_chi2;
-      chi2 += a->reduced_chi2 / 16;
-    }
-    pitch.add(r.pitch, truth.alpha, cp);
-    yaw.add(r.yaw, truth.beta, cy);
-  }
+  const Tallies t = fit_all(files, truth, design, [&](const CalibrationReport&, const AxisFit& a) {
+    EXPECT_NEAR(a.noise.ref_noise_arcsec, 0.05, 0.01);
+    EXPECT_FALSE(a.model_remainder) << a.reduced_chi2;
+    chi2 += a.reduced_chi2 / 16;
+  });
   EXPECT_NEAR(chi2, 1.0, 0.25);
-  const double mean_z2 = (pitch.sum_z2 + yaw.sum_z2) / static_cast<double>(pitch.angles + yaw.angles);
-  EXPECT_GT(mean_z2, 0.5);
-  EXPECT_LT(mean_z2, 2.0);
+  EXPECT_GT(t.mean_z2(), 0.5);
+  EXPECT_LT(t.mean_z2(), 2.0);
 }
 
 // Table A-5 FPSS2's yaw has a slow sinusoid (less than half a period over the range): its cost is flat
