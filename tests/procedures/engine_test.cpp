@@ -312,6 +312,38 @@ TEST(Engine, TheDiscreteGridTakesWithin10PercentOfItsPhysicalMinimumAtEverySpeed
   }
 }
 
+// An invalid frame lengthens a dwell by a frame (max_invalid_frames), so the next move, scheduled
+// on the gimbal's clock for the dwell's end, is put back by a frame period each time: every dwell
+// still has its frames, all valid, all taken at rest (the gimbal still at the point when its last
+// frame was taken), and no point is measured again.
+TEST(Engine, AnInvalidFramePutsTheScheduledMoveBack) {
+  TempDir tmp("engine-invalid-frame");
+  EngineSettings b;
+  b.clock = ClockSync::shared;
+  b.time_scale = 1e9;
+  VirtualBench v(20, tmp / "run");
+  v.fake.invalid_frame_every = 7;
+  const Plan plan = plan_of(grid(", max_invalid_frames: 3"), b);
+  int dwells = 0;
+  v.bus.subscribe([&](const Event& e) {
+    const auto* p = std::get_if<PointDone>(&e);
+    if (!p) return;
+    ++dwells;
+    ASSERT_EQ(p->rows->size(), 4u);
+    for (const auto& r : *p->rows) {
+      EXPECT_EQ(r.sensor_status & 0x7, 0x7);
+      EXPECT_NEAR(r.gimbal_pitch_arcsec, p->action->pitch_arcsec, 0.5) << "point " << p->action->point + 1;
+      EXPECT_NEAR(r.gimbal_yaw_arcsec, p->action->yaw_arcsec, 0.5) << "point " << p->action->point + 1;
+    }
+  });
+  Engine engine = v.engine(b, plan);
+  const EngineResult r = engine.run();
+  ASSERT_EQ(r.outcome, RunOutcome::completed) << r.reason;
+  EXPECT_EQ(dwells, static_cast<int>(plan.points));
+  EXPECT_EQ(engine.stats().remeasured, 0);
+  EXPECT_GT(engine.stats().scheduled_moves, static_cast<int64_t>(plan.points) / 2);
+}
+
 // A busy host at 1000x: one request in ten comes after the controller was away for up to 100 ms
 // of bench time (100 us of wall time: a descheduled thread). With each move scheduled on the
 // gimbal's clock from the dwell before, the host's absences fall within the settles and dwells

@@ -210,7 +210,8 @@ std::optional<SensorSample> FakeSensor::next_sample(double timeout_s) {
         s.sensor_time_s = r.time_s;
         s.counts_alpha = r.counts_alpha;
         s.counts_beta = r.counts_beta;
-        s.status = r.time_s >= b_.invalid_frames_from_s ? 0 : r.status;
+        const bool spoiled = b_.invalid_frame_every > 0 && k % b_.invalid_frame_every == 0;
+        s.status = r.time_s >= b_.invalid_frames_from_s || spoiled ? 0 : r.status;
         s.host_time_s = host_now_s();
         ++stats_.frames;
         return s;

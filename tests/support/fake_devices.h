@@ -40,6 +40,7 @@ class FakeBench {
   // invalid sensor frames (sun absent) from bench time t on (infinite: never).
   uint64_t following_error_at_request = 0;
   double invalid_frames_from_s = 1e300;
+  uint64_t invalid_frame_every = 0;  // every n-th frame (by index) invalid, sun absent (0: none)
 
  private:
   std::mutex mu_;
