@@ -126,7 +126,8 @@ Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arriv
                                         last_bad_status, a.max_invalid),
                             StopCause::sensor_invalid);
       }
-      if (move_at_s) reschedule_next_move(a, *move_at_s, *move_at_s + period_s);  // one frame more
+      // One frame more (before the first valid frame, that frame puts the end where it belongs).
+      if (move_at_s && !d.frames.empty()) reschedule_next_move(a, *move_at_s, *move_at_s + period_s);
       continue;
     }
     d.frames.push_back(*f);
