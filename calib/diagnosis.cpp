@@ -334,8 +334,12 @@ void Diagnoser::pick_cause() {
     // kept when it beats the best single's score.
     // Also when the cause is the catch-all refitted transfer function: it contains a bias and a
     // scale factor, and two simple effects may explain the same with far fewer parameters.
+    // The fit rows count too: the held-out steps may happen to hold little of a second effect (a
+    // non-orthogonality shows only at pitch offsets; a held-out yaw slew has none) while the fit
+    // rows show it plainly. A pair found so must still win on the held-out rows.
+    const double left = std::max(d.gap_after_arcsec, best.result.fit_rms_arcsec);
     if (opts_.second_effect &&
-        (d.gap_after_arcsec > opts_.second_effect_gap_ratio * d.noise_floor_arcsec || d.cause == "coefficients")) {
+        (left > opts_.second_effect_gap_ratio * d.noise_floor_arcsec || d.cause == "coefficients")) {
       diag::second_effect(r, all, best, ms0, N, material, d, combined);
     }
   }
@@ -402,8 +406,9 @@ void Diagnoser::describe() {
       {"heldout_rows", r.heldout_rows.size()},
       {"excluded_rows", r.excluded_rows},
       {"excluded_why", fmt::format("the first and last {} s of every slew segment (the reference outside a segment "
-                                   "is not recorded, so a time shift cannot be predicted there), the rows within the same margin of every reversal inside a step (a time shift moves where the sensor sees the turn), and outlier frames",
+                                   "is not recorded, so a time shift cannot be predicted there), the rows within the same margin of every reversal inside a step (a time shift moves where the sensor sees the turn), outlier frames, and held-out rows at angles beyond those the fit rows reach on either axis (a score judges prediction, not extrapolation; beyond_fit_rows)",
                                    r.guard_s)},
+      {"beyond_fit_rows", r.beyond_fit_rows},
       {"fit_steps", {{"dwells", r.dwells - held_d}, {"slews", r.motions - held_m}}},
       {"heldout_steps", {{"dwells", held_d}, {"slews", held_m}}},
       {"heldout_step_ids", held_ids}};

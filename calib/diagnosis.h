@@ -36,7 +36,8 @@ struct DiagnosisOptions {
   // One step in `heldout_every` of each kind (dwells, slews) is held out.
   int heldout_every = 3;
   bool second_effect = true;
-  // A second effect is looked for only while the first leaves more than this times the noise floor.
+  // A second effect is looked for only while the first leaves more than this times the noise floor
+  // (held out or on the fit rows).
   double second_effect_gap_ratio = 1.2;
 };
 

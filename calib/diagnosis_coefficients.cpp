@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <cmath>
 #include <limits>
 
@@ -21,6 +22,10 @@ using ojson = nlohmann::ordered_json;
 // The sensor's transfer function differs from the model's: eq. 1 refitted per axis to what the
 // residual says the angle at each count is. Scaled parameters keep the Jacobian balanced.
 constexpr double kS = 16384.0;  // counts over half the field
+
+// The sinusoid frequencies the refit searches, rad/count: the published sets' span (1.0e-4 ..
+// 5.5e-4 in the trustworthy ones) and more.
+constexpr double kMinFrequency = 0.4e-4, kMaxFrequency = 8e-4;
 
 // Eq. 1 in arcsec at count n. u: C1 arcsec, C2 arcsec per kS counts, C3 arcsec, C4 rad per kS
 // counts, C5, C6, C7, C8.
@@ -82,17 +87,52 @@ NormalEquations normal_equations(const std::array<double, 8>& u, const std::vect
   return ne;
 }
 
+// "The sensor is the model's unit, changed a little": a weak Gaussian prior on the sinusoids about
+// the model's (amplitude 1-sigma half the model's amplitude plus 1 arcsec, frequency 10 %, phase
+// 0.5 rad; C1 and C2, a bias and a scale, are free), in the units of the data's cost (weights =
+// residual variance / sigma^2). Where the fit rows hold many angles it is negligible; where they
+// hold a few levels only (a coarse grid, its one slew of an axis held out) eq. 1's eight
+// parameters would otherwise interpolate them and swing between them.
+struct Prior {
+  std::array<double, 8> u0{};
+  std::array<double, 8> w{};
+};
+
+Prior sinusoid_prior(const std::array<double, 8>& model_u, double variance) {
+  Prior p;
+  p.u0 = model_u;
+  auto weight = [&](double sigma) { return variance / (sigma * sigma); };
+  for (int k : {2, 5}) {
+    p.w[k] = weight(0.5 * std::abs(model_u[k]) + 1.0);
+    p.w[k + 1] = weight(0.1 * std::abs(model_u[k + 1]) + 1e-6);
+    p.w[k + 2] = weight(0.5);
+  }
+  return p;
+}
+
+void add_prior(NormalEquations& ne, const std::array<double, 8>& u, const Prior* prior) {
+  if (!prior) return;
+  for (int p = 0; p < 8; ++p) {
+    const double d = u[p] - prior->u0[p];
+    ne.cost += prior->w[p] * d * d;
+    ne.g(p) += prior->w[p] * d;
+    ne.A(p, p) += prior->w[p];
+  }
+}
+
 // Levenberg-Marquardt from u to the least-squares minimum of eq. 1 on (n, y), with the
 // tolerances the refit always had (relative cost change or step 1e-12, at most 100 iterations).
 // Written out rather than Ceres: eight parameters need only 8 x 8 normal equations, and the trial
 // point's pass gives them for the next step, so an iteration is one pass of two sincos a row
 // (Ceres evaluated each accepted point twice and factored the whole Jacobian): the refit is the
 // inner loop of every joint fit with a refitted transfer function.
-void refine(std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y) {
+void refine(std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y,
+            const Prior* prior = nullptr) {
   using Vec8 = Eigen::Matrix<double, 8, 1>;
   constexpr int kMaxIterations = 100;
   constexpr double kTolerance = 1e-12, kGradientTolerance = 1e-10, kMinRelativeDecrease = 1e-3;
   NormalEquations ne = normal_equations(u, n, y);
+  add_prior(ne, u, prior);
   double mu = 1e-4, nu = 2;  // damping relative to diag(J^T J), and its growth on a rejected step
   for (int it = 0; it < kMaxIterations && std::isfinite(ne.cost); ++it) {
     if (ne.g.cwiseAbs().maxCoeff() <= kGradientTolerance) return;
@@ -102,6 +142,7 @@ void refine(std::array<double, 8>& u, const std::vector<double>& n, const std::v
     std::array<double, 8> trial = u;
     for (int p = 0; p < 8; ++p) trial[p] += step(p);
     NormalEquations next = normal_equations(trial, n, y);
+    add_prior(next, trial, prior);
     // Gain ratio: the cost's fall against the fall the linearised model predicts.
     const double predicted = -(2 * ne.g.dot(step) + step.dot(ne.A * step));
     const double rho = predicted > 0 ? (ne.cost - next.cost) / predicted : -1.0;
@@ -149,13 +190,56 @@ AxisRows axis_rows(const Recording& r, int a, const Contribution& tg, const Rows
   return s;
 }
 
+// Of the refit from the grid's best node and the refit from the model, the one from the model
+// unless the other fits significantly better: chi^2 falls by more than the 1 % point of chi^2 with
+// 8 degrees of freedom (20.1; the two differ in all eight coefficients), in units of the better
+// fit's residual variance. Over a field narrower than the sinusoids' periods eq. 1 is nearly
+// degenerate: two sinusoids and a line trade against each other, and a solution far from the
+// model can fit the fitted counts as well as one near it while parting from it beyond them. The
+// sensor is the model's unit, changed a little, unless the data say otherwise.
+const std::array<double, 8>& model_near_unless_worse(const std::array<double, 8>& from_grid,
+                                                     const std::array<double, 8>& from_model,
+                                                     const std::vector<double>& n, const std::vector<double>& y) {
+  constexpr double kChi2_8dof_1pct = 20.09;
+  const double c_grid = cost_of(from_grid, n, y), c_model = cost_of(from_model, n, y);
+  if (!std::isfinite(c_grid)) return from_model;
+  if (!std::isfinite(c_model)) return from_grid;
+  const double var = std::min(c_grid, c_model) / std::max(1.0, static_cast<double>(n.size()) - 8.0);
+  return c_model - c_grid > kChi2_8dof_1pct * var ? from_grid : from_model;
+}
+
+// Whether the fit rows reach enough of the field for eq. 1's eight parameters to be told apart
+// freely: counts in at least 24 bins of 200 counts (about 20 arcsec; three bins a parameter). A
+// grid of a few offsets without slews holds a few levels only; a free solution then not only
+// interpolates them but flattens eq. 1 at each (its slope near zero there), which takes the
+// sensor's count noise out of the residual: a chi^2 test counts that as a better fit, by far
+// more than the parameters it spends.
+bool covers_field(const std::vector<double>& n) {
+  constexpr double kBinCounts = 200;
+  constexpr size_t kMinBins = 24;
+  std::vector<int64_t> bins;
+  bins.reserve(n.size());
+  for (double c : n) bins.push_back(static_cast<int64_t>(std::floor(c / kBinCounts)));
+  std::sort(bins.begin(), bins.end());
+  return static_cast<size_t>(std::unique(bins.begin(), bins.end()) - bins.begin()) >= kMinBins;
+}
+
 // Variable projection: a log grid over both sinusoid frequencies (0.4e-4 .. 8e-4 rad/count, the
 // published sets' span and more) with the linear parameters solved exactly at every node from one
-// Gram matrix, then Ceres from the best node and from the model itself.
-AxisCoeffs refit_axis(const AxisCoeffs& model, const AxisRows& s) {
+// Gram matrix, then refined from the best node and from the model itself (model_near_unless_worse
+// picks one).
+// One axis's refit, the residual variance its prior is scaled by, and whether the model-near
+// solution was kept (a joint fit's later refits then keep the prior).
+struct Refit {
+  AxisCoeffs c{};
+  double variance = 0;
+  bool prior_kept = false;
+};
+
+Refit refit_axis(const AxisCoeffs& model, const AxisRows& s) {
   constexpr int kW = 24;
   std::vector<double> f(kW);
-  for (int j = 0; j < kW; ++j) f[j] = 0.4e-4 * std::pow(20.0, j / (kW - 1.0)) * kS;
+  for (int j = 0; j < kW; ++j) f[j] = kMinFrequency * std::pow(kMaxFrequency / kMinFrequency, j / (kW - 1.0)) * kS;
   const std::vector<double>& n = s.n_grid;
   const std::vector<double>& y = s.y_grid;
   const int dim = 2 + 2 * kW;
@@ -203,8 +287,15 @@ AxisCoeffs refit_axis(const AxisCoeffs& model, const AxisRows& s) {
   const std::vector<double>& yr = s.y_fine;
   std::array<double, 8> from_model = to_u(model);
   refine(best_u, nr, yr);
-  refine(from_model, nr, yr);
-  return from_u(cost_of(best_u, nr, yr) <= cost_of(from_model, nr, yr) ? best_u : from_model);
+  Refit out;
+  out.variance = cost_of(best_u, nr, yr) / std::max(1.0, static_cast<double>(nr.size()) - 8.0);
+  const Prior prior = sinusoid_prior(to_u(model), out.variance);
+  refine(from_model, nr, yr, &prior);
+  const std::array<double, 8>& kept =
+      covers_field(nr) ? model_near_unless_worse(best_u, from_model, nr, yr) : from_model;
+  out.c = from_u(kept);
+  out.prior_kept = &kept == &from_model;
+  return out;
 }
 
 class Coefficients : public Candidate {
@@ -218,14 +309,18 @@ class Coefficients : public Candidate {
       model_amp_[a] = std::max(std::abs(rad_to_arcsec(model[a][2])), std::abs(rad_to_arcsec(model[a][5])));
       const AxisRows s = axis_rows(r, a, tg, rows);
       if (s.count < 8) {
-        c_[a] = model[a];
+        set_axis(a, model[a]);
       } else if (fitted_) {
         // Refitted again (a joint fit with another effect): the last solution is a good start.
         std::array<double, 8> u = to_u(c_[a]);
-        refine(u, s.n_fine, s.y_fine);
-        c_[a] = from_u(u);
+        const Prior prior = sinusoid_prior(to_u(model[a]), variance_[a]);
+        refine(u, s.n_fine, s.y_fine, prior_kept_[a] ? &prior : nullptr);
+        set_axis(a, from_u(u));
       } else {
-        c_[a] = refit_axis(model[a], s);
+        const Refit f = refit_axis(model[a], s);
+        set_axis(a, f.c);
+        variance_[a] = f.variance;
+        prior_kept_[a] = f.prior_kept;
       }
       if (s.count > 0) { lo_[a] = s.lo; hi_[a] = s.hi; }
     }
@@ -241,9 +336,35 @@ class Coefficients : public Candidate {
     }
   }
   ojson params() const override { return {{"alpha", c_[0]}, {"beta", c_[1]}}; }
+  // Eq. 1 is linear in C1 and C2: two columns an axis (zero on the other), so that a joint fit
+  // solves them together with the other effect's linear parameters. Alternating a refit with a
+  // drift or a temperature that the recording's order makes look like an offset or a slope in the
+  // counts converges only geometrically (a ratio near 0.65 an iteration was seen: 20 iterations
+  // left 3x the noise). The sinusoids stay with the refit: solved linearly at fixed frequencies,
+  // two of them over a field shorter than their periods trade into large cancelling amplitudes.
+  int columns() const override { return 4; }
+  void column_values(const Recording& r, size_t i, int a, double* v) const override {
+    // contribution = model(N) - eq. 1 = column_offset - C1 - C2 N - sinusoids
+    v[0] = v[1] = v[2] = v[3] = 0.0;
+    v[2 * a] = -1;
+    v[2 * a + 1] = -static_cast<double>(r.counts[a][i]) / kS;
+  }
+  double column_offset(const Recording& r, size_t i, int a) const override {
+    const std::array<double, 8>& u = u_[a];
+    const double x = static_cast<double>(r.counts[a][i]) / kS;
+    return r.meas(a, i) - u[2] * std::sin(u[3] * x + u[4]) - u[5] * std::sin(u[6] * x + u[7]);
+  }
+  void set_linear(const std::vector<double>& w) override {
+    for (int a = 0; a < 2; ++a) {
+      std::array<double, 8> u = u_[a];
+      u[0] = w[2 * a];
+      u[1] = w[2 * a + 1];
+      set_axis(a, from_u(u));
+    }
+  }
   void restart() override { fitted_ = false; }
   void set(const EffectParams& p) override {
-    if (p.coefficients) { c_[0] = p.coefficients->alpha; c_[1] = p.coefficients->beta; }
+    if (p.coefficients) { set_axis(0, p.coefficients->alpha); set_axis(1, p.coefficients->beta); }
   }
   // Ill-conditioned or implausible: sinusoids far beyond any the sensor family shows (10x the
   // model's largest, at least 200 arcsec), or two that nearly cancel (each more than 10x what the
@@ -272,6 +393,24 @@ class Coefficients : public Candidate {
                            "an ill-conditioned refit",
                            axis[a], a3, a6, rms);
       }
+      const std::string off = off_family(a);
+      if (!off.empty()) return fmt::format("{}: {}", axis[a], off);
+    }
+    return {};
+  }
+  // A sinusoid whose frequency the refinement took outside the range the refit searches, the
+  // sensor family's and more: it stands in for a periodic error of another origin (a gimbal
+  // encoder's cyclic error of a few hundred arcsec period is a sinusoid of 8e-4 .. 2e-3 rad a
+  // count, which a refit would otherwise take for the sensor's own, its weakest sinusoid given up).
+  std::string off_family(int a) const {
+    for (int k : {3, 6}) {
+      const double f = std::abs(c_[a][k]);
+      if (f < kMinFrequency || f > kMaxFrequency) {
+        return fmt::format("a sinusoid of {:.2f} arcsec at {:.3g} rad/count, outside the {:.1e} .. {:.1e} the refit "
+                           "searches (the published sets' frequencies and more): it stands in for a periodic error of "
+                           "another origin",
+                           std::abs(rad_to_arcsec(c_[a][k - 1])), f, kMinFrequency, kMaxFrequency);
+      }
     }
     return {};
   }
@@ -283,9 +422,17 @@ class Coefficients : public Candidate {
   }
 
  private:
+  void set_axis(int a, const AxisCoeffs& c) {
+    c_[a] = c;
+    u_[a] = to_u(c);
+  }
+
   AxisCoeffs c_[2]{};
+  std::array<double, 8> u_[2]{};  // c_ scaled (eq1_arcsec), for the columns
   double lo_[2] = {0, 0}, hi_[2] = {0, 0};
   double model_amp_[2] = {0, 0};
+  double variance_[2] = {0, 0};
+  bool prior_kept_[2] = {false, false};
   bool fitted_ = false;
 };
 

@@ -260,17 +260,62 @@ void settling_clock(Recording& r, std::vector<float>& since_col, const Diagnosis
   }
 }
 
+// Held-out rows are judged only at angles the fit rows reach, on both axes (to within the
+// direction detector's hysteresis, ten times the reference's noise): a score on held-out steps
+// measures how well a fitted candidate predicts where it was fitted, not how it extrapolates. A
+// stand whose grid is narrower than its slews, with one slew of an axis held out, would otherwise
+// judge a refitted transfer function on counts it never saw, where eq. 1's sinusoids (periods
+// longer than the field fitted) are free; the physical effects lose only a few rows of evidence.
+// `where` judges its angle splines by the same rule.
+void judge_within_fit_field(Recording& r) {
+  double lo[2], hi[2];
+  for (int a = 0; a < 2; ++a) { lo[a] = std::numeric_limits<double>::infinity(); hi[a] = -lo[a]; }
+  for (size_t i = 0; i < r.n; ++i) {
+    if (r.use[i] != Use::fit) continue;
+    for (int a = 0; a < 2; ++a) { lo[a] = std::min(lo[a], r.ref[a][i]); hi[a] = std::max(hi[a], r.ref[a][i]); }
+  }
+  const double m = r.reverse_arcsec;
+  for (size_t i = 0; i < r.n; ++i) {
+    if (r.use[i] != Use::heldout) continue;
+    for (int a = 0; a < 2; ++a) {
+      if (r.ref[a][i] < lo[a] - m || r.ref[a][i] > hi[a] + m) {
+        r.use[i] = Use::excluded;
+        ++r.beyond_fit_rows;
+        break;
+      }
+    }
+  }
+}
+
+// The stratum a step is counted in when the split holds one in `heldout_every` out: motions form
+// one; dwells four, by the axes they stand off the null on (none, pitch, yaw, both). Counted over
+// all dwells at once, a recording's order can put most of one axis's offsets on one side (every
+// third step a yaw offset), and the fit rows would then not reach the held-out angles at all.
+int split_stratum(const Recording& r, const Step& s) {
+  if (s.kind != StepKind::dwell) return 0;
+  constexpr double kOffNullArcsec = 5.0;
+  int k = 1;
+  for (int a = 0; a < 2; ++a) {
+    double sum = 0;
+    for (size_t i = s.begin; i < s.end; ++i) sum += r.ref[a][i];
+    if (std::abs(sum / static_cast<double>(s.end - s.begin)) > kOffNullArcsec) k += 1 << a;
+  }
+  return k;
+}
+
 void split_steps(Recording& r, const DiagnosisOptions& opts) {
   const size_t n = r.n;
-  // Split by whole steps: one in `heldout_every` of each kind is held out (a kind with two
+  // Split by whole steps: one in `heldout_every` of each stratum is held out (a stratum with two
   // steps gives one to each side); the ends of slew segments are scored by nobody.
   r.guard_s = opts.max_skew_s;
   r.use.assign(n, Use::fit);
-  size_t k_dwell = 0, k_motion = 0;
+  size_t seen[5] = {0, 0, 0, 0, 0}, total[5] = {0, 0, 0, 0, 0};
+  for (const Step& s : r.steps) ++total[split_stratum(r, s)];
   for (Step& s : r.steps) {
     const bool dwell = s.kind == StepKind::dwell;
-    const size_t k = dwell ? k_dwell++ : k_motion++;
-    const size_t m = dwell ? r.dwells : r.motions;
+    const int g = split_stratum(r, s);
+    const size_t k = seen[g]++;
+    const size_t m = total[g];
     const size_t every = static_cast<size_t>(opts.heldout_every);
     s.heldout = m == 2 ? k == 1 : (m >= 3 && k % every == every - 1);
     for (size_t i = s.begin; i < s.end; ++i) {
@@ -278,6 +323,7 @@ void split_steps(Recording& r, const DiagnosisOptions& opts) {
       r.use[i] = guard || r.outlier[i] || r.turning[i] ? Use::excluded : (s.heldout ? Use::heldout : Use::fit);
     }
   }
+  judge_within_fit_field(r);
   for (size_t i = 0; i < n; ++i) {
     if (r.use[i] == Use::fit) r.fit_rows.push_back(static_cast<uint32_t>(i));
     else if (r.use[i] == Use::heldout) r.heldout_rows.push_back(static_cast<uint32_t>(i));

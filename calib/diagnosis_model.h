@@ -57,6 +57,7 @@ struct Recording {
   double guard_s = 0;
   double reverse_arcsec = 0;  // the direction detector's hysteresis
   size_t dwells = 0, motions = 0, excluded_rows = 0;
+  size_t beyond_fit_rows = 0;  // held-out rows at angles the fit rows do not reach (not judged)
 };
 
 // Builds the features from the columns (taken over: the recording is not copied). Throws
@@ -95,6 +96,9 @@ class Candidate {
   // The columns' values at row i on axis a, written to v[0..columns()). Evaluated row by row
   // where they are summed: a joint fit holds no column arrays (8 bytes a row each).
   virtual void column_values(const Recording& r, size_t i, int a, double* v) const {}
+  // A part of the contribution that does not scale with the weights (the contribution is this plus
+  // the weighted columns): 0 but for an effect that replaces what the model says (coefficients).
+  virtual double column_offset(const Recording& r, size_t i, int a) const { return 0.0; }
   // Sets the column weights (as many as columns() says).
   virtual void set_linear(const std::vector<double>& w) {}
   // Holds a parameter at a value in later fits (a degeneracy resolved by convention).

@@ -54,7 +54,7 @@ void joint_linear_step(const Recording& r, Candidate* c[2], Contribution* k[2]) 
   for (uint32_t i : r.fit_rows) {
     for (int a = 0; a < 2; ++a) {
       double target = r.res[a][i];
-      for (int q = 0; q < 2; ++q) if (mq[q] == 0) target -= k[q]->v[a][i];
+      for (int q = 0; q < 2; ++q) target -= mq[q] == 0 ? k[q]->v[a][i] : c[q]->column_offset(r, i, a);
       if (mq[0] > 0) c[0]->column_values(r, i, a, v.data());
       if (mq[1] > 0) c[1]->column_values(r, i, a, v.data() + mq[0]);
       for (int x = 0; x < m; ++x) {
@@ -94,21 +94,42 @@ JointFit joint_fit(const Recording& r, const Scored& first, const std::string& n
     for (size_t i = 0; i < r.n; ++i) if (std::isfinite(r.temp[i])) { t_first = r.temp[i]; break; }
     for (Candidate* q : c) if (q->name() == "temperature") q->hold("t0_c", t_first);
   }
-  double prev = std::numeric_limits<double>::infinity();
+  double prev = std::numeric_limits<double>::infinity(), best = prev;
+  std::unique_ptr<Candidate> best_c[2];
   for (int it = 0; it < 20; ++it) {
+    // The second was first fitted on what the first's single fit left, which had to absorb the
+    // second too: once the linear parts of both have been solved together (the first pass), both
+    // search afresh (a refitted transfer function may otherwise stay in the basin that compromise
+    // led it into).
+    if (it == 1) { c1->restart(); c2->restart(); }
     for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) k2.v[a][i] = static_cast<float>(r.res[a][i] - k1.v[a][i]);
     c2->fit(r, k2, r.fit_rows);
     c2->contribute(r, k2);
     // The first's single fit had to absorb the second too; once the second is in, it starts
-    // afresh (a refitted transfer function may otherwise stay in a wrong basin).
+    // afresh.
     if (it == 0) c1->restart();
     for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) k1.v[a][i] = static_cast<float>(r.res[a][i] - k2.v[a][i]);
     c1->fit(r, k1, r.fit_rows);
     c1->contribute(r, k1);
     joint_linear_step(r, c, k);
     const double sse = mean_square2(r, k1, k2, r.fit_rows);
-    if (prev - sse <= 1e-7 * sse) break;
+    if (sse < best) {
+      best = sse;
+      best_c[0] = c1->clone();
+      best_c[1] = c2->clone();
+    }
+    // The fresh search after the first pass may start higher: it is not a sign of convergence.
+    if (it != 1 && prev - sse <= 1e-7 * sse) break;
     prev = sse;
+  }
+  // The restarts may have led somewhere worse than a state already seen: that state is kept.
+  if (best < mean_square2(r, k1, k2, r.fit_rows)) {
+    c1 = std::move(best_c[0]);
+    c2 = std::move(best_c[1]);
+    c[0] = c1.get();
+    c[1] = c2.get();
+    c1->contribute(r, k1);
+    c2->contribute(r, k2);
   }
   JointFit j;
   const double ms = mean_square2(r, k1, k2, r.heldout_rows);
@@ -131,19 +152,23 @@ JointFit joint_fit(const Recording& r, const Scored& first, const std::string& n
 
 // Firsts: the three best held-out scores and the two best in-sample fits (with two effects
 // at once a single fit can be biased by the other effect so that it fails on the held-out
-// rows while still taking the most off the fit rows).
+// rows while still taking the most off the fit rows). An in-sample fit may be degenerate: a
+// refitted transfer function made to absorb a second effect too (a settling of several arcsec)
+// grows implausible sinusoids alone, and is sound once the second is in (the joint fit restarts
+// it; a pair with a degenerate member is never kept).
 std::vector<const Scored*> pair_firsts(const std::vector<Scored>& all, double N) {
   std::vector<const Scored*> firsts;
   auto add_first = [&](const Scored* f) {
     if (f->result.name != "none" && std::find(firsts.begin(), firsts.end(), f) == firsts.end()) firsts.push_back(f);
   };
-  for (size_t k = 0, m = 0; k < all.size() && m < 3; ++k) {
+  constexpr size_t nfirst = 3;
+  for (size_t k = 0, m = 0; k < all.size() && m < nfirst; ++k) {
     if (all[k].result.name == "none" || !all[k].result.degenerate.empty()) continue;
     add_first(&all[k]);
     ++m;
   }
   std::vector<const Scored*> by_fit;
-  for (const auto& s1 : all) if (s1.result.name != "none" && s1.result.degenerate.empty()) by_fit.push_back(&s1);
+  for (const auto& s1 : all) if (s1.result.name != "none") by_fit.push_back(&s1);
   std::sort(by_fit.begin(), by_fit.end(), [&](const Scored* a, const Scored* b) {
     return penalised(a->result.fit_rms_arcsec * a->result.fit_rms_arcsec, 1.0, a->result.parameters, N) <
            penalised(b->result.fit_rms_arcsec * b->result.fit_rms_arcsec, 1.0, b->result.parameters, N);
@@ -196,7 +221,7 @@ std::optional<JointFit> best_pair(const Recording& r, const std::vector<Scored>&
     if (screened.size() > 3) screened.resize(3);
     for (const auto& sc : screened) {
       JointFit j = joint_fit(r, f, sc.second, ms0, N);
-      if (!j.e[0].degenerate.empty() || !j.e[1].degenerate.empty()) continue;
+        if (!j.e[0].degenerate.empty() || !j.e[1].degenerate.empty()) continue;
       if (!pair || j.score < pair->score) pair = std::move(j);
     }
   }
@@ -228,14 +253,31 @@ std::string why_alike(const std::string& a, const std::string& b) {
 
 void second_effect(const Recording& r, const std::vector<Scored>& all, const Scored& best, double ms0, double N,
                    double material, Diagnosis& d, Contribution& combined) {
-  const std::vector<const Scored*> firsts = pair_firsts(all, N);
-  const std::optional<JointFit> pair = best_pair(r, all, firsts, ms0, N);
-  // Kept when it scores better than the best single and its second member is material: it
-  // takes at least 0.1 x noise floor^2 off the held-out mean square its first leaves alone.
   auto single = [&](const std::string& n) -> const Scored& {
     for (const auto& s : all) if (s.result.name == n) return s;
     return all.front();
   };
+  std::vector<const Scored*> firsts = pair_firsts(all, N);
+  std::optional<JointFit> pair = best_pair(r, all, firsts, ms0, N);
+  // The best pair's members are searched around too, until that changes nothing: a pair found
+  // around a catch-all (a refitted transfer function or a temperature, which hold any constant)
+  // may be a simpler effect's stand-in paired with the right second (bias and backlash found as
+  // coefficients and backlash when neither bias nor backlash alone was among the firsts); around
+  // the second, the simpler first is screened, and fewer parameters score better.
+  while (pair) {
+    std::vector<const Scored*> more;
+    for (const EffectResult& e : pair->e) {
+      const Scored* s = &single(e.name);
+      if (std::find(firsts.begin(), firsts.end(), s) == firsts.end()) more.push_back(s);
+    }
+    if (more.empty()) break;
+    firsts.insert(firsts.end(), more.begin(), more.end());
+    std::optional<JointFit> other = best_pair(r, all, more, ms0, N);
+    if (!other || !(other->score < pair->score)) break;
+    pair = std::move(other);
+  }
+  // Kept when it scores better than the best single and its second member is material: it
+  // takes at least 0.1 x noise floor^2 off the held-out mean square its first leaves alone.
   bool keep = pair && pair->score < best.result.score;
   EffectResult e1, e2;
   if (keep) {

@@ -146,6 +146,10 @@ void decide_verdict(const Recording& r, Diagnosis& d, const ojson& flexible) {
   if (held_gap) {
     rem.where = d.where_after;
     rem.where.insert(rem.where.end(), extra.begin(), extra.end());
+    // In order of share: when no factor stands out (where_after then lists the three that come
+    // closest, with shares near 0), a vibration's excess scatter is what the remainder is.
+    std::stable_sort(rem.where.begin(), rem.where.end(),
+                     [](const WhereEntry& a, const WhereEntry& b) { return a.share > b.share; });
   } else {
     rem.where = extra;
   }
