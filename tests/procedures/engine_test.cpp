@@ -247,6 +247,14 @@ struct VirtualBench {
   std::shared_ptr<spdlog::logger> log = quiet_log();
 };
 
+// One clock for both devices, the host's sleeps as good as instant: the virtual bench's settings.
+EngineSettings virtual_clock_settings() {
+  EngineSettings b;
+  b.clock = ClockSync::shared;
+  b.time_scale = 1e9;
+  return b;
+}
+
 BenchConfig bench_with_timed_moves(bool timed) {
   BenchConfig c = default_bench_config();
   c.timed_moves = timed;
@@ -257,9 +265,7 @@ BenchConfig bench_with_timed_moves(bool timed) {
 // the link for that stand.
 double grid_bench_s(double speed, bool timed, const fs::path& dir, Plan& plan, EngineStats& stats,
                     const std::function<void(test::FakeBench&)>& host = {}) {
-  EngineSettings b;
-  b.clock = ClockSync::shared;
-  b.time_scale = 1e9;
+  EngineSettings b = virtual_clock_settings();
   b.link_round_trip_s = kLinkRoundTrip_s * speed / b.time_scale;  // the dry run's model of the link
   b.timed_moves = timed;
   VirtualBench v(speed, dir, bench_with_timed_moves(timed));
@@ -318,9 +324,7 @@ TEST(Engine, TheDiscreteGridTakesWithin10PercentOfItsPhysicalMinimumAtEverySpeed
 // frame was taken), and no point is measured again.
 TEST(Engine, AnInvalidFramePutsTheScheduledMoveBack) {
   TempDir tmp("engine-invalid-frame");
-  EngineSettings b;
-  b.clock = ClockSync::shared;
-  b.time_scale = 1e9;
+  EngineSettings b = virtual_clock_settings();
   VirtualBench v(20, tmp / "run");
   v.fake.invalid_frame_every = 7;
   const Plan plan = plan_of(grid(", max_invalid_frames: 3"), b);
@@ -370,9 +374,7 @@ TEST(Engine, MovesOnTheGimbalsClockKeepABusyHostOffTheBenchTime) {
 // safe side). A move of zero length (the null after home) has no motion to time and is not counted.
 TEST(Engine, ASettleCountsFromTheArrivalNotFromALateLook) {
   TempDir tmp("engine-settle");
-  EngineSettings b;
-  b.clock = ClockSync::shared;
-  b.time_scale = 1e9;
+  EngineSettings b = virtual_clock_settings();
   VirtualBench v(2000, tmp / "run");
   const Plan plan = plan_of(grid(), b);
   const double settle_s = 0.2, period_s = 1.0 / b.sample_rate_hz, model_error_s = 0.025;
@@ -401,9 +403,7 @@ TEST(Engine, ASettleCountsFromTheArrivalNotFromALateLook) {
 // cut the long waits and it never trips.
 TEST(Engine, LongWaitsFeedTheGimbalsWatchdog) {
   TempDir tmp("engine-watchdog");
-  EngineSettings b;
-  b.clock = ClockSync::shared;
-  b.time_scale = 1e9;
+  EngineSettings b = virtual_clock_settings();
   b.watchdog_s = 0.3;
   VirtualBench v(1000, tmp / "run");
   const Plan plan = plan_of(grid(), b);
