@@ -57,7 +57,7 @@ class PtyRun {
       test::wait_exit_code(pid_);
     }
     stop_ = true;
-    reader_.join();
+    if (reader_.joinable()) reader_.join();
     ::close(slave_);
     ::close(master_);
   }
@@ -73,6 +73,13 @@ class PtyRun {
       return true;
     }, timeout_s, std::chrono::milliseconds(10));
     done_ = code != -1;
+    if (done_) {
+      // All it wrote before it exited is in the terminal's buffer: read to the end here, not when
+      // the reader's next poll comes round (output() right after would miss the last lines).
+      stop_ = true;
+      if (reader_.joinable()) reader_.join();
+      while (read_some(0)) {}
+    }
     return code;
   }
   // The terminal's local modes as the line discipline holds them now.
@@ -90,15 +97,18 @@ class PtyRun {
 
  private:
   void drain() {
-    while (!stop_) {
-      pollfd p{master_, POLLIN, 0};
-      if (::poll(&p, 1, 20) <= 0) continue;
-      char b[4096];
-      const ssize_t n = ::read(master_, b, sizeof b);
-      if (n <= 0) continue;
-      std::lock_guard lock(mu_);
-      out_.append(b, static_cast<size_t>(n));
-    }
+    while (!stop_) read_some(20);
+  }
+  // Reads what the terminal holds within timeout_ms; false when nothing came.
+  bool read_some(int timeout_ms) {
+    pollfd p{master_, POLLIN, 0};
+    if (::poll(&p, 1, timeout_ms) <= 0) return false;
+    char b[4096];
+    const ssize_t n = ::read(master_, b, sizeof b);
+    if (n <= 0) return false;
+    std::lock_guard lock(mu_);
+    out_.append(b, static_cast<size_t>(n));
+    return true;
   }
 
   int master_ = -1, slave_ = -1;
