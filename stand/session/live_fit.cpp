@@ -1,10 +1,14 @@
 #include "stand/session/live_fit.h"
 
 #include <fmt/format.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <utility>
 
 #include "calib/errors.h"
 #include "calib/transfer_function.h"
@@ -28,6 +32,77 @@ LiveFit::LiveFit(const Plan& plan, const AxisMapping& axes) : cal_(CalibrationOp
   for (const auto& a : plan.actions) {
     if (a.until_group >= 0 && !step_ranges_.count(a.step_index)) step_ranges_[a.step_index] = ranges_of(plan, a.step_index);
   }
+  worker_ = std::thread([this] { work(); });
+}
+
+LiveFit::~LiveFit() {
+  {
+    std::lock_guard lk(m_);
+    stop_ = true;
+  }
+  cv_.notify_one();
+  worker_.join();
+}
+
+void LiveFit::add(const Sample& s) {
+  std::lock_guard fl(fit_m_);
+  cal_.add_sample(s);
+}
+
+int64_t LiveFit::take_queued() {
+  std::vector<Sample> rows;
+  int64_t points = 0;
+  {
+    std::lock_guard lk(m_);
+    rows.swap(queued_);
+    points = queued_points_;
+  }
+  for (const auto& r : rows) cal_.add_sample(r);
+  return points;
+}
+
+void LiveFit::work() {
+  // The lowest priority: the estimate is for the operator's eyes, and on two cores a fit competing
+  // with the emulator's sensor thread or the engine delays frames and moves. Failing to lower it
+  // changes nothing but that.
+  ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 19);
+  for (;;) {
+    {
+      std::unique_lock lk(m_);
+      cv_.wait(lk, [&] { return stop_ || !queued_.empty(); });
+      if (stop_) return;
+    }
+    std::lock_guard fl(fit_m_);
+    try {
+      auto f = update(take_queued(), false);
+      std::lock_guard lk(m_);
+      if (f) ready_ = std::move(f);
+    } catch (const std::exception& e) {
+      std::lock_guard lk(m_);
+      error_ = e.what();
+      return;
+    }
+  }
+}
+
+std::optional<FitUpdated> LiveFit::point_done(const std::vector<Sample>& rows, int64_t points, bool force) {
+  {
+    std::lock_guard lk(m_);
+    if (!error_.empty()) throw std::runtime_error(error_);
+    queued_.insert(queued_.end(), rows.begin(), rows.end());
+    queued_points_ = points;
+  }
+  if (force) {
+    std::lock_guard fl(fit_m_);
+    take_queued();
+    auto f = update(points, true);
+    std::lock_guard lk(m_);
+    ready_.reset();  // older than this one
+    return f;
+  }
+  cv_.notify_one();
+  std::lock_guard lk(m_);
+  return std::exchange(ready_, std::nullopt);
 }
 
 LiveFit::Ranges LiveFit::ranges_of(const Plan& plan, size_t step_index) const {
@@ -70,7 +145,6 @@ std::optional<FitUpdated> LiveFit::update(int64_t points, bool force) {
   // No estimate yet leaves the refresh budget unspent, so the first valid one is published at once.
   if (!est.valid) return std::nullopt;
   last_ = now;
-  est_ = est;
   FitUpdated f;
   f.points = points;
   f.pairs = est.pairs;
@@ -79,15 +153,24 @@ std::optional<FitUpdated> LiveFit::update(int64_t points, bool force) {
   auto finite_or_nan = [](double v) { return std::isfinite(v) ? v : std::numeric_limits<double>::quiet_NaN(); };
   f.sigma_max_pitch_arcsec = finite_or_nan(sigma(fit::Axis::alpha, run_ranges_));
   f.sigma_max_yaw_arcsec = finite_or_nan(sigma(fit::Axis::beta, run_ranges_));
-  text_ = fmt::format("live residual rms pitch {:.2f} yaw {:.2f} arcsec ({} pairs)", est.rms_pitch_arcsec,
-                      est.rms_yaw_arcsec, est.pairs);
+  std::string text = fmt::format("live residual rms pitch {:.2f} yaw {:.2f} arcsec ({} pairs)", est.rms_pitch_arcsec,
+                                 est.rms_yaw_arcsec, est.pairs);
   if (std::isfinite(f.sigma_max_pitch_arcsec) && std::isfinite(f.sigma_max_yaw_arcsec)) {
-    text_ += fmt::format(", 1-sigma {:.3f}/{:.3f}", f.sigma_max_pitch_arcsec, f.sigma_max_yaw_arcsec);
+    text += fmt::format(", 1-sigma {:.3f}/{:.3f}", f.sigma_max_pitch_arcsec, f.sigma_max_yaw_arcsec);
   }
+  std::lock_guard lk(m_);
+  est_ = est;
+  text_ = std::move(text);
   return f;
 }
 
+std::string LiveFit::text() const {
+  std::lock_guard lk(m_);
+  return text_;
+}
+
 std::vector<LiveFit::PointResidual> LiveFit::residuals(int64_t point, const PointStats& st) {
+  std::lock_guard lk(m_);
   if (st.rows > 0) unplotted_.push_back({point, st});
   std::vector<PointResidual> out;
   if (!est_) return out;
@@ -103,6 +186,8 @@ std::vector<LiveFit::PointResidual> LiveFit::residuals(int64_t point, const Poin
 double LiveFit::until_sigma(const Action& a) {
   const auto it = step_ranges_.find(a.step_index);
   if (it == step_ranges_.end()) return kInf;
+  std::lock_guard fl(fit_m_);
+  take_queued();
   // Which sensor axes the group's points move: both, or the one the stand axis is mounted on.
   const bool both = a.until_both_axes;
   const auto sensor = a.axis == StandAxis::pitch ? axes_.pitch_axis : axes_.yaw_axis;

@@ -73,7 +73,7 @@ class Session {
   void subscribe();
   void on_point_done(const PointDone& p);
   void on_step_stopped(const StepStopped& s);
-  void publish_live_fit(int64_t points, bool force = true);
+  void publish_live_fit(int64_t points, bool force = true, const std::vector<Sample>& rows = {});
   template <typename F>
   void live_guarded(F&& f);  // f() on the live fit, which is switched off if it throws
   int64_t points_before(const Action& a) const;  // points planned before a computation step
@@ -275,12 +275,12 @@ void Session::subscribe() {
 }
 
 void Session::on_point_done(const PointDone& p) {
-  live_guarded([&] {
-    for (const auto& r : *p.rows) live_->add(r.sample);
-  });
-  // The estimate costs a few thousand small solves: refreshed twice a second at most, and always
-  // after the last point.
-  publish_live_fit(p.action->point + 1, progress_->done() + 1 >= plan_.points);
+  // The estimate costs a few thousand small solves: refreshed twice a second at most (on the live
+  // fit's own thread), and always after the last point.
+  std::vector<Sample> rows;
+  rows.reserve(p.rows->size());
+  for (const auto& r : *p.rows) rows.push_back(r.sample);
+  publish_live_fit(p.action->point + 1, progress_->done() + 1 >= plan_.points, rows);
   // Each point against the latest live fit, for the console's residual chart and map.
   live_guarded([&] {
     for (const auto& r : live_->residuals(p.action->point + 1, p.stats)) {
@@ -293,9 +293,9 @@ void Session::on_point_done(const PointDone& p) {
   progress_->point_done(live_ ? live_->text() : std::string());
 }
 
-void Session::publish_live_fit(int64_t points, bool force) {
+void Session::publish_live_fit(int64_t points, bool force, const std::vector<Sample>& rows) {
   live_guarded([&] {
-    if (auto f = live_->update(points, force)) bus_.publish(*f);
+    if (auto f = live_->point_done(rows, points, force)) bus_.publish(*f);
   });
 }
 
