@@ -15,14 +15,12 @@
 
 #include "calib/errors.h"
 #include "procedures/recorder.h"
-#include "stand/catalogue/postgres_schema.h"
+#include "stand/catalogue/schema.h"
 
 namespace fpss {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-static_assert(std::size(postgres_schema::kMigrations) == Catalogue::kSchemaVersion);
 
 // Parameters of one statement, NULL where a value is absent (libpqxx 6 has no std::optional).
 class Args {
@@ -192,7 +190,8 @@ PostgresCatalogue::Connection& PostgresCatalogue::connection() const {
 }
 
 // Applies the missing migrations under a transaction-scoped advisory lock: stands opening a fresh
-// database at once wait for the first and then find nothing to do.
+// database at once wait for the first and then find nothing to do. PostgreSQL's DDL is
+// transactional, so a crash leaves the version before or after.
 void PostgresCatalogue::migrate() {
   if (schema_version() == kSchemaVersion) return;  // the common case: no lock, no DDL privilege needed
   try {
@@ -205,7 +204,7 @@ void PostgresCatalogue::migrate() {
       throw InputError(fmt::format("{}: catalogue schema version {} is newer than this fpss-stand ({})", shown_url_,
                                    v, kSchemaVersion));
     }
-    for (int step = v; step < kSchemaVersion; ++step) w.exec(postgres_schema::kMigrations[step]);
+    for (int step = v; step < kSchemaVersion; ++step) w.exec(schema::migration(step, schema::Dialect::postgres));
     if (r.empty()) w.exec(fmt::format("INSERT INTO schema_version(version) VALUES({})", kSchemaVersion));
     else w.exec(fmt::format("UPDATE schema_version SET version = {}", kSchemaVersion));
     w.commit();

@@ -21,14 +21,12 @@
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
-#include "stand/catalogue/sqlite_schema.h"
+#include "stand/catalogue/schema.h"
 
 namespace fpss {
 namespace {
 
 namespace fs = std::filesystem;
-
-static_assert(std::size(sqlite_schema::kMigrations) == Catalogue::kSchemaVersion);
 
 [[noreturn]] void fail(const fs::path& path, const std::string& what, const SQLite::Exception& e) {
   // SQLITE_NOTADB (26) and SQLITE_CORRUPT (11) are about the file the user named.
@@ -202,6 +200,9 @@ SqliteCatalogue::~SqliteCatalogue() = default;
 
 int SqliteCatalogue::schema_version() const { return db_->execAndGet("PRAGMA user_version").getInt(); }
 
+// The missing migrations run inside the IMMEDIATE transaction that also sets user_version, so two
+// processes opening a fresh file at once cannot both create it, and a crash leaves the version
+// before or after.
 void SqliteCatalogue::init_schema() {
   if (schema_version() == kSchemaVersion) return;  // the common case: no write lock needed
   write_txn(*db_, [&] {
@@ -210,7 +211,7 @@ void SqliteCatalogue::init_schema() {
       throw InputError(fmt::format("{}: catalogue schema version {} is newer than this fpss-stand ({})",
                                    path_.string(), v, kSchemaVersion));
     }
-    for (int step = v; step < kSchemaVersion; ++step) db_->exec(sqlite_schema::kMigrations[step]);
+    for (int step = v; step < kSchemaVersion; ++step) db_->exec(schema::migration(step, schema::Dialect::sqlite));
     db_->exec(fmt::format("PRAGMA user_version = {}", kSchemaVersion));
   });
 }

@@ -237,11 +237,10 @@ void add_import(CLI::App& app, Runner& run) {
 
 // ---- accept ----
 
-struct AcceptArgs {
-  std::string stand_file, unit, procedure, limits, runs_dir = "runs", catalogue;
-  bool emulate = false, json = false, quiet = false, no_progress = false, operator_prompts = false;
+struct AcceptArgs : BenchChoiceArgs {
+  std::string unit, procedure, limits, runs_dir = "runs", catalogue;
+  bool json = false, quiet = false, no_progress = false, operator_prompts = false;
   double catalogue_wait_s = 120;
-  EmulatedBenchArgs emu;
 };
 
 // The page when the run's own report cannot be drawn (no calibration): the certificate alone.
@@ -457,9 +456,9 @@ void add_accept_command(CLI::App& app, Runner& run) {
   auto* sub = app.add_subcommand(
       "accept", "Acceptance of a sensor unit: calibrate, verify on unseen points, measure jitter, judge, certify "
                 "(exit 0 pass, 3 fail)");
-  sub->add_option("--stand", a->stand_file, "Stand file (YAML) of a real bench");
+  add_bench_choice_options(sub, *a, "Stand file (YAML) of a real bench",
+                           "Run on the emulated bench (a child process over the real wire)");
   sub->add_option("--unit", a->unit, "Serial of the unit (required with --stand; with --emulate, the serial it reports)");
-  sub->add_flag("--emulate", a->emulate, "Run on the emulated bench (a child process over the real wire)");
   sub->add_option("--procedure", a->procedure, "Acceptance procedure (default procedures/acceptance.yaml)");
   sub->add_option("--limits", a->limits, "Acceptance limits (default procedures/acceptance_limits.yaml)");
   sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made")->capture_default_str();
@@ -470,7 +469,6 @@ void add_accept_command(CLI::App& app, Runner& run) {
   sub->add_flag("--no-progress", a->no_progress, "No live progress line");
   sub->add_flag("--operator-prompts", a->operator_prompts,
                 "Ask the operator (unit serial, lamp, name) through the run folder's control channel: the web console");
-  add_emulated_bench_options(sub, a->emu);
   sub->callback([&run, a] { run = [a] { return accept_command(*a); }; });
 }
 

@@ -26,12 +26,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct RunArgs {
-  std::string procedure, stand_file, runs_dir = "runs", resume, catalogue;
-  bool emulate = false, dry_run = false, no_progress = false, quiet = false;
+struct RunArgs : BenchChoiceArgs {
+  std::string procedure, runs_dir = "runs", resume, catalogue;
+  bool dry_run = false, no_progress = false, quiet = false;
   std::string unit_serial, operator_name;
   double catalogue_wait_s = 120;
-  EmulatedBenchArgs emu;
 };
 
 int run_command(const RunArgs& a) {
@@ -134,8 +133,9 @@ void add_run(CLI::App& app, Runner& run) {
   auto a = std::make_shared<RunArgs>();
   auto* sub = app.add_subcommand("run", "Run a calibration procedure on a stand (or the emulated bench) and record it");
   sub->add_option("procedure", a->procedure, "Procedure file (YAML, docs/procedures.md)");
-  sub->add_option("--stand", a->stand_file, "Stand file (YAML): endpoints, unit, limits, axes, timing");
-  sub->add_flag("--emulate", a->emulate, "Start the emulated bench as a child process and run on it");
+  add_bench_choice_options(sub, *a, "Stand file (YAML): endpoints, unit, limits, axes, timing",
+                           "Start the emulated bench as a child process and run on it");
+  a->emu.options.push_back(sub->add_option("--unit-serial", a->unit_serial, "Emulator: serial number the sensor reports"));
   sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made (default runs/)");
   sub->add_option("--resume", a->resume, "Continue an interrupted run from its folder");
   sub->add_flag("--dry-run", a->dry_run, "Validate, print the expanded steps, points and duration; move nothing");
@@ -144,8 +144,6 @@ void add_run(CLI::App& app, Runner& run) {
   sub->add_flag("--no-progress", a->no_progress, "No live progress line, even on a terminal");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
   sub->add_option("--operator", a->operator_name, "Who runs it (recorded in run.json)");
-  add_emulated_bench_options(sub, a->emu);
-  a->emu.options.push_back(sub->add_option("--unit-serial", a->unit_serial, "Emulator: serial number the sensor reports"));
   sub->callback([&run, a] { run = [a] { return run_command(*a); }; });
 }
 

@@ -25,11 +25,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct ServeArgs {
-  std::string runs_dir = "runs", listen = "127.0.0.1:8080", stand_file, procedures, catalogue;
-  bool emulate = false;
+struct ServeArgs : BenchChoiceArgs {
+  std::string runs_dir = "runs", listen = "127.0.0.1:8080", procedures, catalogue;
   size_t max_clients = 8;
-  EmulatedBenchArgs emu;
 };
 
 // The emulator options as `run`/`accept` take them, checked now (bad input is exit 2 here, not in a child).
@@ -123,12 +121,11 @@ void add_serve(CLI::App& app, Runner& run) {
   auto* sub = app.add_subcommand("serve", "Web console of one stand: live runs, queue, runs, unit history (docs/console.md)");
   sub->add_option("--runs-dir", a->runs_dir, "Runs folder (default runs/)");
   sub->add_option("--listen", a->listen, "ADDR:PORT to listen on (default 127.0.0.1:8080; port 0: any free port)");
-  sub->add_option("--stand", a->stand_file, "Stand file (YAML) of the real bench");
-  sub->add_flag("--emulate", a->emulate, "Runs use the emulated bench (each starts its own emulator child)");
+  add_bench_choice_options(sub, *a, "Stand file (YAML) of the real bench",
+                           "Runs use the emulated bench (each starts its own emulator child)");
   sub->add_option("--procedures", a->procedures, "Folder of procedures the start page offers (default procedures/)");
   sub->add_option("--max-clients", a->max_clients, "Live event streams at once (default 8)");
   add_catalogue_option(sub, a->catalogue);
-  add_emulated_bench_options(sub, a->emu);
   sub->callback([&run, a] { run = [a] { return serve_command(*a); }; });
 }
 

@@ -12,6 +12,8 @@ namespace fpss::cli {
 
 namespace fs = std::filesystem;
 
+namespace {
+
 void add_emulated_bench_options(CLI::App* sub, EmulatedBenchArgs& a) {
   a.options.push_back(sub->add_option("--speed", a.speed, "Emulator: bench clock speed-up (default 20)"));
   a.options.push_back(sub->add_option("--seed", a.seed, "Emulator: seed of all bench noise (default 1)"));
@@ -23,6 +25,15 @@ void add_emulated_bench_options(CLI::App* sub, EmulatedBenchArgs& a) {
       sub->add_option("--fault", a.faults, "Emulator: fault NAME[:key=value,...] (repeatable; docs/emulator.md)")
           ->allow_extra_args(false));
   a.options.push_back(sub->add_option("--truth", a.truth, "Emulator: coefficient file of the sensor's truth"));
+}
+
+}  // namespace
+
+void add_bench_choice_options(CLI::App* sub, BenchChoiceArgs& a, const std::string& stand_help,
+                              const std::string& emulate_help) {
+  sub->add_option("--stand", a.stand_file, stand_help);
+  sub->add_flag("--emulate", a.emulate, emulate_help);
+  add_emulated_bench_options(sub, a.emu);
 }
 
 void require_emulate_for_options(const EmulatedBenchArgs& a, const std::string& command) {

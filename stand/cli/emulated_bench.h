@@ -1,4 +1,5 @@
-// The emulated-bench options `run` and `accept` share, and the emulator child they describe.
+// The bench options `run`, `accept` and `serve` share (a stand file or the emulated bench), and the
+// emulator child they describe.
 #pragma once
 #include <cstdint>
 #include <filesystem>
@@ -19,8 +20,17 @@ struct EmulatedBenchArgs {
   std::vector<CLI::Option*> options;  // every option above, for "needs --emulate"
 };
 
+// The bench a command runs on: a real one (its stand file) or the emulated one.
+struct BenchChoiceArgs {
+  std::string stand_file;
+  bool emulate = false;
+  EmulatedBenchArgs emu;
+};
+
+// --stand FILE and --emulate, with what each means to the command, then the emulated bench's options:
 // --speed, --seed, --bench, --effect (repeatable), --fault (repeatable), --truth.
-void add_emulated_bench_options(CLI::App* sub, EmulatedBenchArgs& a);
+void add_bench_choice_options(CLI::App* sub, BenchChoiceArgs& a, const std::string& stand_help,
+                              const std::string& emulate_help);
 // InputError "<command>: --x needs --emulate" for the first of these options given.
 void require_emulate_for_options(const EmulatedBenchArgs& a, const std::string& command);
 // The child's spec, checked now (effects parsed, bench and truth files read: InputError rather than

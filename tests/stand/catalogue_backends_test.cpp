@@ -16,9 +16,8 @@
 #include "calib/errors.h"
 #include "stand/catalogue/copy.h"
 #include "stand/catalogue/postgres_catalogue.h"
-#include "stand/catalogue/postgres_schema.h"
+#include "stand/catalogue/schema.h"
 #include "stand/catalogue/sqlite_catalogue.h"
-#include "stand/catalogue/sqlite_schema.h"
 #include "tests/support/pg_server.h"
 #include "tests/stand/catalogue_fixtures.h"
 #include "tests/support/test_support.h"
@@ -77,11 +76,11 @@ class Backends : public ::testing::TestWithParam<Backend> {
   void make_version_1() {
     if (GetParam() == Backend::sqlite) {
       SQLite::Database d(dir_.path() / "stand.db", SQLite::OPEN_READWRITE | SQLite::OPEN_CREATE);
-      d.exec(sqlite_schema::kMigrations[0]);
+      d.exec(schema::migration(0, schema::Dialect::sqlite));
       d.exec("PRAGMA user_version = 1");
       d.exec("INSERT INTO units VALUES('OLD-1', '2024-01-01T00:00:00Z')");
     } else {
-      pg().psql(db_, std::string(postgres_schema::kMigrations[0]) +
+      pg().psql(db_, schema::migration(0, schema::Dialect::postgres) +
                          "CREATE TABLE schema_version (version INTEGER NOT NULL);"
                          "INSERT INTO schema_version VALUES (1);"
                          "INSERT INTO units VALUES('OLD-1', '2024-01-01T00:00:00Z');");
