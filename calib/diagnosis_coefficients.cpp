@@ -228,6 +228,43 @@ bool covers_field(const std::vector<double>& n) {
 // published sets' span and more) with the linear parameters solved exactly at every node from one
 // Gram matrix, then refined from the best node and from the model itself (model_near_unless_worse
 // picks one).
+// Why a transfer function is not one the sensor family can have, or empty: sinusoids far beyond
+// any the family shows (10x the model's largest, at least 200 arcsec), two that nearly cancel over
+// the counts [lo, hi] (each more than 10x what they add up to there: an ill-conditioned refit),
+// or a frequency outside the range the refit searches (a periodic error of another origin, such
+// as a gimbal encoder's cyclic error of a few hundred arcsec period, 8e-4 .. 2e-3 rad a count).
+std::string implausible(const AxisCoeffs& c, double model_amp_arcsec, double lo, double hi) {
+  const double a3 = std::abs(rad_to_arcsec(c[2])), a6 = std::abs(rad_to_arcsec(c[5]));
+  const double big = std::max(a3, a6), limit = std::max(200.0, 10.0 * model_amp_arcsec);
+  if (big > limit) {
+    return fmt::format("sinusoid amplitudes {:.0f} and {:.0f} arcsec, beyond physical plausibility (> {:.0f})", a3, a6,
+                       limit);
+  }
+  double s2 = 0;
+  constexpr int kSteps = 200;
+  for (int k = 0; k <= kSteps; ++k) {
+    const double nn = lo + (hi - lo) * k / kSteps;
+    const double v = rad_to_arcsec(c[2] * std::sin(c[3] * nn + c[4]) + c[5] * std::sin(c[6] * nn + c[7]));
+    s2 += v * v;
+  }
+  const double rms = std::sqrt(s2 / (kSteps + 1));
+  if (big > 50.0 && std::min(a3, a6) > 10.0 * rms) {
+    return fmt::format("two nearly cancelling sinusoids ({:.0f} and {:.0f} arcsec, together {:.1f} arcsec RMS): "
+                       "an ill-conditioned refit",
+                       a3, a6, rms);
+  }
+  for (int k : {3, 6}) {
+    const double f = std::abs(c[k]);
+    if (f < kMinFrequency || f > kMaxFrequency) {
+      return fmt::format("a sinusoid of {:.2f} arcsec at {:.3g} rad/count, outside the {:.1e} .. {:.1e} the refit "
+                         "searches (the published sets' frequencies and more): it stands in for a periodic error of "
+                         "another origin",
+                         std::abs(rad_to_arcsec(c[k - 1])), f, kMinFrequency, kMaxFrequency);
+    }
+  }
+  return {};
+}
+
 // One axis's refit, the residual variance its prior is scaled by, and whether the model-near
 // solution was kept (a joint fit's later refits then keep the prior).
 struct Refit {
@@ -291,8 +328,11 @@ Refit refit_axis(const AxisCoeffs& model, const AxisRows& s) {
   out.variance = cost_of(best_u, nr, yr) / std::max(1.0, static_cast<double>(nr.size()) - 8.0);
   const Prior prior = sinusoid_prior(to_u(model), out.variance);
   refine(from_model, nr, yr, &prior);
-  const std::array<double, 8>& kept =
-      covers_field(nr) ? model_near_unless_worse(best_u, from_model, nr, yr) : from_model;
+  // A free solution the sensor family cannot have is no rival to the model-near one (a second
+  // effect in the rows, a time shift in slews, would otherwise pull it into one).
+  const double model_amp = std::max(std::abs(rad_to_arcsec(model[2])), std::abs(rad_to_arcsec(model[5])));
+  const bool free_ok = covers_field(nr) && implausible(from_u(best_u), model_amp, s.lo, s.hi).empty();
+  const std::array<double, 8>& kept = free_ok ? model_near_unless_worse(best_u, from_model, nr, yr) : from_model;
   out.c = from_u(kept);
   out.prior_kept = &kept == &from_model;
   return out;
@@ -366,51 +406,14 @@ class Coefficients : public Candidate {
   void set(const EffectParams& p) override {
     if (p.coefficients) { set_axis(0, p.coefficients->alpha); set_axis(1, p.coefficients->beta); }
   }
-  // Ill-conditioned or implausible: sinusoids far beyond any the sensor family shows (10x the
-  // model's largest, at least 200 arcsec), or two that nearly cancel (each more than 10x what the
-  // pair adds up to over the counts fitted): the refit then stands in for something eq. 1 is not.
+  // Ill-conditioned or implausible (implausible(), over the counts fitted): the refit then stands
+  // in for something eq. 1 is not.
   std::string degenerate() const override {
     if (!fitted_) return {};
     const char* axis[2] = {"alpha", "beta"};
     for (int a = 0; a < 2; ++a) {
-      const double a3 = std::abs(rad_to_arcsec(c_[a][2])), a6 = std::abs(rad_to_arcsec(c_[a][5]));
-      const double big = std::max(a3, a6), limit = std::max(200.0, 10.0 * model_amp_[a]);
-      if (big > limit) {
-        return fmt::format("{}: sinusoid amplitudes {:.0f} and {:.0f} arcsec, beyond physical plausibility (> {:.0f})",
-                           axis[a], a3, a6, limit);
-      }
-      double s2 = 0;
-      constexpr int kSteps = 200;
-      for (int k = 0; k <= kSteps; ++k) {
-        const double nn = lo_[a] + (hi_[a] - lo_[a]) * k / kSteps;
-        const double v = rad_to_arcsec(c_[a][2] * std::sin(c_[a][3] * nn + c_[a][4]) +
-                                       c_[a][5] * std::sin(c_[a][6] * nn + c_[a][7]));
-        s2 += v * v;
-      }
-      const double rms = std::sqrt(s2 / (kSteps + 1));
-      if (big > 50.0 && std::min(a3, a6) > 10.0 * rms) {
-        return fmt::format("{}: two nearly cancelling sinusoids ({:.0f} and {:.0f} arcsec, together {:.1f} arcsec RMS): "
-                           "an ill-conditioned refit",
-                           axis[a], a3, a6, rms);
-      }
-      const std::string off = off_family(a);
-      if (!off.empty()) return fmt::format("{}: {}", axis[a], off);
-    }
-    return {};
-  }
-  // A sinusoid whose frequency the refinement took outside the range the refit searches, the
-  // sensor family's and more: it stands in for a periodic error of another origin (a gimbal
-  // encoder's cyclic error of a few hundred arcsec period is a sinusoid of 8e-4 .. 2e-3 rad a
-  // count, which a refit would otherwise take for the sensor's own, its weakest sinusoid given up).
-  std::string off_family(int a) const {
-    for (int k : {3, 6}) {
-      const double f = std::abs(c_[a][k]);
-      if (f < kMinFrequency || f > kMaxFrequency) {
-        return fmt::format("a sinusoid of {:.2f} arcsec at {:.3g} rad/count, outside the {:.1e} .. {:.1e} the refit "
-                           "searches (the published sets' frequencies and more): it stands in for a periodic error of "
-                           "another origin",
-                           std::abs(rad_to_arcsec(c_[a][k - 1])), f, kMinFrequency, kMaxFrequency);
-      }
+      const std::string why = implausible(c_[a], model_amp_[a], lo_[a], hi_[a]);
+      if (!why.empty()) return fmt::format("{}: {}", axis[a], why);
     }
     return {};
   }
