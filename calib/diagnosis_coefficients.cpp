@@ -5,8 +5,8 @@
 
 #include <algorithm>
 #include <array>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "calib/diagnosis_model.h"
@@ -29,9 +29,13 @@ constexpr double kMinFrequency = 0.4e-4, kMaxFrequency = 8e-4;
 
 // Eq. 1 in arcsec at count n. u: C1 arcsec, C2 arcsec per kS counts, C3 arcsec, C4 rad per kS
 // counts, C5, C6, C7, C8.
+// Its two sinusoids alone at x = n / kS (a joint fit solves C1 and C2 apart from them).
+double sinusoids_arcsec(const std::array<double, 8>& u, double x) {
+  return u[2] * std::sin(u[3] * x + u[4]) + u[5] * std::sin(u[6] * x + u[7]);
+}
 double eq1_arcsec(const std::array<double, 8>& u, double n) {
   const double x = n / kS;
-  return u[0] + u[1] * x + u[2] * std::sin(u[3] * x + u[4]) + u[5] * std::sin(u[6] * x + u[7]);
+  return u[0] + u[1] * x + sinusoids_arcsec(u, x);
 }
 
 std::array<double, 8> to_u(const AxisCoeffs& c) {
@@ -224,10 +228,6 @@ bool covers_field(const std::vector<double>& n) {
   return static_cast<size_t>(std::unique(bins.begin(), bins.end()) - bins.begin()) >= kMinBins;
 }
 
-// Variable projection: a log grid over both sinusoid frequencies (0.4e-4 .. 8e-4 rad/count, the
-// published sets' span and more) with the linear parameters solved exactly at every node from one
-// Gram matrix, then refined from the best node and from the model itself (model_near_unless_worse
-// picks one).
 // Why a transfer function is not one the sensor family can have, or empty: sinusoids far beyond
 // any the family shows (10x the model's largest, at least 200 arcsec), two that nearly cancel over
 // the counts [lo, hi] (each more than 10x what they add up to there: an ill-conditioned refit),
@@ -265,6 +265,11 @@ std::string implausible(const AxisCoeffs& c, double model_amp_arcsec, double lo,
   return {};
 }
 
+// The larger of an axis's two sinusoid amplitudes, arcsec: the scale implausible() judges by.
+double largest_amplitude_arcsec(const AxisCoeffs& c) {
+  return std::max(std::abs(rad_to_arcsec(c[2])), std::abs(rad_to_arcsec(c[5])));
+}
+
 // One axis's refit, the residual variance its prior is scaled by, and whether the model-near
 // solution was kept (a joint fit's later refits then keep the prior).
 struct Refit {
@@ -273,6 +278,10 @@ struct Refit {
   bool prior_kept = false;
 };
 
+// Variable projection: a log grid over both sinusoid frequencies (0.4e-4 .. 8e-4 rad/count, the
+// published sets' span and more) with the linear parameters solved exactly at every node from one
+// Gram matrix, then refined from the best node and from the model itself (model_near_unless_worse
+// picks one).
 Refit refit_axis(const AxisCoeffs& model, const AxisRows& s) {
   constexpr int kW = 24;
   std::vector<double> f(kW);
@@ -330,8 +339,8 @@ Refit refit_axis(const AxisCoeffs& model, const AxisRows& s) {
   refine(from_model, nr, yr, &prior);
   // A free solution the sensor family cannot have is no rival to the model-near one (a second
   // effect in the rows, a time shift in slews, would otherwise pull it into one).
-  const double model_amp = std::max(std::abs(rad_to_arcsec(model[2])), std::abs(rad_to_arcsec(model[5])));
-  const bool free_ok = covers_field(nr) && implausible(from_u(best_u), model_amp, s.lo, s.hi).empty();
+  const bool free_ok =
+      covers_field(nr) && implausible(from_u(best_u), largest_amplitude_arcsec(model), s.lo, s.hi).empty();
   const std::array<double, 8>& kept = free_ok ? model_near_unless_worse(best_u, from_model, nr, yr) : from_model;
   out.c = from_u(kept);
   out.prior_kept = &kept == &from_model;
@@ -346,7 +355,7 @@ class Coefficients : public Candidate {
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
     const AxisCoeffs model[2] = {r.model.alpha, r.model.beta};
     for (int a = 0; a < 2; ++a) {
-      model_amp_[a] = std::max(std::abs(rad_to_arcsec(model[a][2])), std::abs(rad_to_arcsec(model[a][5])));
+      model_amp_[a] = largest_amplitude_arcsec(model[a]);
       const AxisRows s = axis_rows(r, a, tg, rows);
       if (s.count < 8) {
         set_axis(a, model[a]);
@@ -390,9 +399,7 @@ class Coefficients : public Candidate {
     v[2 * a + 1] = -static_cast<double>(r.counts[a][i]) / kS;
   }
   double column_offset(const Recording& r, size_t i, int a) const override {
-    const std::array<double, 8>& u = u_[a];
-    const double x = static_cast<double>(r.counts[a][i]) / kS;
-    return r.meas(a, i) - u[2] * std::sin(u[3] * x + u[4]) - u[5] * std::sin(u[6] * x + u[7]);
+    return r.meas(a, i) - sinusoids_arcsec(u_[a], static_cast<double>(r.counts[a][i]) / kS);
   }
   void set_linear(const std::vector<double>& w) override {
     for (int a = 0; a < 2; ++a) {

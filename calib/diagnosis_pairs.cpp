@@ -161,8 +161,7 @@ std::vector<const Scored*> pair_firsts(const std::vector<Scored>& all, double N)
   auto add_first = [&](const Scored* f) {
     if (f->result.name != "none" && std::find(firsts.begin(), firsts.end(), f) == firsts.end()) firsts.push_back(f);
   };
-  constexpr size_t nfirst = 3;
-  for (size_t k = 0, m = 0; k < all.size() && m < nfirst; ++k) {
+  for (size_t k = 0, m = 0; k < all.size() && m < 3; ++k) {
     if (all[k].result.name == "none" || !all[k].result.degenerate.empty()) continue;
     add_first(&all[k]);
     ++m;
