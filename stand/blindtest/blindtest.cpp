@@ -274,7 +274,7 @@ std::vector<std::vector<std::string>> effect_pairs() {
 }
 
 // A cycle through `items` in shuffled blocks: each block holds every item once, in an order drawn
-// from the seed, the salt and the block's number, so every item comes equally often.
+// from the random seed, the salt and the block's number, so every item comes equally often.
 class ShuffledBlocks {
  public:
   ShuffledBlocks(std::vector<std::vector<std::string>> items, uint64_t seed, uint64_t salt)
