@@ -68,10 +68,12 @@ class Gimbal {
   virtual void move_to(double pitch_arcsec, double yaw_arcsec) = 0;
   // Whether the gimbal can start a move at a set time of its own clock (known once connected).
   virtual bool timed_moves() const { return false; }
-  // From rest: the move to the target starts when the gimbal's clock reaches start_us
-  // (GimbalState::sample_time_us); until then it holds still and its status has kMovePending. A
-  // time already past is refused (DeviceError; a move already pending stays), so an accepted move
-  // starts exactly then. Any other command cancels it. Only where timed_moves().
+  // The move to the target starts when the gimbal's clock reaches start_us
+  // (GimbalState::sample_time_us), from rest or queued behind the move under way, but not before
+  // that move has arrived and a reading has found the gimbal at rest there (then at that reading's
+  // time stamp); until it starts its status has kMovePending. One waits at most: a new one
+  // replaces it. A time already past is refused (DeviceError; a move already pending stays). Any
+  // other command cancels it. Only where timed_moves() (docs/icd.md).
   virtual void move_at(double pitch_arcsec, double yaw_arcsec, uint64_t start_us) {
     (void)pitch_arcsec, (void)yaw_arcsec, (void)start_us;
     throw DeviceError("this gimbal cannot start a move at a set time");

@@ -217,7 +217,7 @@ void Engine::prepare() {
 
 void Engine::recover(const std::string& reason, bool sensor_side) {
   ++stats_.recoveries;
-  pending_.reset();  // the gimbal is stopped below: a move commanded ahead is void
+  drop_moves_ahead();  // the gimbal is stopped below: a move commanded ahead is void
   // A short pause lets a dropped link come back (the drivers reconnect on the next request).
   sleep_physical(0);
   {
@@ -233,7 +233,7 @@ void Engine::recover(const std::string& reason, bool sensor_side) {
     if (st.has(kFault) || st.fault != GimbalFault::none) {
       warn(nullptr, fmt::format("clearing gimbal fault ({})", fault_name(st)));
       g_.clear_fault();
-    } else if (st.has(kMoving)) {
+    } else if (st.has(kMoving) || st.has(kMovePending)) {
       g_.stop();
     }
   } catch (const DeviceError& e) {
@@ -337,7 +337,7 @@ void Engine::do_move(const Action& a) {
 
 bool Engine::safe_stop() {
   stopping_ = true;
-  pending_.reset();
+  drop_moves_ahead();
   bool ok = true;
   try {
     Timed t(stats_.device_s);

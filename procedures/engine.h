@@ -138,8 +138,24 @@ class Engine {
   // With a gimbal that starts moves at a set time of its clock: the next point's move, scheduled
   // to start at start_s (bench clock) from `a`'s point; the start, or nullopt when not scheduled.
   std::optional<double> schedule_next_move(const Action& a, double start_s);
+  // The same for a move queued while the gimbal travelled to `a` (queue_move_after_next), put
+  // back to start_s if the frames came later than predicted; `arrived`, the reading that found
+  // the gimbal there, started it if it came after the move's time.
+  std::optional<double> adopt_queued_move(const Action& a, double start_s, const GimbalState& arrived);
+  // After a dwell, with the next move scheduled: the move after it, scheduled behind the next one
+  // for the end of its dwell, so the host has that whole move, settle and dwell in hand.
+  void queue_move_after_next();
+  // Reads the gimbal until the pending move has begun (a few looks at most): the reading that
+  // says so, or nullopt.
+  std::optional<GimbalState> wait_move_begun(double start_s);
   void schedule_pending(const Action& n, const Action& from, double start_s);
-  const Action* next_dwell_to_command() const;  // the next action if its move may be commanded now
+  // The action `ahead` after the current one if its move may be commanded now (one that is a
+  // dwell, with all between them dwells).
+  const Action* dwell_to_command(size_t ahead = 1) const;
+  // Where a dwell of `a` that may start at settled_s ends on the frame grid: half a frame period
+  // after its last frame, when the move after it is scheduled to start.
+  double dwell_end_s(const Action& a, double settled_s) const;
+  void drop_moves_ahead();  // forgets the moves commanded or scheduled ahead (the gimbal was stopped)
   void set_pending(const Action& n, double start_lo_s, double dur_s, double start_hi_s, bool scheduled);
   double move_s(double from_pitch_arcsec, double from_yaw_arcsec, const Action& to) const;  // profile duration
   // Excludes a computation step's bench time from EngineStats::bench_s.
@@ -198,6 +214,7 @@ class Engine {
   bool target_known_ = false;
   bool stopping_ = false;  // during the safe stop an abort request no longer interrupts
   bool timed_moves_refused_ = false;  // the gimbal refused a scheduled move in time: not asked again
+  bool queue_refused_ = false;        // the same for a scheduled move behind one under way
   bool late_for_schedule_ = false;    // the last scheduled dwell could not be read before its move began
   double host_t0_ = 0;
   // Stand time: base + (sensor time - sensor t0), kept non-decreasing across sensor restarts.
@@ -220,6 +237,12 @@ class Engine {
     bool scheduled = false;  // started by the gimbal's clock at start_s (Gimbal::move_at)
   };
   std::optional<PendingMove> pending_;
+  // The move after the pending one, scheduled behind it: its action and its start (bench clock).
+  struct QueuedMove {
+    size_t action = 0;
+    double start_s = 0;
+  };
+  std::optional<QueuedMove> queued_;
 };
 
 }  // namespace fpss

@@ -99,11 +99,12 @@ Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arriv
   // dwell's last frame, so no round trip of the host's lies between two dwells however late the
   // host is (docs/procedures.md, "How the engine waits"): before the settle when the frame grid
   // says where the dwell's frames fall, else at its first frame.
+  // With the move queued while the gimbal came here, that one (queue_move_after_next).
   const auto end_of_dwell = [&](double first_s) { return first_s + (a.frames - 0.5) * period_s; };
   std::optional<double> move_at_s;
   if (shared && std::isfinite(frame_grid_s_)) {
-    const double k = std::ceil((settled_bench - frame_grid_s_) / period_s - 1e-6);
-    move_at_s = schedule_next_move(a, end_of_dwell(frame_grid_s_ + k * period_s));
+    const double end_s = dwell_end_s(a, settled_bench);
+    move_at_s = queued_ ? adopt_queued_move(a, end_s, arrived) : schedule_next_move(a, end_s);
   }
   std::optional<SensorSample> first = settle(a, arrived, settled_host);
   bool reading = true;  // readings after the next move's start are no reference of this dwell
@@ -184,6 +185,7 @@ void Engine::measure_dwell(const Action& a, int session) {
     // Everything the gimbal had to do here is done: its next move starts now (unless scheduled
     // already), and the checks and the storing below overlap it.
     command_next_move();
+    queue_move_after_next();
     verify_command();
     const double temp = read_temperature_c(a);
     std::vector<RecordedRow> rows;

@@ -121,7 +121,7 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
     arrival_latest = pending_->arrival_latest_s;
     on_its_way_s = pending_->start_s;
   } else {
-    pending_.reset();
+    drop_moves_ahead();  // the command below cancels any scheduled move
     // From the latest device time stamp (no later than the command): the first look may come
     // early, never late.
     const double from_p = last_pitch_arcsec_, from_y = last_yaw_arcsec_, t0 = last_bench_s_;
@@ -179,14 +179,27 @@ GimbalState Engine::move_and_wait(double pitch, double yaw, double timeout_physi
   }
 }
 
-const Action* Engine::next_dwell_to_command() const {
+const Action* Engine::dwell_to_command(size_t ahead) const {
   // A pause or an abort holds the gimbal where it is.
-  if (ctl_.pause.load() || ctl_.abort.load() || action_ + 1 >= plan_.actions.size()) return nullptr;
-  const Action& n = plan_.actions[action_ + 1];
-  if (n.kind != Action::Kind::dwell || n.point < cursor_.first) return nullptr;
-  // A point of an adaptive-stop group is decided on the fit that includes the point now ending.
-  if (n.until_group >= 0) return nullptr;
-  return &n;
+  if (ctl_.pause.load() || ctl_.abort.load() || action_ + ahead >= plan_.actions.size()) return nullptr;
+  for (size_t i = action_ + 1; i <= action_ + ahead; ++i) {
+    const Action& n = plan_.actions[i];
+    if (n.kind != Action::Kind::dwell || n.point < cursor_.first) return nullptr;
+    // A point of an adaptive-stop group is decided on the fit that includes the point now ending.
+    if (n.until_group >= 0) return nullptr;
+  }
+  return &plan_.actions[action_ + ahead];
+}
+
+double Engine::dwell_end_s(const Action& a, double settled_s) const {
+  const double period_s = 1.0 / b_.sample_rate_hz;
+  const double first_s = frame_grid_s_ + std::ceil((settled_s - frame_grid_s_) / period_s - 1e-6) * period_s;
+  return first_s + (a.frames - 0.5) * period_s;
+}
+
+void Engine::drop_moves_ahead() {
+  pending_.reset();
+  queued_.reset();
 }
 
 void Engine::set_pending(const Action& n, double start_lo_s, double dur_s, double start_hi_s, bool scheduled) {
@@ -204,7 +217,7 @@ double Engine::move_s(double from_p, double from_y, const Action& to) const {
 
 std::optional<double> Engine::schedule_next_move(const Action& a, double start_s) {
   const bool schedule = g_.timed_moves() && !timed_moves_refused_ && !late_for_schedule_;
-  const Action* n = schedule ? next_dwell_to_command() : nullptr;
+  const Action* n = schedule ? dwell_to_command() : nullptr;
   if (!n) return std::nullopt;
   try {
     Timed t(stats_.device_s);
@@ -232,6 +245,77 @@ std::optional<double> Engine::schedule_next_move(const Action& a, double start_s
   return start_s;
 }
 
+std::optional<double> Engine::adopt_queued_move(const Action& a, double start_s, const GimbalState& arrived) {
+  const QueuedMove q = *queued_;
+  queued_.reset();
+  if (q.action != action_ + 1) return schedule_next_move(a, start_s);  // (not this dwell's: replaced)
+  const Action& n = plan_.actions[q.action];
+  const double seen_s = static_cast<double>(arrived.sample_time_us) * 1e-6;
+  if (seen_s >= q.start_s) {
+    // The host read this point only after the move's time: the gimbal waited for that reading
+    // (docs/icd.md) and started then. The dwell's frames came before; that reading is their reference.
+    set_pending(n, seen_s, move_s(a.pitch_arcsec, a.yaw_arcsec, n), seen_s, true);
+    return q.start_s;
+  }
+  schedule_pending(n, a, q.start_s);
+  double move_at_s = q.start_s;
+  if (start_s > q.start_s + 1e-6) reschedule_next_move(a, move_at_s, start_s);
+  return move_at_s;
+}
+
+void Engine::queue_move_after_next() {
+  queued_.reset();
+  const bool can = g_.timed_moves() && !timed_moves_refused_ && !queue_refused_ && pending_ &&
+                   pending_->scheduled && b_.clock == ClockSync::shared && std::isfinite(frame_grid_s_);
+  const Action* n = can ? dwell_to_command(2) : nullptr;
+  if (!n) return;
+  const Action& next = plan_.actions[action_ + 1];
+  const double start_s = dwell_end_s(next, pending_->arrival_s + next.settle_s);
+  // The gimbal queues a move behind one under way; one still pending it would replace.
+  std::optional<GimbalState> begun;
+  try {
+    begun = wait_move_begun(pending_->start_s);
+  } catch (const DeviceError&) {
+    return;  // the next dwell's readings will say what the link does
+  }
+  if (!begun) return;
+  try {
+    Timed t(stats_.device_s);
+    g_.move_at(n->pitch_arcsec, n->yaw_arcsec, static_cast<uint64_t>(std::llround(start_s * 1e6)));
+  } catch (const DeviceError& e) {
+    target_known_ = false;  // the targets may be written
+    // Refused in good time by a gimbal unfaulted (a reading after says): one that schedules only
+    // from rest, not asked again this run.
+    std::optional<GimbalState> after;
+    try {
+      after = read_gimbal();
+    } catch (const DeviceError&) {
+    }
+    if (after && after->fault == GimbalFault::none && !after->has(kFault) && last_gimbal_time_s_ < start_s) {
+      queue_refused_ = true;
+      log_.info("the gimbal takes no move behind one under way ({}); each is scheduled at its arrival", e.what());
+    }
+    return;
+  }
+  commanded_.target_pitch_arcsec = n->pitch_arcsec;
+  commanded_.target_yaw_arcsec = n->yaw_arcsec;
+  target_known_ = true;
+  queued_ = QueuedMove{action_ + 2, start_s};
+  ++stats_.scheduled_moves;
+}
+
+std::optional<GimbalState> Engine::wait_move_begun(double start_s) {
+  for (int look = 0; look < 8; ++look) {
+    sleep_until_bench(start_s);
+    const GimbalState st = read_gimbal();
+    // Arrived already (a short move): this reading saw it there, and a move scheduled now could
+    // start before the host has measured the point; the dwell schedules it instead.
+    if (!st.has(kMovePending)) return st.has(kMoving) ? std::optional<GimbalState>(st) : std::nullopt;
+    start_s = last_gimbal_time_s_ + 0.25 / b_.sample_rate_hz;
+  }
+  return std::nullopt;
+}
+
 void Engine::schedule_pending(const Action& n, const Action& from, double start_s) {
   // The gimbal's own clock starts it: the arrival is the profile's from that instant, exactly.
   set_pending(n, start_s, move_s(from.pitch_arcsec, from.yaw_arcsec, n), start_s, true);
@@ -242,7 +326,7 @@ void Engine::command_next_move() {
     // A pause or an abort asked for during the dwell: the scheduled move is called off (a stop
     // cancels it; if it has begun, the gimbal stops where it is and the next move starts afresh).
     if (!ctl_.pause.load() && !ctl_.abort.load()) return;
-    pending_.reset();
+    drop_moves_ahead();
     try {
       Timed t(stats_.device_s);
       g_.stop();
@@ -251,8 +335,8 @@ void Engine::command_next_move() {
     }
     return;
   }
-  pending_.reset();
-  const Action* n = next_dwell_to_command();
+  drop_moves_ahead();
+  const Action* n = dwell_to_command();
   if (!n) return;
   const double from_p = last_pitch_arcsec_, from_y = last_yaw_arcsec_, t0 = last_bench_s_;
   try {

@@ -264,12 +264,12 @@ BenchConfig bench_with_timed_moves(bool timed) {
 // The discrete grid on a virtual clock at a speed-up: its bench time, with the dry run's model of
 // the link for that stand.
 double grid_bench_s(double speed, bool timed, const fs::path& dir, Plan& plan, EngineStats& stats,
-                    const std::function<void(test::FakeBench&)>& host = {}) {
+                    const std::function<void(VirtualBench&)>& host = {}) {
   EngineSettings b = virtual_clock_settings();
   b.link_round_trip_s = kLinkRoundTrip_s * speed / b.time_scale;  // the dry run's model of the link
   b.timed_moves = timed;
   VirtualBench v(speed, dir, bench_with_timed_moves(timed));
-  if (host) host(v.fake);
+  if (host) host(v);
   double started_s = -1;  // bench time counts from the run's start, after the link's setup
   v.bus.subscribe([&](const Event& e) {
     if (std::holds_alternative<RunStarted>(e)) started_s = v.fake.bench().time_s();
@@ -353,7 +353,7 @@ TEST(Engine, AnInvalidFramePutsTheScheduledMoveBack) {
 // gimbal's clock from the dwell before, the host's absences fall within the settles and dwells
 // and the grid stays at its physical minimum; moves commanded by the host each pay for them.
 TEST(Engine, MovesOnTheGimbalsClockKeepABusyHostOffTheBenchTime) {
-  const auto busy = [](test::FakeBench& f) { f.host_stalls(7, 0.1, 0.1); };
+  const auto busy = [](VirtualBench& v) { v.fake.host_stalls(7, 0.1, 0.1); };
   double ratio[2] = {};
   for (const bool timed : {true, false}) {
     TempDir tmp("engine-busy");
@@ -364,6 +364,67 @@ TEST(Engine, MovesOnTheGimbalsClockKeepABusyHostOffTheBenchTime) {
   }
   EXPECT_LE(ratio[true], 1.01);
   EXPECT_GT(ratio[false], ratio[true] + 0.02);
+}
+
+// The host away while it stores each point, back only just before the next dwell ends (80 ms of
+// bench time before: less than three of the link's 30 ms round trips at 1000x, more than one).
+// With the move after the next one scheduled behind the next one before the host goes, the host
+// then only has to read the gimbal at the point: the grid stays at its physical minimum. (Scheduled
+// once the gimbal is seen at rest, each such move comes too late and waits for the host.)
+TEST(Engine, MovesScheduledBehindTheMoveUnderWayKeepTheHostsStorageOffTheBenchTime) {
+  TempDir tmp("engine-queue");
+  Plan plan;
+  EngineStats st;
+  const EngineSettings b = virtual_clock_settings();
+  const double period_s = 1.0 / b.sample_rate_hz;
+  const auto storing = [&](VirtualBench& v) {
+    v.bus.subscribe([&](const Event& e) {
+      const auto* p = std::get_if<PointDone>(&e);
+      const size_t next = p ? static_cast<size_t>(p->action - plan.actions.data()) + 1 : 0;
+      // (After the last point the host's work is the calibrate step's, off the bench time.)
+      if (!p || next >= plan.actions.size() || plan.actions[next].kind != Action::Kind::dwell) return;
+      const Action &a = *p->action, &n = plan.actions[next];
+      const double start_s = p->rows->back().sensor_time_s + 0.5 * period_s;  // the next move's
+      const double dur_s = move_duration_s(a.pitch_arcsec, a.yaw_arcsec, n.pitch_arcsec, n.yaw_arcsec,
+                                           b.profile_rate_arcsec_s, b.acceleration_arcsec_s2);
+      std::lock_guard lock(v.fake.mutex());
+      v.fake.advance_to(start_s + dur_s + n.settle_s + n.frames * period_s - 0.08);
+    });
+  };
+  const double bench_s = grid_bench_s(1000, true, tmp / "run", plan, st, storing);
+  std::printf("host back 80 ms before each dwell's end: %.3f x the physical minimum\n", bench_s / plan.physical_s);
+  EXPECT_LE(bench_s / plan.physical_s, 1.01);
+  EXPECT_EQ(st.remeasured, 0);
+}
+
+// A host later than a queued move's time does not lose the point: the gimbal waits at the point
+// until a reading has seen it there (docs/icd.md), and that reading is the dwell's reference. Every
+// tenth point the host is away 3 s (longer than any move, settle and dwell of the grid): every
+// point is measured once, every row was taken at rest at its point, and the bench time grows by
+// the waits.
+TEST(Engine, AHostLateForAQueuedMoveDelaysTheGimbalAndLosesNoPoint) {
+  TempDir tmp("engine-late-host");
+  Plan plan;
+  EngineStats st;
+  int points = 0;
+  const auto late = [&points](VirtualBench& v) {
+    v.bus.subscribe([&v, &points](const Event& e) {
+      const auto* p = std::get_if<PointDone>(&e);
+      if (!p) return;
+      for (const auto& r : *p->rows) {
+        EXPECT_NEAR(r.gimbal_pitch_arcsec, p->action->pitch_arcsec, 0.5) << "point " << p->action->point + 1;
+        EXPECT_NEAR(r.gimbal_yaw_arcsec, p->action->yaw_arcsec, 0.5) << "point " << p->action->point + 1;
+      }
+      if (++points % 10 != 0) return;
+      std::lock_guard lock(v.fake.mutex());
+      v.fake.advance_to(v.fake.now_s() + 3.0);
+    });
+  };
+  const double bench_s = grid_bench_s(1000, true, tmp / "run", plan, st, late);
+  std::printf("host away 3 s every tenth point: %.3f x the physical minimum\n", bench_s / plan.physical_s);
+  EXPECT_EQ(points, 113);
+  EXPECT_EQ(st.remeasured, 0);
+  EXPECT_GT(bench_s, plan.physical_s + 5.0);
 }
 
 // A settle counts from the gimbal's arrival, not from when the host came to look: on a slow link

@@ -107,7 +107,7 @@ void FakeGimbal::move_at(double pitch_arcsec, double yaw_arcsec, uint64_t start_
   request();
   if (b_.bench().set_target(pitch_arcsec, yaw_arcsec) != Bench::Reply::ok) throw DeviceError("fake gimbal: target refused");
   if (b_.bench().command_move_at(static_cast<double>(start_us) * 1e-6) != Bench::Reply::ok) {
-    throw DeviceError("fake gimbal: move at a set time refused (not at rest, or faulted)");
+    throw DeviceError("fake gimbal: move at a set time refused (a time past, rate mode, or faulted)");
   }
   last_command_ = 6;
 }
