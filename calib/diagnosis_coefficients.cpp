@@ -347,11 +347,9 @@ Refit refit_axis(const AxisCoeffs& model, const AxisRows& s) {
   return out;
 }
 
-class Coefficients : public Candidate {
+class Coefficients : public NamedCandidate<Coefficients> {
  public:
-  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Coefficients>(*this); }
-  std::string name() const override { return "coefficients"; }
-  int parameters() const override { return 16; }
+  Coefficients() : NamedCandidate("coefficients", 16) {}
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
     const AxisCoeffs model[2] = {r.model.alpha, r.model.beta};
     for (int a = 0; a < 2; ++a) {

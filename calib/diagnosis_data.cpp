@@ -366,14 +366,9 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
 namespace fpss {
 
 DiagnosisColumns DiagnosisColumns::of(const SampleTable& t) {
-  DiagnosisColumns c;
-  c.origin = t.origin;
-  c.time_s = t.time_s;
-  c.ref_pitch_arcsec = t.ref_pitch_arcsec;
-  c.ref_yaw_arcsec = t.ref_yaw_arcsec;
-  c.counts_alpha = t.counts_alpha;
-  c.counts_beta = t.counts_beta;
-  c.step = t.step;
+  // The optional columns are filled below, where the table has them.
+  DiagnosisColumns c{t.origin, t.time_s, t.ref_pitch_arcsec, t.ref_yaw_arcsec, t.counts_alpha, t.counts_beta,
+                     t.step, /*temperature_c=*/{}, /*time_since_move_s=*/{}};
   for (auto [name, out] : {std::pair{"temperature_c", &c.temperature_c}, {"time_since_move_s", &c.time_since_move_s}}) {
     if (!t.has_column(name)) continue;
     const std::vector<double> v = t.numeric_column(name);

@@ -18,87 +18,89 @@ namespace {
 using Rows = std::vector<uint32_t>;
 using ojson = nlohmann::ordered_json;
 
-double get(const EffectParams& p, const char* key) {
+double get(const EffectParams& p, const std::string& key) {
   auto it = p.params.find(key);
   return it == p.params.end() ? 0.0 : it->second;
+}
+
+// A value per axis under the emulator's names for it, pitch_<unit> and yaw_<unit>.
+ojson per_axis_params(const std::string& unit, const double* k) {
+  return {{"pitch_" + unit, k[0]}, {"yaw_" + unit, k[1]}};
+}
+void set_per_axis(const EffectParams& p, const std::string& unit, double* k) {
+  k[0] = get(p, "pitch_" + unit);
+  k[1] = get(p, "yaw_" + unit);
 }
 
 // Least squares of one scale factor: target ~ c * x over rows, both axes pooled when asked.
 double ratio(double sxy, double sxx) { return sxx > 0 ? sxy / sxx : 0.0; }
 
-// ------------------------------------------------------------------ bias
-class Bias : public Candidate {
+// The same for one axis's target against a factor x(i) of the row.
+template <typename X>
+double slope(const Rows& rows, const std::vector<float>& target, X x) {
+  double sxy = 0, sxx = 0;
+  for (uint32_t i : rows) {
+    const double xi = x(i);
+    sxy += xi * target[i];
+    sxx += xi * xi;
+  }
+  return ratio(sxy, sxx);
+}
+
+// Columns with one weight per axis: the factor x on axis a's own column, 0 on the other's.
+void own_axis_columns(int a, double x, double* v) {
+  v[0] = a == 0 ? x : 0.0;
+  v[1] = a == 1 ? x : 0.0;
+}
+
+// An effect of one weight per axis on a factor of the row: the weight is the least-squares slope
+// of the target on the factor, and the effect is linear in it.
+template <typename Self>
+class PerAxisSlope : public NamedCandidate<Self> {
  public:
-  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Bias>(*this); }
-  std::string name() const override { return "bias"; }
-  int parameters() const override { return 2; }
+  PerAxisSlope(const char* name, const char* unit) : NamedCandidate<Self>(name, 2), unit_(unit) {}
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
-    for (int a = 0; a < 2; ++a) {
-      double s = 0;
-      for (uint32_t i : rows) s += tg.v[a][i];
-      b_[a] = rows.empty() ? 0.0 : s / static_cast<double>(rows.size());
-    }
+    for (int a = 0; a < 2; ++a) k_[a] = slope(rows, tg.v[a], [&](uint32_t i) { return Self::factor(r, i); });
   }
   void contribute(const Recording& r, Contribution& out) const override {
-    for (int a = 0; a < 2; ++a) std::fill(out.v[a].begin(), out.v[a].end(), b_[a]);
+    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) out.v[a][i] = k_[a] * Self::factor(r, i);
   }
-  ojson params() const override { return {{"pitch_arcsec", b_[0]}, {"yaw_arcsec", b_[1]}}; }
-  void set(const EffectParams& p) override { b_[0] = get(p, "pitch_arcsec"); b_[1] = get(p, "yaw_arcsec"); }
-  int columns() const override { return 2; }  // one constant per axis
+  ojson params() const override { return per_axis_params(unit_, k_); }
+  void set(const EffectParams& p) override { set_per_axis(p, unit_, k_); }
+  int columns() const override { return 2; }  // the factor, one per axis
   void column_values(const Recording& r, size_t i, int a, double* v) const override {
-    v[0] = a == 0 ? 1.0 : 0.0;
-    v[1] = a == 1 ? 1.0 : 0.0;
-  }
-  void set_linear(const std::vector<double>& w) override { b_[0] = w[0]; b_[1] = w[1]; }
-
- private:
-  double b_[2] = {0, 0};
-};
-
-// ------------------------------------------------------------------ drift: rate * t (bench time)
-class Drift : public Candidate {
- public:
-  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Drift>(*this); }
-  std::string name() const override { return "drift"; }
-  int parameters() const override { return 2; }
-  void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
-    for (int a = 0; a < 2; ++a) {
-      double sxy = 0, sxx = 0;
-      for (uint32_t i : rows) { sxy += r.t[i] * tg.v[a][i]; sxx += r.t[i] * r.t[i]; }
-      k_[a] = ratio(sxy, sxx);
-    }
-  }
-  void contribute(const Recording& r, Contribution& out) const override {
-    for (int a = 0; a < 2; ++a) for (size_t i = 0; i < r.n; ++i) out.v[a][i] = k_[a] * r.t[i];
-  }
-  ojson params() const override { return {{"pitch_arcsec_per_s", k_[0]}, {"yaw_arcsec_per_s", k_[1]}}; }
-  void set(const EffectParams& p) override {
-    k_[0] = get(p, "pitch_arcsec_per_s");
-    k_[1] = get(p, "yaw_arcsec_per_s");
-  }
-  int columns() const override { return 2; }  // time, one per axis
-  void column_values(const Recording& r, size_t i, int a, double* v) const override {
-    v[0] = a == 0 ? r.t[i] : 0.0;
-    v[1] = a == 1 ? r.t[i] : 0.0;
+    own_axis_columns(a, Self::factor(r, i), v);
   }
   void set_linear(const std::vector<double>& w) override { k_[0] = w[0]; k_[1] = w[1]; }
 
  private:
+  const char* unit_;
   double k_[2] = {0, 0};
+};
+
+// ------------------------------------------------------------------ bias: a constant per axis
+class Bias : public PerAxisSlope<Bias> {
+ public:
+  Bias() : PerAxisSlope("bias", "arcsec") {}
+  static double factor(const Recording& r, size_t i) { return 1.0; }
+};
+
+// ------------------------------------------------------------------ drift: rate * t (bench time)
+class Drift : public PerAxisSlope<Drift> {
+ public:
+  Drift() : PerAxisSlope("drift", "arcsec_per_s") {}
+  static double factor(const Recording& r, size_t i) { return r.t[i]; }
 };
 
 // ------------------------------------------------------------------ scale_factor
 // The gimbal reads (1 + ppm 1e-6) x the true angle: the sensor sees ref / (1 + ppm 1e-6).
-class ScaleFactor : public Candidate {
+class ScaleFactor : public NamedCandidate<ScaleFactor> {
  public:
-  std::unique_ptr<Candidate> clone() const override { return std::make_unique<ScaleFactor>(*this); }
-  std::string name() const override { return "scale_factor"; }
-  int parameters() const override { return 2; }
+  ScaleFactor() : NamedCandidate("scale_factor", 2) {}
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
     for (int a = 0; a < 2; ++a) {
-      double sxy = 0, sxx = 0;
-      for (uint32_t i : rows) { sxy += r.ref[a][i] * tg.v[a][i]; sxx += r.ref[a][i] * r.ref[a][i]; }
-      const double c = ratio(sxy, sxx);  // residual = c * ref, c = 1/(1+k) - 1
+      // residual = c * ref, c = 1/(1+k) - 1
+      const double c = slope(rows, tg.v[a], [&](uint32_t i) { return r.ref[a][i]; });
       ppm_[a] = (1.0 / (1.0 + c) - 1.0) * 1e6;
     }
   }
@@ -108,12 +110,11 @@ class ScaleFactor : public Candidate {
       for (size_t i = 0; i < r.n; ++i) out.v[a][i] = c * r.ref[a][i];
     }
   }
-  ojson params() const override { return {{"pitch_ppm", ppm_[0]}, {"yaw_ppm", ppm_[1]}}; }
-  void set(const EffectParams& p) override { ppm_[0] = get(p, "pitch_ppm"); ppm_[1] = get(p, "yaw_ppm"); }
+  ojson params() const override { return per_axis_params("ppm", ppm_); }
+  void set(const EffectParams& p) override { set_per_axis(p, "ppm", ppm_); }
   int columns() const override { return 2; }  // the reference, one per axis
   void column_values(const Recording& r, size_t i, int a, double* v) const override {
-    v[0] = a == 0 ? r.ref[0][i] : 0.0;
-    v[1] = a == 1 ? r.ref[1][i] : 0.0;
+    own_axis_columns(a, r.ref[a][i], v);
   }
   void set_linear(const std::vector<double>& w) override {
     for (int a = 0; a < 2; ++a) ppm_[a] = (1.0 / (1.0 + w[a]) - 1.0) * 1e6;
@@ -125,11 +126,9 @@ class ScaleFactor : public Candidate {
 
 // ------------------------------------------------------------------ boresight_roll
 // Sensor pitch = p cos phi - y sin phi, sensor yaw = p sin phi + y cos phi.
-class BoresightRoll : public Candidate {
+class BoresightRoll : public NamedCandidate<BoresightRoll> {
  public:
-  std::unique_ptr<Candidate> clone() const override { return std::make_unique<BoresightRoll>(*this); }
-  std::string name() const override { return "boresight_roll"; }
-  int parameters() const override { return 1; }
+  BoresightRoll() : NamedCandidate("boresight_roll", 1) {}
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
     // Rotation that best maps x = (p, y) onto u = x + target (Procrustes, exact).
     double sc = 0, ss = 0;
@@ -164,15 +163,11 @@ class BoresightRoll : public Candidate {
 
 // ------------------------------------------------------------------ axis_nonorthogonality
 // Sensor yaw = y + sin(skew) p; pitch untouched.
-class AxisNonorthogonality : public Candidate {
+class AxisNonorthogonality : public NamedCandidate<AxisNonorthogonality> {
  public:
-  std::unique_ptr<Candidate> clone() const override { return std::make_unique<AxisNonorthogonality>(*this); }
-  std::string name() const override { return "axis_nonorthogonality"; }
-  int parameters() const override { return 1; }
+  AxisNonorthogonality() : NamedCandidate("axis_nonorthogonality", 1) {}
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
-    double sxy = 0, sxx = 0;
-    for (uint32_t i : rows) { sxy += r.ref[0][i] * tg.v[1][i]; sxx += r.ref[0][i] * r.ref[0][i]; }
-    s_ = std::clamp(ratio(sxy, sxx), -1.0, 1.0);
+    s_ = std::clamp(slope(rows, tg.v[1], [&](uint32_t i) { return r.ref[0][i]; }), -1.0, 1.0);
   }
   void contribute(const Recording& r, Contribution& out) const override {
     std::fill(out.v[0].begin(), out.v[0].end(), 0.0);
@@ -192,11 +187,9 @@ class AxisNonorthogonality : public Candidate {
 
 // ------------------------------------------------------------------ backlash
 // Each axis's true position lags the encoder by width/2 against its last motion.
-class Backlash : public Candidate {
+class Backlash : public NamedCandidate<Backlash> {
  public:
-  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Backlash>(*this); }
-  std::string name() const override { return "backlash"; }
-  int parameters() const override { return 1; }
+  Backlash() : NamedCandidate("backlash", 1) {}
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
     double sxy = 0, sxx = 0;
     for (int a = 0; a < 2; ++a) {
@@ -224,13 +217,11 @@ class Backlash : public Candidate {
 // ------------------------------------------------------------------ settling
 // After each move the true position is the target + amplitude exp(-(t - t_arrival)/tau) in the
 // direction of the move; nothing while moving.
-class Settling : public Candidate {
+class Settling : public NamedCandidate<Settling> {
   static constexpr double kMaxTau = 30.0;  // s
 
  public:
-  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Settling>(*this); }
-  std::string name() const override { return "settling"; }
-  int parameters() const override { return 2; }
+  Settling() : NamedCandidate("settling", 2) {}
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
     // tau profiled on a log grid (the amplitude is linear), then golden section.
     auto solve = [&](double log_tau, double* amp) {
@@ -284,11 +275,9 @@ class Settling : public Candidate {
 // ------------------------------------------------------------------ time_skew
 // The sensor's sample at time t shows the Sun at t - skew_s: within a slew segment the sensor
 // sees the reference interpolated at t - skew; at rest it sees the same as the reference.
-class TimeSkew : public Candidate {
+class TimeSkew : public NamedCandidate<TimeSkew> {
  public:
-  std::unique_ptr<Candidate> clone() const override { return std::make_unique<TimeSkew>(*this); }
-  std::string name() const override { return "time_skew"; }
-  int parameters() const override { return 1; }
+  TimeSkew() : NamedCandidate("time_skew", 1) {}
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
     std::vector<uint32_t> moving, coarse;
     for (uint32_t i : rows) if (r.steps[r.step_of[i]].kind == StepKind::motion) moving.push_back(i);
@@ -387,11 +376,9 @@ class TimeSkew : public Candidate {
 
 // ------------------------------------------------------------------ temperature
 // The sensor sees p + k (T - T0) on each axis; T0 (the profile's t0_c) is fitted too.
-class Temperature : public Candidate {
+class Temperature : public NamedCandidate<Temperature> {
  public:
-  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Temperature>(*this); }
-  std::string name() const override { return "temperature"; }
-  int parameters() const override { return 3; }
+  Temperature() : NamedCandidate("temperature", 3) {}
   void fit(const Recording& r, const Contribution& tg, const Rows& rows) override {
     // Sums so that the cost at any T0 is closed-form: sum (tg - k (T - T0))^2 with k optimal.
     double n = 0, sT = 0, sTT = 0, sy[2] = {0, 0}, sTy[2] = {0, 0}, syy[2] = {0, 0};
@@ -426,18 +413,18 @@ class Temperature : public Candidate {
     }
   }
   ojson params() const override {
-    return {{"pitch_arcsec_per_c", k_[0]}, {"yaw_arcsec_per_c", k_[1]}, {"t0_c", t0_}};
+    ojson j = per_axis_params("arcsec_per_c", k_);
+    j["t0_c"] = t0_;
+    return j;
   }
   void set(const EffectParams& p) override {
-    k_[0] = get(p, "pitch_arcsec_per_c");
-    k_[1] = get(p, "yaw_arcsec_per_c");
+    set_per_axis(p, "arcsec_per_c", k_);
     t0_ = p.params.count("t0_c") ? p.params.at("t0_c") : 20.0;
   }
   int columns() const override { return 2; }  // T - T0, one per axis
   void column_values(const Recording& r, size_t i, int a, double* v) const override {
     const double d = std::isfinite(r.temp[i]) ? r.temp[i] - t0_ : 0.0;
-    v[0] = a == 0 ? d : 0.0;
-    v[1] = a == 1 ? d : 0.0;
+    own_axis_columns(a, d, v);
   }
   void set_linear(const std::vector<double>& w) override { k_[0] = w[0]; k_[1] = w[1]; }
   void hold(const std::string& key, double value) override {

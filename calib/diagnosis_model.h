@@ -110,6 +110,20 @@ class Candidate {
   virtual std::string degenerate() const { return {}; }
 };
 
+// The part every candidate writes alike: its name and parameter count, and a copy of its own type.
+template <typename Self>
+class NamedCandidate : public Candidate {
+ public:
+  NamedCandidate(const char* name, int parameters) : name_(name), parameters_(parameters) {}
+  std::unique_ptr<Candidate> clone() const override { return std::make_unique<Self>(static_cast<const Self&>(*this)); }
+  std::string name() const override { return name_; }
+  int parameters() const override { return parameters_; }
+
+ private:
+  const char* name_;
+  int parameters_;
+};
+
 std::unique_ptr<Candidate> make_candidate(const std::string& name);
 // The refitted transfer function, which lives in its own file for its size.
 std::unique_ptr<Candidate> make_coefficients_candidate();

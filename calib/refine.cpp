@@ -100,9 +100,8 @@ Eigen::Matrix<double, 8, 1> angle_gradient(const Scaled& u, bool differences, do
   const int first = differences ? 1 : 0;
   for (int i = 0; i < 8; ++i) uj[i] = J(u[i]);
   for (int i = 0; i < p; ++i) uj[first + i].v[i] = 1.0;
-  J c[8];
-  arcsec_coeffs(uj + 1, differences ? J(0.0) : uj[0], c);
-  const J a = transfer_angle(c, n);
+  const std::array<J, 8> c = arcsec_coeffs(uj + 1, differences ? J(0.0) : uj[0]);
+  const J a = transfer_angle(c.data(), n);
   Eigen::Matrix<double, 8, 1> g = Eigen::Matrix<double, 8, 1>::Zero();
   for (int i = 0; i < p; ++i) g(i) = a.v[i];
   return g;

@@ -144,17 +144,10 @@ inline AxisCoeffs from_scaled(const Scaled& u) {
 }
 
 // Coefficients of the same transfer function giving arcsec instead of radians, from u[1..7]
-// (`u27`) and C1 in arcsec: transfer_angle(out, N) is then the angle in arcsec.
+// (`u27`) and C1 in arcsec: transfer_angle(c.data(), N) is then the angle in arcsec.
 template <typename T>
-inline void arcsec_coeffs(const T* u27, const T& c1_arcsec, T out[8]) {
-  out[0] = c1_arcsec;
-  out[1] = u27[0] / kCountScale;
-  out[2] = u27[1];
-  out[3] = u27[2] / kCountScale;
-  out[4] = u27[3];
-  out[5] = u27[4];
-  out[6] = u27[5] / kCountScale;
-  out[7] = u27[6];
+inline std::array<T, 8> arcsec_coeffs(const T* u27, const T& c1_arcsec) {
+  return {c1_arcsec, u27[0] / kCountScale, u27[1], u27[2] / kCountScale, u27[3], u27[4], u27[5] / kCountScale, u27[6]};
 }
 
 // Residuals of a run of difference rows, arcsec. Parameter block: u[1..7] (7 values).
@@ -166,10 +159,9 @@ struct DifferenceResiduals {
 
   template <typename T>
   bool operator()(const T* u27, T* r) const {
-    T c[8];
-    arcsec_coeffs(u27, T(0.0), c);
+    const std::array<T, 8> c = arcsec_coeffs(u27, T(0.0));
     for (int i = 0; i < count; ++i) {
-      r[i] = transfer_angle(c, n_plus[i]) - transfer_angle(c, n_minus[i]) - ref_change_arcsec[i];
+      r[i] = transfer_angle(c.data(), n_plus[i]) - transfer_angle(c.data(), n_minus[i]) - ref_change_arcsec[i];
     }
     return true;
   }
@@ -183,9 +175,8 @@ struct AbsoluteResiduals {
 
   template <typename T>
   bool operator()(const T* u, T* r) const {
-    T c[8];
-    arcsec_coeffs(u + 1, u[0], c);
-    for (int i = 0; i < count; ++i) r[i] = transfer_angle(c, n[i]) - ref_arcsec[i];
+    const std::array<T, 8> c = arcsec_coeffs(u + 1, u[0]);
+    for (int i = 0; i < count; ++i) r[i] = transfer_angle(c.data(), n[i]) - ref_arcsec[i];
     return true;
   }
 };
@@ -198,9 +189,8 @@ struct DwellLevelResidual {
 
   template <typename T>
   T operator()(const T* u27, const T& level_arcsec) const {
-    T c[8];
-    arcsec_coeffs(u27, level_arcsec, c);
-    return (transfer_angle(c, T(counts)) - T(ref_arcsec)) * inv_sigma;
+    const std::array<T, 8> c = arcsec_coeffs(u27, level_arcsec);
+    return (transfer_angle(c.data(), T(counts)) - T(ref_arcsec)) * inv_sigma;
   }
 };
 

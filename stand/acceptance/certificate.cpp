@@ -29,36 +29,22 @@ nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimi
                                                    : nlohmann::ordered_json(info.calibration_file);
   nlohmann::ordered_json crit = nlohmann::ordered_json::array();
   for (const auto& k : j.criteria) {
-    nlohmann::ordered_json e;
-    e["id"] = k.id;
-    e["title"] = k.title;
-    e["axis"] = k.axis;
-    e["measured"] = k.measured ? nlohmann::ordered_json(*k.measured) : nlohmann::ordered_json(nullptr);
-    e["uncertainty"] = k.uncertainty;
-    e["limit"] = k.limit;
-    e["relation"] = k.relation;
-    e["unit"] = k.unit;
-    e["passed"] = k.passed;
-    e["limit_key"] = k.limit_key;
-    e["source"] = k.source;
-    e["detail"] = k.detail;
-    crit.push_back(std::move(e));
+    const nlohmann::ordered_json measured = k.measured ? nlohmann::ordered_json(*k.measured) : nlohmann::ordered_json();
+    crit.push_back(nlohmann::ordered_json{
+        {"id", k.id}, {"title", k.title}, {"axis", k.axis},
+        {"measured", measured}, {"uncertainty", k.uncertainty},
+        {"limit", k.limit}, {"relation", k.relation}, {"unit", k.unit}, {"passed", k.passed},
+        {"limit_key", k.limit_key}, {"source", k.source}, {"detail", k.detail}});
   }
   c["criteria"] = crit;
   c["failed"] = j.failed();
   nlohmann::ordered_json pts = nlohmann::ordered_json::array();
   for (const auto& p : j.points) {
-    nlohmann::ordered_json e;
-    e["step"] = p.step;
-    e["role"] = to_string(p.role);
-    e["phase"] = std::string(to_string(p.phase));
-    e["ref_pitch_arcsec"] = p.ref_pitch_arcsec;
-    e["ref_yaw_arcsec"] = p.ref_yaw_arcsec;
-    e["frames"] = p.frames;
-    e["error_pitch_arcsec"] = p.error_pitch_arcsec;
-    e["error_yaw_arcsec"] = p.error_yaw_arcsec;
-    e["se_pitch_arcsec"] = p.se_pitch_arcsec;
-    e["se_yaw_arcsec"] = p.se_yaw_arcsec;
+    nlohmann::ordered_json e{{"step", p.step}, {"role", to_string(p.role)}, {"phase", std::string(to_string(p.phase))},
+                             {"ref_pitch_arcsec", p.ref_pitch_arcsec}, {"ref_yaw_arcsec", p.ref_yaw_arcsec},
+                             {"frames", p.frames},
+                             {"error_pitch_arcsec", p.error_pitch_arcsec}, {"error_yaw_arcsec", p.error_yaw_arcsec},
+                             {"se_pitch_arcsec", p.se_pitch_arcsec}, {"se_yaw_arcsec", p.se_yaw_arcsec}};
     if (p.role == PointRole::rest) {
       e["jitter_3sigma_pitch_arcsec"] = p.jitter3_pitch_arcsec;
       e["jitter_3sigma_yaw_arcsec"] = p.jitter3_yaw_arcsec;

@@ -48,74 +48,47 @@ inline constexpr const char* kAcceptanceColumns =
 
 // The records read from one row of a result. `Row` reads a column by name, as a backend's types
 // give it: text(c), opt_text(c), integer(c), opt_integer(c), opt_real(c) and flag(c) (a boolean).
+// Each record is built in the order of its fields, which is the order of its columns above.
 template <typename Row>
 std::optional<AxisResidualStats> stats_of_row(const Row& r, const std::string& axis) {
-  auto col = [&](const char* k) { return axis + "_" + k; };
-  AxisResidualStats s;
-  s.mean_abs_arcsec = r.opt_real(col("mean_abs_arcsec"));
-  s.sd_arcsec = r.opt_real(col("sd_arcsec"));
-  s.max_abs_arcsec = r.opt_real(col("max_abs_arcsec"));
-  s.rms_arcsec = r.opt_real(col("rms_arcsec"));
-  s.points = r.opt_integer(col("points"));
-  s.range_lo_deg = r.opt_real(col("range_lo_deg"));
-  s.range_hi_deg = r.opt_real(col("range_hi_deg"));
+  auto real = [&](const char* k) { return r.opt_real(axis + "_" + k); };
+  const AxisResidualStats s{
+      real("mean_abs_arcsec"),         real("sd_arcsec"),    real("max_abs_arcsec"), real("rms_arcsec"),
+      r.opt_integer(axis + "_points"), real("range_lo_deg"), real("range_hi_deg")};
   if (s.empty()) return std::nullopt;
   return s;
 }
 
 template <typename Row>
 RunRecord run_of_row(const Row& r) {
-  RunRecord x;
-  x.run_id = r.text("run_id");
-  x.unit = r.text("unit");
-  x.procedure = r.text("procedure");
-  x.procedure_hash = r.text("procedure_hash");
-  x.started_utc = r.text("started_utc");
-  x.ended_utc = r.opt_text("ended_utc");
-  x.outcome = r.text("outcome");
-  x.run_dir = r.text("run_dir");
-  x.emulated = r.flag("emulated");
-  x.stand = r.text("stand");
-  x.software_version = r.text("software_version");
-  x.resumes = r.integer("resumes");
-  x.pid = r.integer("pid");
-  x.host = r.text("host");
-  return x;
+  return RunRecord{r.text("run_id"),      r.text("unit"),          r.text("procedure"),        r.text("procedure_hash"),
+                   r.text("started_utc"), r.opt_text("ended_utc"), r.text("outcome"),          r.text("run_dir"),
+                   r.flag("emulated"),    r.text("stand"),         r.text("software_version"), r.integer("resumes"),
+                   r.integer("pid"),      r.text("host")};
 }
 
 template <typename Row>
 CalibrationRecord calibration_of_row(const Row& r) {
-  CalibrationRecord c;
-  c.id = r.integer("id");
-  c.unit = r.text("unit");
-  c.source = r.text("source");
-  c.run_id = r.opt_text("run_id");
-  c.source_ref = r.text("source_ref");
-  c.label = r.text("label");
-  c.date_utc = r.text("date_utc");
-  c.recorded_utc = r.text("recorded_utc");
-  c.method = r.text("method");
-  c.coefficients = nlohmann::json::parse(r.text("coefficients_json"));
-  c.pitch = stats_of_row(r, "pitch");
-  c.yaw = stats_of_row(r, "yaw");
-  c.stand = r.text("stand");
-  c.host = r.text("host");
-  return c;
+  return CalibrationRecord{r.integer("id"),          r.text("unit"),
+                           r.text("source"),         r.opt_text("run_id"),
+                           r.text("source_ref"),     r.text("label"),
+                           r.text("date_utc"),       r.text("recorded_utc"),
+                           r.text("method"),         nlohmann::json::parse(r.text("coefficients_json")),
+                           stats_of_row(r, "pitch"), stats_of_row(r, "yaw"),
+                           r.text("stand"),          r.text("host")};
 }
 
 template <typename Row>
 AcceptanceRecord acceptance_of_row(const Row& r) {
-  AcceptanceRecord a;
-  a.id = r.integer("id");
-  a.unit = r.text("unit");
-  a.run_id = r.opt_text("run_id");
-  a.passed = r.flag("passed");
-  a.date_utc = r.text("date_utc");
-  a.recorded_utc = r.text("recorded_utc");
-  a.certificate = nlohmann::json::parse(r.text("certificate_json"));
-  a.stand = r.text("stand");
-  a.host = r.text("host");
-  return a;
+  return AcceptanceRecord{r.integer("id"),
+                          r.text("unit"),
+                          r.opt_text("run_id"),
+                          r.flag("passed"),
+                          r.text("date_utc"),
+                          r.text("recorded_utc"),
+                          nlohmann::json::parse(r.text("certificate_json")),
+                          r.text("stand"),
+                          r.text("host")};
 }
 
 }  // namespace fpss

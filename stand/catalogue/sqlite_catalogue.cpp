@@ -16,6 +16,7 @@
 #include <cmath>
 #include <ctime>
 #include <functional>
+#include <initializer_list>
 #include <stdexcept>
 #include <thread>
 
@@ -66,6 +67,11 @@ template <typename T>
 void bind_opt(SQLite::Statement& st, const std::string& name, const std::optional<T>& v) {
   if (v) st.bind(name, *v);
   else st.bind(name);
+}
+
+// Text parameters, bound by name.
+void bind_texts(SQLite::Statement& st, std::initializer_list<std::pair<const char*, const std::string&>> texts) {
+  for (const auto& [name, text] : texts) st.bind(name, text);
 }
 
 // The residual columns of one axis, bound by name.
@@ -244,17 +250,11 @@ void SqliteCatalogue::record_run_start(const RunStart& start) {
         ON CONFLICT(run_id) DO UPDATE SET
           outcome = 'running', ended_utc = NULL, resumes = resumes + 1,
           pid = excluded.pid, host = excluded.host, software_version = excluded.software_version)sql");
-      st.bind(":run_id", run.run_id);
-      st.bind(":unit", run.unit);
-      st.bind(":procedure", run.procedure);
-      st.bind(":hash", run.procedure_hash);
-      st.bind(":started", run.started_utc);
-      st.bind(":dir", run.run_dir.string());
+      bind_texts(st, {{":run_id", run.run_id}, {":unit", run.unit}, {":procedure", run.procedure},
+                      {":hash", run.procedure_hash}, {":started", run.started_utc}, {":dir", run.run_dir.string()},
+                      {":stand", run.stand}, {":version", run.software_version}, {":host", this_host()}});
       st.bind(":emulated", run.emulated ? 1 : 0);
-      st.bind(":stand", run.stand);
-      st.bind(":version", run.software_version);
       st.bind(":pid", static_cast<int64_t>(::getpid()));
-      st.bind(":host", this_host());
       st.exec();
     });
   });
@@ -316,17 +316,10 @@ int64_t insert_calibration(SQLite::Database& db, const CalibrationRecord& given)
       ":method, :coefficients, :stand, :host, {})",
       stat_columns(), stat_columns(":{}_{}"));
   SQLite::Statement st(db, sql);
-  st.bind(":unit", cal.unit);
-  st.bind(":source", cal.source);
+  bind_texts(st, {{":unit", cal.unit}, {":source", cal.source}, {":source_ref", cal.source_ref}, {":label", cal.label},
+                  {":date", cal.date_utc}, {":recorded", cal.recorded_utc}, {":method", cal.method},
+                  {":coefficients", cal.coefficients.dump()}, {":stand", cal.stand}, {":host", cal.host}});
   bind_opt(st, ":run_id", cal.run_id);
-  st.bind(":source_ref", cal.source_ref);
-  st.bind(":label", cal.label);
-  st.bind(":date", cal.date_utc);
-  st.bind(":recorded", cal.recorded_utc);
-  st.bind(":method", cal.method);
-  st.bind(":coefficients", cal.coefficients.dump());
-  st.bind(":stand", cal.stand);
-  st.bind(":host", cal.host);
   bind_stats(st, "pitch", cal.pitch);
   bind_stats(st, "yaw", cal.yaw);
   st.exec();

@@ -91,16 +91,10 @@ std::string checked_date(const std::string& s) {
 }
 
 nlohmann::ordered_json drift_json(const DriftCheck& d, const CalibrationRecord& prev) {
-  nlohmann::ordered_json j;
-  j["previous_id"] = prev.id;
-  j["previous_date"] = prev.date_utc;
-  j["max_abs_arcsec"] = d.worst_arcsec;
-  j["max_abs_offset_removed_arcsec"] = d.worst_shape_arcsec;
-  j["axis"] = d.worst_axis;
-  j["limit_arcsec"] = d.limit_arcsec;
-  j["flagged"] = d.flagged;
-  j["comparison"] = d.comparison.summary_json();
-  return j;
+  return {{"previous_id", prev.id}, {"previous_date", prev.date_utc},
+          {"max_abs_arcsec", d.worst_arcsec}, {"max_abs_offset_removed_arcsec", d.worst_shape_arcsec},
+          {"axis", d.worst_axis}, {"limit_arcsec", d.limit_arcsec}, {"flagged", d.flagged},
+          {"comparison", d.comparison.summary_json()}};
 }
 
 void add_compare(CLI::App& app, Runner& run) {

@@ -72,21 +72,17 @@ std::string outcome_text(const RunRecord& r) {
   return r.outcome;
 }
 
+// A text that may be missing: null when it is.
+nlohmann::json text_or_null(const std::optional<std::string>& s) {
+  return s ? nlohmann::json(*s) : nlohmann::json(nullptr);
+}
+
 nlohmann::json run_json(const RunRecord& r) {
-  return {{"run_id", r.run_id},
-          {"unit", r.unit},
-          {"procedure", r.procedure},
-          {"procedure_hash", r.procedure_hash},
-          {"started_utc", r.started_utc},
-          {"ended_utc", r.ended_utc ? nlohmann::json(*r.ended_utc) : nlohmann::json(nullptr)},
-          {"outcome", r.outcome},
-          {"stale", r.stale()},
-          {"run_dir", r.run_dir},
-          {"emulated", r.emulated},
-          {"stand", r.stand},
-          {"host", r.host},
-          {"software_version", r.software_version},
-          {"resumes", r.resumes}};
+  return {{"run_id", r.run_id}, {"unit", r.unit}, {"procedure", r.procedure}, {"procedure_hash", r.procedure_hash},
+          {"started_utc", r.started_utc}, {"ended_utc", text_or_null(r.ended_utc)},
+          {"outcome", r.outcome}, {"stale", r.stale()},
+          {"run_dir", r.run_dir}, {"emulated", r.emulated}, {"stand", r.stand}, {"host", r.host},
+          {"software_version", r.software_version}, {"resumes", r.resumes}};
 }
 
 // What the run folder adds to the catalogue's row: a live run's progress (its journal), an
@@ -183,14 +179,9 @@ nlohmann::json history_json(const std::string& serial, const Catalogue& cat, con
   nlohmann::json list = nlohmann::json::array();
   for (const auto& e : h) {
     const auto& c = e.cal;
-    nlohmann::json j = {{"id", c.id},
-                        {"date", c.date_utc},
-                        {"recorded_utc", c.recorded_utc},
-                        {"source", c.source},
-                        {"source_ref", c.source_ref},
-                        {"run_id", c.run_id ? nlohmann::json(*c.run_id) : nlohmann::json(nullptr)},
-                        {"label", c.label},
-                        {"method", c.method},
+    nlohmann::json j = {{"id", c.id}, {"date", c.date_utc}, {"recorded_utc", c.recorded_utc},
+                        {"source", c.source}, {"source_ref", c.source_ref}, {"run_id", text_or_null(c.run_id)},
+                        {"label", c.label}, {"method", c.method},
                         {"residuals",
                          {{"pitch", c.pitch ? c.pitch->to_json() : nlohmann::json(nullptr)},
                           {"yaw", c.yaw ? c.yaw->to_json() : nlohmann::json(nullptr)}}},
@@ -306,15 +297,11 @@ int rebuild(const DbOpts& o) {
   const RebuildReport r = rebuild_catalogue(cat, o.runs_dir);
   for (const auto& s : r.skipped) std::fprintf(stderr, "fpss-stand catalogue rebuild: skipped %s\n", s.c_str());
   if (o.json) {
-    std::printf("%s\n", nlohmann::json{{"catalogue", cat.location()},
-                                        {"folders", r.folders},
-                                        {"runs_added", r.runs_added},
-                                        {"runs_updated", r.runs_updated},
-                                        {"calibrations_added", r.calibrations_added},
-                                        {"acceptances_added", r.acceptances_added},
-                                        {"skipped", r.skipped}}
-                             .dump(1)
-                             .c_str());
+    const nlohmann::json j{{"catalogue", cat.location()}, {"folders", r.folders},
+                           {"runs_added", r.runs_added}, {"runs_updated", r.runs_updated},
+                           {"calibrations_added", r.calibrations_added}, {"acceptances_added", r.acceptances_added},
+                           {"skipped", r.skipped}};
+    std::printf("%s\n", j.dump(1).c_str());
   } else {
     std::printf("%s: %d run folders; added %d runs, %d calibrations, %d acceptances; updated %d runs; skipped %zu\n",
                 cat.location().c_str(), r.folders, r.runs_added, r.calibrations_added, r.acceptances_added,
@@ -333,17 +320,11 @@ int copy(const CopyOpts& o) {
   const auto to = open_catalogue(o.to);
   const CopyReport r = copy_catalogue(*from, *to);
   if (o.json) {
-    std::printf("%s\n", nlohmann::json{{"from", from->location()},
-                                        {"to", to->location()},
-                                        {"units_added", r.units_added},
-                                        {"runs_seen", r.runs_seen},
-                                        {"runs_added", r.runs_added},
-                                        {"calibrations_seen", r.calibrations_seen},
-                                        {"calibrations_added", r.calibrations_added},
-                                        {"acceptances_seen", r.acceptances_seen},
-                                        {"acceptances_added", r.acceptances_added}}
-                             .dump(1)
-                             .c_str());
+    const nlohmann::json j{{"from", from->location()}, {"to", to->location()}, {"units_added", r.units_added},
+                           {"runs_seen", r.runs_seen}, {"runs_added", r.runs_added},
+                           {"calibrations_seen", r.calibrations_seen}, {"calibrations_added", r.calibrations_added},
+                           {"acceptances_seen", r.acceptances_seen}, {"acceptances_added", r.acceptances_added}};
+    std::printf("%s\n", j.dump(1).c_str());
   } else {
     std::printf("%s -> %s: added %d units, %d of %d runs, %d of %d calibrations, %d of %d acceptances\n",
                 from->location().c_str(), to->location().c_str(), r.units_added, r.runs_added, r.runs_seen,

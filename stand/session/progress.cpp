@@ -49,19 +49,14 @@ void Progress::skipped(size_t n) {
   start_done_ += n;  // not measured here: the ETA's rate is of the points measured
 }
 
-void Progress::clear() {
-  std::lock_guard lock(mu_);
-  if (tty_ && drawn_) {
-    std::fprintf(out_, "\r\033[K");
-    std::fflush(out_);
-    drawn_ = false;
-  }
-}
+void Progress::clear() { leave_line("\r\033[K"); }
 
-void Progress::finish() {
+void Progress::finish() { leave_line("\n"); }
+
+void Progress::leave_line(const char* how) {
   std::lock_guard lock(mu_);
   if (tty_ && drawn_) {
-    std::fprintf(out_, "\n");
+    std::fputs(how, out_);
     std::fflush(out_);
     drawn_ = false;
   }

@@ -29,6 +29,9 @@ class Progress {
   std::string line(const std::string& live) const;  // the text shown, for tests and logs
 
  private:
+  // Ends the live line with `how` (a terminal with a line drawn only).
+  void leave_line(const char* how);
+
   size_t total_, done_, start_done_;
   bool tty_;
   spdlog::logger& log_;

@@ -35,6 +35,11 @@ void expect_refused(std::initializer_list<Refused> cases) {
   }
 }
 
+// The same for rows under the required columns' header.
+void expect_rows_refused(std::initializer_list<Refused> cases) {
+  for (const auto& c : cases) expect_refused({{kHeader + c.text, c.says}});
+}
+
 using test::TempDir;
 
 TEST(Samples, ColumnsInAnyOrderExtrasKept) {
@@ -60,24 +65,25 @@ TEST(Samples, ColumnsInAnyOrderExtrasKept) {
 }
 
 TEST(Samples, MalformedRowsNameLineAndColumn) {
-  const std::string h = kHeader;
   expect_refused({
       {"time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha\n0,null,1,0,0,0\n",
        "rec.csv:1: missing required column \"counts_beta\""},
-      {h + "0,null,1,0,0,0,0\n0.1,null,1,0,abc,0,0\n",
-       "rec.csv:3: column \"ref_yaw_arcsec\": expected a finite number, got \"abc\""},
-      {h + "0,null,1,0,0,inf,0\n", "rec.csv:2: column \"counts_alpha\": expected a finite number, got \"inf\""},
-      {h + "0,null,1,0,0,0,nan\n", "column \"counts_beta\": expected a finite number"},
-      {h + "0,sideways,1,0,0,0,0\n",
-       "rec.csv:2: column \"phase\": expected null, offset, slew or move, got \"sideways\""},
-      {h + "0,null,1.5,0,0,0,0\n", "column \"step\": expected an integer"},
-      {h + "1.0,null,1,0,0,0,0\n0.5,null,1,0,0,0,0\n", "rec.csv:3: column \"time_s\": time goes backwards"},
-      {h + "0,null,2,0,0,0,0\n1,null,1,0,0,0,0\n", "rec.csv:3: column \"step\": step decreases"},
-      {h + "0,null,1,0,0,0\n", "rec.csv:2: expected 7 fields as in the header, got 6"},
-      {h + "0,\"null,1,0,0,0,0\n", "rec.csv:2: unterminated quote"},
       {"time_s,time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha,counts_beta\n",
        "column \"time_s\" appears twice"},
       {"", "empty file"},
+  });
+  expect_rows_refused({
+      {"0,null,1,0,0,0,0\n0.1,null,1,0,abc,0,0\n",
+       "rec.csv:3: column \"ref_yaw_arcsec\": expected a finite number, got \"abc\""},
+      {"0,null,1,0,0,inf,0\n", "rec.csv:2: column \"counts_alpha\": expected a finite number, got \"inf\""},
+      {"0,null,1,0,0,0,nan\n", "column \"counts_beta\": expected a finite number"},
+      {"0,sideways,1,0,0,0,0\n",
+       "rec.csv:2: column \"phase\": expected null, offset, slew or move, got \"sideways\""},
+      {"0,null,1.5,0,0,0,0\n", "column \"step\": expected an integer"},
+      {"1.0,null,1,0,0,0,0\n0.5,null,1,0,0,0,0\n", "rec.csv:3: column \"time_s\": time goes backwards"},
+      {"0,null,2,0,0,0,0\n1,null,1,0,0,0,0\n", "rec.csv:3: column \"step\": step decreases"},
+      {"0,null,1,0,0,0\n", "rec.csv:2: expected 7 fields as in the header, got 6"},
+      {"0,\"null,1,0,0,0,0\n", "rec.csv:2: unterminated quote"},
   });
 
   TempDir dir("samples");
@@ -146,14 +152,13 @@ TEST(Samples, ByteOrderMarkAccepted) {
 }
 
 TEST(Samples, OverflowingValuesNameFileRowAndColumn) {
-  const std::string h = kHeader;
-  expect_refused({
-      {h + "0,null,1,0,0,0,0\n1,offset,2,1e308,0,0,0\n",
+  expect_rows_refused({
+      {"0,null,1,0,0,0,0\n1,offset,2,1e308,0,0,0\n",
        "rec.csv:3: column \"ref_pitch_arcsec\": 1e308 is beyond +-648000"},
-      {h + "0,null,1,0,1e400,0,0\n", "rec.csv:2: column \"ref_yaw_arcsec\": expected a finite number, got \"1e400\""},
-      {h + "1e300,null,1,0,0,0,0\n", "rec.csv:2: column \"time_s\": 1e300 is beyond"},
-      {h + "0,null,1,0,0,-1e7,0\n", "rec.csv:2: column \"counts_alpha\": -1e7 is beyond +-1e+06"},
-      {h + "0,null,99999999999999999999,0,0,0,0\n", "rec.csv:2: column \"step\": expected an integer"},
+      {"0,null,1,0,1e400,0,0\n", "rec.csv:2: column \"ref_yaw_arcsec\": expected a finite number, got \"1e400\""},
+      {"1e300,null,1,0,0,0,0\n", "rec.csv:2: column \"time_s\": 1e300 is beyond"},
+      {"0,null,1,0,0,-1e7,0\n", "rec.csv:2: column \"counts_alpha\": -1e7 is beyond +-1e+06"},
+      {"0,null,99999999999999999999,0,0,0,0\n", "rec.csv:2: column \"step\": expected an integer"},
   });
 }
 

@@ -21,6 +21,19 @@ namespace {
 
 using test::error_of;
 
+// A server and a gimbal with the default options connected to it.
+class ConnectedModbusGimbal : public testing::Test {
+ protected:
+  void SetUp() override { g.connect(); }
+  ModbusTestServer server;
+  ModbusGimbal g{e2e::gimbal_options(server.endpoint())};
+};
+
+// Each of `parts` is in the message.
+void expect_mentions(const std::string& message, std::initializer_list<const char*> parts) {
+  for (const char* part : parts) EXPECT_THAT(message, HasSubstr(part));
+}
+
 int count_function(const std::vector<ModbusTestServer::Request>& rs, int fc) {
   int n = 0;
   for (const auto& r : rs) n += r.function == fc;
@@ -99,14 +112,9 @@ TEST(ModbusGimbal, MoveWritesTargetsWithFunction16ThenCommand1AndWaits) {
   EXPECT_EQ(count_function(server.requests(), MODBUS_FC_READ_INPUT_REGISTERS), 4);
 }
 
-TEST(ModbusGimbal, SoftLimitsRefuseBeforeAnythingIsSent) {
-  ModbusTestServer server;
-  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
-  g.connect();
+TEST_F(ConnectedModbusGimbal, SoftLimitsRefuseBeforeAnythingIsSent) {
   std::string msg = error_of([&] { g.move_to(3000, 0); });
-  EXPECT_THAT(msg, HasSubstr("pitch"));
-  EXPECT_THAT(msg, HasSubstr("3000"));
-  EXPECT_THAT(msg, HasSubstr("2700"));
+  expect_mentions(msg, {"pitch", "3000", "2700"});
   EXPECT_THROW(g.move_to(0, -2700.001), LimitError);
   EXPECT_THAT(error_of([&] { g.move_to(0, -2700.001); }), HasSubstr("yaw"));
   EXPECT_THROW(g.move_to(std::nan(""), 0), LimitError);
@@ -129,37 +137,24 @@ TEST(ModbusGimbal, Exception03NamesTheRegistersAndIsNotRetried) {
   ModbusGimbal g(o);
   g.connect();
   std::string msg = error_of([&] { g.move_to(8000, 0); });
-  EXPECT_THAT(msg, HasSubstr("holding registers 0..3"));
-  EXPECT_THAT(msg, HasSubstr("pitch_target_mas"));
-  EXPECT_THAT(msg, HasSubstr("exception 03"));
-  EXPECT_THAT(msg, HasSubstr("function 16"));
+  expect_mentions(msg, {"holding registers 0..3", "pitch_target_mas", "exception 03", "function 16"});
   auto rs = server.requests();
   ASSERT_EQ(rs.size(), 1u);  // not retried, and no move command after the refused targets
   EXPECT_EQ(g.counters().retries, 0u);
   EXPECT_TRUE(g.connected());  // an exception is an answer: the link stays up
 }
 
-TEST(ModbusGimbal, Exception02NamesTheUnmappedAddress) {
-  ModbusTestServer server;
-  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
-  g.connect();
+TEST_F(ConnectedModbusGimbal, Exception02NamesTheUnmappedAddress) {
   std::string msg = error_of([&] { g.read_input_registers(20, 2); });
-  EXPECT_THAT(msg, HasSubstr("input registers 20..21"));
-  EXPECT_THAT(msg, HasSubstr("exception 02"));
-  EXPECT_THAT(msg, HasSubstr("not mapped"));
+  expect_mentions(msg, {"input registers 20..21", "exception 02", "not mapped"});
   EXPECT_EQ(server.requests().size(), 1u);
   msg = error_of([&] { g.write_holding_registers(13, {1}); });
-  EXPECT_THAT(msg, HasSubstr("holding register 13"));
-  EXPECT_THAT(msg, HasSubstr("exception 02"));
+  expect_mentions(msg, {"holding register 13", "exception 02"});
 }
 
-TEST(ModbusGimbal, UnknownCommandIsException03OnTheCommandRegister) {
-  ModbusTestServer server;
-  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
-  g.connect();
+TEST_F(ConnectedModbusGimbal, UnknownCommandIsException03OnTheCommandRegister) {
   std::string msg = error_of([&] { g.write_holding_registers(11, {9}); });
-  EXPECT_THAT(msg, HasSubstr("holding register 11 (command)"));
-  EXPECT_THAT(msg, HasSubstr("exception 03"));
+  expect_mentions(msg, {"holding register 11 (command)", "exception 03"});
 }
 
 TEST(ModbusGimbal, TimeoutsAreRetriedOnAFreshConnectionThenSucceed) {
@@ -185,10 +180,7 @@ TEST(ModbusGimbal, PersistentTimeoutEndsInAClearError) {
   ModbusGimbal g(e2e::gimbal_options(server.endpoint(), 1.0));
   g.connect();
   std::string msg = error_of([&] { g.read_state(); });
-  EXPECT_THAT(msg, HasSubstr("input registers 0..14"));
-  EXPECT_THAT(msg, HasSubstr("after 3 attempts"));
-  EXPECT_THAT(msg, HasSubstr("timed out"));
-  EXPECT_THAT(msg, HasSubstr("errno 110"));
+  expect_mentions(msg, {"input registers 0..14", "after 3 attempts", "timed out", "errno 110"});
   EXPECT_EQ(server.requests().size(), 3u);
   // Safe state: the driver dropped the link; the next request starts from a fresh one.
   EXPECT_FALSE(g.connected());
@@ -209,9 +201,7 @@ TEST(ModbusGimbal, AReplyDribbledByteByByteIsATimeoutWithinTheDeadline) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string msg = error_of([&] { g.read_state(); });
   const double took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  EXPECT_THAT(msg, HasSubstr("input registers 0..14"));
-  EXPECT_THAT(msg, HasSubstr("after 3 attempts"));
-  EXPECT_THAT(msg, HasSubstr("errno 110"));
+  expect_mentions(msg, {"input registers 0..14", "after 3 attempts", "errno 110"});
   EXPECT_EQ(g.counters().retries, 2u);
   // Each attempt ends within twice the response timeout, so three attempts and two backoffs stay
   // below the time the device takes to send even one reply (libmodbus alone: 3 x 3.9 s).
@@ -268,9 +258,7 @@ TEST(ModbusGimbal, NoServerGivesConnectionRefusedWithErrno) {
   GimbalOptions o = e2e::gimbal_options("modbus-tcp:127.0.0.1:" + std::to_string(refusing.port()));
   ModbusGimbal g(o);
   std::string msg = error_of([&] { g.connect(); });
-  EXPECT_THAT(msg, HasSubstr("cannot connect"));
-  EXPECT_THAT(msg, HasSubstr("errno 111"));
-  EXPECT_THAT(msg, HasSubstr("after 3 attempts"));
+  expect_mentions(msg, {"cannot connect", "errno 111", "after 3 attempts"});
   EXPECT_FALSE(g.connected());
 }
 
@@ -281,8 +269,7 @@ TEST(ModbusGimbal, FaultWhileWaitingNamesTheFaultCode) {
   g.connect();
   g.move_to(10, 10);
   std::string msg = error_of([&] { g.wait_in_position(30.0); });
-  EXPECT_THAT(msg, HasSubstr("fault 1 (following_error)"));
-  EXPECT_THAT(msg, HasSubstr("input register 9"));
+  expect_mentions(msg, {"fault 1 (following_error)", "input register 9"});
   g.clear_fault();
   EXPECT_EQ(g.read_state().fault, GimbalFault::none);
 }
@@ -296,14 +283,10 @@ TEST(ModbusGimbal, WaitInPositionTimesOutWhileStillMoving) {
   g.connect();
   g.move_to(100, 0);
   std::string msg = error_of([&] { g.wait_in_position(0.1); });
-  EXPECT_THAT(msg, HasSubstr("not in position within 0.1 s"));
-  EXPECT_THAT(msg, HasSubstr("still moving"));
+  expect_mentions(msg, {"not in position within 0.1 s", "still moving"});
 }
 
-TEST(ModbusGimbal, RateMaxRateAndWatchdogRegisters) {
-  ModbusTestServer server;
-  ModbusGimbal g(e2e::gimbal_options(server.endpoint()));
-  g.connect();
+TEST_F(ConnectedModbusGimbal, RateMaxRateAndWatchdogRegisters) {
   g.set_max_rate(3000.5);
   EXPECT_EQ((static_cast<uint32_t>(server.holding(8)) << 16) | server.holding(9), 3'000'500u);
   g.set_watchdog(2.5);

@@ -22,13 +22,12 @@
 #include "stand/acceptance/acceptance.h"
 #include "stand/catalogue/sqlite_catalogue.h"
 #include "stand/session/emulator_process.h"
+#include "tests/stand/emulator_stand.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
 namespace fs = std::filesystem;
-
-const fs::path kProcedures = test::source_dir() / "procedures";
 
 using test::CommandResult;
 using test::read_file;
@@ -131,7 +130,7 @@ TEST(AcceptanceRoles, ShippedProcedureCalibratesVerifiesAndRests) {
 }
 
 TEST(AcceptanceRoles, ACalibrationProcedureIsNotAnAcceptance) {
-  const Procedure proc = load_procedure(kProcedures / "discrete_grid.yaml");
+  const Procedure proc = load_procedure(test::shipped_procedure("discrete_grid.yaml"));
   Diagnostics d(proc.origin);
   const Plan plan = expand(proc, EngineSettings{}, d);
   try {
@@ -624,7 +623,7 @@ TEST_F(AcceptCli, BadInputExitsTwoBeforeAnythingMoves) {
   CommandResult r = accept("--limits '" + bad_limits.string() + "'");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("limits.yaml:"), std::string::npos) << r.err;
-  r = accept("--procedure '" + (kProcedures / "discrete_grid.yaml").string() + "'");
+  r = accept("--procedure '" + test::shipped_procedure("discrete_grid.yaml") + "'");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("not an acceptance procedure"), std::string::npos) << r.err;
   r = accept("--effect wobble:amount=3");
