@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "drivers/device.h"
+
 namespace fpss {
 
 // Status register bits (ICD, input register 8).
@@ -55,13 +57,8 @@ struct GimbalCommand {
   uint16_t command = 0;  // the command register's last value (1 move, 2 stop, 3 home, 4 clear fault, 5 rate, 6 move at)
 };
 
-class Gimbal {
+class Gimbal : public Device {
  public:
-  virtual ~Gimbal() = default;
-  virtual void connect() = 0;
-  virtual void disconnect() = 0;
-  virtual bool connected() const = 0;
-
   virtual GimbalState read_state() = 0;
   virtual void set_max_rate(double arcsec_s) = 0;
   // Absolute move; throws LimitError outside the soft limits, nothing sent.

@@ -60,8 +60,6 @@ class ModbusGimbal : public Gimbal {
  public:
   explicit ModbusGimbal(GimbalOptions options);  // parses the endpoint; touches no hardware
   ~ModbusGimbal() override;
-  ModbusGimbal(const ModbusGimbal&) = delete;
-  ModbusGimbal& operator=(const ModbusGimbal&) = delete;
 
   void connect() override;
   void disconnect() override;

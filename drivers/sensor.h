@@ -4,6 +4,8 @@
 #include <optional>
 #include <string>
 
+#include "drivers/device.h"
+
 namespace fpss {
 
 // Sample status bits (ICD, sample frame).
@@ -35,13 +37,8 @@ struct SensorStats {
   uint64_t reconnects = 0;       // successful reopenings of the link after it dropped
 };
 
-class Sensor {
+class Sensor : public Device {
  public:
-  virtual ~Sensor() = default;
-  virtual void connect() = 0;
-  virtual void disconnect() = 0;
-  virtual bool connected() const = 0;
-
   virtual std::string identify() = 0;  // "FPSS,SN=<serial>,FW=<version>"
   virtual void set_rate(int hz) = 0;   // 1..200
   virtual void start() = 0;

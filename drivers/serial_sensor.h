@@ -23,8 +23,6 @@ class SerialSensor : public Sensor {
   // With a stream made elsewhere (its endpoint string is used in messages only).
   SerialSensor(SensorOptions options, std::unique_ptr<ByteStream> stream);
   ~SerialSensor() override;
-  SerialSensor(const SerialSensor&) = delete;
-  SerialSensor& operator=(const SerialSensor&) = delete;
 
   void connect() override;
   void disconnect() override;

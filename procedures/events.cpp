@@ -196,12 +196,8 @@ void record_with(EventBus& bus, RunRecorder& rec) {
 }
 
 EventLog::EventLog(const std::filesystem::path& path) : path_(path) {
-  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC | O_NOFOLLOW, 0644);
-  if (fd_ < 0) throw std::runtime_error(fmt::format("{}: cannot open: {}", path.string(), std::strerror(errno)));
-}
-
-EventLog::~EventLog() {
-  if (fd_ >= 0) ::close(fd_);
+  fd_.reset(::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC | O_NOFOLLOW, 0644));
+  if (!fd_) throw std::runtime_error(fmt::format("{}: cannot open: {}", path.string(), std::strerror(errno)));
 }
 
 void EventLog::write(const Event& e) {
@@ -218,7 +214,7 @@ void EventLog::append(const std::string& line) {
   // One write per line on an O_APPEND descriptor: a reader never sees two events interleaved.
   size_t off = 0;
   while (off < line.size()) {
-    const ssize_t n = ::write(fd_, line.data() + off, line.size() - off);
+    const ssize_t n = ::write(fd_.get(), line.data() + off, line.size() - off);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) throw std::runtime_error(fmt::format("{}: cannot append: {}", path_.string(), std::strerror(errno)));
     off += static_cast<size_t>(n);

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "calib/unique_fd.h"
 #include "procedures/recorder.h"
 
 namespace fpss {
@@ -135,9 +136,6 @@ void record_with(EventBus& bus, RunRecorder& rec);
 class EventLog {
  public:
   explicit EventLog(const std::filesystem::path& path);
-  ~EventLog();
-  EventLog(const EventLog&) = delete;
-  EventLog& operator=(const EventLog&) = delete;
   void write(const Event& e);
   // A line that is not an engine event (an operator prompt and its answer, docs/console.md):
   // {"type": type, "utc": ..., ...body}.
@@ -145,7 +143,7 @@ class EventLog {
 
  private:
   void append(const std::string& line);
-  int fd_ = -1;
+  UniqueFd fd_;
   std::filesystem::path path_;
 };
 

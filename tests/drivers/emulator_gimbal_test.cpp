@@ -1,8 +1,11 @@
 // ModbusGimbal against the emulated gimbal over real loopback TCP (and RTU on a real pty): moves, and every
 // gimbal-side fault of docs/emulator.md ending in a successful retry or a clear error and a safe state.
 #include <gmock/gmock.h>
-#include <cmath>
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <memory>
 
 #include "emulator_fixture.h"
 
@@ -71,15 +74,22 @@ TEST_F(GimbalOnEmulator, MoveCompletesInPositionThroughTheDriver) {
   EXPECT_EQ(gimbal->counters().reconnects, 0u);
 }
 
+// An emulator on the end-to-end options with `configure` applied, started.
+std::unique_ptr<Emulator> started_emulator(const std::function<void(EmulatorOptions&)>& configure) {
+  EmulatorOptions o = e2e::emulator_options();
+  configure(o);
+  auto emu = std::make_unique<Emulator>(o);
+  emu->start();
+  return emu;
+}
+
 // A scheduled move through the driver (a stand that says timed_moves): the targets, the start
 // on the gimbal's clock and command 6; the gimbal holds with move_pending until its clock reaches
 // the start, then moves, and arrives when its profile says from that instant. A start already past
 // is refused, and a gimbal the stand does not say has them is never sent one.
 TEST(GimbalOnEmulatorClock, AScheduledMoveStartsWhenTheGimbalsClockSays) {
-  EmulatorOptions o = e2e::emulator_options();
-  o.manual_clock = true;
-  Emulator emu(o);
-  emu.start();
+  const auto owned = started_emulator([](EmulatorOptions& o) { o.manual_clock = true; });
+  Emulator& emu = *owned;
   GimbalOptions go = gimbal_options(emu.endpoints().gimbal(), 5.0);
   go.timed_moves = true;
   ModbusGimbal g(go);
@@ -366,10 +376,8 @@ TEST_F(GimbalOnEmulator, WatchdogFiresOnTheRealClockWhenNobodyPolls) {
 }
 
 TEST(GimbalOverRtu, MovesAndRecoversFromAnUnansweredRequestOnTheEmulatorsPty) {
-  EmulatorOptions o = e2e::emulator_options();
-  o.modbus_rtu = true;
-  Emulator emu(o);
-  emu.start();
+  const auto owned = started_emulator([](EmulatorOptions& o) { o.modbus_rtu = true; });
+  Emulator& emu = *owned;
   ASSERT_FALSE(emu.endpoints().modbus_rtu_pty.empty());
   auto g = make_gimbal(gimbal_options(emu.endpoints().gimbal_rtu(), 0.5));
   auto& gimbal = dynamic_cast<ModbusGimbal&>(*g);
@@ -402,10 +410,8 @@ TEST(GimbalOverRtu, MovesAndRecoversFromAnUnansweredRequestOnTheEmulatorsPty) {
 // RTU replies carry no transaction id: a reply that comes after the driver gave up on it must not
 // be taken for the answer to a later request (every later read would then be one reply behind).
 TEST(GimbalOverRtu, AReplyDelayedPastTheTimeoutIsNeverTakenForALaterOne) {
-  EmulatorOptions o = e2e::emulator_options();
-  o.modbus_rtu = true;
-  Emulator emu(o);
-  emu.start();
+  const auto owned = started_emulator([](EmulatorOptions& o) { o.modbus_rtu = true; });
+  Emulator& emu = *owned;
   GimbalOptions go = gimbal_options(emu.endpoints().gimbal_rtu(), 0.3);
   go.retries = 3;
   ModbusGimbal gimbal(go);
