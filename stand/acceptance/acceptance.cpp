@@ -286,6 +286,21 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+// The dwell whose `size` (never negative) is largest, the first of equals; `at` is null for no dwells.
+struct WorstDwell {
+  const DwellStats* at = nullptr;
+  double size = -1;
+};
+template <typename Size>
+WorstDwell worst_dwell(const std::vector<const DwellStats*>& dwells, Size size) {
+  WorstDwell w;
+  for (const auto* d : dwells) {
+    const double s = size(*d);
+    if (s > w.size) w = {d, s};
+  }
+  return w;
+}
+
 }  // namespace
 
 std::vector<std::string> Judgement::failed() const {
@@ -370,6 +385,7 @@ void Judging::accuracy_criteria() {
   // 2. Accuracy on the verification points the fit never saw, within the radius.
   for (int ax = 0; ax < 2; ++ax) {
     const std::string a = axis_name(ax);
+    const auto error_size = [ax](const DwellStats& d) { return std::fabs(d.mean[ax] - d.ref[ax]); };
     Criterion rms3 = make("accuracy_3sigma_" + a, fmt::format("Accuracy, 3 sigma (3 x RMS error), {}", axis_label(ax)),
                           a, L.accuracy_3sigma_arcsec, "accuracy_3sigma_arcsec", "<=", "arcsec");
     Criterion worst = make("accuracy_worst_point_" + a, fmt::format("Accuracy, worst verification point, {}", axis_label(ax)),
@@ -385,40 +401,23 @@ void Judging::accuracy_criteria() {
         settle(rms3, std::nullopt, 0, "not measured: no verification point within the radius");
         settle(worst, std::nullopt, 0, "not measured: no verification point within the radius");
       } else {
-        double ss = 0, w = -1, w_se = 0;
-        const DwellStats* at = nullptr;
-        for (const auto* d : ver_in) {
-          const double e = d->mean[ax] - d->ref[ax];
-          ss += e * e;
-          if (std::fabs(e) > w) {
-            w = std::fabs(e);
-            at = d;
-            w_se = d->se[ax];
-          }
-        }
+        double ss = 0;
+        for (const auto* d : ver_in) ss += sq(d->mean[ax] - d->ref[ax]);
+        const auto [at, w] = worst_dwell(ver_in, error_size);
         const double n = static_cast<double>(ver_in.size());
         const double v3 = 3.0 * std::sqrt(ss / n);
         settle(rms3, v3, v3 / std::sqrt(2.0 * n),
                fmt::format("{} verification points within {} arcmin; error = calibrated angle - reference, "
                            "mean over each dwell's frames",
                            ver_in.size(), L.accuracy_radius_arcmin.value));
-        settle(worst, w, w_se,
+        settle(worst, w, at->se[ax],
                fmt::format("{:+.3f} arcsec at {}", at->mean[ax] - at->ref[ax], where_text(*at)));
       }
       if (ver_null.empty()) {
         settle(centre, std::nullopt, 0, "not measured: no verification null dwell");
       } else {
-        double w = -1, w_se = 0;
-        const DwellStats* at = nullptr;
-        for (const auto* d : ver_null) {
-          const double e = std::fabs(d->mean[ax] - d->ref[ax]);
-          if (e > w) {
-            w = e;
-            at = d;
-            w_se = d->se[ax];
-          }
-        }
-        settle(centre, w, w_se,
+        const auto [at, w] = worst_dwell(ver_null, error_size);
+        settle(centre, w, at->se[ax],
                fmt::format("{} null dwells after the calibration; worst {:+.3f} arcsec at step {}", ver_null.size(),
                            at->mean[ax] - at->ref[ax], at->step));
       }
@@ -440,16 +439,9 @@ void Judging::jitter_criteria() {
     } else if (rest.empty()) {
       settle(jit, std::nullopt, 0, "not measured: no rest dwell was recorded");
     } else {
-      double w = -1, u = 0;
-      const DwellStats* at = nullptr;
-      for (const auto* d : rest) {
-        const double j3 = 3.0 * d->sd_detrended[ax];
-        if (j3 > w) {
-          w = j3;
-          at = d;
-          u = d->frames > 2 ? j3 / std::sqrt(2.0 * static_cast<double>(d->frames - 2)) : j3;
-        }
-      }
+      const auto [at, w] = worst_dwell(rest, [ax](const DwellStats& d) { return 3.0 * d.sd_detrended[ax]; });
+      // A detrended sd has frames - 2 degrees of freedom.
+      const double u = at->frames > 2 ? w / std::sqrt(2.0 * static_cast<double>(at->frames - 2)) : w;
       settle(jit, w, u,
              fmt::format("worst of {} rest dwells: {} ({} frames, linear trend removed)", rest.size(), where_text(*at),
                          at->frames));
