@@ -261,6 +261,13 @@ Criterion make(const std::string& id, const std::string& title, const std::strin
   return c;
 }
 
+// A criterion judged on one axis: its id ends in the axis's name, its title in the axis's label.
+Criterion make_for_axis(int ax, const std::string& id, const std::string& title, const Limit& lim,
+                        const std::string& key, const std::string& relation, const std::string& unit) {
+  return make(id + "_" + axis_name(ax), fmt::format("{}, {}", title, axis_label(ax)), axis_name(ax), lim, key,
+              relation, unit);
+}
+
 void settle(Criterion& c, std::optional<double> measured, double u, std::string detail) {
   c.measured = measured;
   c.uncertainty = u;
@@ -355,10 +362,10 @@ void Judging::residual_criteria() {
   // 1. Calibration residuals, Table 1 form (from the calibrator's own summary in calibration.json).
   for (int ax = 0; ax < 2; ++ax) {
     const std::string a = axis_name(ax);
-    Criterion mean = make("residual_mean_" + a, fmt::format("Calibration residuals, mean |r|, {}", axis_label(ax)), a,
-                          L.residual_mean_abs_arcsec, "residual_mean_abs_arcsec", "<=", "arcsec");
-    Criterion max = make("residual_max_" + a, fmt::format("Calibration residuals, max |r|, {}", axis_label(ax)), a,
-                         L.residual_max_abs_arcsec, "residual_max_abs_arcsec", "<=", "arcsec");
+    Criterion mean = make_for_axis(ax, "residual_mean", "Calibration residuals, mean |r|", L.residual_mean_abs_arcsec,
+                                   "residual_mean_abs_arcsec", "<=", "arcsec");
+    Criterion max = make_for_axis(ax, "residual_max", "Calibration residuals, max |r|", L.residual_max_abs_arcsec,
+                                  "residual_max_abs_arcsec", "<=", "arcsec");
     if (!residuals.is_object() || !residuals.contains(a)) {
       settle(mean, std::nullopt, 0, cal ? "not measured: calibration.json has no residuals for " + a : no_cal);
       settle(max, std::nullopt, 0, cal ? "not measured: calibration.json has no residuals for " + a : no_cal);
@@ -384,14 +391,13 @@ void Judging::residual_criteria() {
 void Judging::accuracy_criteria() {
   // 2. Accuracy on the verification points the fit never saw, within the radius.
   for (int ax = 0; ax < 2; ++ax) {
-    const std::string a = axis_name(ax);
     const auto error_size = [ax](const DwellStats& d) { return std::fabs(d.mean[ax] - d.ref[ax]); };
-    Criterion rms3 = make("accuracy_3sigma_" + a, fmt::format("Accuracy, 3 sigma (3 x RMS error), {}", axis_label(ax)),
-                          a, L.accuracy_3sigma_arcsec, "accuracy_3sigma_arcsec", "<=", "arcsec");
-    Criterion worst = make("accuracy_worst_point_" + a, fmt::format("Accuracy, worst verification point, {}", axis_label(ax)),
-                           a, L.accuracy_worst_point_arcsec, "accuracy_worst_point_arcsec", "<=", "arcsec");
-    Criterion centre = make("accuracy_centre_" + a, fmt::format("Accuracy at the centre (null dwells), {}", axis_label(ax)),
-                            a, L.accuracy_centre_arcsec, "accuracy_centre_arcsec", "<=", "arcsec");
+    Criterion rms3 = make_for_axis(ax, "accuracy_3sigma", "Accuracy, 3 sigma (3 x RMS error)", L.accuracy_3sigma_arcsec,
+                                   "accuracy_3sigma_arcsec", "<=", "arcsec");
+    Criterion worst = make_for_axis(ax, "accuracy_worst_point", "Accuracy, worst verification point",
+                                    L.accuracy_worst_point_arcsec, "accuracy_worst_point_arcsec", "<=", "arcsec");
+    Criterion centre = make_for_axis(ax, "accuracy_centre", "Accuracy at the centre (null dwells)",
+                                     L.accuracy_centre_arcsec, "accuracy_centre_arcsec", "<=", "arcsec");
     if (!cal) {
       settle(rms3, std::nullopt, 0, no_cal);
       settle(worst, std::nullopt, 0, no_cal);
@@ -431,9 +437,8 @@ void Judging::accuracy_criteria() {
 void Judging::jitter_criteria() {
   // 3. Jitter at rest.
   for (int ax = 0; ax < 2; ++ax) {
-    const std::string a = axis_name(ax);
-    Criterion jit = make("jitter_3sigma_" + a, fmt::format("Jitter at rest, 3 sigma, {}", axis_label(ax)), a,
-                         L.jitter_3sigma_arcsec, "jitter_3sigma_arcsec", "<=", "arcsec");
+    Criterion jit = make_for_axis(ax, "jitter_3sigma", "Jitter at rest, 3 sigma", L.jitter_3sigma_arcsec,
+                                  "jitter_3sigma_arcsec", "<=", "arcsec");
     if (!cal) {
       settle(jit, std::nullopt, 0, no_cal);
     } else if (rest.empty()) {
@@ -454,8 +459,8 @@ void Judging::coverage_criteria() {
   // 4. Field coverage: the calibration's range and the verification's reach, per axis.
   for (int ax = 0; ax < 2; ++ax) {
     const std::string a = axis_name(ax);
-    Criterion range = make("calibrated_range_" + a, fmt::format("Calibrated range, {}", axis_label(ax)), a,
-                           L.calibrated_range_deg, "calibrated_range_deg", ">=", "deg");
+    Criterion range = make_for_axis(ax, "calibrated_range", "Calibrated range", L.calibrated_range_deg,
+                                    "calibrated_range_deg", ">=", "deg");
     if (!residuals.is_object() || !residuals.contains(a) || !residuals[a].contains("range_deg") ||
         !residuals[a]["range_deg"].is_array() || residuals[a]["range_deg"].size() != 2) {
       settle(range, std::nullopt, 0, cal ? "not measured: calibration.json has no range_deg for " + a : no_cal);
@@ -466,8 +471,8 @@ void Judging::coverage_criteria() {
     }
     J.criteria.push_back(range);
 
-    Criterion ext = make("verified_extent_" + a, fmt::format("Verified extent, {}", axis_label(ax)), a,
-                         L.verified_extent_deg, "verified_extent_deg", ">=", "deg");
+    Criterion ext = make_for_axis(ax, "verified_extent", "Verified extent", L.verified_extent_deg,
+                                  "verified_extent_deg", ">=", "deg");
     if (ver_in.empty()) {
       settle(ext, std::nullopt, 0, "not measured: no verification point within the radius");
     } else {
