@@ -261,6 +261,13 @@ Criterion make(const std::string& id, const std::string& title, const std::strin
   return c;
 }
 
+// A criterion judged on one axis: its id ends in the axis's name, its title in the axis's label.
+Criterion make_for_axis(int ax, const std::string& id, const std::string& title, const Limit& lim,
+                        const std::string& key, const std::string& relation, const std::string& unit) {
+  return make(id + "_" + axis_name(ax), fmt::format("{}, {}", title, axis_label(ax)), axis_name(ax), lim, key,
+              relation, unit);
+}
+
 void settle(Criterion& c, std::optional<double> measured, double u, std::string detail) {
   c.measured = measured;
   c.uncertainty = u;
@@ -284,6 +291,21 @@ double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// The dwell whose `size` (never negative) is largest, the first of equals; `at` is null for no dwells.
+struct WorstDwell {
+  const DwellStats* at = nullptr;
+  double size = -1;
+};
+template <typename Size>
+WorstDwell worst_dwell(const std::vector<const DwellStats*>& dwells, Size size) {
+  WorstDwell w;
+  for (const auto* d : dwells) {
+    const double s = size(*d);
+    if (s > w.size) w = {d, s};
+  }
+  return w;
 }
 
 }  // namespace
@@ -340,10 +362,10 @@ void Judging::residual_criteria() {
   // 1. Calibration residuals, Table 1 form (from the calibrator's own summary in calibration.json).
   for (int ax = 0; ax < 2; ++ax) {
     const std::string a = axis_name(ax);
-    Criterion mean = make("residual_mean_" + a, fmt::format("Calibration residuals, mean |r|, {}", axis_label(ax)), a,
-                          L.residual_mean_abs_arcsec, "residual_mean_abs_arcsec", "<=", "arcsec");
-    Criterion max = make("residual_max_" + a, fmt::format("Calibration residuals, max |r|, {}", axis_label(ax)), a,
-                         L.residual_max_abs_arcsec, "residual_max_abs_arcsec", "<=", "arcsec");
+    Criterion mean = make_for_axis(ax, "residual_mean", "Calibration residuals, mean |r|", L.residual_mean_abs_arcsec,
+                                   "residual_mean_abs_arcsec", "<=", "arcsec");
+    Criterion max = make_for_axis(ax, "residual_max", "Calibration residuals, max |r|", L.residual_max_abs_arcsec,
+                                  "residual_max_abs_arcsec", "<=", "arcsec");
     if (!residuals.is_object() || !residuals.contains(a)) {
       settle(mean, std::nullopt, 0, cal ? "not measured: calibration.json has no residuals for " + a : no_cal);
       settle(max, std::nullopt, 0, cal ? "not measured: calibration.json has no residuals for " + a : no_cal);
@@ -369,13 +391,13 @@ void Judging::residual_criteria() {
 void Judging::accuracy_criteria() {
   // 2. Accuracy on the verification points the fit never saw, within the radius.
   for (int ax = 0; ax < 2; ++ax) {
-    const std::string a = axis_name(ax);
-    Criterion rms3 = make("accuracy_3sigma_" + a, fmt::format("Accuracy, 3 sigma (3 x RMS error), {}", axis_label(ax)),
-                          a, L.accuracy_3sigma_arcsec, "accuracy_3sigma_arcsec", "<=", "arcsec");
-    Criterion worst = make("accuracy_worst_point_" + a, fmt::format("Accuracy, worst verification point, {}", axis_label(ax)),
-                           a, L.accuracy_worst_point_arcsec, "accuracy_worst_point_arcsec", "<=", "arcsec");
-    Criterion centre = make("accuracy_centre_" + a, fmt::format("Accuracy at the centre (null dwells), {}", axis_label(ax)),
-                            a, L.accuracy_centre_arcsec, "accuracy_centre_arcsec", "<=", "arcsec");
+    const auto error_size = [ax](const DwellStats& d) { return std::fabs(d.mean[ax] - d.ref[ax]); };
+    Criterion rms3 = make_for_axis(ax, "accuracy_3sigma", "Accuracy, 3 sigma (3 x RMS error)", L.accuracy_3sigma_arcsec,
+                                   "accuracy_3sigma_arcsec", "<=", "arcsec");
+    Criterion worst = make_for_axis(ax, "accuracy_worst_point", "Accuracy, worst verification point",
+                                    L.accuracy_worst_point_arcsec, "accuracy_worst_point_arcsec", "<=", "arcsec");
+    Criterion centre = make_for_axis(ax, "accuracy_centre", "Accuracy at the centre (null dwells)",
+                                     L.accuracy_centre_arcsec, "accuracy_centre_arcsec", "<=", "arcsec");
     if (!cal) {
       settle(rms3, std::nullopt, 0, no_cal);
       settle(worst, std::nullopt, 0, no_cal);
@@ -385,40 +407,23 @@ void Judging::accuracy_criteria() {
         settle(rms3, std::nullopt, 0, "not measured: no verification point within the radius");
         settle(worst, std::nullopt, 0, "not measured: no verification point within the radius");
       } else {
-        double ss = 0, w = -1, w_se = 0;
-        const DwellStats* at = nullptr;
-        for (const auto* d : ver_in) {
-          const double e = d->mean[ax] - d->ref[ax];
-          ss += e * e;
-          if (std::fabs(e) > w) {
-            w = std::fabs(e);
-            at = d;
-            w_se = d->se[ax];
-          }
-        }
+        double ss = 0;
+        for (const auto* d : ver_in) ss += sq(d->mean[ax] - d->ref[ax]);
+        const auto [at, w] = worst_dwell(ver_in, error_size);
         const double n = static_cast<double>(ver_in.size());
         const double v3 = 3.0 * std::sqrt(ss / n);
         settle(rms3, v3, v3 / std::sqrt(2.0 * n),
                fmt::format("{} verification points within {} arcmin; error = calibrated angle - reference, "
                            "mean over each dwell's frames",
                            ver_in.size(), L.accuracy_radius_arcmin.value));
-        settle(worst, w, w_se,
+        settle(worst, w, at->se[ax],
                fmt::format("{:+.3f} arcsec at {}", at->mean[ax] - at->ref[ax], where_text(*at)));
       }
       if (ver_null.empty()) {
         settle(centre, std::nullopt, 0, "not measured: no verification null dwell");
       } else {
-        double w = -1, w_se = 0;
-        const DwellStats* at = nullptr;
-        for (const auto* d : ver_null) {
-          const double e = std::fabs(d->mean[ax] - d->ref[ax]);
-          if (e > w) {
-            w = e;
-            at = d;
-            w_se = d->se[ax];
-          }
-        }
-        settle(centre, w, w_se,
+        const auto [at, w] = worst_dwell(ver_null, error_size);
+        settle(centre, w, at->se[ax],
                fmt::format("{} null dwells after the calibration; worst {:+.3f} arcsec at step {}", ver_null.size(),
                            at->mean[ax] - at->ref[ax], at->step));
       }
@@ -432,24 +437,16 @@ void Judging::accuracy_criteria() {
 void Judging::jitter_criteria() {
   // 3. Jitter at rest.
   for (int ax = 0; ax < 2; ++ax) {
-    const std::string a = axis_name(ax);
-    Criterion jit = make("jitter_3sigma_" + a, fmt::format("Jitter at rest, 3 sigma, {}", axis_label(ax)), a,
-                         L.jitter_3sigma_arcsec, "jitter_3sigma_arcsec", "<=", "arcsec");
+    Criterion jit = make_for_axis(ax, "jitter_3sigma", "Jitter at rest, 3 sigma", L.jitter_3sigma_arcsec,
+                                  "jitter_3sigma_arcsec", "<=", "arcsec");
     if (!cal) {
       settle(jit, std::nullopt, 0, no_cal);
     } else if (rest.empty()) {
       settle(jit, std::nullopt, 0, "not measured: no rest dwell was recorded");
     } else {
-      double w = -1, u = 0;
-      const DwellStats* at = nullptr;
-      for (const auto* d : rest) {
-        const double j3 = 3.0 * d->sd_detrended[ax];
-        if (j3 > w) {
-          w = j3;
-          at = d;
-          u = d->frames > 2 ? j3 / std::sqrt(2.0 * static_cast<double>(d->frames - 2)) : j3;
-        }
-      }
+      const auto [at, w] = worst_dwell(rest, [ax](const DwellStats& d) { return 3.0 * d.sd_detrended[ax]; });
+      // A detrended sd has frames - 2 degrees of freedom.
+      const double u = at->frames > 2 ? w / std::sqrt(2.0 * static_cast<double>(at->frames - 2)) : w;
       settle(jit, w, u,
              fmt::format("worst of {} rest dwells: {} ({} frames, linear trend removed)", rest.size(), where_text(*at),
                          at->frames));
@@ -462,8 +459,8 @@ void Judging::coverage_criteria() {
   // 4. Field coverage: the calibration's range and the verification's reach, per axis.
   for (int ax = 0; ax < 2; ++ax) {
     const std::string a = axis_name(ax);
-    Criterion range = make("calibrated_range_" + a, fmt::format("Calibrated range, {}", axis_label(ax)), a,
-                           L.calibrated_range_deg, "calibrated_range_deg", ">=", "deg");
+    Criterion range = make_for_axis(ax, "calibrated_range", "Calibrated range", L.calibrated_range_deg,
+                                    "calibrated_range_deg", ">=", "deg");
     if (!residuals.is_object() || !residuals.contains(a) || !residuals[a].contains("range_deg") ||
         !residuals[a]["range_deg"].is_array() || residuals[a]["range_deg"].size() != 2) {
       settle(range, std::nullopt, 0, cal ? "not measured: calibration.json has no range_deg for " + a : no_cal);
@@ -474,8 +471,8 @@ void Judging::coverage_criteria() {
     }
     J.criteria.push_back(range);
 
-    Criterion ext = make("verified_extent_" + a, fmt::format("Verified extent, {}", axis_label(ax)), a,
-                         L.verified_extent_deg, "verified_extent_deg", ">=", "deg");
+    Criterion ext = make_for_axis(ax, "verified_extent", "Verified extent", L.verified_extent_deg,
+                                  "verified_extent_deg", ">=", "deg");
     if (ver_in.empty()) {
       settle(ext, std::nullopt, 0, "not measured: no verification point within the radius");
     } else {

@@ -4,7 +4,7 @@
 #include <memory>
 #include <string>
 
-#include "stand/catalogue/catalogue.h"
+#include "stand/catalogue/sql_catalogue.h"
 
 namespace fpss {
 
@@ -18,7 +18,7 @@ struct PostgresRetry {
 // jittered pause), so concurrent stands never lose or duplicate a record. A transaction whose
 // commit is in doubt (the connection dropped during COMMIT) is not redone: it throws, and the run
 // folder's pending mark makes the entry catch up idempotently (docs/fleet.md).
-class PostgresCatalogue final : public Catalogue {
+class PostgresCatalogue final : public SqlCatalogue {
  public:
   // Connects; read_write applies the migrations when the schema is older. Throws InputError for a
   // newer schema (or a read-only open of a database without one), std::runtime_error when the
@@ -31,24 +31,6 @@ class PostgresCatalogue final : public Catalogue {
   std::string location() const override { return shown_url_; }
   std::string backend() const override { return "postgresql"; }
 
-  bool add_unit(const std::string& serial) override;
-  void record_run_start(const RunStart& run) override;
-  void record_run_end(const std::string& run_id, const std::string& outcome,
-                      const std::string& ended_utc = "") override;
-  bool copy_run(const RunRecord& run) override;
-  int64_t record_calibration(const CalibrationRecord& cal) override;
-  std::pair<int64_t, bool> record_import_once(const CalibrationRecord& cal) override;
-  int64_t record_acceptance(const AcceptanceRecord& acc) override;
-
-  std::vector<std::string> units() const override;
-  bool has_unit(const std::string& serial) const override;
-  std::vector<RunRecord> list_runs(const RunFilter& filter = {}) const override;
-  std::optional<RunRecord> find_run(const std::string& run_id) const override;
-  std::vector<CalibrationRecord> unit_history(const std::string& serial) const override;
-  std::optional<CalibrationRecord> find_calibration(int64_t id) const override;
-  std::vector<CalibrationRecord> run_calibrations(const std::string& run_id) const override;
-  std::vector<AcceptanceRecord> unit_acceptances(const std::string& serial) const override;
-
   std::string integrity_check() const override;
   int schema_version() const override;
 
@@ -57,6 +39,8 @@ class PostgresCatalogue final : public Catalogue {
 
  private:
   struct Connection;  // the libpqxx connection, kept out of this header
+  void transact(const std::string& what, const std::function<void(SqlSession&)>& body) override;
+  void query(const std::string& what, const std::function<void(SqlSession&)>& body) const override;
   template <typename F>
   auto write(const std::string& what, F&& body);
   template <typename F>

@@ -51,19 +51,18 @@ TEST(DesignedGrid, ListedOffsetsAreMeasuredInTheirOrderBetweenNulls) {
 }
 
 TEST(DesignedGrid, ListedOffsetsAreCheckedWithTheirPlace) {
+  const auto file = test::file_expecting({
+      {"steps:"},
+      {"  - null_offset_grid:"},
+      {"      pitch_offsets_deg: [0.1, 0, 200]",
+       {{32, "an offset must be non-zero and within +-180 deg, got 0"}, {35, "200 is outside [-180, 180]"}}},
+      {"      yaw_offsets_deg: 0.3", {{24, "expected a list of offsets"}}},
+      {"      extent_deg: 0.4", {{19, "extent_deg does not go with listed offsets"}}},
+      {"      frames: 5"},
+  });
   Diagnostics d("bad.yaml");
-  parse_procedure(
-      "steps:\n"                                             // 1
-      "  - null_offset_grid:\n"                              // 2
-      "      pitch_offsets_deg: [0.1, 0, 200]\n"             // 3  zero; beyond 180 deg
-      "      yaw_offsets_deg: 0.3\n"                         // 4  not a list
-      "      extent_deg: 0.4\n"                              // 5  extent with a list
-      "      frames: 5\n",
-      "bad.yaml", d);
-  EXPECT_TRUE(has_exactly(d, {{3, 32, "an offset must be non-zero and within +-180 deg, got 0"},
-                              {3, 35, "200 is outside [-180, 180]"},
-                              {4, 24, "expected a list of offsets"},
-                              {5, 19, "extent_deg does not go with listed offsets"}}));
+  parse_procedure(file.text, "bad.yaml", d);
+  EXPECT_TRUE(has_exactly(d, file.errors));
 }
 
 TEST(DesignedGrid, TheWrittenProcedureIsTheDesign) {

@@ -154,29 +154,25 @@ TEST(Procedure, SlewReversalsStayInOneSegment) {
 }
 
 TEST(Procedure, EveryErrorAtOnceWithLineAndColumn) {
-  const std::string text =
-      "name: broken\n"                       // 1
-      "steps:\n"                             // 2
-      "  - home\n"                           // 3
-      "  - jump:\n"                          // 4  unknown step
-      "      pitch_deg: 1\n"                 // 5
-      "  - move:\n"                          // 6
-      "      pitch_deg: abc\n"               // 7  wrong type
-      "  - settle: {}\n"                     // 8  missing field
-      "  - sample:\n"                        // 9
-      "      frames: 5\n"                    // 10
-      "      colour: blue\n"                 // 11 unknown field
-      "  - null_offset_grid:\n"              // 12
-      "      extent_deg: 0.4\n"              // 13 missing step and frames
-      "      axes: [pitch, roll]\n";         // 14 wrong value
-  Diagnostics d = parse_bad(text);
-  EXPECT_TRUE(has_exactly(d, {{4, 5, "unknown step \"jump\""},
-                              {7, 18, "expected a number, got \"abc\""},
-                              {8, 13, "missing field duration_s"},
-                              {11, 7, "unknown field \"colour\""},
-                              {13, 7, "missing field step_deg or step_arcsec"},
-                              {13, 7, "missing field frames or duration_s"},
-                              {14, 21, "expected pitch or yaw, got \"roll\""}}));
+  const auto file = test::file_expecting({
+      {"name: broken"},
+      {"steps:"},
+      {"  - home"},
+      {"  - jump:", {{5, "unknown step \"jump\""}}},
+      {"      pitch_deg: 1"},
+      {"  - move:"},
+      {"      pitch_deg: abc", {{18, "expected a number, got \"abc\""}}},
+      {"  - settle: {}", {{13, "missing field duration_s"}}},
+      {"  - sample:"},
+      {"      frames: 5"},
+      {"      colour: blue", {{7, "unknown field \"colour\""}}},
+      {"  - null_offset_grid:"},
+      {"      extent_deg: 0.4",
+       {{7, "missing field step_deg or step_arcsec"}, {7, "missing field frames or duration_s"}}},
+      {"      axes: [pitch, roll]", {{21, "expected pitch or yaw, got \"roll\""}}},
+  });
+  Diagnostics d = parse_bad(file.text);
+  EXPECT_TRUE(has_exactly(d, file.errors));
   // The text names the file for each.
   EXPECT_NE(d.text().find("bad.yaml:4:5: step 2: unknown step \"jump\""), std::string::npos) << d.text();
 }

@@ -9,6 +9,7 @@
 namespace fpss {
 namespace {
 
+using test::file_expecting;
 using test::has_errors;
 using test::has_exactly;
 
@@ -48,50 +49,52 @@ TEST(StandConfig, Table2MappingGivesSensorFrameReferences) {
 }
 
 TEST(StandConfig, EveryErrorAtOnce) {
-  const std::string text =
-      "stand: x\n"                                   // 1
-      "gimbal:\n"                                    // 2
-      "  endpoint: serial:/dev/ttyUSB0\n"            // 3  not a Modbus endpoint
-      "  retries: many\n"                            // 4  wrong type
-      "sensor:\n"                                    // 5
-      "  endpoint: pty\n"                            // 6  malformed endpoint
-      "  sample_rate_hz: 500\n"                      // 7  out of range
-      "soft_limits:\n"                               // 8
-      "  pitch_deg: [0.5, -0.5]\n"                   // 9  min > max
-      "  roll_deg: [-1, 1]\n"                        // 10 unknown field
-      "axes: {pitch: alpha, yaw: alpha}\n"           // 11 alpha twice
-      "colour: red\n";                               // 12 unknown field
+  const auto file = file_expecting({
+      {"stand: x"},
+      {"gimbal:"},
+      {"  endpoint: serial:/dev/ttyUSB0", {{13, "is a serial endpoint; expected modbus-tcp"}}},
+      {"  retries: many", {{12, "field retries: expected an integer, got \"many\""}}},
+      {"sensor:"},
+      {"  endpoint: pty", {{13, "sensor: field endpoint:"}}},
+      {"  sample_rate_hz: 500", {{19, "expected an integer in 1..200"}}},
+      {"soft_limits:"},
+      {"  pitch_deg: [0.5, -0.5]", {{14, "expected min < max"}}},
+      {"  roll_deg: [-1, 1]", {{3, "unknown field \"roll_deg\""}}},
+      {"axes: {pitch: alpha, yaw: alpha}", {{7, "pitch and yaw both map to alpha"}}},
+      {"colour: red", {{1, "unknown field \"colour\""}}},
+  });
   Diagnostics d("stand.yaml");
-  parse_stand(text, "stand.yaml", d);
-  EXPECT_TRUE(has_exactly(d, {{3, 13, "is a serial endpoint; expected modbus-tcp"},
-                              {4, 12, "field retries: expected an integer, got \"many\""},
-                              {6, 13, "sensor: field endpoint:"},
-                              {7, 19, "expected an integer in 1..200"},
-                              {9, 14, "expected min < max"},
-                              {10, 3, "unknown field \"roll_deg\""},
-                              {11, 7, "pitch and yaw both map to alpha"},
-                              {12, 1, "unknown field \"colour\""}}));
+  parse_stand(file.text, "stand.yaml", d);
+  EXPECT_TRUE(has_exactly(d, file.errors));
 }
 
 TEST(StandConfig, NumbersOutsideTheirRangeNamePlaceAndField) {
+  const auto file = file_expecting({
+      {"gimbal:"},
+      {"  endpoint: 'modbus-tcp:127.0.0.1:1502'"},
+      {"  response_timeout_s: 1e308", {{23, "field response_timeout_s: 1e308 is outside [-86400, 86400]"}}},
+      {"  profile_rate_arcsec_s: 1e9", {{26, "field profile_rate_arcsec_s: 1e9 is outside [-360000, 360000]"}}},
+      {"sensor: {endpoint: 'pty:/dev/pts/9'}"},
+      {"soft_limits:"},
+      {"  pitch_deg: [-1e6, 0.75]", {{15, "-1e6 is outside [-180, 180]"}}},
+      {"clock:"},
+      {"  sensor_offset_s: -1e300", {{20, "field sensor_offset_s: -1e300 is outside"}}},
+  });
   Diagnostics d("s.yaml");
-  parse_stand("gimbal:\n  endpoint: 'modbus-tcp:127.0.0.1:1502'\n  response_timeout_s: 1e308\n"
-              "  profile_rate_arcsec_s: 1e9\nsensor: {endpoint: 'pty:/dev/pts/9'}\n"
-              "soft_limits:\n  pitch_deg: [-1e6, 0.75]\nclock:\n  sensor_offset_s: -1e300\n",
-              "s.yaml", d);
-  EXPECT_TRUE(has_errors(d, {{3, 23, "field response_timeout_s: 1e308 is outside [-86400, 86400]"},
-                             {4, 26, "field profile_rate_arcsec_s: 1e9 is outside [-360000, 360000]"},
-                             {7, 15, "-1e6 is outside [-180, 180]"},
-                             {9, 20, "field sensor_offset_s: -1e300 is outside"}}));
+  parse_stand(file.text, "s.yaml", d);
+  EXPECT_TRUE(has_errors(d, file.errors));
 }
 
 TEST(StandConfig, MissingDevicesAndBadMapping) {
+  // The missing devices are reported at the document's start.
+  const auto file = file_expecting({
+      {"axes: {pitch: gamma}",
+       {{1, "missing field gimbal"}, {1, "missing field sensor"}, {15, "expected alpha, beta, +alpha"}}},
+      {"soft_limits: {yaw_arcsec: [100, 200]}", {{14, "must contain the null"}}},
+  });
   Diagnostics d("s.yaml");
-  parse_stand("axes: {pitch: gamma}\nsoft_limits: {yaw_arcsec: [100, 200]}\n", "s.yaml", d);
-  EXPECT_TRUE(has_errors(d, {{1, 1, "missing field gimbal"},
-                             {1, 1, "missing field sensor"},
-                             {1, 15, "expected alpha, beta, +alpha"},
-                             {2, 14, "must contain the null"}}));
+  parse_stand(file.text, "s.yaml", d);
+  EXPECT_TRUE(has_errors(d, file.errors));
 }
 
 TEST(StandConfig, ProfileRateAboveTheLimit) {
