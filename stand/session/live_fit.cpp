@@ -143,16 +143,21 @@ std::optional<FitUpdated> LiveFit::update(int64_t points, bool force) {
   if (!force && now - last_ < std::chrono::milliseconds(500)) return std::nullopt;
   const auto est = cal_.current();
   // No estimate yet leaves the refresh budget unspent, so the first valid one is published at once.
-  if (!est.valid) return std::nullopt;
-  last_ = now;
+  // A forced one (an adaptive stop) is published with what there is: an axis that has stopped
+  // before the other has any offsets has its 1-sigma, and the residuals wait for both axes.
+  if (!est.valid && !force) return std::nullopt;
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  auto finite_or_nan = [](double v) { return std::isfinite(v) ? v : kNaN; };
   FitUpdated f;
   f.points = points;
   f.pairs = est.pairs;
-  f.rms_pitch_arcsec = est.rms_pitch_arcsec;
-  f.rms_yaw_arcsec = est.rms_yaw_arcsec;
-  auto finite_or_nan = [](double v) { return std::isfinite(v) ? v : std::numeric_limits<double>::quiet_NaN(); };
+  f.rms_pitch_arcsec = est.valid ? est.rms_pitch_arcsec : kNaN;
+  f.rms_yaw_arcsec = est.valid ? est.rms_yaw_arcsec : kNaN;
   f.sigma_max_pitch_arcsec = finite_or_nan(sigma(fit::Axis::alpha, run_ranges_));
   f.sigma_max_yaw_arcsec = finite_or_nan(sigma(fit::Axis::beta, run_ranges_));
+  if (!est.valid && std::isnan(f.sigma_max_pitch_arcsec) && std::isnan(f.sigma_max_yaw_arcsec)) return std::nullopt;
+  last_ = now;
+  if (!est.valid) return f;
   std::string text = fmt::format("live residual rms pitch {:.2f} yaw {:.2f} arcsec ({} pairs)", est.rms_pitch_arcsec,
                                  est.rms_yaw_arcsec, est.pairs);
   if (std::isfinite(f.sigma_max_pitch_arcsec) && std::isfinite(f.sigma_max_yaw_arcsec)) {
