@@ -248,7 +248,9 @@ std::optional<double> Engine::schedule_next_move(const Action& a, double start_s
 std::optional<double> Engine::adopt_queued_move(const Action& a, double start_s, const GimbalState& arrived) {
   const QueuedMove q = *queued_;
   queued_.reset();
-  if (q.action != action_ + 1) return schedule_next_move(a, start_s);  // (not this dwell's: replaced)
+  // (A queued move of another dwell cannot be left after a recovery, which drops it; if one were,
+  // scheduling afresh replaces it on the gimbal.)
+  if (q.action != action_ + 1) return schedule_next_move(a, start_s);
   const Action& n = plan_.actions[q.action];
   const double seen_s = static_cast<double>(arrived.sample_time_us) * 1e-6;
   if (seen_s >= q.start_s) {
