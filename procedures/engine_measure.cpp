@@ -73,11 +73,7 @@ void Engine::reschedule_next_move(const Action& a, double& move_at_s, double sta
   pending_.reset();
   GimbalState st;
   try {
-    {
-      Timed t(stats_.device_s);
-      const Action& n = plan_.actions[action_ + 1];
-      g_.move_at(n.pitch_arcsec, n.yaw_arcsec, static_cast<uint64_t>(std::llround(move_at_s * 1e6)));
-    }
+    send_move_at(plan_.actions[action_ + 1], move_at_s);
     st = read_gimbal();
   } catch (const DeviceError& e) {
     throw PointFailure(fmt::format("the next move, scheduled for the dwell's end, could not be put back: {}", e.what()));

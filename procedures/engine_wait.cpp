@@ -220,19 +220,11 @@ std::optional<double> Engine::schedule_next_move(const Action& a, double start_s
   const Action* n = schedule ? dwell_to_command() : nullptr;
   if (!n) return std::nullopt;
   try {
-    Timed t(stats_.device_s);
-    g_.move_at(n->pitch_arcsec, n->yaw_arcsec, static_cast<uint64_t>(std::llround(start_s * 1e6)));
+    send_move_at(*n, start_s);
   } catch (const DeviceError& e) {
-    // Refused: too late (the host was away past the start), or a gimbal that cannot, which a
-    // reading stamped before the start tells; that one is not asked again this run. Either way
-    // the move is commanded when this dwell ends.
-    target_known_ = false;  // the targets may be written
-    try {
-      read_gimbal();
-    } catch (const DeviceError&) {
-      return std::nullopt;  // the dwell's own readings will say what the link does
-    }
-    if (last_gimbal_time_s_ < start_s) {
+    // Refused: too late (the host was away past the start), or a gimbal that cannot, which is
+    // not asked again this run. Either way the move is commanded when this dwell ends.
+    if (refused_in_good_time(start_s)) {
       timed_moves_refused_ = true;
       log_.warn("the gimbal refused a scheduled move ({}); each move is commanded when its dwell ends", e.what());
     } else {
@@ -282,18 +274,10 @@ void Engine::queue_move_after_next() {
   }
   if (!begun) return;
   try {
-    Timed t(stats_.device_s);
-    g_.move_at(n->pitch_arcsec, n->yaw_arcsec, static_cast<uint64_t>(std::llround(start_s * 1e6)));
+    send_move_at(*n, start_s);
   } catch (const DeviceError& e) {
-    target_known_ = false;  // the targets may be written
-    // Refused in good time by a gimbal unfaulted (a reading after says): one that schedules only
-    // from rest, not asked again this run.
-    std::optional<GimbalState> after;
-    try {
-      after = read_gimbal();
-    } catch (const DeviceError&) {
-    }
-    if (after && after->fault == GimbalFault::none && !after->has(kFault) && last_gimbal_time_s_ < start_s) {
+    // Refused in good time: a gimbal that schedules only from rest, not asked again this run.
+    if (refused_in_good_time(start_s)) {
       queue_refused_ = true;
       log_.info("the gimbal takes no move behind one under way ({}); each is scheduled at its arrival", e.what());
     }
@@ -304,6 +288,22 @@ void Engine::queue_move_after_next() {
   target_known_ = true;
   queued_ = QueuedMove{action_ + 2, start_s};
   ++stats_.scheduled_moves;
+}
+
+void Engine::send_move_at(const Action& n, double start_s) {
+  Timed t(stats_.device_s);
+  g_.move_at(n.pitch_arcsec, n.yaw_arcsec, static_cast<uint64_t>(std::llround(start_s * 1e6)));
+}
+
+bool Engine::refused_in_good_time(double start_s) {
+  target_known_ = false;  // the targets may have been written
+  GimbalState st;
+  try {
+    st = read_gimbal();
+  } catch (const DeviceError&) {
+    return false;  // the dwell's own readings will say what the link does
+  }
+  return last_gimbal_time_s_ < start_s && st.fault == GimbalFault::none && !st.has(kFault);
 }
 
 std::optional<GimbalState> Engine::wait_move_begun(double start_s) {
