@@ -157,9 +157,11 @@ class Engine {
   // The action `ahead` after the current one if its move may be commanded now (one that is a
   // dwell, with all between them dwells).
   const Action* dwell_to_command(size_t ahead = 1) const;
-  // Where a dwell of `a` that may start at settled_s ends on the frame grid: half a frame period
-  // after its last frame, when the move after it is scheduled to start.
-  double dwell_end_s(const Action& a, double settled_s) const;
+  // The first frame at or after t_s on the sensor's frame grid (one clock for both devices).
+  double first_frame_from(double t_s) const;
+  // When a dwell of `a` whose first frame is at first_frame_s ends: half a frame period after its
+  // last frame, when the move after it is scheduled to start.
+  double dwell_end_s(const Action& a, double first_frame_s) const;
   void drop_moves_ahead();  // forgets the moves commanded or scheduled ahead (the gimbal was stopped)
   void set_pending(const Action& n, double start_lo_s, double dur_s, double start_hi_s, bool scheduled);
   double move_s(double from_pitch_arcsec, double from_yaw_arcsec, const Action& to) const;  // profile duration

@@ -96,10 +96,9 @@ Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arriv
   // host is (docs/procedures.md, "How the engine waits"): before the settle when the frame grid
   // says where the dwell's frames fall, else at its first frame.
   // With the move queued while the gimbal came here, that one (queue_move_after_next).
-  const auto end_of_dwell = [&](double first_s) { return first_s + (a.frames - 0.5) * period_s; };
   std::optional<double> move_at_s;
   if (shared && std::isfinite(frame_grid_s_)) {
-    const double end_s = dwell_end_s(a, settled_bench);
+    const double end_s = dwell_end_s(a, first_frame_from(settled_bench));
     move_at_s = queued_ ? adopt_queued_move(a, end_s, arrived) : schedule_next_move(a, end_s);
   }
   std::optional<SensorSample> first = settle(a, arrived, settled_host);
@@ -130,7 +129,7 @@ Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arriv
     d.frames.push_back(*f);
     if (shared) frame_grid_s_ = sensor_clock_s(*f);
     if (d.frames.size() == 1 && shared) {
-      const double end_s = end_of_dwell(sensor_clock_s(*f));
+      const double end_s = dwell_end_s(a, sensor_clock_s(*f));
       if (!move_at_s) move_at_s = schedule_next_move(a, end_s);
       else if (end_s > *move_at_s + 1e-6) reschedule_next_move(a, *move_at_s, end_s);  // frames missing
     }

@@ -191,10 +191,13 @@ const Action* Engine::dwell_to_command(size_t ahead) const {
   return &plan_.actions[action_ + ahead];
 }
 
-double Engine::dwell_end_s(const Action& a, double settled_s) const {
+double Engine::first_frame_from(double t_s) const {
   const double period_s = 1.0 / b_.sample_rate_hz;
-  const double first_s = frame_grid_s_ + std::ceil((settled_s - frame_grid_s_) / period_s - 1e-6) * period_s;
-  return first_s + (a.frames - 0.5) * period_s;
+  return frame_grid_s_ + std::ceil((t_s - frame_grid_s_) / period_s - 1e-6) * period_s;
+}
+
+double Engine::dwell_end_s(const Action& a, double first_frame_s) const {
+  return first_frame_s + (a.frames - 0.5) * (1.0 / b_.sample_rate_hz);
 }
 
 void Engine::drop_moves_ahead() {
@@ -264,7 +267,7 @@ void Engine::queue_move_after_next() {
   const Action* n = can ? dwell_to_command(2) : nullptr;
   if (!n) return;
   const Action& next = plan_.actions[action_ + 1];
-  const double start_s = dwell_end_s(next, pending_->arrival_s + next.settle_s);
+  const double start_s = dwell_end_s(next, first_frame_from(pending_->arrival_s + next.settle_s));
   // The gimbal queues a move behind one under way; one still pending it would replace.
   std::optional<GimbalState> begun;
   try {
