@@ -38,8 +38,9 @@ class LiveFit {
   // of wall time (a display's rate). Returns an estimate the worker finished since the last call,
   // to be published now; with `force` (the last point, an adaptive stop) the estimate of every row
   // so far, waited for. The sigmas are the batch fit's honest ones (GLS) over the run's planned
-  // range, NaN until an axis can be fitted. Nothing while no estimate is valid. A fit that threw
-  // on the worker throws here.
+  // range, NaN until an axis can be fitted. Nothing while no estimate is valid, but for a forced
+  // one that has a sigma (an axis that stopped before the other has offsets: the RMS are NaN). A
+  // fit that threw on the worker throws here.
   std::optional<FitUpdated> point_done(const std::vector<Sample>& rows, int64_t points, bool force);
 
   // For the engine's adaptive stop: the largest 1-sigma over the range of `a`'s grid, for the
