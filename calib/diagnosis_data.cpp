@@ -9,6 +9,7 @@
 #include "calib/diagnosis_model.h"
 #include "calib/errors.h"
 #include "calib/outliers.h"
+#include "calib/samples.h"
 #include "calib/units.h"
 
 namespace fpss::diag {
@@ -114,8 +115,15 @@ void flag_outlier_frames(Recording& r, const CoefficientSet& model, const Diagno
         judged[i] = !(r.t[i] - r.t[s.begin] < opts.max_skew_s || r.t[s.end - 1] - r.t[i] < opts.max_skew_s);
       }
     }
+    // Frames that share one reference reading (same_reading): the sigma from pairs on different
+    // readings (calib/outliers.h).
+    std::vector<int64_t> reading(n, 0);
+    for (size_t i = 1; i < n; ++i) {
+      const bool same = ids[i] == ids[i - 1] && same_reading(r.ref[0][i], r.ref[1][i], r.ref[0][i - 1], r.ref[1][i - 1]);
+      reading[i] = reading[i - 1] + (same ? 0 : 1);
+    }
     for (int a = 0; a < 2; ++a) {
-      const OutlierFlags f = flag_outliers(r.res[a], ids, rule);
+      const OutlierFlags f = flag_outliers(r.res[a], ids, rule, reading);
       for (size_t i = 0; i < n; ++i) if (f.outlier[i] && judged[i]) r.outlier[i] = true;
     }
     for (size_t i = 0; i < n; ++i) {

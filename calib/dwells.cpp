@@ -46,12 +46,9 @@ std::optional<Dwell> DwellBuilder::add(const Sample& s, bool outlier) {
 }
 
 void DwellBuilder::add_reference(const double* ref) {
-  // A frame whose two reference angles both equal the frame before's shares its encoder reading
-  // (a recorder that reads the gimbal less often than frames come): the reading counts once in
-  // the scatter, and its frames' weight in the mean as one reading. Two readings of a noisy
-  // encoder agree to the last digit on both axes by chance rarely (0.05 arcsec of noise at 1 mas:
-  // about 4e-5 of the time), and then the dwell is judged a reading short.
-  const bool same = sums_.readings > 0 && ref[0] == sums_.last_ref[0] && ref[1] == sums_.last_ref[1];
+  // A frame that shares the frame before's encoder reading (same_reading): the reading counts once
+  // in the scatter, and its frames' weight in the mean as one reading.
+  const bool same = sums_.readings > 0 && same_reading(ref[0], ref[1], sums_.last_ref[0], sums_.last_ref[1]);
   if (same) {
     sums_.run += 1;
     return;

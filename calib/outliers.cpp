@@ -17,6 +17,23 @@ double median_of(std::vector<double>& v) {
   return m;
 }
 
+// |difference| / sqrt(2) between neighbouring frames of a step that have readings of their own:
+// each such pair holds two independent draws of the sensor's and the reference's noise, whoever
+// else shares those readings.
+std::vector<double> reading_differences(const std::vector<double>& residual,
+                                        const std::map<int64_t, std::vector<size_t>>& rows_of, const OutlierRule& rule,
+                                        const std::vector<int64_t>& reading) {
+  std::vector<double> out;
+  for (const auto& [id, rows] : rows_of) {
+    if (static_cast<int>(rows.size()) < rule.min_step_frames) continue;
+    for (size_t q = 1; q < rows.size(); ++q) {
+      if (reading[rows[q]] == reading[rows[q - 1]]) continue;
+      out.push_back(std::fabs(residual[rows[q]] - residual[rows[q - 1]]) / std::sqrt(2.0));
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 double StepValues::median() const {
@@ -52,8 +69,11 @@ double StepOutlierScreen::robust_sigma() const {
 }
 
 OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vector<int64_t>& step,
-                           const OutlierRule& rule) {
+                           const OutlierRule& rule, const std::vector<int64_t>& reading) {
   if (residual.size() != step.size()) throw std::invalid_argument("flag_outliers: residual and step differ in size");
+  if (!reading.empty() && reading.size() != residual.size()) {
+    throw std::invalid_argument("flag_outliers: reading and residual differ in size");
+  }
   OutlierFlags out;
   out.outlier.assign(residual.size(), false);
   std::map<int64_t, std::vector<size_t>> rows_of;
@@ -113,6 +133,7 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
       deviations.push_back(std::fabs(residual[i] - m));
     }
   }
+  if (!reading.empty()) deviations = reading_differences(residual, rows_of, rule, reading);
   if (deviations.empty()) return out;
   out.robust_sigma = std::max(1.4826 * median_of(deviations), rule.min_sigma);
   if (!(out.robust_sigma > 0)) return out;

@@ -383,6 +383,38 @@ TEST(DiagnosisVerdict, OutlierFramesAreReportedAndKeptOutOfEveryFit) {
   }
 }
 
+// A host that reads the gimbal less often than frames come (a loaded machine at a high speed-up)
+// gives runs of frames one reference reading. Such frames agree with their running median to the
+// sensor's noise alone; they must not shrink the sigma that frames with readings of their own are
+// judged by: no outlier in a noise-only recording, and real spikes still found.
+TEST(DiagnosisVerdict, FramesThatShareOneReadingAreNoOutliers) {
+  for (uint64_t seed : {323u, 324u, 325u}) {
+    SCOPED_TRACE(seed);
+    SampleTable t = record(bench(seed, {}), plan(true, false));
+    size_t shared = 0;
+    for (size_t i = 1; i < t.size(); ++i) {
+      const bool dwell = t.phase[i] == Phase::null || t.phase[i] == Phase::offset;
+      if (!dwell || t.step[i] != t.step[i - 1] || splitmix64(seed * 1000003 + i) % 10 >= 6) continue;
+      t.ref_pitch_arcsec[i] = t.ref_pitch_arcsec[i - 1];  // at rest: the previous frame's reading
+      t.ref_yaw_arcsec[i] = t.ref_yaw_arcsec[i - 1];
+      ++shared;
+    }
+    ASSERT_GT(shared, t.size() / 3);
+    const Diagnosis d = diagnose(t, default_bench_config().truth, options());
+    EXPECT_EQ(d.outliers, 0);
+    EXPECT_EQ(d.verdict, "no_gap") << d.verdict_sentence;
+    SampleTable spiky = t;
+    int spikes = 0;
+    for (size_t i = 0; i < spiky.size(); i += 97) {
+      spiky.counts_alpha[i] += 30;
+      ++spikes;
+    }
+    const Diagnosis s = diagnose(spiky, default_bench_config().truth, options());
+    EXPECT_GE(s.outliers, spikes * 9 / 10);
+    EXPECT_LE(s.outliers, spikes + 3);
+  }
+}
+
 // A model file's expected scatter: excess_scatter reported; noise the model does not know (here
 // a model that expects a third of the bench's scatter) is a gap of its own (within_step).
 TEST(DiagnosisVerdict, ExcessScatterIsAGapOfItsOwn) {
