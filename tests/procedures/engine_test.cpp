@@ -107,9 +107,14 @@ TEST(Engine, PauseHoldsBetweenPoints) {
   std::atomic<int64_t> done_while_paused{-1};
   std::thread releaser;
   int paused_events = 0, resumed_events = 0;
+  // The gimbal holds: no move scheduled ahead (the next point's, the one queued behind it) runs
+  // during the pause.
+  double arrival_at_pause_s = -2, arrival_at_resume_s = -3;
   bench.bus.subscribe([&](const Event& e) {
     paused_events += std::holds_alternative<Paused>(e);
     resumed_events += std::holds_alternative<Resumed>(e);
+    if (std::holds_alternative<Paused>(e)) arrival_at_pause_s = bench.fake.bench().last_arrival_s();
+    if (std::holds_alternative<Resumed>(e)) arrival_at_resume_s = bench.fake.bench().last_arrival_s();
   });
   bench.on_point_done([&](const PointDone& p) {
     const Action& a = *p.action;
@@ -132,6 +137,7 @@ TEST(Engine, PauseHoldsBetweenPoints) {
   EXPECT_EQ(r.points_done, static_cast<int64_t>(plan.points));
   EXPECT_EQ(paused_events, 1);
   EXPECT_EQ(resumed_events, 1);
+  EXPECT_EQ(arrival_at_resume_s, arrival_at_pause_s);
 }
 
 TEST(Engine, FollowingErrorIsClearedAndThePointMeasuredAgain) {
