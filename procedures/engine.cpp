@@ -153,17 +153,8 @@ void Engine::sleep_physical(double physical_s) {
 void Engine::wait_while_paused() {
   if (!ctl_.pause.load()) return;
   log_.info("paused at the last point; the gimbal holds (the key r, or SIGUSR1 again, continues)");
-  if (pending_ || queued_) {
-    // Moves scheduled ahead would start during the pause: called off (the next point commands
-    // its move afresh).
-    drop_moves_ahead();
-    try {
-      Timed t(stats_.device_s);
-      g_.stop();
-    } catch (const DeviceError& e) {
-      log_.warn("the moves scheduled ahead could not be called off: {}", e.what());
-    }
-  }
+  // Moves scheduled ahead would start during the pause (the next point commands its move afresh).
+  if (pending_ || queued_) call_off_moves_ahead();
   events_.publish(Paused{next_point_});
   while (ctl_.pause.load()) {
     check_abort();

@@ -163,6 +163,9 @@ class Engine {
   // last frame, when the move after it is scheduled to start.
   double dwell_end_s(const Action& a, double first_frame_s) const;
   void drop_moves_ahead();  // forgets the moves commanded or scheduled ahead (the gimbal was stopped)
+  // Stops the gimbal, which cancels a scheduled move (one under way stops where it is), and
+  // forgets the moves ahead.
+  void call_off_moves_ahead();
   void set_pending(const Action& n, double start_lo_s, double dur_s, double start_hi_s, bool scheduled);
   double move_s(double from_pitch_arcsec, double from_yaw_arcsec, const Action& to) const;  // profile duration
   // Excludes a computation step's bench time from EngineStats::bench_s.

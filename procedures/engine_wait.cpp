@@ -205,6 +205,16 @@ void Engine::drop_moves_ahead() {
   queued_.reset();
 }
 
+void Engine::call_off_moves_ahead() {
+  drop_moves_ahead();
+  try {
+    Timed t(stats_.device_s);
+    g_.stop();
+  } catch (const DeviceError& e) {
+    log_.warn("the moves scheduled ahead could not be called off: {}", e.what());
+  }
+}
+
 void Engine::set_pending(const Action& n, double start_lo_s, double dur_s, double start_hi_s, bool scheduled) {
   commanded_.target_pitch_arcsec = n.pitch_arcsec;
   commanded_.target_yaw_arcsec = n.yaw_arcsec;
@@ -330,14 +340,7 @@ void Engine::command_next_move() {
   if (pending_ && pending_->scheduled) {
     // A pause or an abort asked for during the dwell: the scheduled move is called off (a stop
     // cancels it; if it has begun, the gimbal stops where it is and the next move starts afresh).
-    if (!ctl_.pause.load() && !ctl_.abort.load()) return;
-    drop_moves_ahead();
-    try {
-      Timed t(stats_.device_s);
-      g_.stop();
-    } catch (const DeviceError& e) {
-      log_.warn("the scheduled move could not be called off: {}", e.what());
-    }
+    if (ctl_.pause.load() || ctl_.abort.load()) call_off_moves_ahead();
     return;
   }
   drop_moves_ahead();

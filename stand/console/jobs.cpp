@@ -195,6 +195,7 @@ void JobQueue::start(Job& j) {
   posix_spawnattr_setsigmask(&at, &none);
   posix_spawnattr_setsigdefault(&at, &all);
   pid_t pid = 0;
+  j.spawned_utc = utc_now_iso();  // before the child: its run starts in this second or later
   const int rc = posix_spawn(&pid, argv[0], &fa, &at, argv.data(), environ);
   posix_spawn_file_actions_destroy(&fa);
   posix_spawnattr_destroy(&at);
@@ -214,7 +215,7 @@ void JobQueue::tick() {
   for (auto& j : jobs_) {
     if (j.state != "starting" && j.state != "running") continue;
     if (j.run_id.empty()) {
-      if (auto r = run_of_pid(o_.runs_dir, o_.catalogue, j.pid)) {
+      if (auto r = run_of_pid(o_.runs_dir, o_.catalogue, j.pid, j.spawned_utc)) {
         j.run_id = r->run_id;
         j.state = "running";
       }
@@ -223,7 +224,7 @@ void JobQueue::tick() {
     if (::waitpid(j.pid, &status, WNOHANG) == j.pid) {
       j.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
       if (j.run_id.empty()) {
-        if (auto r = run_of_pid(o_.runs_dir, o_.catalogue, j.pid)) j.run_id = r->run_id;
+        if (auto r = run_of_pid(o_.runs_dir, o_.catalogue, j.pid, j.spawned_utc)) j.run_id = r->run_id;
       }
       j.state = "finished";
       spdlog::info("job {}: exit {}", j.id, j.exit_code);

@@ -40,6 +40,7 @@ struct Job {
   int exit_code = -1;
   std::string message;           // why it failed to start
   std::string created_utc;
+  std::string spawned_utc;       // when its child was started (its run starts then or later)
   nlohmann::json to_json() const;
 };
 

@@ -72,13 +72,15 @@ std::vector<RunRef> live_runs(const fs::path& runs_dir, const std::string& catal
   return out;
 }
 
-std::optional<RunRef> run_of_pid(const fs::path& runs_dir, const std::string& catalogue_url, int pid) {
+std::optional<RunRef> run_of_pid(const fs::path& runs_dir, const std::string& catalogue_url, int pid,
+                                 const std::string& spawned_utc) {
   auto cat = console_catalogue(runs_dir, catalogue_url);
   if (!cat) return std::nullopt;
   RunFilter f;
   f.limit = 20;
   for (const auto& r : cat->list_runs(f)) {
-    if (r.pid == pid) return ref_of(r);
+    // Both times are ISO 8601 UTC to the second (YYYY-MM-DDTHH:MM:SSZ): they compare as text.
+    if (r.pid == pid && r.started_utc >= spawned_utc) return ref_of(r);
   }
   return std::nullopt;
 }

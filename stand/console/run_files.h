@@ -29,8 +29,11 @@ std::optional<RunRef> find_run(const std::filesystem::path& runs_dir, const std:
                                const std::string& run_id);
 // Runs whose process is alive (at most one on a stand, but any number is listed).
 std::vector<RunRef> live_runs(const std::filesystem::path& runs_dir, const std::string& catalogue_url);
-// The run started by process `pid` (a job's child), once it is in the catalogue.
-std::optional<RunRef> run_of_pid(const std::filesystem::path& runs_dir, const std::string& catalogue_url, int pid);
+// The run started by process `pid` (a job's child, spawned at spawned_utc), once it is in the
+// catalogue. Pids are reused (32768 of them on many machines, soon wrapped on a busy one): a run
+// of an earlier process with the same pid, started before the spawn's second, is not it.
+std::optional<RunRef> run_of_pid(const std::filesystem::path& runs_dir, const std::string& catalogue_url, int pid,
+                                 const std::string& spawned_utc);
 
 // The catalogue's runs, most recent first, filtered (empty filter: all); run.json's outcome,
 // points and acceptance verdict added for each.

@@ -1,7 +1,9 @@
 // `fpss-stand serve` over real HTTP on loopback: the token guards control (401), bounded requests,
 // no CORS, the live-client cap; a run outlives its console (serve killed mid-run) and a restarted
-// console shows it live, lets its stream catch up and keeps the queue. ~25 s (two emulated grid runs at --speed 20).
+// console shows it live, lets its stream catch up and keeps the queue; a job's run is found by its
+// child's pid and start, never an earlier run of a reused pid. ~25 s (two emulated grid runs at --speed 20).
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <regex>
@@ -10,6 +12,9 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include "stand/catalogue/sqlite_catalogue.h"
+#include "stand/console/run_files.h"
+#include "tests/stand/catalogue_fixtures.h"
 #include "tests/stand/emulator_stand.h"
 #include "tests/support/test_support.h"
 
@@ -282,6 +287,27 @@ TEST(Console, ServeStandRunsOnTheStandAndOneConsolePerRunsFolder) {
   EXPECT_EQ(s.child->wait(20), 0);
   es.emu.signal(SIGTERM);
   EXPECT_EQ(es.emu.wait(30), 0);
+}
+
+// A job finds its run by its child's pid; pids are reused (32768 of them on many machines, wrapped
+// soon on a busy one), so an earlier run recorded by a process with the same pid is not the job's:
+// only a run started in the spawn's second or later is.
+TEST(Console, AJobsRunIsNotAnEarlierRunOfAProcessWithTheSamePid) {
+  using namespace fpss;
+  using console::run_of_pid;
+  TempDir tmp("console-pid-reuse");
+  const std::filesystem::path runs = tmp / "runs";
+  std::filesystem::create_directories(runs);
+  SqliteCatalogue cat(Catalogue::default_path(runs));
+  cat.record_run_start(make_run("earlier", "FPSS-1", "2026-01-01T00:00:00Z"));
+  cat.record_run_end("earlier", outcome::completed, "2026-01-01T00:05:00Z");
+  const int pid = static_cast<int>(::getpid());  // both runs are recorded by this process
+  EXPECT_FALSE(run_of_pid(runs, "", pid, "2026-06-01T00:00:00Z"));
+  ASSERT_TRUE(run_of_pid(runs, "", pid, "2025-12-31T23:59:59Z"));  // spawned before it: that run
+  cat.record_run_start(make_run("this-job", "FPSS-1", "2026-06-01T00:00:00Z"));
+  const auto r = run_of_pid(runs, "", pid, "2026-06-01T00:00:00Z");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->run_id, "this-job");
 }
 
 }  // namespace
