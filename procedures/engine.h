@@ -146,10 +146,15 @@ class Engine {
   // for the end of its dwell, so the host has that whole move, settle and dwell in hand.
   void queue_move_after_next();
   void send_move_at(const Action& n, double start_s);  // n's move, to start at start_s (bench clock)
-  // After the gimbal refused a move at a set time: whether a reading after it says the start was
-  // still to come and the gimbal unfaulted, so that it cannot take such a move (not a host too
-  // late, nor a fault); false also when it does not answer.
-  bool refused_in_good_time(double start_s);
+  // A move at a set time the gimbal refused: in good time when a reading after it says the start
+  // was still to come and the gimbal unfaulted, so that it cannot take such a move (not a host too
+  // late, nor a fault; not either when it does not answer), and the gimbal's words.
+  struct MoveRefused {
+    bool in_good_time = false;
+    std::string why;
+  };
+  // send_move_at; what the refusal says when the gimbal refuses.
+  std::optional<MoveRefused> schedule_move(const Action& n, double start_s);
   // Reads the gimbal until the pending move has begun (a few looks at most): the reading that
   // says so, or nullopt.
   std::optional<GimbalState> wait_move_begun(double start_s);

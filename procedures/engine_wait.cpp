@@ -232,16 +232,14 @@ std::optional<double> Engine::schedule_next_move(const Action& a, double start_s
   const bool schedule = g_.timed_moves() && !timed_moves_refused_ && !late_for_schedule_;
   const Action* n = schedule ? dwell_to_command() : nullptr;
   if (!n) return std::nullopt;
-  try {
-    send_move_at(*n, start_s);
-  } catch (const DeviceError& e) {
-    // Refused: too late (the host was away past the start), or a gimbal that cannot, which is
-    // not asked again this run. Either way the move is commanded when this dwell ends.
-    if (refused_in_good_time(start_s)) {
+  if (const auto refused = schedule_move(*n, start_s)) {
+    // Too late (the host was away past the start), or a gimbal that cannot, which is not asked
+    // again this run. Either way the move is commanded when this dwell ends.
+    if (refused->in_good_time) {
       timed_moves_refused_ = true;
-      log_.warn("the gimbal refused a scheduled move ({}); each move is commanded when its dwell ends", e.what());
+      log_.warn("the gimbal refused a scheduled move ({}); each move is commanded when its dwell ends", refused->why);
     } else {
-      log_.debug("{}: move not scheduled in time ({})", label(*n), e.what());
+      log_.debug("{}: move not scheduled in time ({})", label(*n), refused->why);
     }
     return std::nullopt;
   }
@@ -286,13 +284,11 @@ void Engine::queue_move_after_next() {
     return;  // the next dwell's readings will say what the link does
   }
   if (!begun) return;
-  try {
-    send_move_at(*n, start_s);
-  } catch (const DeviceError& e) {
+  if (const auto refused = schedule_move(*n, start_s)) {
     // Refused in good time: a gimbal that schedules only from rest, not asked again this run.
-    if (refused_in_good_time(start_s)) {
+    if (refused->in_good_time) {
       queue_refused_ = true;
-      log_.info("the gimbal takes no move behind one under way ({}); each is scheduled at its arrival", e.what());
+      log_.info("the gimbal takes no move behind one under way ({}); each is scheduled at its arrival", refused->why);
     }
     return;
   }
@@ -308,15 +304,21 @@ void Engine::send_move_at(const Action& n, double start_s) {
   g_.move_at(n.pitch_arcsec, n.yaw_arcsec, static_cast<uint64_t>(std::llround(start_s * 1e6)));
 }
 
-bool Engine::refused_in_good_time(double start_s) {
-  target_known_ = false;  // the targets may have been written
-  GimbalState st;
+std::optional<Engine::MoveRefused> Engine::schedule_move(const Action& n, double start_s) {
   try {
-    st = read_gimbal();
-  } catch (const DeviceError&) {
-    return false;  // the dwell's own readings will say what the link does
+    send_move_at(n, start_s);
+    return std::nullopt;
+  } catch (const DeviceError& e) {
+    MoveRefused r{false, e.what()};
+    target_known_ = false;  // the targets may have been written
+    try {
+      const GimbalState st = read_gimbal();
+      r.in_good_time = last_gimbal_time_s_ < start_s && st.fault == GimbalFault::none && !st.has(kFault);
+    } catch (const DeviceError&) {
+      // not in good time: the dwell's own readings will say what the link does
+    }
+    return r;
   }
-  return last_gimbal_time_s_ < start_s && st.fault == GimbalFault::none && !st.has(kFault);
 }
 
 std::optional<GimbalState> Engine::wait_move_begun(double start_s) {
