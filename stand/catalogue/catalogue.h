@@ -69,10 +69,17 @@ struct RunRecord {
   int64_t resumes = 0;  // how many times the run was resumed
   int64_t pid = 0;      // process that last started or resumed it
   std::string host;     // and its host name: with run_dir, where the run folder lives
-  // True when the run says `running` but its process is gone from this host (killed run). A run
-  // of another host is never called stale from here: its pid means nothing on this one.
+  // True when the run says `running` but its process is gone from this host (killed run): the
+  // run folder's lock is not held (run_folder_owned), or, without the folder here, no process has
+  // its pid. A run of another host is never called stale from here: its pid means nothing on this one.
   bool stale() const;
 };
+
+// Whether a process holds the run folder's lock (RUN_DIR/.lock, taken by the run before it writes
+// anything; the kernel drops it when its owner dies, however it dies): the run's process is alive,
+// whatever became of its pid (pids are reused, 32768 of them on many machines). nullopt when this
+// host cannot tell (no such folder here, /proc/locks unreadable).
+std::optional<bool> run_folder_owned(const std::filesystem::path& run_dir);
 
 // A calibration of a unit, from a run on this stand or imported from elsewhere.
 struct CalibrationRecord {

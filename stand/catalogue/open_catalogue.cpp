@@ -1,9 +1,13 @@
 // The catalogue chosen by URL (sqlite:PATH, a plain path, postgresql://...), and what both backends share.
 #include <fmt/format.h>
 #include <signal.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <fstream>
+#include <sstream>
 
 #include "calib/errors.h"
 #include "stand/catalogue/catalogue.h"
@@ -20,8 +24,28 @@ std::string this_host() {
   return buf;
 }
 
+std::optional<bool> run_folder_owned(const fs::path& run_dir) {
+  struct stat st {};
+  if (::stat((run_dir / ".lock").c_str(), &st) != 0) return std::nullopt;
+  std::ifstream locks("/proc/locks");
+  if (!locks) return std::nullopt;
+  // "1: FLOCK  ADVISORY  WRITE 5431 fe:00:10953392 0 EOF" (device major:minor in hex, inode).
+  // Any kind of lock (a network file system may hold an flock as a POSIX lock): only the run, or
+  // a catalogue catch-up for a moment, locks that file. "1: -> FLOCK ..." is a waiter, not a holder.
+  const std::string id = fmt::format("{:02x}:{:02x}:{}", major(st.st_dev), minor(st.st_dev), st.st_ino);
+  std::string line;
+  while (std::getline(locks, line)) {
+    std::istringstream in(line);
+    std::string n, kind, advisory, mode, pid, dev;
+    in >> n >> kind >> advisory >> mode >> pid >> dev;
+    if (kind != "->" && dev == id) return true;
+  }
+  return false;
+}
+
 bool RunRecord::stale() const {
   if (outcome != outcome::running || pid <= 0 || host.empty() || host != this_host()) return false;
+  if (const auto owned = run_folder_owned(run_dir)) return !*owned;
   return ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH;
 }
 

@@ -19,14 +19,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
-bool alive(int64_t pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
 
 RunRef ref_of(const RunRecord& r) {
   RunRef x;
   x.run_id = r.run_id;
   x.dir = r.run_dir;
   x.pid = static_cast<int>(r.pid);
-  x.live = r.outcome == "running" && alive(r.pid);
+  x.live = r.outcome == "running" && run_alive(r.run_dir, r.pid);
   return x;
 }
 
@@ -51,6 +50,11 @@ std::unique_ptr<Catalogue> console_catalogue(const fs::path& runs_dir, const std
   }
 }
 
+bool run_alive(const fs::path& run_dir, int64_t pid) {
+  if (const auto owned = run_folder_owned(run_dir)) return *owned;
+  return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM);
+}
+
 std::optional<RunRef> find_run(const fs::path& runs_dir, const std::string& catalogue_url, const std::string& run_id) {
   if (!safe_name(run_id, 200)) return std::nullopt;
   auto cat = console_catalogue(runs_dir, catalogue_url);
@@ -67,7 +71,7 @@ std::vector<RunRef> live_runs(const fs::path& runs_dir, const std::string& catal
   RunFilter f;
   f.limit = 50;
   for (const auto& r : cat->list_runs(f)) {
-    if (r.outcome == "running" && alive(r.pid)) out.push_back(ref_of(r));
+    if (r.outcome == "running" && run_alive(r.run_dir, r.pid)) out.push_back(ref_of(r));
   }
   return out;
 }

@@ -215,7 +215,7 @@ void add_streams(httplib::Server& s, Context& c) {
             }
             *offset = ch.next;
             // A run that has ended and has nothing more to send ends its stream.
-            if (i % 40 == 39 && !(::kill(pid, 0) == 0 || errno == EPERM)) {
+            if (i % 40 == 39 && !run_alive(dir, pid)) {
               // What it wrote just before it ended is sent first.
               const EventChunk last = read_events(dir, *offset);
               std::string out;

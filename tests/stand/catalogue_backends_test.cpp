@@ -1,6 +1,9 @@
 // One suite, both backends: the catalogue's semantics on a real SQLite file and on a real PostgreSQL
 // server started by the test (tests/support/pg_server.h): records, order, schema versions and
 // migrations, concurrent writers (processes), imports recorded once, copy between backends.
+#include <fcntl.h>
+#include <sys/file.h>
+
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -368,6 +371,30 @@ TEST(RunRecord, IsStaleOnlyOnItsOwnHostWithItsProcessGone) {
   EXPECT_TRUE(r.stale());
   r.host = this_host() + "-elsewhere";
   EXPECT_FALSE(r.stale());
+}
+
+// With its run folder on this host, a run is alive while a process holds the folder's lock, the
+// one the run takes before it writes anything: a live process that merely has the run's pid (pids
+// are reused) does not make a killed run alive.
+TEST(RunRecord, IsStaleWhenNoProcessHoldsItsFoldersLockWhateverHasItsPid) {
+  test::TempDir dir;
+  RunRecord r;
+  r.outcome = outcome::running;
+  r.host = this_host();
+  r.pid = ::getpid();  // alive, as a reused pid would be
+  r.run_dir = dir.path().string();
+  EXPECT_FALSE(run_folder_owned(dir.path()));  // no lock file: this host cannot tell
+  EXPECT_FALSE(r.stale());                     // and the pid says alive
+  test::write_file(dir.path() / ".lock", "");
+  EXPECT_EQ(run_folder_owned(dir.path()), false);
+  EXPECT_TRUE(r.stale());
+  const int fd = ::open((dir.path() / ".lock").c_str(), O_RDWR | O_CLOEXEC);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0);
+  EXPECT_EQ(run_folder_owned(dir.path()), true);
+  EXPECT_FALSE(r.stale());
+  ::close(fd);  // the owner gone, however: the kernel drops its lock
+  EXPECT_TRUE(r.stale());
 }
 
 TEST(OpenCatalogue, ChoosesTheBackendByUrlAndHidesPasswords) {

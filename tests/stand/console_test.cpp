@@ -2,6 +2,8 @@
 // no CORS, the live-client cap; a run outlives its console (serve killed mid-run) and a restarted
 // console shows it live, lets its stream catch up and keeps the queue; a job's run is found by its
 // child's pid and start, never an earlier run of a reused pid. ~25 s (two emulated grid runs at --speed 20).
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -308,6 +310,28 @@ TEST(Console, AJobsRunIsNotAnEarlierRunOfAProcessWithTheSamePid) {
   const auto r = run_of_pid(runs, "", pid, "2026-06-01T00:00:00Z");
   ASSERT_TRUE(r);
   EXPECT_EQ(r->run_id, "this-job");
+}
+
+// A run is live while a process holds its folder's lock, not while some process has its pid: a
+// killed run whose pid another process now has is not shown live (nor does it hold the queue).
+TEST(Console, ARunIsLiveWhileItsProcessHoldsItsFolderNotItsPid) {
+  using namespace fpss;
+  TempDir tmp("console-live-lock");
+  const std::filesystem::path runs = tmp / "runs", dir = runs / "killed";
+  std::filesystem::create_directories(dir);
+  write_file(dir / ".lock", "");
+  SqliteCatalogue cat(Catalogue::default_path(runs));
+  RunStart rs = make_run("killed", "FPSS-1", "2026-06-01T00:00:00Z");
+  rs.run_dir = dir;
+  cat.record_run_start(rs);  // `running`, with this (live) process's pid
+  EXPECT_TRUE(console::live_runs(runs, "").empty());
+  EXPECT_FALSE(console::find_run(runs, "", "killed")->live);
+  const int fd = ::open((dir / ".lock").c_str(), O_RDWR | O_CLOEXEC);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0);
+  EXPECT_EQ(console::live_runs(runs, "").size(), 1u);
+  EXPECT_TRUE(console::find_run(runs, "", "killed")->live);
+  ::close(fd);
 }
 
 }  // namespace
