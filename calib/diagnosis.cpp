@@ -74,7 +74,10 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Measurement noise from within-step scatter: second differences of the residual between
 // consecutive rows of a dwell (var = 6 sigma^2 for white noise; smooth effects such as settling,
-// drift or temperature nearly cancel), clipped at 4 sigma to drop the odd step change.
+// drift or temperature nearly cancel), clipped at 4 sigma to drop the odd step change. Only rows
+// on readings of their own: two rows on one reference reading differ by the sensor's noise alone,
+// and with most frames of a dwell on one reading (a host that reads the gimbal less often than
+// frames come) the floor fell to the sensor's and noise-only recordings showed causes.
 double noise_floor(const Recording& r, double* per_axis) {
   // order 2: second differences (var 6 sigma^2), order 1: first differences (var 2 sigma^2).
   auto estimate = [&](StepKind kind, int a, int order, size_t* used) {
@@ -83,6 +86,7 @@ double noise_floor(const Recording& r, double* per_axis) {
       if (s.kind != kind) continue;
       for (size_t i = s.begin + 1; i + (order == 2 ? 1 : 0) < s.end; ++i) {
         if (r.outlier[i] || r.outlier[i - 1] || (order == 2 && r.outlier[i + 1])) continue;
+        if (!r.shared_reading.empty() && (r.shared_reading[i] || (order == 2 && r.shared_reading[i + 1]))) continue;
         const double d = order == 2 ? r.res[a][i + 1] - 2 * r.res[a][i] + r.res[a][i - 1] : r.res[a][i] - r.res[a][i - 1];
         d2.push_back(d * d);
       }
@@ -303,12 +307,12 @@ void Diagnoser::fit_singles() {
 }
 
 void Diagnoser::pick_cause() {
-  // No noise floor from the data (dwells of one or two samples, no slews): the best held-out
-  // RMS bounds it from above.
+  // No noise floor from the data (dwells of one or two samples or reference readings, no
+  // slews): the best held-out RMS bounds it from above.
   if (!std::isfinite(d.noise_floor_arcsec)) {
     d.noise_floor_arcsec = all.front().result.heldout_rms_arcsec;
-    d.warnings.push_back("dwells too short for within-dwell scatter: the noise floor is the best candidate's held-out "
-                         "RMS (an upper bound)");
+    d.warnings.push_back("dwells with too few samples or reference readings for within-dwell scatter: the noise floor "
+                         "is the best candidate's held-out RMS (an upper bound)");
   }
   // The cause: the best-scoring candidate that is also material, i.e. takes at least a tenth of
   // the noise variance off the held-out mean square (with very many rows, a statistically

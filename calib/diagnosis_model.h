@@ -48,6 +48,9 @@ struct Recording {
   std::vector<Use> use;
   // Isolated frames far from their step (calib/outliers.h): kept out of every fit and score.
   std::vector<bool> outlier;
+  // The row shares the reference reading of the row before it in its step (same_reading,
+  // calib/samples.h): their difference holds the sensor's noise alone, not the reference's.
+  std::vector<bool> shared_reading;
   std::vector<bool> turning;  // the two rows around a reversal inside a step (left out)
   size_t outliers = 0;
   std::vector<int64_t> outlier_steps;
