@@ -142,7 +142,8 @@ std::optional<FitUpdated> LiveFit::update(int64_t points, bool force) {
   const auto now = std::chrono::steady_clock::now();
   if (!force && now - last_ < std::chrono::milliseconds(500)) return std::nullopt;
   const auto est = cal_.current();
-  // No estimate yet leaves the refresh budget unspent, so the first valid one is published at once.
+  // No estimate yet leaves the refresh budget unspent, so the first valid one is published as
+  // soon as it allows.
   // A forced one (an adaptive stop) is published with what there is: an axis that has stopped
   // before the other has any offsets has its 1-sigma, and the residuals wait for both axes.
   if (!est.valid && !force) return std::nullopt;
