@@ -86,7 +86,7 @@ double noise_floor(const Recording& r, double* per_axis) {
       if (s.kind != kind) continue;
       for (size_t i = s.begin + 1; i + (order == 2 ? 1 : 0) < s.end; ++i) {
         if (r.outlier[i] || r.outlier[i - 1] || (order == 2 && r.outlier[i + 1])) continue;
-        if (!r.shared_reading.empty() && (r.shared_reading[i] || (order == 2 && r.shared_reading[i + 1]))) continue;
+        if (r.shared_reading[i] || (order == 2 && r.shared_reading[i + 1])) continue;
         const double d = order == 2 ? r.res[a][i + 1] - 2 * r.res[a][i] + r.res[a][i - 1] : r.res[a][i] - r.res[a][i - 1];
         d2.push_back(d * d);
       }

@@ -117,15 +117,13 @@ void flag_outlier_frames(Recording& r, const CoefficientSet& model, const Diagno
     }
     // Frames that share one reference reading (same_reading): the sigma from pairs on different
     // readings (calib/outliers.h).
-    std::vector<int64_t> reading(n, 0);
     r.shared_reading.assign(n, false);
     for (size_t i = 1; i < n; ++i) {
-      const bool same = ids[i] == ids[i - 1] && same_reading(r.ref[0][i], r.ref[1][i], r.ref[0][i - 1], r.ref[1][i - 1]);
-      r.shared_reading[i] = same;
-      reading[i] = reading[i - 1] + (same ? 0 : 1);
+      r.shared_reading[i] =
+          ids[i] == ids[i - 1] && same_reading(r.ref[0][i], r.ref[1][i], r.ref[0][i - 1], r.ref[1][i - 1]);
     }
     for (int a = 0; a < 2; ++a) {
-      const OutlierFlags f = flag_outliers(r.res[a], ids, rule, reading);
+      const OutlierFlags f = flag_outliers(r.res[a], ids, rule, r.shared_reading);
       for (size_t i = 0; i < n; ++i) if (f.outlier[i] && judged[i]) r.outlier[i] = true;
     }
     for (size_t i = 0; i < n; ++i) {

@@ -22,12 +22,12 @@ double median_of(std::vector<double>& v) {
 // else shares those readings.
 std::vector<double> reading_differences(const std::vector<double>& residual,
                                         const std::map<int64_t, std::vector<size_t>>& rows_of, const OutlierRule& rule,
-                                        const std::vector<int64_t>& reading) {
+                                        const std::vector<bool>& shared_reading) {
   std::vector<double> out;
   for (const auto& [id, rows] : rows_of) {
     if (static_cast<int>(rows.size()) < rule.min_step_frames) continue;
     for (size_t q = 1; q < rows.size(); ++q) {
-      if (reading[rows[q]] == reading[rows[q - 1]]) continue;
+      if (shared_reading[rows[q]]) continue;
       out.push_back(std::fabs(residual[rows[q]] - residual[rows[q - 1]]) / std::sqrt(2.0));
     }
   }
@@ -69,10 +69,10 @@ double StepOutlierScreen::robust_sigma() const {
 }
 
 OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vector<int64_t>& step,
-                           const OutlierRule& rule, const std::vector<int64_t>& reading) {
+                           const OutlierRule& rule, const std::vector<bool>& shared_reading) {
   if (residual.size() != step.size()) throw std::invalid_argument("flag_outliers: residual and step differ in size");
-  if (!reading.empty() && reading.size() != residual.size()) {
-    throw std::invalid_argument("flag_outliers: reading and residual differ in size");
+  if (!shared_reading.empty() && shared_reading.size() != residual.size()) {
+    throw std::invalid_argument("flag_outliers: shared_reading and residual differ in size");
   }
   OutlierFlags out;
   out.outlier.assign(residual.size(), false);
@@ -133,7 +133,7 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
       deviations.push_back(std::fabs(residual[i] - m));
     }
   }
-  if (!reading.empty()) deviations = reading_differences(residual, rows_of, rule, reading);
+  if (!shared_reading.empty()) deviations = reading_differences(residual, rows_of, rule, shared_reading);
   if (deviations.empty()) return out;
   out.robust_sigma = std::max(1.4826 * median_of(deviations), rule.min_sigma);
   if (!(out.robust_sigma > 0)) return out;

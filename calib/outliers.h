@@ -36,14 +36,14 @@ struct OutlierFlags {
 // `residual` is what should be constant within a step (a dwell's counts or angle, a slew's model
 // residual); `step` the step id of each frame, rows of one step contiguous or not.
 //
-// `reading` (empty: every frame its own) is the id of the reference reading a residual was taken
-// against (same_reading, calib/samples.h). Frames that share one agree with their running median
-// to the sensor's noise alone, without the reference's, and would shrink a sigma pooled from those
-// deviations: with `reading`, sigma is 1.4826 x the median of |difference| / sqrt(2) between
-// neighbouring frames of a step on different readings (two independent draws of all the noise).
-// Every frame is judged as without it.
+// `shared_reading` (empty: every frame its own) says which frames took their residual against the
+// reference reading of the frame before them in their step (same_reading, calib/samples.h).
+// Frames that share one agree with their running median to the sensor's noise alone, without the
+// reference's, and would shrink a sigma pooled from those deviations: with `shared_reading`, sigma
+// is 1.4826 x the median of |difference| / sqrt(2) between neighbouring frames of a step on
+// different readings (two independent draws of all the noise). Every frame is judged as without it.
 OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vector<int64_t>& step,
-                           const OutlierRule& rule = {}, const std::vector<int64_t>& reading = {});
+                           const OutlierRule& rule = {}, const std::vector<bool>& shared_reading = {});
 
 // One step's values as a multiset (value -> frames): the step's median without holding its frames
 // (a handful of distinct values for whole counts, whatever the frames per step).
