@@ -106,6 +106,10 @@ void Engine::command_rate(double arcsec_s) {
 
 void Engine::command_move(double pitch_arcsec, double yaw_arcsec) {
   g_.move_to(pitch_arcsec, yaw_arcsec);
+  targets_written(pitch_arcsec, yaw_arcsec);
+}
+
+void Engine::targets_written(double pitch_arcsec, double yaw_arcsec) {
   commanded_.target_pitch_arcsec = pitch_arcsec;
   commanded_.target_yaw_arcsec = yaw_arcsec;
   target_known_ = true;

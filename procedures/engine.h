@@ -184,6 +184,8 @@ class Engine {
   // Every command the engine sends goes through these, so it knows what the gimbal should hold.
   void command_rate(double arcsec_s);
   void command_move(double pitch_arcsec, double yaw_arcsec);
+  // The targets this run last wrote to the gimbal, which verify_command reads back.
+  void targets_written(double pitch_arcsec, double yaw_arcsec);
   // Reads the gimbal's commanded state back; GimbalFailure (commanded_elsewhere) when another
   // client changed a target, the rate, the watchdog, or put it in rate mode.
   void verify_command();

@@ -216,9 +216,7 @@ void Engine::call_off_moves_ahead() {
 }
 
 void Engine::set_pending(const Action& n, double start_lo_s, double dur_s, double start_hi_s, bool scheduled) {
-  commanded_.target_pitch_arcsec = n.pitch_arcsec;
-  commanded_.target_yaw_arcsec = n.yaw_arcsec;
-  target_known_ = true;
+  targets_written(n.pitch_arcsec, n.yaw_arcsec);
   moved_ = true;
   pending_ = PendingMove{n.pitch_arcsec, n.yaw_arcsec, start_lo_s + dur_s, start_hi_s + dur_s, start_lo_s, scheduled};
 }
@@ -292,9 +290,7 @@ void Engine::queue_move_after_next() {
     }
     return;
   }
-  commanded_.target_pitch_arcsec = n->pitch_arcsec;
-  commanded_.target_yaw_arcsec = n->yaw_arcsec;
-  target_known_ = true;
+  targets_written(n->pitch_arcsec, n->yaw_arcsec);
   queued_ = QueuedMove{action_ + 2, start_s};
   ++stats_.scheduled_moves;
 }
