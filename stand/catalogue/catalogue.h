@@ -80,6 +80,9 @@ struct RunRecord {
 // whatever became of its pid (pids are reused, 32768 of them on many machines). nullopt when this
 // host cannot tell (no such folder here, /proc/locks unreadable).
 std::optional<bool> run_folder_owned(const std::filesystem::path& run_dir);
+// The run's process is alive: it holds the run folder's lock, or, when this host cannot tell, a
+// process has its pid.
+bool run_alive(const std::filesystem::path& run_dir, int64_t pid);
 
 // A calibration of a unit, from a run on this stand or imported from elsewhere.
 struct CalibrationRecord {

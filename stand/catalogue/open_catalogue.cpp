@@ -43,10 +43,14 @@ std::optional<bool> run_folder_owned(const fs::path& run_dir) {
   return false;
 }
 
+bool run_alive(const fs::path& run_dir, int64_t pid) {
+  if (const auto owned = run_folder_owned(run_dir)) return *owned;
+  return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM);
+}
+
 bool RunRecord::stale() const {
   if (outcome != outcome::running || pid <= 0 || host.empty() || host != this_host()) return false;
-  if (const auto owned = run_folder_owned(run_dir)) return !*owned;
-  return ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH;
+  return !run_alive(run_dir, pid);
 }
 
 fs::path Catalogue::default_path(const fs::path& runs_dir) { return runs_dir / "stand.db"; }

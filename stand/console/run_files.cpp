@@ -1,12 +1,10 @@
 #include "stand/console/run_files.h"
 
 #include <fcntl.h>
-#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <memory>
 
 #include "calib/text_file.h"
@@ -48,11 +46,6 @@ std::unique_ptr<Catalogue> console_catalogue(const fs::path& runs_dir, const std
   } catch (const std::exception&) {
     return nullptr;
   }
-}
-
-bool run_alive(const fs::path& run_dir, int64_t pid) {
-  if (const auto owned = run_folder_owned(run_dir)) return *owned;
-  return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM);
 }
 
 std::optional<RunRef> find_run(const fs::path& runs_dir, const std::string& catalogue_url, const std::string& run_id) {

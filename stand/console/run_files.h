@@ -24,9 +24,6 @@ struct RunRef {
   bool live = false;
   int pid = 0;
 };
-// The run's process is alive: it holds the run folder's lock (run_folder_owned), or, when this
-// host cannot tell, a process has its pid.
-bool run_alive(const std::filesystem::path& run_dir, int64_t pid);
 // Each reads the catalogue at `catalogue_url` (serve --catalogue), or RUNS_DIR/stand.db when empty.
 std::optional<RunRef> find_run(const std::filesystem::path& runs_dir, const std::string& catalogue_url,
                                const std::string& run_id);
