@@ -65,7 +65,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
     YAML::Node n = top.node("gimbal");
     if (!n.IsDefined()) d.error(root, "stand file: missing field gimbal (with its endpoint)");
     MapReader r(n, "gimbal", d);
-    read_endpoint(r, c.gimbal.endpoint, true);
+    if (n.IsDefined()) read_endpoint(r, c.gimbal.endpoint, true);  // else one error says it, not two
     if (auto v = r.integer("unit_id", false, 0, 247)) c.gimbal.unit_id = static_cast<int>(*v);
     if (auto v = r.positive("response_timeout_s")) c.gimbal.response_timeout_s = *v;
     if (auto v = r.integer("retries", false, 0, 100)) c.gimbal.retries = static_cast<int>(*v);
@@ -83,7 +83,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
     YAML::Node n = top.node("sensor");
     if (!n.IsDefined()) d.error(root, "stand file: missing field sensor (with its endpoint)");
     MapReader r(n, "sensor", d);
-    read_endpoint(r, c.sensor.endpoint, false);
+    if (n.IsDefined()) read_endpoint(r, c.sensor.endpoint, false);  // else one error says it, not two
     if (auto v = r.integer("sample_rate_hz", false, 1, 200)) b.sample_rate_hz = static_cast<double>(*v);
     if (auto v = r.positive("frame_timeout_s")) b.frame_timeout_s = *v;
     if (auto v = r.positive("command_timeout_s")) c.sensor.command_timeout_s = *v;

@@ -10,6 +10,7 @@
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
 #include "tests/procedures/diag_util.h"
+#include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
@@ -51,17 +52,10 @@ TEST(DesignedGrid, ListedOffsetsAreMeasuredInTheirOrderBetweenNulls) {
 }
 
 TEST(DesignedGrid, ListedOffsetsAreCheckedWithTheirPlace) {
-  const auto file = test::file_expecting({
-      {"steps:"},
-      {"  - null_offset_grid:"},
-      {"      pitch_offsets_deg: [0.1, 0, 200]",
-       {{32, "an offset must be non-zero and within +-180 deg, got 0"}, {35, "200 is outside [-180, 180]"}}},
-      {"      yaw_offsets_deg: 0.3", {{24, "expected a list of offsets"}}},
-      {"      extent_deg: 0.4", {{19, "extent_deg does not go with listed offsets"}}},
-      {"      frames: 5"},
-  });
-  Diagnostics d("bad.yaml");
-  parse_procedure(file.text, "bad.yaml", d);
+  const auto file = test::annotated_file(test::source_dir() / "tests" / "procedures" / "expected_errors" /
+                                         "listed_offsets.yaml");
+  Diagnostics d(file.name);
+  parse_procedure(file.text, file.name, d);
   EXPECT_TRUE(has_exactly(d, file.errors));
 }
 

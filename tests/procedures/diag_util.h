@@ -2,6 +2,9 @@
 #pragma once
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -44,28 +47,33 @@ inline ::testing::AssertionResult has_exactly(const Diagnostics& d, const std::v
                                        << d.text();
 }
 
-// One line of a file a test writes, with the errors expected on it: column and a part of the message.
-struct LineExpecting {
-  std::string text;
-  std::vector<std::pair<int, std::string>> errors = {};
-};
-
-// A file's text and the errors expected in it, their line numbers taken from where they stand.
-struct FileExpecting {
-  std::string text;
+// A file a test parses, with the errors expected in it: each marked on its own line by a comment
+// "# error@COL: TEXT" (several may follow one another), as clang's -verify marks them, so an
+// expectation stays next to the line it is about instead of naming a line number counted by hand.
+struct AnnotatedFile {
+  std::string name, text;  // name: the file's name, the origin its diagnostics give
   std::vector<ExpectedError> errors;
 };
 
-// The lines joined, each ending in a newline, so an expectation stays next to the line it is about
-// instead of naming a line number counted by hand.
-inline FileExpecting file_expecting(const std::vector<LineExpecting>& lines) {
-  FileExpecting f;
-  int line = 0;
-  for (const auto& l : lines) {
-    f.text += l.text + "\n";
-    ++line;
-    for (const auto& [col, part] : l.errors) f.errors.push_back({line, col, part});
+inline AnnotatedFile annotated_file(const std::filesystem::path& path) {
+  static const std::string kMark = "# error@";
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot read " + path.string());
+  AnnotatedFile f{path.filename().string(), {}, {}};
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n) {
+    f.text += line + "\n";
+    for (size_t at = line.find(kMark); at != std::string::npos;) {
+      const size_t col_at = at + kMark.size(), colon = line.find(": ", col_at);
+      if (colon == std::string::npos) throw std::runtime_error(path.string() + ": a mark without \": TEXT\"");
+      const size_t next = line.find("  " + kMark, colon);
+      const size_t end = next == std::string::npos ? line.size() : next;
+      f.errors.push_back({n, std::stoi(line.substr(col_at, colon - col_at)), line.substr(colon + 2, end - colon - 2)});
+      at = next == std::string::npos ? next : next + 2;
+    }
   }
+  // A file that expects nothing would make its test assert nothing.
+  if (f.errors.empty()) throw std::runtime_error(path.string() + ": no \"# error@COL: TEXT\" marks");
   return f;
 }
 

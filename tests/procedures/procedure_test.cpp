@@ -154,27 +154,12 @@ TEST(Procedure, SlewReversalsStayInOneSegment) {
 }
 
 TEST(Procedure, EveryErrorAtOnceWithLineAndColumn) {
-  const auto file = test::file_expecting({
-      {"name: broken"},
-      {"steps:"},
-      {"  - home"},
-      {"  - jump:", {{5, "unknown step \"jump\""}}},
-      {"      pitch_deg: 1"},
-      {"  - move:"},
-      {"      pitch_deg: abc", {{18, "expected a number, got \"abc\""}}},
-      {"  - settle: {}", {{13, "missing field duration_s"}}},
-      {"  - sample:"},
-      {"      frames: 5"},
-      {"      colour: blue", {{7, "unknown field \"colour\""}}},
-      {"  - null_offset_grid:"},
-      {"      extent_deg: 0.4",
-       {{7, "missing field step_deg or step_arcsec"}, {7, "missing field frames or duration_s"}}},
-      {"      axes: [pitch, roll]", {{21, "expected pitch or yaw, got \"roll\""}}},
-  });
-  Diagnostics d = parse_bad(file.text);
+  const auto file = test::annotated_file(test::source_dir() / "tests" / "procedures" / "expected_errors" /
+                                         "every_error.yaml");
+  Diagnostics d = parse_bad(file.text, file.name);
   EXPECT_TRUE(has_exactly(d, file.errors));
   // The text names the file for each.
-  EXPECT_NE(d.text().find("bad.yaml:4:5: step 2: unknown step \"jump\""), std::string::npos) << d.text();
+  EXPECT_NE(d.text().find("every_error.yaml:5:5: step 2: unknown step \"jump\""), std::string::npos) << d.text();
 }
 
 TEST(Procedure, LoadThrowsInputErrorListingAll) {

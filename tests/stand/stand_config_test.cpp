@@ -9,9 +9,16 @@
 namespace fpss {
 namespace {
 
-using test::file_expecting;
 using test::has_errors;
 using test::has_exactly;
+
+// Parses tests/stand/expected_errors/NAME: exactly the errors its "# error@COL" comments mark.
+::testing::AssertionResult errors_as_marked(const std::string& name) {
+  const auto file = test::annotated_file(test::source_dir() / "tests" / "stand" / "expected_errors" / name);
+  Diagnostics d(file.name);
+  parse_stand(file.text, file.name, d);
+  return has_exactly(d, file.errors);
+}
 
 TEST(StandConfig, ExampleStandFile) {
   const StandConfig c = load_stand_file(test::source_dir() / "procedures" / "example_stand.yaml");
@@ -48,54 +55,14 @@ TEST(StandConfig, Table2MappingGivesSensorFrameReferences) {
   EXPECT_EQ(def.sensor_from_stand(100, 200), (std::pair<double, double>{100, 200}));
 }
 
-TEST(StandConfig, EveryErrorAtOnce) {
-  const auto file = file_expecting({
-      {"stand: x"},
-      {"gimbal:"},
-      {"  endpoint: serial:/dev/ttyUSB0", {{13, "is a serial endpoint; expected modbus-tcp"}}},
-      {"  retries: many", {{12, "field retries: expected an integer, got \"many\""}}},
-      {"sensor:"},
-      {"  endpoint: pty", {{13, "sensor: field endpoint:"}}},
-      {"  sample_rate_hz: 500", {{19, "expected an integer in 1..200"}}},
-      {"soft_limits:"},
-      {"  pitch_deg: [0.5, -0.5]", {{14, "expected min < max"}}},
-      {"  roll_deg: [-1, 1]", {{3, "unknown field \"roll_deg\""}}},
-      {"axes: {pitch: alpha, yaw: alpha}", {{7, "pitch and yaw both map to alpha"}}},
-      {"colour: red", {{1, "unknown field \"colour\""}}},
-  });
-  Diagnostics d("stand.yaml");
-  parse_stand(file.text, "stand.yaml", d);
-  EXPECT_TRUE(has_exactly(d, file.errors));
-}
+TEST(StandConfig, EveryErrorAtOnce) { EXPECT_TRUE(errors_as_marked("every_error.yaml")); }
 
 TEST(StandConfig, NumbersOutsideTheirRangeNamePlaceAndField) {
-  const auto file = file_expecting({
-      {"gimbal:"},
-      {"  endpoint: 'modbus-tcp:127.0.0.1:1502'"},
-      {"  response_timeout_s: 1e308", {{23, "field response_timeout_s: 1e308 is outside [-86400, 86400]"}}},
-      {"  profile_rate_arcsec_s: 1e9", {{26, "field profile_rate_arcsec_s: 1e9 is outside [-360000, 360000]"}}},
-      {"sensor: {endpoint: 'pty:/dev/pts/9'}"},
-      {"soft_limits:"},
-      {"  pitch_deg: [-1e6, 0.75]", {{15, "-1e6 is outside [-180, 180]"}}},
-      {"clock:"},
-      {"  sensor_offset_s: -1e300", {{20, "field sensor_offset_s: -1e300 is outside"}}},
-  });
-  Diagnostics d("s.yaml");
-  parse_stand(file.text, "s.yaml", d);
-  EXPECT_TRUE(has_errors(d, file.errors));
+  EXPECT_TRUE(errors_as_marked("numbers_out_of_range.yaml"));
 }
 
-TEST(StandConfig, MissingDevicesAndBadMapping) {
-  // The missing devices are reported at the document's start.
-  const auto file = file_expecting({
-      {"axes: {pitch: gamma}",
-       {{1, "missing field gimbal"}, {1, "missing field sensor"}, {15, "expected alpha, beta, +alpha"}}},
-      {"soft_limits: {yaw_arcsec: [100, 200]}", {{14, "must contain the null"}}},
-  });
-  Diagnostics d("s.yaml");
-  parse_stand(file.text, "s.yaml", d);
-  EXPECT_TRUE(has_errors(d, file.errors));
-}
+// The missing devices are reported at the document's start, once each.
+TEST(StandConfig, MissingDevicesAndBadMapping) { EXPECT_TRUE(errors_as_marked("missing_devices.yaml")); }
 
 TEST(StandConfig, ProfileRateAboveTheLimit) {
   Diagnostics d("s.yaml");
