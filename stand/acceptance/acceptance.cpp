@@ -23,23 +23,46 @@ namespace {
 struct LimitField {
   const char* key;
   Limit AcceptanceLimits::*member;
-  bool positive;  // value must be > 0 (else >= 0)
 };
 
-constexpr LimitField kLimitFields[] = {
-    {"residual_mean_abs_arcsec", &AcceptanceLimits::residual_mean_abs_arcsec, true},
-    {"residual_max_abs_arcsec", &AcceptanceLimits::residual_max_abs_arcsec, true},
-    {"accuracy_3sigma_arcsec", &AcceptanceLimits::accuracy_3sigma_arcsec, true},
-    {"accuracy_worst_point_arcsec", &AcceptanceLimits::accuracy_worst_point_arcsec, true},
-    {"accuracy_centre_arcsec", &AcceptanceLimits::accuracy_centre_arcsec, true},
-    {"accuracy_radius_arcmin", &AcceptanceLimits::accuracy_radius_arcmin, true},
-    {"jitter_3sigma_arcsec", &AcceptanceLimits::jitter_3sigma_arcsec, true},
-    {"calibrated_range_deg", &AcceptanceLimits::calibrated_range_deg, false},
-    {"verified_extent_deg", &AcceptanceLimits::verified_extent_deg, false},
-    {"verification_points_min", &AcceptanceLimits::verification_points_min, false},
-    {"sun_present_fraction", &AcceptanceLimits::sun_present_fraction, false},
-    {"consistency_arcsec", &AcceptanceLimits::consistency_arcsec, true},
+// Bounds on an error or on a region's size: 0 would pass nothing, so each must be > 0.
+constexpr LimitField kPositiveLimits[] = {
+    {"residual_mean_abs_arcsec", &AcceptanceLimits::residual_mean_abs_arcsec},
+    {"residual_max_abs_arcsec", &AcceptanceLimits::residual_max_abs_arcsec},
+    {"accuracy_3sigma_arcsec", &AcceptanceLimits::accuracy_3sigma_arcsec},
+    {"accuracy_worst_point_arcsec", &AcceptanceLimits::accuracy_worst_point_arcsec},
+    {"accuracy_centre_arcsec", &AcceptanceLimits::accuracy_centre_arcsec},
+    {"accuracy_radius_arcmin", &AcceptanceLimits::accuracy_radius_arcmin},
+    {"jitter_3sigma_arcsec", &AcceptanceLimits::jitter_3sigma_arcsec},
+    {"consistency_arcsec", &AcceptanceLimits::consistency_arcsec},
 };
+
+// The least a run must reach: 0 asks for nothing, so each may be >= 0.
+constexpr LimitField kFloorLimits[] = {
+    {"calibrated_range_deg", &AcceptanceLimits::calibrated_range_deg},
+    {"verified_extent_deg", &AcceptanceLimits::verified_extent_deg},
+    {"verification_points_min", &AcceptanceLimits::verification_points_min},
+    {"sun_present_fraction", &AcceptanceLimits::sun_present_fraction},
+};
+
+// One limit's {value, source}: every limit must be given, and its source must say something.
+void read_limit(MapReader& limits, const LimitField& f, bool positive, AcceptanceLimits& out, Diagnostics& d) {
+  const YAML::Node n = limits.node(f.key);
+  if (!n.IsDefined() || n.IsNull()) {
+    d.error(limits.mark(), fmt::format("limits: missing \"{}\" (every limit must be given, with its source)", f.key));
+    return;
+  }
+  MapReader one(n, fmt::format("limits.{}", f.key), d);
+  if (!one.ok()) return;
+  const auto v = positive ? one.positive("value", true) : one.non_negative("value", true);
+  const auto src = one.string("source", true);
+  if (src && src->find_first_not_of(" \t\r\n") == std::string::npos) {
+    d.error(n, fmt::format("limits.{}: source must say where the number comes from", f.key));
+  }
+  one.finish();
+  if (v) (out.*f.member).value = *v;
+  if (src) (out.*f.member).source = *src;
+}
 
 }  // namespace
 
@@ -67,23 +90,8 @@ AcceptanceLimits parse_acceptance_limits(const std::string& text, const std::str
     d.error(root, "limits file: missing field \"limits\" (a map of limit name -> {value, source})");
   } else {
     MapReader lr(limits, "limits", d);
-    for (const auto& f : kLimitFields) {
-      const YAML::Node n = lr.node(f.key);
-      if (!n.IsDefined() || n.IsNull()) {
-        d.error(limits, fmt::format("limits: missing \"{}\" (every limit must be given, with its source)", f.key));
-        continue;
-      }
-      MapReader one(n, fmt::format("limits.{}", f.key), d);
-      if (!one.ok()) continue;
-      const auto v = f.positive ? one.positive("value", true) : one.non_negative("value", true);
-      const auto src = one.string("source", true);
-      if (src && src->find_first_not_of(" \t\r\n") == std::string::npos) {
-        d.error(n, fmt::format("limits.{}: source must say where the number comes from", f.key));
-      }
-      one.finish();
-      if (v) (out.*f.member).value = *v;
-      if (src) (out.*f.member).source = *src;
-    }
+    for (const auto& f : kPositiveLimits) read_limit(lr, f, true, out, d);
+    for (const auto& f : kFloorLimits) read_limit(lr, f, false, out, d);
     lr.finish();
     if (out.sun_present_fraction.value > 1.0) {
       d.error(limits["sun_present_fraction"], "limits.sun_present_fraction: value is a fraction, at most 1");
@@ -99,15 +107,6 @@ AcceptanceLimits load_acceptance_limits(const fs::path& path) {
 }
 
 // Roles
-
-const char* to_string(PointRole r) {
-  switch (r) {
-    case PointRole::calibration: return "calibration";
-    case PointRole::verification: return "verification";
-    case PointRole::rest: return "rest";
-  }
-  return "?";
-}
 
 std::map<int64_t, PointRole> acceptance_roles(const Procedure& proc, const Plan& plan) {
   std::vector<std::string> problems;

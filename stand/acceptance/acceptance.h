@@ -54,7 +54,10 @@ std::filesystem::path shipped_procedures_dir();
 // ---- what each point of an acceptance procedure is for ----
 
 enum class PointRole { calibration, verification, rest };
-const char* to_string(PointRole r);
+// Its names in acceptance.json and the certificate.
+NLOHMANN_JSON_SERIALIZE_ENUM(PointRole, {{PointRole::calibration, "calibration"},
+                                         {PointRole::verification, "verification"},
+                                         {PointRole::rest, "rest"}})
 
 // Roles by the samples file's step column (point + 1): null_offset_grid before the calibrate
 // step -> calibration, null_offset_grid after it -> verification, sample after it -> rest.

@@ -40,7 +40,7 @@ nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimi
   c["failed"] = j.failed();
   nlohmann::ordered_json pts = nlohmann::ordered_json::array();
   for (const auto& p : j.points) {
-    nlohmann::ordered_json e{{"step", p.step}, {"role", to_string(p.role)}, {"phase", std::string(to_string(p.phase))},
+    nlohmann::ordered_json e{{"step", p.step}, {"role", p.role}, {"phase", std::string(to_string(p.phase))},
                              {"ref_pitch_arcsec", p.ref_pitch_arcsec}, {"ref_yaw_arcsec", p.ref_yaw_arcsec},
                              {"frames", p.frames},
                              {"error_pitch_arcsec", p.error_pitch_arcsec}, {"error_yaw_arcsec", p.error_yaw_arcsec},

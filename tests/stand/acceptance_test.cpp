@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -375,6 +376,12 @@ TEST(AcceptanceJudge, CertificateCarriesEveryCriterionAndTheIdentity) {
     }
   }
   EXPECT_EQ(c["failed"], nlohmann::json({"jitter_3sigma_pitch", "jitter_3sigma_yaw"}));
+  // Each point's role by its name, as docs/acceptance.md gives them.
+  std::map<std::string, int> roles;
+  for (const auto& p : c["points"]) ++roles[p["role"].get<std::string>()];
+  EXPECT_GT(roles["verification"], 0);
+  EXPECT_GT(roles["rest"], 0);
+  EXPECT_EQ(roles.size(), 2u);
   const std::string text = certificate_text(c);
   EXPECT_NE(text.find("Verdict:    FAIL"), std::string::npos);
   EXPECT_NE(text.find("jitter_3sigma_pitch"), std::string::npos);
