@@ -5,13 +5,13 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <map>
 #include <numeric>
 #include <random>
 #include <set>
 
+#include "calib/text_file.h"
 #include "calib/units.h"
 
 namespace fpss {
@@ -218,7 +218,7 @@ BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Ef
     const fs::path dir = save_dir;
     write_samples_csv(dir / fmt::format("case-{}.csv", index), rec);
     save_coefficients(dir / "model.json", model);
-    std::ofstream(dir / fmt::format("case-{}-gap.json", index)) << dg.to_json().dump(1) << "\n";
+    write_text_atomic(dir / fmt::format("case-{}-gap.json", index), dg.to_json().dump(1) + "\n");
     ojson truth{{"class", cls}, {"effects", ojson::array()}, {"settle_s", blindtest_diagnosis_options().settle_s}};
     for (const auto& e : effects) {
       ojson p = ojson::object();
@@ -226,7 +226,7 @@ BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Ef
       if (e.coefficients) p = {{"alpha", e.coefficients->alpha}, {"beta", e.coefficients->beta}};
       truth["effects"].push_back({{"name", e.name}, {"params", p}});
     }
-    std::ofstream(dir / fmt::format("case-{}-truth.json", index)) << truth.dump(1) << "\n";
+    write_text_atomic(dir / fmt::format("case-{}-truth.json", index), truth.dump(1) + "\n");
   }
   if (c.correct && !effects.empty()) {
     double worst = 0;
@@ -573,7 +573,7 @@ void write_emitted_bench(const std::string& bench_path, const Diagnosis& d, cons
       set.alpha = c.params.at("alpha").get<AxisCoeffs>();
       set.beta = c.params.at("beta").get<AxisCoeffs>();
       set.extra["source"] = "diagnose --emit-bench: the refitted transfer function";
-      const fs::path cf = bench.parent_path() / (bench.stem().string() + ".coefficients.json");
+      const fs::path cf = emitted_coefficients_path(bench_path);
       save_coefficients(cf, set);
       y += fmt::format("  - {{name: coefficients, file: \"{}\"}}\n", cf.filename().string());
       continue;
@@ -589,10 +589,12 @@ void write_emitted_bench(const std::string& bench_path, const Diagnosis& d, cons
     }
     y += line + "\n";
   }
-  std::ofstream out(bench);
-  if (!out) throw std::runtime_error(bench.string() + ": cannot write");
-  out << y;
-  if (!out.flush()) throw std::runtime_error(bench.string() + ": cannot write");
+  write_text_atomic(bench, y);
+}
+
+std::filesystem::path emitted_coefficients_path(const std::string& bench_path) {
+  const std::filesystem::path bench = std::filesystem::absolute(bench_path);
+  return bench.parent_path() / (bench.stem().string() + ".coefficients.json");
 }
 
 }  // namespace fpss

@@ -84,5 +84,7 @@ BlindCase run_blind_case(int index, const std::string& cls, const std::vector<Ef
 // named by the coefficients effect's `file`. Catalogued causes only; a temperature's t0_c (the
 // profile's starting temperature on the emulator) is noted in a comment.
 void write_emitted_bench(const std::string& bench_path, const Diagnosis& d, const std::string& model_path);
+// Where write_emitted_bench puts a refitted transfer function: <stem>.coefficients.json beside it.
+std::filesystem::path emitted_coefficients_path(const std::string& bench_path);
 
 }  // namespace fpss

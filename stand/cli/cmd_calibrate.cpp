@@ -13,6 +13,7 @@
 #include "calib/text_file.h"
 #include "procedures/recorder.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_options.h"
 
 namespace fpss::cli {
 
@@ -21,22 +22,23 @@ void add_calibrate(CLI::App& app, Runner& run) {
     std::string data, out, init, method = "differences", truth, unit;
     std::optional<double> count_noise;
     bool json = false;
+    FileOptions files;
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand(
       "calibrate",
       "Fit the pitch (alpha) and yaw (beta) transfer functions to a null-to-offset recording; "
       "prints the Table-1-style summary and writes the coefficient file");
-  sub->add_option("--data", o->data, "samples file (CSV, the stand's recording format)")->required();
-  sub->add_option("--out", o->out, "coefficient file to write (JSON), with a residuals block")->required();
-  sub->add_option("--init", o->init, "a coefficient file tried as a start besides the global search");
+  o->files.input(sub, "--data", o->data, "samples file (CSV, the stand's recording format)")->required();
+  o->files.output(sub, "--out", o->out, "coefficient file to write (JSON), with a residuals block")->required();
+  o->files.input(sub, "--init", o->init, "a coefficient file tried as a start besides the global search");
   sub->add_option("--method", o->method,
                   "differences: C2..C8 on changes null <-> offset, C1 from the null condition (the paper's); "
                   "absolute: C1..C8 on absolute reference angles")
       ->check(CLI::IsMember({"differences", "absolute"}))
       ->capture_default_str();
-  sub->add_option("--truth", o->truth,
-                  "a coefficient file with the known truth (simulations): prints how far the fit is from it");
+  o->files.input(sub, "--truth", o->truth,
+                 "a coefficient file with the known truth (simulations): prints how far the fit is from it");
   sub->add_option("--count-noise-counts", o->count_noise,
                   "expected sensor noise per frame before whole-count rounding, counts (default: the --init "
                   "file's count_noise_counts, else estimated from the within-dwell scatter)")
@@ -46,7 +48,7 @@ void add_calibrate(CLI::App& app, Runner& run) {
                 "print {\"file\": OUT, \"calibration\": <the coefficient file's content>} instead of the summary");
   sub->callback([o, &run] {
     run = [o] {
-      check_output_path(o->out, {o->data, o->init, o->truth});
+      o->files.check();
       CalibrationOptions opts;
       opts.method = *parse_method(o->method);
       std::optional<CoefficientSet> truth;

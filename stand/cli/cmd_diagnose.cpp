@@ -12,6 +12,7 @@
 #include "calib/text_file.h"
 #include "stand/blindtest/blindtest.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_options.h"
 #include "stand/report/diagnosis_page.h"
 
 namespace fpss::cli {
@@ -28,15 +29,18 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
     std::string model, data, out, report, emit_bench;
     DiagnosisOptions d;
     bool partial = false;
+    FileOptions files;
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("diagnose", "Which unmodelled effect explains model(counts) - reference, checked on held-out steps");
-  sub->add_option("--model", o->model, "the sim model: a coefficient file (JSON)")->required();
-  sub->add_option("--data", o->data, "the real recording: a samples CSV (all phases; temperature_c used when present)")->required();
-  sub->add_option("--out", o->out, "GAP.json to write")->required();
-  sub->add_option("--report", o->report, "GAP.html: residuals against every factor before/after, residual map");
-  sub->add_option("--emit-bench", o->emit_bench,
-                  "write an emulator bench file: the model as truth, the diagnosed causes as effects");
+  FileOptions& f = o->files;
+  f.input(sub, "--model", o->model, "the sim model: a coefficient file (JSON)")->required();
+  f.input(sub, "--data", o->data, "the real recording: a samples CSV (all phases; temperature_c used when present)")->required();
+  f.output(sub, "--out", o->out, "GAP.json to write")->required();
+  f.output(sub, "--report", o->report, "GAP.html: residuals against every factor before/after, residual map");
+  f.output(sub, "--emit-bench", o->emit_bench,
+           "write an emulator bench file: the model as truth, the diagnosed causes as effects (a refitted transfer "
+           "function goes next to it, as NAME.coefficients.json)");
   sub->add_option("--settle-s", o->d.settle_s,
                   "time from a dwell's arrival to its first sample, when no time_since_move_s column says it")
       ->default_val(0.0);
@@ -45,12 +49,9 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
                 "accept a recording that cannot reveal every effect (no slews or no offsets): exit 0 instead of 2");
   sub->callback([o, &run] {
     run = [o] {
-      check_output_path(o->out, {o->model, o->data});
-      if (!o->report.empty()) {
-        check_output_path(o->report, {o->model, o->data, o->out}, "--report");
-        if (fs::path(o->report).lexically_normal() == fs::path(o->out).lexically_normal()) {
-          throw InputError(fmt::format("--report {}: the same file as --out", o->report));
-        }
+      o->files.check();
+      if (!o->emit_bench.empty()) {
+        check_output_path(emitted_coefficients_path(o->emit_bench), {o->model, o->data}, "--emit-bench");
       }
       const CoefficientSet model = load_coefficients(o->model);
       // Straight into the columns the diagnosis reads (no whole table of every column in memory).

@@ -5,6 +5,7 @@
 #include "calib/text_file.h"
 #include "fixtures/recording.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_options.h"
 
 namespace fpss::cli {
 
@@ -14,12 +15,13 @@ void add_simulate(CLI::App& app, Runner& run) {
     std::vector<std::string> effects;
     uint64_t seed = 1;
     GridPlan grid;
+    FileOptions files;
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("simulate", "Simulate a bench null-to-offset recording (samples CSV) with a known truth");
-  sub->add_option("--truth", o->truth, "coefficient file of the sensor's true transfer function (default: published a-6-fpss1)");
-  sub->add_option("--bench", o->bench, "bench file (YAML)");
-  sub->add_option("--out", o->out, "samples CSV to write")->required();
+  o->files.input(sub, "--truth", o->truth, "coefficient file of the sensor's true transfer function (default: published a-6-fpss1)");
+  o->files.input(sub, "--bench", o->bench, "bench file (YAML)");
+  o->files.output(sub, "--out", o->out, "samples CSV to write")->required();
   sub->add_option("--seed", o->seed, "random seed")->capture_default_str();
   sub->add_option("--effect", o->effects, "injected effect NAME:key=value,... (repeatable)");
   sub->add_option("--extent-deg", o->grid.extent_deg, "largest offset, deg")->capture_default_str()->check(CLI::Range(0.0, 0.5));
@@ -27,7 +29,7 @@ void add_simulate(CLI::App& app, Runner& run) {
   sub->add_option("--samples-per-dwell", o->grid.samples_per_dwell, "samples per dwell")->capture_default_str()->check(CLI::Range(1, 100000));
   sub->callback([o, &run] {
     run = [o] {
-      check_output_path(o->out, {o->truth, o->bench});
+      o->files.check();
       BenchConfig cfg = o->bench.empty() ? default_bench_config() : load_bench_file(o->bench);
       if (!o->truth.empty()) cfg.truth = load_coefficients(o->truth);
       cfg.seed = o->seed;

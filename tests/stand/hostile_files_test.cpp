@@ -146,6 +146,25 @@ TEST_F(HostileFiles, AnOutputThatIsAnInputInAnySpellingIsRefusedAndKept) {
   r = run({"diagnose", "--model", model, "--data", data, "--out", path("gap.json"), "--report", model});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--report " + model + ": is the same file as the input"), std::string::npos) << r.err;
+  // --emit-bench is an output as the others are; so is the refitted transfer function it writes
+  // beside itself (NAME.coefficients.json), which must not be the model it was diagnosed against.
+  r = run({"diagnose", "--model", model, "--data", data, "--out", path("gap.json"), "--emit-bench", data});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--emit-bench " + data + ": is the same file as the input"), std::string::npos) << r.err;
+  const std::string model_coefficients = path("m.coefficients.json");
+  fs::copy_file(kGood, model_coefficients);
+  r = run({"diagnose", "--model", model_coefficients, "--data", data, "--out", path("gap.json"), "--emit-bench",
+           path("m.yaml")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--emit-bench " + model_coefficients + ": is the same file as the input"), std::string::npos)
+      << r.err;
+  EXPECT_EQ(test::read_file(model_coefficients), test::read_file(kGood));
+  // Two outputs naming one file, before either exists.
+  r = run({"diagnose", "--model", model, "--data", data, "--out", path("gap.json"), "--report", path("sub/../gap.json")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--report " + path("sub/../gap.json") + ": the same file as --out"), std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(path("gap.json")));
   r = run({"compare", model, "a-7-fpss1", "--plot", path("model.svg")});  // model.dat, model.gp: free
   EXPECT_EQ(r.code == 0 || r.code == 1, true) << r.err;                   // 1 only when gnuplot is missing
   r = run({"compare", data, "a-7-fpss1", "--plot", path("rec.svg")});     // rec.dat is free, but not an input...

@@ -1,0 +1,64 @@
+#include "stand/cli/file_options.h"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+
+#include "calib/errors.h"
+#include "calib/text_file.h"
+
+namespace fpss::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// The option's name as a user types it: "--out" of "--out,-o", "COEFFS" of a positional.
+std::string shown_name(const CLI::Option* opt) {
+  return opt->get_lnames().empty() ? opt->get_name() : "--" + opt->get_lnames().front();
+}
+
+// Two files that exist are the same by device and inode; one not written yet by its spelling with
+// links and ../ resolved.
+bool same_file(const fs::path& a, const fs::path& b) {
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec);
+  const auto spelt = [](const fs::path& p) {
+    std::error_code e;
+    const fs::path c = fs::weakly_canonical(p, e);
+    return e ? fs::absolute(p).lexically_normal() : c;
+  };
+  return spelt(a) == spelt(b);
+}
+
+}  // namespace
+
+CLI::Option* FileOptions::input(CLI::App* sub, const std::string& name, std::string& path, const std::string& help) {
+  CLI::Option* opt = sub->add_option(name, path, help);
+  inputs_.push_back({shown_name(opt), &path});
+  return opt;
+}
+
+CLI::Option* FileOptions::output(CLI::App* sub, const std::string& name, std::string& path, const std::string& help) {
+  CLI::Option* opt = sub->add_option(name, path, help);
+  outputs_.push_back({shown_name(opt), &path});
+  return opt;
+}
+
+void FileOptions::check() const {
+  std::vector<fs::path> read;
+  for (const auto& f : inputs_) read.emplace_back(*f.path);
+  for (size_t i = 0; i < outputs_.size(); ++i) {
+    const File& out = outputs_[i];
+    if (out.path->empty()) continue;
+    check_output_path(*out.path, read, out.option);
+    for (size_t k = 0; k < i; ++k) {
+      const File& before = outputs_[k];
+      if (!before.path->empty() && same_file(*out.path, *before.path)) {
+        throw InputError(fmt::format("{} {}: the same file as {}", out.option, *out.path, before.option));
+      }
+    }
+  }
+}
+
+}  // namespace fpss::cli

@@ -1,0 +1,30 @@
+// The files a sub-command reads and writes, declared with its options and checked together before it starts.
+#pragma once
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+namespace fpss::cli {
+
+// Each output is checked as calib/text_file.h's check_output_path checks one (its folder exists and
+// is writable; it is no input, however spelt), and no two outputs are the same file: a command that
+// names its files here cannot forget one of them in its checks.
+class FileOptions {
+ public:
+  // `path` is where the option's value goes; it must outlive check() (a field of the same options).
+  CLI::Option* input(CLI::App* sub, const std::string& name, std::string& path, const std::string& help);
+  CLI::Option* output(CLI::App* sub, const std::string& name, std::string& path, const std::string& help);
+
+  // InputError (exit 2) naming the option; outputs not given are skipped.
+  void check() const;
+
+ private:
+  struct File {
+    std::string option;
+    const std::string* path;
+  };
+  std::vector<File> inputs_, outputs_;
+};
+
+}  // namespace fpss::cli
