@@ -9,6 +9,10 @@ recorded step, phase labels sometimes wrong, optional columns sometimes absent. 
 catalogued ten plus effects outside the catalogue (encoder cyclic error, axis wobble, quadratic
 field distortion, vibration, sporadic outlier frames).
 
+It is one file (over 600 lines) on purpose: it is read whole against docs/diagnosis.md, and it
+imports only its own siblings (fpss_physics.py, benchsim_vary.py), so nothing of the emulator's can
+come in by a shared module.
+
     benchsim.py case --cls CLASS[+CLASS] --seed S --out DIR [--size normal|small]
         writes DIR/samples.csv, DIR/model.json (the sim's coefficient file, with
         expected_scatter_arcsec), DIR/truth.json (classes, parameters, settle_s)
