@@ -80,9 +80,11 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
   for (size_t i = 0; i < step.size(); ++i)
     if (std::isfinite(residual[i])) rows_of[step[i]].push_back(i);
 
+  // With reading ids the sigma comes from differences between readings (below), not from these.
+  const bool pooled = shared_reading.empty();
   std::vector<double> centre(residual.size(), NAN), deviations, tmp;
   std::vector<bool> edge(residual.size(), false);
-  deviations.reserve(residual.size());
+  if (pooled) deviations.reserve(residual.size());
   for (const auto& [id, rows] : rows_of) {
     if (static_cast<int>(rows.size()) < rule.min_step_frames) continue;
     if (rule.local_half_window > 0) {
@@ -121,7 +123,7 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
         const double m = median_of(tmp);
         const double f = h == 1 ? 0.462 : h == 2 ? 0.732 : h == 3 ? 0.817 : 1.0 - 0.183 * 3.0 / static_cast<double>(h);
         centre[rows[q]] = m;
-        deviations.push_back(std::fabs(residual[rows[q]] - m) / f);
+        if (pooled) deviations.push_back(std::fabs(residual[rows[q]] - m) / f);
       }
       continue;
     }
@@ -130,10 +132,10 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
     const double m = median_of(tmp);
     for (size_t i : rows) {
       centre[i] = m;
-      deviations.push_back(std::fabs(residual[i] - m));
+      if (pooled) deviations.push_back(std::fabs(residual[i] - m));
     }
   }
-  if (!shared_reading.empty()) deviations = reading_differences(residual, rows_of, rule, shared_reading);
+  if (!pooled) deviations = reading_differences(residual, rows_of, rule, shared_reading);
   if (deviations.empty()) return out;
   out.robust_sigma = std::max(1.4826 * median_of(deviations), rule.min_sigma);
   if (!(out.robust_sigma > 0)) return out;
