@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <utility>
 
 #include "calib/text_file.h"
 #include "stand/catalogue/catalogue.h"
@@ -16,7 +17,6 @@ namespace fpss::console {
 namespace fs = std::filesystem;
 
 namespace {
-
 
 RunRef ref_of(const RunRecord& r) {
   RunRef x;
@@ -64,7 +64,7 @@ std::vector<RunRef> live_runs(const fs::path& runs_dir, const std::string& catal
   RunFilter f;
   f.limit = 50;
   for (const auto& r : cat->list_runs(f)) {
-    if (r.outcome == "running" && run_alive(r.run_dir, r.pid)) out.push_back(ref_of(r));
+    if (RunRef x = ref_of(r); x.live) out.push_back(std::move(x));
   }
   return out;
 }
