@@ -1,9 +1,6 @@
 // fpss-stand diagnose (sim-to-real gap: which unmodelled effect, where, how far it shrinks) and
 // fpss-stand blindtest (the diagnosis against random effects on the simulated bench).
-#include <fmt/format.h>
-
 #include <cstdio>
-#include <filesystem>
 
 #include "calib/coefficients.h"
 #include "calib/diagnosis.h"
@@ -16,7 +13,6 @@
 #include "stand/report/diagnosis_page.h"
 
 namespace fpss::cli {
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -40,7 +36,8 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   f.output(sub, "--report", o->report, "GAP.html: residuals against every factor before/after, residual map");
   f.output(sub, "--emit-bench", o->emit_bench,
            "write an emulator bench file: the model as truth, the diagnosed causes as effects (a refitted transfer "
-           "function goes next to it, as NAME.coefficients.json)");
+           "function goes next to it, as NAME.coefficients.json)",
+           emitted_coefficients_path);
   sub->add_option("--settle-s", o->d.settle_s,
                   "time from a dwell's arrival to its first sample, when no time_since_move_s column says it")
       ->default_val(0.0);
@@ -50,9 +47,6 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   sub->callback([o, &run] {
     run = [o] {
       o->files.check();
-      if (!o->emit_bench.empty()) {
-        check_output_path(emitted_coefficients_path(o->emit_bench), {o->model, o->data}, "--emit-bench");
-      }
       const CoefficientSet model = load_coefficients(o->model);
       // Straight into the columns the diagnosis reads (no whole table of every column in memory).
       DiagnosisFigures figures;

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <filesystem>
+#include <utility>
 
 #include "calib/errors.h"
 #include "calib/text_file.h"
@@ -39,23 +40,29 @@ CLI::Option* FileOptions::input(CLI::App* sub, const std::string& name, std::str
   return opt;
 }
 
-CLI::Option* FileOptions::output(CLI::App* sub, const std::string& name, std::string& path, const std::string& help) {
+CLI::Option* FileOptions::output(CLI::App* sub, const std::string& name, std::string& path, const std::string& help,
+                                 Beside beside) {
   CLI::Option* opt = sub->add_option(name, path, help);
-  outputs_.push_back({shown_name(opt), &path});
+  outputs_.push_back({shown_name(opt), &path, std::move(beside)});
   return opt;
 }
 
 void FileOptions::check() const {
   std::vector<fs::path> read;
   for (const auto& f : inputs_) read.emplace_back(*f.path);
-  for (size_t i = 0; i < outputs_.size(); ++i) {
-    const File& out = outputs_[i];
-    if (out.path->empty()) continue;
-    check_output_path(*out.path, read, out.option);
+  // Every file the given outputs write, with the option that names it.
+  std::vector<std::pair<std::string, fs::path>> written;
+  for (const auto& f : outputs_) {
+    if (f.path->empty()) continue;
+    written.emplace_back(f.option, *f.path);
+    if (f.beside) written.emplace_back(f.option, f.beside(*f.path));
+  }
+  for (size_t i = 0; i < written.size(); ++i) {
+    const auto& [option, path] = written[i];
+    check_output_path(path, read, option);
     for (size_t k = 0; k < i; ++k) {
-      const File& before = outputs_[k];
-      if (!before.path->empty() && same_file(*out.path, *before.path)) {
-        throw InputError(fmt::format("{} {}: the same file as {}", out.option, *out.path, before.option));
+      if (same_file(path, written[k].second)) {
+        throw InputError(fmt::format("{} {}: the same file as {}", option, path.string(), written[k].first));
       }
     }
   }

@@ -1,5 +1,7 @@
 // The files a sub-command reads and writes, declared with its options and checked together before it starts.
 #pragma once
+#include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -14,7 +16,11 @@ class FileOptions {
  public:
   // `path` is where the option's value goes; it must outlive check() (a field of the same options).
   CLI::Option* input(CLI::App* sub, const std::string& name, std::string& path, const std::string& help);
-  CLI::Option* output(CLI::App* sub, const std::string& name, std::string& path, const std::string& help);
+  // `beside`, when the output may bring a second file named after it (diagnose --emit-bench's
+  // refitted transfer function): that file is checked as an output of the same option.
+  using Beside = std::function<std::filesystem::path(const std::string& path)>;
+  CLI::Option* output(CLI::App* sub, const std::string& name, std::string& path, const std::string& help,
+                      Beside beside = {});
 
   // InputError (exit 2) naming the option; outputs not given are skipped.
   void check() const;
@@ -23,6 +29,7 @@ class FileOptions {
   struct File {
     std::string option;
     const std::string* path;
+    Beside beside;
   };
   std::vector<File> inputs_, outputs_;
 };

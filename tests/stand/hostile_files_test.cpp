@@ -159,6 +159,12 @@ TEST_F(HostileFiles, AnOutputThatIsAnInputInAnySpellingIsRefusedAndKept) {
   EXPECT_NE(r.err.find("--emit-bench " + model_coefficients + ": is the same file as the input"), std::string::npos)
       << r.err;
   EXPECT_EQ(test::read_file(model_coefficients), test::read_file(kGood));
+  // ...nor another output of the same command.
+  r = run({"diagnose", "--model", model, "--data", data, "--out", path("n.coefficients.json"), "--emit-bench",
+           path("n.yaml")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--emit-bench " + path("n.coefficients.json") + ": the same file as --out"), std::string::npos)
+      << r.err;
   // Two outputs naming one file, before either exists.
   r = run({"diagnose", "--model", model, "--data", data, "--out", path("gap.json"), "--report", path("sub/../gap.json")});
   EXPECT_EQ(r.code, 2);
