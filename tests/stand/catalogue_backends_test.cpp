@@ -17,6 +17,7 @@
 
 #include "calib/coefficients.h"
 #include "calib/errors.h"
+#include "calib/unique_fd.h"
 #include "stand/catalogue/copy.h"
 #include "stand/catalogue/postgres_catalogue.h"
 #include "stand/catalogue/schema.h"
@@ -388,12 +389,12 @@ TEST(RunRecord, IsStaleWhenNoProcessHoldsItsFoldersLockWhateverHasItsPid) {
   test::write_file(dir.path() / ".lock", "");
   EXPECT_EQ(run_folder_owned(dir.path()), false);
   EXPECT_TRUE(r.stale());
-  const int fd = ::open((dir.path() / ".lock").c_str(), O_RDWR | O_CLOEXEC);
-  ASSERT_GE(fd, 0);
-  ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0);
+  UniqueFd fd(::open((dir.path() / ".lock").c_str(), O_RDWR | O_CLOEXEC));
+  ASSERT_TRUE(fd);
+  ASSERT_EQ(::flock(fd.get(), LOCK_EX | LOCK_NB), 0);
   EXPECT_EQ(run_folder_owned(dir.path()), true);
   EXPECT_FALSE(r.stale());
-  ::close(fd);  // the owner gone, however: the kernel drops its lock
+  fd.reset();  // the owner gone, however: the kernel drops its lock
   EXPECT_TRUE(r.stale());
 }
 

@@ -14,6 +14,7 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include "calib/unique_fd.h"
 #include "stand/catalogue/sqlite_catalogue.h"
 #include "stand/console/run_files.h"
 #include "tests/stand/catalogue_fixtures.h"
@@ -326,12 +327,11 @@ TEST(Console, ARunIsLiveWhileItsProcessHoldsItsFolderNotItsPid) {
   cat.record_run_start(rs);  // `running`, with this (live) process's pid
   EXPECT_TRUE(console::live_runs(runs, "").empty());
   EXPECT_FALSE(console::find_run(runs, "", "killed")->live);
-  const int fd = ::open((dir / ".lock").c_str(), O_RDWR | O_CLOEXEC);
-  ASSERT_GE(fd, 0);
-  ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0);
+  const UniqueFd fd(::open((dir / ".lock").c_str(), O_RDWR | O_CLOEXEC));
+  ASSERT_TRUE(fd);
+  ASSERT_EQ(::flock(fd.get(), LOCK_EX | LOCK_NB), 0);
   EXPECT_EQ(console::live_runs(runs, "").size(), 1u);
   EXPECT_TRUE(console::find_run(runs, "", "killed")->live);
-  ::close(fd);
 }
 
 }  // namespace
