@@ -144,10 +144,13 @@ class Browser:
         Select(d.find_element(By.ID, "start-kind")).select_by_value(kind)
         if procedure:
             Select(d.find_element(By.ID, "start-procedure")).select_by_visible_text(procedure)
-        d.find_element(By.ID, "start-unit").send_keys(unit)
-        d.find_element(By.ID, "start-operator").send_keys(operator)
+        for field, value in (("start-unit", unit), ("start-operator", operator)):
+            d.find_element(By.ID, field).clear()
+            d.find_element(By.ID, field).send_keys(value)
+        before = self.text("start-message")  # an earlier submission's "queued job N"
         self.click("start-submit")
-        m = wait_for("the job queued", lambda: re.search(r"queued job (\d+)", self.text("start-message")))
+        m = wait_for("the job queued", lambda: self.text("start-message") != before
+                     and re.search(r"queued job (\d+)", self.text("start-message")))
         return int(m.group(1))
 
     def watch(self, job):

@@ -86,6 +86,8 @@ $('start-form').onsubmit = async (ev) => {
   ev.preventDefault();
   const kind = $('start-kind').value;
   const body = { kind, procedure: kind === 'run' ? $('start-procedure').value : '', unit: $('start-unit').value, operator: $('start-operator').value };
+  // The last submission's answer would otherwise stand until this one's comes, naming the wrong job.
+  $('start-message').textContent = 'queuing...';
   try {
     const j = await api('POST', '/api/jobs', body);
     $('start-message').textContent = 'queued job ' + j.id;
