@@ -461,9 +461,10 @@ CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const Calib
   rep.source = source;
   rep.unit = opts.unit;
   rep.samples = samples;
+  rep.outliers.applied = opts.reject_outliers;
   for (const auto& d : dwells) {
     (d.phase == Phase::null ? rep.null_dwells : rep.offset_dwells)++;
-    rep.outlier_frames += d.outliers;
+    rep.outliers.add(d);
   }
   if (dwells.empty()) {
     throw DataError(fmt::format("{}: no null or offset rows: nothing to calibrate (slew and move rows are not used)", src));
@@ -500,49 +501,15 @@ CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const Calib
   return rep;
 }
 
-namespace {
-
-std::vector<bool> flag_count_outliers(const SampleTable& t, double floor_counts) {
-  std::vector<bool> out(t.size(), false);
-  OutlierRule rule;
-  rule.min_sigma = floor_counts;
-  std::vector<double> v(t.size());
-  for (const auto* col : {&t.counts_alpha, &t.counts_beta}) {
-    for (size_t i = 0; i < t.size(); ++i) {
-      const bool dwell = t.phase[i] == Phase::null || t.phase[i] == Phase::offset;
-      v[i] = dwell ? (*col)[i] : std::numeric_limits<double>::quiet_NaN();
-    }
-    const OutlierFlags f = flag_outliers(v, t.step, rule);
-    for (size_t i = 0; i < t.size(); ++i) out[i] = out[i] || f.outlier[i];
-  }
-  return out;
-}
-
-}  // namespace
-
-std::vector<bool> outlier_rows(const SampleTable& t, const CalibrationOptions& opts) {
-  // The floor under the robust sigma: the rounded noise, sqrt(1/12 + s^2). With whole counts and
-  // little noise the pooled MAD is zero, and the rounding's scatter alone (1/sqrt(12)) would flag
-  // ordinary 2-count excursions at 0.3 counts of noise. Unknown noise: a first pass with that
-  // floor keeps gross spikes out of the within-dwell scatter the noise is estimated from.
-  std::optional<double> s = opts.count_noise_counts;
-  if (!s) {
-    const auto first = flag_count_outliers(t, std::sqrt(1.0 / 12.0));
-    std::vector<CountScatter> sc;
-    for (const Dwell& d : average_dwells(t, first)) {
-      if (d.samples < 2 || !d.whole_counts_alpha || !d.whole_counts_beta) continue;
-      sc.push_back({d.counts_alpha, d.sd_counts_alpha * d.sd_counts_alpha, d.samples});
-      sc.push_back({d.counts_beta, d.sd_counts_beta * d.sd_counts_beta, d.samples});
-    }
-    s = estimate_count_noise(sc.data(), sc.size());
-    if (!s) return first;
-  }
-  return flag_count_outliers(t, std::sqrt(1.0 / 12.0 + *s * *s));
+CalibrationReport calibrate(const Reduction& reduced, const CalibrationOptions& opts, const std::string& source,
+                            size_t samples) {
+  CalibrationReport rep = calibrate_dwells(reduced.dwells, opts, source, samples);
+  rep.outliers = reduced.outliers;
+  return rep;
 }
 
 CalibrationReport calibrate(const SampleTable& samples, const CalibrationOptions& opts) {
-  if (!opts.reject_outliers) return calibrate_dwells(average_dwells(samples), opts, samples.origin, samples.size());
-  return calibrate_dwells(average_dwells(samples, outlier_rows(samples, opts)), opts, samples.origin, samples.size());
+  return calibrate(reduce(samples, opts.reduction()), opts, samples.origin, samples.size());
 }
 
 double AxisFit::listed_sigma_max_arcsec() const {

@@ -10,6 +10,7 @@
 
 #include "calib/coefficients.h"
 #include "calib/dwells.h"
+#include "calib/reduction.h"
 #include "calib/residuals.h"
 #include "calib/samples.h"
 #include "calib/varpro.h"
@@ -59,6 +60,9 @@ struct CalibrationOptions {
   // axis; unset: the range the data cover. A streaming fit asks over the range a run will cover,
   // so that a sigma from the points so far is not small only because their range is.
   std::optional<std::array<double, 2>> sigma_range_pitch_arcsec, sigma_range_yaw_arcsec;
+
+  // The reduction's options these imply (the outlier rule and its noise).
+  ReductionOptions reduction() const { return {reject_outliers, count_noise_counts, count_noise_source}; }
 };
 
 // Table 1 of the paper: residuals of one axis's fit, arcsec.
@@ -133,7 +137,7 @@ struct CalibrationReport {
   std::string source;  // the samples file
   std::string unit;
   size_t samples = 0, null_dwells = 0, offset_dwells = 0, pairs = 0;
-  size_t outlier_frames = 0;  // frames left out of the dwell means (calib/outliers.h)
+  OutlierSummary outliers;  // frames the reduction left out of the dwell means, per axis, and its rule
   AxisFit pitch, yaw;  // pitch from counts_alpha (alpha), yaw from counts_beta (beta)
 
   // The fitted set in the coefficient-file format, with residuals, uncertainties, method,
@@ -144,9 +148,10 @@ struct CalibrationReport {
 // Throws DataError when the recording cannot determine a transfer function (naming what is
 // missing), std::runtime_error when the solver fails.
 CalibrationReport calibrate(const SampleTable& samples, const CalibrationOptions& opts = {});
-// Outlier frames of a table's null/offset rows (either axis's counts), by calib/outliers.h's rule
-// with the rounding's scatter (or the given count noise) as the floor under the robust sigma.
-std::vector<bool> outlier_rows(const SampleTable& samples, const CalibrationOptions& opts = {});
+// The fit of an existing reduction (its dwells and outlier counts).
+CalibrationReport calibrate(const Reduction& reduced, const CalibrationOptions& opts, const std::string& source,
+                            size_t samples);
+// The fit of dwells; `outliers` counts what the dwells say and leaves the rule's noise unset.
 CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const CalibrationOptions& opts,
                                    const std::string& source = {}, size_t samples = 0);
 

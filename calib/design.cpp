@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "calib/quantisation.h"
+#include "calib/residuals.h"
 #include "calib/units.h"
 
 namespace fpss {
@@ -17,7 +18,7 @@ namespace {
 
 using Vec8 = Eigen::Matrix<double, 8, 1>;
 using Mat8 = Eigen::Matrix<double, 8, 8>;
-constexpr double kScale = 16384.0;  // counts over half the field, as the fit scales them
+constexpr double kScale = fit::kCountScale;  // the fit's one count scale (calib/residuals.h)
 constexpr int kSigmaAngles = 41;
 
 // d angle(n) / d(u1..u7, level), arcsec per scaled unit (the fit's scaled coefficients, C1 as a level).

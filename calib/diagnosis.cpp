@@ -388,6 +388,9 @@ void Diagnoser::locate() {
   d.outliers = static_cast<int64_t>(r.outliers);
   d.outlier_fraction = static_cast<double>(r.outliers) / static_cast<double>(r.n);
   d.outlier_steps = r.outlier_steps;
+  d.outliers_pitch = static_cast<int64_t>(r.outliers_axis[0]);
+  d.outliers_yaw = static_cast<int64_t>(r.outliers_axis[1]);
+  d.frames = static_cast<int64_t>(r.n);
   for (auto& e : d.effects) e.detection_limit = detection_limit(r, e, d.noise_floor_arcsec, N);
   decide_verdict(r, d, flexible);
 }
@@ -504,7 +507,11 @@ ojson Diagnosis::to_json() const {
     j["expected_scatter_arcsec"] = expected_scatter_arcsec;
     j["excess_scatter"] = std::isfinite(excess_scatter()) ? ojson(excess_scatter()) : ojson();
   }
-  j["outliers"] = {{"count", outliers}, {"fraction", outlier_fraction}, {"step_ids", outlier_steps},
+  const auto share = [this](int64_t k) { return frames > 0 ? static_cast<double>(k) / static_cast<double>(frames) : 0.0; };
+  j["outliers"] = {{"count", outliers}, {"fraction", outlier_fraction}, {"frames", frames},
+                   {"pitch", {{"outlier_frames", outliers_pitch}, {"share", share(outliers_pitch)}}},
+                   {"yaw", {{"outlier_frames", outliers_yaw}, {"share", share(outliers_yaw)}}},
+                   {"step_ids", outlier_steps},
                    {"rule", "more than 6 robust sigmas from the median of the frame and up to 3 neighbours on each side in its step, either axis "
                             "(calib/outliers.h); kept out of every fit and score"}};
   j["split"] = split;

@@ -109,6 +109,8 @@ struct Diagnosis {
   // Isolated frames far from their step's robust estimate, kept out of every fit.
   int64_t outliers = 0;
   double outlier_fraction = 0;
+  int64_t outliers_pitch = 0, outliers_yaw = 0;  // flagged on that axis (a frame may be on both)
+  int64_t frames = 0;                            // rows the fractions are of
   std::vector<int64_t> outlier_steps;
 
   bool incomplete_recording() const;

@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "calib/diagnosis_model.h"
+#include "calib/residuals.h"
 #include "calib/units.h"
 
 namespace fpss::diag {
@@ -21,7 +22,7 @@ using ojson = nlohmann::ordered_json;
 // ------------------------------------------------------------------ coefficients
 // The sensor's transfer function differs from the model's: eq. 1 refitted per axis to what the
 // residual says the angle at each count is. Scaled parameters keep the Jacobian balanced.
-constexpr double kS = 16384.0;  // counts over half the field
+constexpr double kS = fit::kCountScale;  // the fit's one count scale (calib/residuals.h)
 
 // The sinusoid frequencies the refit searches, rad/count: the published sets' span (1.0e-4 ..
 // 5.5e-4 in the trustworthy ones) and more.

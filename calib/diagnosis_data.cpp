@@ -124,7 +124,11 @@ void flag_outlier_frames(Recording& r, const CoefficientSet& model, const Diagno
     }
     for (int a = 0; a < 2; ++a) {
       const OutlierFlags f = flag_outliers(r.res[a], ids, rule, r.shared_reading);
-      for (size_t i = 0; i < n; ++i) if (f.outlier[i] && judged[i]) r.outlier[i] = true;
+      for (size_t i = 0; i < n; ++i) {
+        if (!f.outlier[i] || !judged[i]) continue;
+        r.outlier[i] = true;
+        ++r.outliers_axis[a];
+      }
     }
     for (size_t i = 0; i < n; ++i) {
       if (!r.outlier[i]) continue;

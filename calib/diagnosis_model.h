@@ -53,6 +53,7 @@ struct Recording {
   std::vector<bool> shared_reading;
   std::vector<bool> turning;  // the two rows around a reversal inside a step (left out)
   size_t outliers = 0;
+  size_t outliers_axis[2] = {0, 0};  // frames flagged on pitch (alpha), on yaw (beta)
   std::vector<int64_t> outlier_steps;
   double expected_scatter = std::numeric_limits<double>::quiet_NaN();  // model file's, arcsec
   std::vector<uint32_t> fit_rows, heldout_rows;

@@ -8,7 +8,7 @@
 
 namespace fpss {
 
-std::optional<Dwell> DwellBuilder::add(const Sample& s, bool outlier) {
+std::optional<Dwell> DwellBuilder::add(const Sample& s, OutlierAxes outlier) {
   if (s.phase != Phase::null && s.phase != Phase::offset) return std::nullopt;
   std::optional<Dwell> done;
   if (open_ && s.step != step_) done = close();
@@ -26,8 +26,10 @@ std::optional<Dwell> DwellBuilder::add(const Sample& s, bool outlier) {
         origin_.empty() ? "samples" : origin_, s.step));
   }
   sums_.t1 = s.time_s;
-  if (outlier) {
+  if (outlier.any()) {
     ++sums_.skipped;
+    sums_.skipped_axis[0] += outlier.alpha ? 1 : 0;
+    sums_.skipped_axis[1] += outlier.beta ? 1 : 0;
     return done;
   }
   if (!sums_.origin_set) {
@@ -41,6 +43,10 @@ std::optional<Dwell> DwellBuilder::add(const Sample& s, bool outlier) {
     sums_.s[i] += d;
     sums_.ss[i] += d * d;
   }
+  const double t = s.time_s - sums_.t0;
+  sums_.st += t;
+  sums_.stt += t * t;
+  for (int i = 0; i < 2; ++i) sums_.stv[i] += t * (v[i] - sums_.o[i]);
   add_reference(v + 2);
   return done;
 }
@@ -62,6 +68,18 @@ void DwellBuilder::add_reference(const double* ref) {
     sums_.rss[i] += d * d;
     sums_.last_ref[i] = ref[i];
   }
+}
+
+double DwellBuilder::detrended_sd(int axis, double plain_sd) const {
+  const double n = sums_.n;
+  if (n < 3) return plain_sd;
+  // Residual sum of squares of the least-squares line: Svv - Stv^2 / Stt, about the means.
+  const double tm = sums_.st / n, vm = sums_.s[axis] / n;
+  const double stt = sums_.stt - n * tm * tm;
+  const double stv = sums_.stv[axis] - n * tm * vm;
+  const double svv = sums_.ss[axis] - n * vm * vm;
+  const double rss = stt > 0 ? svv - stv * stv / stt : svv;
+  return std::sqrt(std::max(0.0, rss / (n - 2)));
 }
 
 std::optional<Dwell> DwellBuilder::flush() { return open_ ? close() : std::nullopt; }
@@ -100,6 +118,10 @@ std::optional<Dwell> DwellBuilder::close() {
   d.whole_counts_alpha = sums_.whole[0];
   d.whole_counts_beta = sums_.whole[1];
   d.outliers = sums_.skipped;
+  d.outliers_alpha = sums_.skipped_axis[0];
+  d.outliers_beta = sums_.skipped_axis[1];
+  d.sd_detrended_counts_alpha = detrended_sd(0, sd[0]);
+  d.sd_detrended_counts_beta = detrended_sd(1, sd[1]);
   return d;
 }
 
@@ -127,11 +149,11 @@ std::vector<Dwell> average_dwells(const SampleTable& t) {
   return out;
 }
 
-std::vector<Dwell> average_dwells(const SampleTable& t, const std::vector<bool>& skip) {
+std::vector<Dwell> average_dwells(const SampleTable& t, const std::vector<OutlierAxes>& skip) {
   std::vector<Dwell> out;
   DwellBuilder b(t.origin);
   for (size_t i = 0; i < t.size(); ++i) {
-    if (auto d = b.add(t.row(i), i < skip.size() && skip[i])) out.push_back(*d);
+    if (auto d = b.add(t.row(i), i < skip.size() ? skip[i] : OutlierAxes{})) out.push_back(*d);
   }
   if (auto d = b.flush()) out.push_back(*d);
   return out;

@@ -10,6 +10,13 @@
 
 namespace fpss {
 
+// Which axes' counts the outlier rule rejected in one frame (calib/reduction.h). A frame rejected
+// on either axis stays out of both axes' means (a glitch corrupts the frame, not one number).
+struct OutlierAxes {
+  bool alpha = false, beta = false;
+  bool any() const { return alpha || beta; }
+};
+
 // The mean of the null/offset rows of one step. Scatter is the sample standard deviation
 // (0 for a single sample): it tells how well the mean is known, not how good the fit is.
 struct Dwell {
@@ -20,6 +27,9 @@ struct Dwell {
   double counts_alpha = 0, counts_beta = 0;
   double ref_pitch_arcsec = 0, ref_yaw_arcsec = 0;
   double sd_counts_alpha = 0, sd_counts_beta = 0;
+  // The counts' scatter about a straight line in time (n - 2 degrees of freedom; the plain scatter
+  // below 3 frames): the noise at rest with a slow drift through the dwell removed (jitter).
+  double sd_detrended_counts_alpha = 0, sd_detrended_counts_beta = 0;
   // The reference's scatter over the dwell's encoder readings (not its frames: frames that share
   // one reading repeat its value, calib/dwells.cpp) and how many independent readings its mean is
   // worth, n^2 / sum of m^2 over readings shared by m frames: `samples` when each frame has its own.
@@ -29,7 +39,9 @@ struct Dwell {
   // Every frame's counts were whole numbers (the sensor's own output, not averaged upstream):
   // the quantisation correction applies.
   bool whole_counts_alpha = true, whole_counts_beta = true;
-  size_t outliers = 0;  // frames left out of the means (calib/outliers.h)
+  size_t outliers = 0;  // frames left out of the means (calib/outliers.h): rejected on either axis
+  size_t outliers_alpha = 0, outliers_beta = 0;  // ... rejected on that axis's counts
+  size_t frames() const { return samples + outliers; }  // every frame of the step
 };
 
 // One change the differences method fits: from the null dwell to the offset dwell
@@ -45,9 +57,9 @@ class DwellBuilder {
  public:
   explicit DwellBuilder(std::string origin = {}) : origin_(std::move(origin)) {}
   // Returns the dwell that the previous step completed, when this row starts a new one.
-  // An `outlier` row opens and closes steps like any other but stays out of the dwell's means
-  // (counted in Dwell::outliers).
-  std::optional<Dwell> add(const Sample& s, bool outlier = false);
+  // A row rejected on either axis opens and closes steps like any other but stays out of the
+  // dwell's means (counted in Dwell::outliers and per axis).
+  std::optional<Dwell> add(const Sample& s, OutlierAxes outlier = {});
   // The dwell still open (end of data).
   std::optional<Dwell> flush();
 
@@ -58,14 +70,16 @@ class DwellBuilder {
     // references over frames (the means), the references again over readings (their scatter).
     double o[4] = {0, 0, 0, 0}, s[4] = {0, 0, 0, 0}, ss[4] = {0, 0, 0, 0};
     double rs[2] = {0, 0}, rss[2] = {0, 0};
+    double st = 0, stt = 0, stv[2] = {0, 0};  // time (from t0) against the counts: the detrended scatter
     double readings = 0, run = 0, run_ss = 0;  // readings, frames on the current one, sum of runs^2
     double last_ref[2] = {0, 0};
     bool whole[2] = {true, true};
-    size_t skipped = 0;
+    size_t skipped = 0, skipped_axis[2] = {0, 0};
     bool origin_set = false;
   };
   void add_reference(const double* ref);
   std::optional<Dwell> close();
+  double detrended_sd(int axis, double plain_sd) const;
   std::string origin_;
   bool open_ = false;
   int64_t step_ = 0;
@@ -86,9 +100,10 @@ class DwellPairer {
   std::vector<size_t> waiting_offsets_;  // offsets since the last null, paired when the next null comes
 };
 
+// Every row kept (no outlier rule); calib/reduction.h's reduce() is the recording's reduction.
 std::vector<Dwell> average_dwells(const SampleTable& t);
-// The same, leaving out the rows flagged in `skip` (one flag per row; each dwell counts its own).
-std::vector<Dwell> average_dwells(const SampleTable& t, const std::vector<bool>& skip);
+// The same, leaving out the rows flagged in `skip` (one entry per row; each dwell counts its own).
+std::vector<Dwell> average_dwells(const SampleTable& t, const std::vector<OutlierAxes>& skip);
 std::vector<DwellPair> pair_dwells(const std::vector<Dwell>& dwells);
 
 }  // namespace fpss

@@ -88,7 +88,8 @@ CoefficientSet CalibrationReport::coefficients() const {
   s.extra["method"] = std::string(to_string(method));
   s.extra["source"] = source;
   s.extra["samples"] = samples;
-  s.extra["dwells"] = {{"null", null_dwells}, {"offset", offset_dwells}, {"pairs", pairs}, {"outlier_frames", outlier_frames}};
+  s.extra["dwells"] = {{"null", null_dwells}, {"offset", offset_dwells}, {"pairs", pairs}, {"outlier_frames", outliers.any.outlier_frames}};
+  s.extra["outliers"] = outliers.to_json();
   s.extra["residuals"] = residuals_json(*this);
   s.extra["uncertainties"] = uncertainties_json(*this);
   s.extra["solver"] = solver_json(*this);
@@ -130,7 +131,13 @@ std::string summary_text(const CalibrationReport& r) {
                      a->noise.ref_noise_arcsec, a->reduced_chi2, a->chi2_dof,
                      a->model_remainder ? fmt::format(": MODEL REMAINDER, sigmas scaled by {:.2f}", a->sigma_scale) : "");
   }
-  if (r.outlier_frames > 0) o += fmt::format("{} outlier frames left out of the dwell means\n", r.outlier_frames);
+  if (r.outliers.any.outlier_frames > 0) {
+    const auto& u = r.outliers;
+    o += fmt::format("{} of {} frames ({:.2f} %) were outliers, left out of the dwell means: pitch {} ({:.2f} %), "
+                     "yaw {} ({:.2f} %)\n",
+                     u.any.outlier_frames, u.frames, 100 * u.any.share(u.frames), u.alpha.outlier_frames,
+                     100 * u.alpha.share(u.frames), u.beta.outlier_frames, 100 * u.beta.share(u.frames));
+  }
   for (const AxisFit* a : {&r.pitch, &r.yaw}) {
     o += fmt::format("{}: start {} (best of {}); {}\n", a->axis, a->solver.start, a->solver.candidates,
                      a->solver.brief);

@@ -41,7 +41,7 @@ void StreamingCalibrator::add_dwell(const Dwell& d) {
 void StreamingCalibrator::take_dwell(const Dwell& d) {
   const size_t index = first_recent_ + recent_.size();
   if (d.phase == Phase::offset) ++offset_dwells_;
-  outlier_frames_ += d.outliers;
+  outliers_.add(d);
   recent_.push_back(d);
   for (const auto& p : pairer_.add(d)) {
     add_pair(recent_[p.null_index - first_recent_], recent_[p.offset_index - first_recent_]);
@@ -107,7 +107,8 @@ CalibrationReport StreamingCalibrator::fit_so_far(const CalibrationOptions& opts
   rep.null_dwells = null_dwells_;
   rep.offset_dwells = offset_dwells_;
   rep.pairs = pairs();
-  rep.outlier_frames = outlier_frames_;
+  rep.outliers = outliers_;
+  rep.outliers.applied = opts.reject_outliers;
   fit::check_axis(pitch_, fit::Axis::alpha, source_);
   fit::check_axis(yaw_, fit::Axis::beta, source_);
   rep.pitch = fit::fit_axis(pitch_, gram_pitch_, fit::Axis::alpha, opts);
@@ -197,10 +198,12 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
     if (any) close();
   }
   auto outlier = [&](const Sample& s, size_t k) {
-    if (!opts.reject_outliers) return false;
+    if (!opts.reject_outliers) return OutlierAxes{};
     const auto m = medians[k];
-    return screen[0].is_outlier(s.counts_alpha, m[0]) || screen[1].is_outlier(s.counts_beta, m[1]);
+    return OutlierAxes{screen[0].is_outlier(s.counts_alpha, m[0]), screen[1].is_outlier(s.counts_beta, m[1])};
   };
+  std::optional<double> rule_noise = opts.count_noise_counts;
+  std::string rule_noise_source = opts.count_noise_source;
   // Pass 2 (noise not given): the within-dwell scatter without the gross spikes, for the floor.
   if (opts.reject_outliers) {
     std::optional<double> noise = opts.count_noise_counts;
@@ -217,6 +220,8 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
       });
       if (auto d = b.flush()) take(*d);
       noise = est.estimate();
+      rule_noise = noise;
+      rule_noise_source = noise ? "within-dwell scatter" : "unknown";
     }
     if (noise) {
       for (auto& sc : screen) sc.set_min_sigma(std::sqrt(1.0 / 12.0 + *noise * *noise));
@@ -233,7 +238,12 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
   cal.set_samples(rows);
   // Nothing to pair (no nulls, no offsets, no dwells): the batch calibrator says what is missing.
   if (cal.pairs() == 0) return calibrate(read_samples_csv(path), opts);
-  return cal.finish();
+  CalibrationReport rep = cal.finish();
+  if (opts.reject_outliers) {
+    rep.outliers.count_noise_counts = rule_noise;
+    rep.outliers.count_noise_source = rule_noise_source;
+  }
+  return rep;
 }
 
 }  // namespace fpss

@@ -63,7 +63,8 @@ class StreamingCalibrator {
   DwellPairer pairer_;
   std::vector<Dwell> recent_;  // dwells the pairer may still refer to, by index
   size_t first_recent_ = 0;  // pairer index of recent_[0]
-  size_t samples_ = 0, null_dwells_ = 0, offset_dwells_ = 0, outlier_frames_ = 0;
+  size_t samples_ = 0, null_dwells_ = 0, offset_dwells_ = 0;
+  OutlierSummary outliers_;
   fit::AxisData pitch_, yaw_;
   fit::FrequencyGram gram_pitch_, gram_yaw_;
 };

@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 
 #include "calib/compare.h"
 #include "calib/errors.h"
+#include "calib/outliers.h"
 #include "calib/text_file.h"
 #include "calib/units.h"
 #include "stand/report/report.h"
@@ -43,6 +45,11 @@ constexpr LimitField kFloorLimits[] = {
     {"verified_extent_deg", &AcceptanceLimits::verified_extent_deg},
     {"verification_points_min", &AcceptanceLimits::verification_points_min},
     {"sun_present_fraction", &AcceptanceLimits::sun_present_fraction},
+};
+
+// A share of the frames that may be bad: 0 allows none, so each may be >= 0.
+constexpr LimitField kShareLimits[] = {
+    {"outlier_frames_fraction", &AcceptanceLimits::outlier_frames_fraction},
 };
 
 // One limit's {value, source}: every limit must be given, and its source must say something.
@@ -92,6 +99,7 @@ AcceptanceLimits parse_acceptance_limits(const std::string& text, const std::str
     MapReader lr(limits, "limits", d);
     for (const auto& f : kPositiveLimits) read_limit(lr, f, true, out, d);
     for (const auto& f : kFloorLimits) read_limit(lr, f, false, out, d);
+    for (const auto& f : kShareLimits) read_limit(lr, f, false, out, d);
     lr.finish();
     if (out.sun_present_fraction.value > 1.0) {
       d.error(limits["sun_present_fraction"], "limits.sun_present_fraction: value is a fraction, at most 1");
@@ -163,7 +171,8 @@ struct DwellStats {
   int64_t step = 0;
   PointRole role = PointRole::calibration;
   Phase phase = Phase::null;
-  size_t frames = 0;
+  size_t frames = 0;          // the frames the reduction kept
+  size_t outliers[2] = {0, 0};  // frames it left out on each axis
   double ref[2] = {0, 0};
   double mean[2] = {0, 0};    // calibrated angle, arcsec
   double sd[2] = {0, 0};      // SD over frames
@@ -175,70 +184,34 @@ struct DwellStats {
 
 double sq(double x) { return x * x; }
 
-// Mean and SD of v, and the SD about a straight line in t (the dwell's drift removed).
-void moments(const std::vector<double>& t, const std::vector<double>& v, double& mean, double& sd, double& sd_lin) {
-  const size_t n = v.size();
-  mean = 0;
-  for (double x : v) mean += x;
-  mean /= static_cast<double>(n);
-  double ss = 0;
-  for (double x : v) ss += sq(x - mean);
-  sd = n > 1 ? std::sqrt(ss / static_cast<double>(n - 1)) : 0.0;
-  if (n < 3) {
-    sd_lin = sd;
-    return;
-  }
-  double tm = 0;
-  for (double x : t) tm += x;
-  tm /= static_cast<double>(n);
-  double stt = 0, stv = 0;
-  for (size_t i = 0; i < n; ++i) {
-    stt += sq(t[i] - tm);
-    stv += (t[i] - tm) * (v[i] - mean);
-  }
-  const double slope = stt > 0 ? stv / stt : 0.0;
-  double sr = 0;
-  for (size_t i = 0; i < n; ++i) sr += sq(v[i] - mean - slope * (t[i] - tm));
-  sd_lin = std::sqrt(sr / static_cast<double>(n - 2));
-}
-
-std::vector<DwellStats> dwell_stats(const AcceptanceData& data, const CoefficientSet* cal) {
-  const SampleTable& s = data.samples;
+// The judge's dwells are the recording's one reduction (calib/reduction.h), under the rule the
+// calibration was made with: the frames it rejects stay out of accuracy and jitter and are judged
+// on their own (outlier_frames). Angles are the calibrated transfer function of the dwell's mean
+// counts, scatter its slope times the counts' scatter (the counts move by a count or two in a dwell).
+std::vector<DwellStats> dwell_stats(const Reduction& reduced, const AcceptanceData& data, const CoefficientSet* cal) {
   std::vector<DwellStats> out;
-  size_t i = 0;
-  while (i < s.size()) {
-    size_t j = i;
-    while (j < s.size() && s.step[j] == s.step[i]) ++j;
+  for (const Dwell& w : reduced.dwells) {
     DwellStats d;
-    d.step = s.step[i];
+    d.step = w.step;
     const auto role = data.roles.find(d.step);
     d.role = role == data.roles.end() ? PointRole::calibration : role->second;
-    d.phase = s.phase[i];
-    d.frames = j - i;
-    std::vector<double> t(s.time_s.begin() + static_cast<long>(i), s.time_s.begin() + static_cast<long>(j));
-    for (int ax = 0; ax < 2; ++ax) {
-      const auto& refs = ax == 0 ? s.ref_pitch_arcsec : s.ref_yaw_arcsec;
-      double r = 0;
-      for (size_t k = i; k < j; ++k) r += refs[k];
-      d.ref[ax] = r / static_cast<double>(d.frames);
-      if (cal) {
-        const AxisModel m = ax == 0 ? cal->alpha_model() : cal->beta_model();
-        const auto& counts = ax == 0 ? s.counts_alpha : s.counts_beta;
-        std::vector<double> v;
-        v.reserve(d.frames);
-        double mean_counts = 0;
-        for (size_t k = i; k < j; ++k) {
-          v.push_back(m.angle_arcsec(counts[k]));
-          mean_counts += counts[k];
-        }
-        mean_counts /= static_cast<double>(d.frames);
-        moments(t, v, d.mean[ax], d.sd[ax], d.sd_detrended[ax]);
-        const double q = std::fabs(rad_to_arcsec(m.slope_rad_per_count(mean_counts))) / std::sqrt(12.0);
-        d.se[ax] = std::sqrt(sq(d.sd[ax]) / static_cast<double>(d.frames) + q * q);
-      }
+    d.phase = w.phase;
+    d.frames = w.samples;
+    d.outliers[0] = w.outliers_alpha;
+    d.outliers[1] = w.outliers_beta;
+    d.ref[0] = w.ref_pitch_arcsec;
+    d.ref[1] = w.ref_yaw_arcsec;
+    for (int ax = 0; ax < 2 && cal; ++ax) {
+      const AxisModel m = ax == 0 ? cal->alpha_model() : cal->beta_model();
+      const double counts = ax == 0 ? w.counts_alpha : w.counts_beta;
+      const double slope = std::fabs(rad_to_arcsec(m.slope_rad_per_count(counts)));
+      d.mean[ax] = m.angle_arcsec(counts);
+      d.sd[ax] = slope * (ax == 0 ? w.sd_counts_alpha : w.sd_counts_beta);
+      d.sd_detrended[ax] = slope * (ax == 0 ? w.sd_detrended_counts_alpha : w.sd_detrended_counts_beta);
+      const double q = slope / std::sqrt(12.0);
+      d.se[ax] = std::sqrt(sq(d.sd[ax]) / static_cast<double>(d.frames) + q * q);
     }
     out.push_back(d);
-    i = j;
   }
   return out;
 }
@@ -292,6 +265,17 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+// What the reduction left out of these dwells, for a criterion's detail ("" when nothing).
+std::string left_out(const std::vector<const DwellStats*>& dwells) {
+  size_t n[2] = {0, 0};
+  for (const auto* d : dwells) {
+    n[0] += d->outliers[0];
+    n[1] += d->outliers[1];
+  }
+  if (n[0] + n[1] == 0) return "";
+  return fmt::format("; outlier frames left out: pitch {}, yaw {} (criterion outlier_frames)", n[0], n[1]);
+}
+
 // The dwell whose `size` (never negative) is largest, the first of equals; `at` is null for no dwells.
 struct WorstDwell {
   const DwellStats* at = nullptr;
@@ -323,6 +307,7 @@ namespace {
 // of criteria, in the certificate's order.
 struct Judging {
   Judging(const AcceptanceData& d, const AcceptanceLimits& limits);
+  void outlier_criterion();
   void residual_criteria();
   void accuracy_criteria();
   void jitter_criteria();
@@ -334,6 +319,7 @@ struct Judging {
   const AcceptanceData& data;
   const AcceptanceLimits& L;
   const CoefficientSet* cal;
+  Reduction reduced;
   std::vector<DwellStats> dwells;
   std::string no_cal;
   double radius_arcsec;
@@ -343,7 +329,9 @@ struct Judging {
 };
 
 Judging::Judging(const AcceptanceData& d, const AcceptanceLimits& limits)
-    : data(d), L(limits), cal(d.calibration ? &*d.calibration : nullptr), dwells(dwell_stats(d, cal)),
+    : data(d), L(limits), cal(d.calibration ? &*d.calibration : nullptr),
+      reduced(reduce(d.samples, cal ? reduction_options_of(cal->extra, "calibration.json") : ReductionOptions{})),
+      dwells(dwell_stats(reduced, d, cal)),
       no_cal("not measured: the run has no calibration" + (d.run_reason.empty() ? std::string() : " (" + d.run_reason + ")")),
       radius_arcsec(limits.accuracy_radius_arcmin.value * 60.0),
       residuals(cal && cal->extra.contains("residuals") ? cal->extra["residuals"] : nlohmann::json()) {
@@ -355,6 +343,31 @@ Judging::Judging(const AcceptanceData& d, const AcceptanceLimits& limits)
   for (const auto* w : ver_off) {
     if (std::hypot(w->ref[0], w->ref[1]) <= radius_arcsec + 1e-6) ver_in.push_back(w);
   }
+}
+
+void Judging::outlier_criterion() {
+  // 0. Frames far from their dwell with a valid CRC: the unit's glitches, judged by name rather
+  // than left to inflate accuracy and jitter (which are measured without them).
+  Criterion c = make("outlier_frames", "Outlier frames (share of dwell frames, worse axis)", "",
+                     L.outlier_frames_fraction, "outlier_frames_fraction", "<=", "fraction");
+  const OutlierSummary& o = reduced.outliers;
+  J.outliers = o;
+  if (o.frames == 0) {
+    settle(c, std::nullopt, 0, "not measured: the run recorded no dwell frames");
+  } else if (!o.applied) {
+    settle(c, std::nullopt, 0, "not measured: the outlier rule was off for this calibration");
+  } else {
+    const double share = o.worst_share();
+    // Binomial 1-sigma of the share (at least one frame's worth when none was seen).
+    const double n = static_cast<double>(o.frames);
+    const double u = std::sqrt(std::max(share, 1.0 / n) * (1 - share) / n);
+    settle(c, share, u,
+           fmt::format("{} of {} dwell frames lie more than {} robust sigmas from their dwell: pitch {} ({:.2f} %), "
+                       "yaw {} ({:.2f} %); left out of every dwell mean, accuracy and jitter",
+                       o.any.outlier_frames, o.frames, OutlierRule{}.threshold_sigma, o.alpha.outlier_frames,
+                       100 * o.alpha.share(o.frames), o.beta.outlier_frames, 100 * o.beta.share(o.frames)));
+  }
+  J.criteria.push_back(c);
 }
 
 void Judging::residual_criteria() {
@@ -370,7 +383,10 @@ void Judging::residual_criteria() {
       settle(max, std::nullopt, 0, cal ? "not measured: calibration.json has no residuals for " + a : no_cal);
     } else {
       const auto& r = residuals[a];
-      const double m = r.value("mean_abs_arcsec", NAN), sdv = r.value("sd_arcsec", 0.0), mx = r.value("max_abs_arcsec", NAN);
+      // A double default: NAN is a float, and value() returns its default's type (the figures
+      // came out rounded to 7 digits, unlike calibration.json's).
+      const double nan = std::numeric_limits<double>::quiet_NaN();
+      const double m = r.value("mean_abs_arcsec", nan), sdv = r.value("sd_arcsec", 0.0), mx = r.value("max_abs_arcsec", nan);
       const double n = r.value("points", 0.0);
       // One change's noise: two dwell means, each with its standard error.
       std::vector<double> se;
@@ -413,18 +429,18 @@ void Judging::accuracy_criteria() {
         const double v3 = 3.0 * std::sqrt(ss / n);
         settle(rms3, v3, v3 / std::sqrt(2.0 * n),
                fmt::format("{} verification points within {} arcmin; error = calibrated angle - reference, "
-                           "mean over each dwell's frames",
-                           ver_in.size(), L.accuracy_radius_arcmin.value));
+                           "mean over each dwell's frames{}",
+                           ver_in.size(), L.accuracy_radius_arcmin.value, left_out(ver_in)));
         settle(worst, w, at->se[ax],
-               fmt::format("{:+.3f} arcsec at {}", at->mean[ax] - at->ref[ax], where_text(*at)));
+               fmt::format("{:+.3f} arcsec at {}{}", at->mean[ax] - at->ref[ax], where_text(*at), left_out({at})));
       }
       if (ver_null.empty()) {
         settle(centre, std::nullopt, 0, "not measured: no verification null dwell");
       } else {
         const auto [at, w] = worst_dwell(ver_null, error_size);
         settle(centre, w, at->se[ax],
-               fmt::format("{} null dwells after the calibration; worst {:+.3f} arcsec at step {}", ver_null.size(),
-                           at->mean[ax] - at->ref[ax], at->step));
+               fmt::format("{} null dwells after the calibration; worst {:+.3f} arcsec at step {}{}", ver_null.size(),
+                           at->mean[ax] - at->ref[ax], at->step, left_out(ver_null)));
       }
     }
     J.criteria.push_back(rms3);
@@ -447,8 +463,8 @@ void Judging::jitter_criteria() {
       // A detrended sd has frames - 2 degrees of freedom.
       const double u = at->frames > 2 ? w / std::sqrt(2.0 * static_cast<double>(at->frames - 2)) : w;
       settle(jit, w, u,
-             fmt::format("worst of {} rest dwells: {} ({} frames, linear trend removed)", rest.size(), where_text(*at),
-                         at->frames));
+             fmt::format("worst of {} rest dwells: {} ({} frames, linear trend removed){}", rest.size(),
+                         where_text(*at), at->frames, left_out(rest)));
     }
     J.criteria.push_back(jit);
   }
@@ -564,6 +580,8 @@ void Judging::judged_points() {
     p.ref_pitch_arcsec = d.ref[0];
     p.ref_yaw_arcsec = d.ref[1];
     p.frames = d.frames;
+    p.outliers_pitch = d.outliers[0];
+    p.outliers_yaw = d.outliers[1];
     if (cal) {
       p.error_pitch_arcsec = d.mean[0] - d.ref[0];
       p.error_yaw_arcsec = d.mean[1] - d.ref[1];
@@ -580,6 +598,7 @@ void Judging::judged_points() {
 
 Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
   Judging g(data, L);
+  g.outlier_criterion();
   g.residual_criteria();
   g.accuracy_criteria();
   g.jitter_criteria();

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "calib/coefficients.h"
+#include "calib/reduction.h"
 #include "calib/samples.h"
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
@@ -38,6 +39,7 @@ struct AcceptanceLimits {
   Limit verification_points_min;      // verification offset points inside the radius
   Limit sun_present_fraction;         // planned points measured with every frame valid (sun present)
   Limit consistency_arcsec;           // max |B - A| against the unit's last accepted or imported calibration, if any
+  Limit outlier_frames_fraction;      // share of dwell frames the reduction may reject, per axis (stand policy)
 };
 
 // Parses a limits file; every error (missing limit, missing source, wrong type, unknown key) at
@@ -99,13 +101,15 @@ struct JudgedPoint {
   PointRole role = PointRole::verification;
   Phase phase = Phase::offset;
   double ref_pitch_arcsec = 0, ref_yaw_arcsec = 0;
-  size_t frames = 0;
+  size_t frames = 0;                              // frames the reduction kept
+  size_t outliers_pitch = 0, outliers_yaw = 0;    // frames it left out, by the axis that was off
   double error_pitch_arcsec = 0, error_yaw_arcsec = 0;  // calibrated angle - reference (mean over frames)
   double se_pitch_arcsec = 0, se_yaw_arcsec = 0;        // standard error of those means
   double jitter3_pitch_arcsec = 0, jitter3_yaw_arcsec = 0;  // rest dwells: 3 x SD, trend removed
 };
 
 struct Judgement {
+  OutlierSummary outliers;  // the reduction's rejected frames over the whole recording
   std::vector<Criterion> criteria;
   std::vector<JudgedPoint> points;  // verification and rest dwells
   bool passed = false;

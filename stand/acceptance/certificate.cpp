@@ -38,11 +38,13 @@ nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimi
   }
   c["criteria"] = crit;
   c["failed"] = j.failed();
+  c["outliers"] = j.outliers.to_json();
   nlohmann::ordered_json pts = nlohmann::ordered_json::array();
   for (const auto& p : j.points) {
     nlohmann::ordered_json e{{"step", p.step}, {"role", p.role}, {"phase", std::string(to_string(p.phase))},
                              {"ref_pitch_arcsec", p.ref_pitch_arcsec}, {"ref_yaw_arcsec", p.ref_yaw_arcsec},
                              {"frames", p.frames},
+                             {"outlier_frames_pitch", p.outliers_pitch}, {"outlier_frames_yaw", p.outliers_yaw},
                              {"error_pitch_arcsec", p.error_pitch_arcsec}, {"error_yaw_arcsec", p.error_yaw_arcsec},
                              {"se_pitch_arcsec", p.se_pitch_arcsec}, {"se_yaw_arcsec", p.se_yaw_arcsec}};
     if (p.role == PointRole::rest) {
@@ -61,14 +63,14 @@ std::string value_text(const nlohmann::ordered_json& k) {
   if (k["measured"].is_null()) return "not measured";
   const std::string unit = k["unit"].get<std::string>();
   const double v = k["measured"].get<double>(), u = k["uncertainty"].get<double>();
-  const int dec = unit == "points" ? 0 : unit == "deg" ? 4 : 3;
+  const int dec = unit == "points" ? 0 : unit == "deg" || unit == "fraction" ? 4 : 3;
   if (u > 0) return fmt::format("{:.{}f} +- {:.{}f}", v, dec, u, dec);
   return fmt::format("{:.{}f}", v, dec);
 }
 
 std::string limit_text(const nlohmann::ordered_json& k) {
   const std::string unit = k["unit"].get<std::string>();
-  const int dec = unit == "points" ? 0 : unit == "deg" ? 2 : unit == "fraction" ? 2 : 1;
+  const int dec = unit == "points" ? 0 : unit == "deg" ? 2 : unit == "fraction" ? 4 : 1;
   return fmt::format("{} {:.{}f}", k["relation"].get<std::string>(), k["limit"].get<double>(), dec);
 }
 

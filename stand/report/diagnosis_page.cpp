@@ -112,8 +112,8 @@ void write_diagnosis_page(const std::string& html_path, const Diagnosis& d, cons
     h << fmt::format("<tr><th>expected scatter (model)</th><td class=num>{:.4f} arcsec ({:.2f}x measured)</td></tr>",
                      d.expected_scatter_arcsec, d.excess_scatter());
   }
-  h << fmt::format("<tr><th>outlier frames</th><td class=num>{} ({:.2f} %)</td></tr></table>\n", d.outliers,
-                   100 * d.outlier_fraction);
+  h << fmt::format("<tr><th>outlier frames</th><td class=num>{} ({:.2f} %): pitch {}, yaw {}</td></tr></table>\n",
+                   d.outliers, 100 * d.outlier_fraction, d.outliers_pitch, d.outliers_yaw);
   for (const auto& e : d.causes) h << "<p><b>" << esc(e.name) << "</b>: <code>" << esc(e.params.dump()) << "</code></p>\n";
 
   auto where_table = [&](const char* title, const std::vector<WhereEntry>& w) {

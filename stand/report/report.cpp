@@ -10,6 +10,7 @@
 #include "calib/calibrator.h"
 #include "calib/dwells.h"
 #include "calib/errors.h"
+#include "calib/outliers.h"
 #include "calib/residuals.h"
 #include "calib/text_file.h"
 #include "calib/units.h"
@@ -115,6 +116,24 @@ void adaptive_stop_note(std::string& h, const nlohmann::json& run) {
   }
 }
 
+// The outlier frames beside Table 1: a unit that sends glitch frames is a finding, not noise.
+void outliers_note(std::string& h, const OutlierSummary& o) {
+  if (!o.applied) {
+    h += "<p id=\"outliers\">Outlier frames: the rule was off; every frame is in the dwell means.</p>\n";
+    return;
+  }
+  h += fmt::format(
+      "<p id=\"outliers\" class=\"{}\">Outlier frames: {} of {} dwell frames ({:.2f} %) lie more than {} robust "
+      "sigmas from their step and are left out of the dwell means: pitch (alpha) {} ({:.2f} %), yaw (beta) {} "
+      "({:.2f} %).{}</p>\n",
+      o.any.outlier_frames > 0 ? "note" : "sub", o.any.outlier_frames, o.frames, 100 * o.any.share(o.frames),
+      OutlierRule{}.threshold_sigma, o.alpha.outlier_frames, 100 * o.alpha.share(o.frames), o.beta.outlier_frames,
+      100 * o.beta.share(o.frames),
+      o.any.outlier_frames > 0 ? " Frames far off with a valid CRC are the unit's own glitches (or a disturbed bench), "
+                                 "not its noise: they are counted, not averaged in."
+                               : "");
+}
+
 // Table 1 of the paper: per axis mean |residual| +- sd, max |residual|, points, range.
 void summary_section(std::string& h, const ReportInput& in) {
   const auto& r = in.residuals;
@@ -134,11 +153,36 @@ void summary_section(std::string& h, const ReportInput& in) {
     h += fmt::format("<p>The rows the calibration was fitted on: steps 1 to {}. Points measured after the calibrate "
                      "step (verification, rest dwells) are not in this table.</p>\n", *in.fit_last_step);
   }
+  // Table 1 is the calibrator's (calibration.json's residuals block): computed once, shown here.
+  // The residuals recomputed on this recording feed the plots; a block that disagrees with them
+  // points at a calibration made on other data.
+  const auto& extra = in.calibration.extra;
+  AxisResidualStats shown[2] = {r.pitch, r.yaw};
+  std::string diffs;
+  const bool has_block = extra.contains("residuals") && extra["residuals"].is_object();
+  for (int ax = 0; ax < 2 && has_block; ++ax) {
+    const char* name = ax == 0 ? "pitch" : "yaw";
+    const AxisResidualStats& here = ax == 0 ? r.pitch : r.yaw;
+    if (!extra["residuals"].contains(name)) continue;
+    try {
+      const auto c = AxisResidualStats::from_json(extra["residuals"][name], "calibration.json");
+      shown[ax] = c;
+      const bool same_points = !c.points || c.points == here.points;
+      const bool same_mean = !c.mean_abs_arcsec || !here.mean_abs_arcsec ||
+                             std::abs(*c.mean_abs_arcsec - *here.mean_abs_arcsec) <= 1e-6 + 1e-6 * *c.mean_abs_arcsec;
+      if (!same_points || !same_mean) {
+        diffs += fmt::format(" {}: {} points, mean {} arcsec here;", name, here.points.value_or(0),
+                             opt(here.mean_abs_arcsec, 3));
+      }
+    } catch (const InputError&) {
+      diffs += fmt::format(" {}: unreadable;", name);
+    }
+  }
   h += "<table>\n<tr><th class=\"l\">axis</th><th class=\"l\">from</th><th>range (deg)</th>"
        "<th>mean |residual| &plusmn; sd (arcsec)</th><th>max |residual| (arcsec)</th><th>rms (arcsec)</th>"
        "<th>points</th></tr>\n";
-  for (const auto& [name, key, st] : {std::tuple{"pitch", "alpha, counts_alpha", &r.pitch},
-                                      std::tuple{"yaw", "beta, counts_beta", &r.yaw}}) {
+  for (const auto& [name, key, st] : {std::tuple{"pitch", "alpha, counts_alpha", &shown[0]},
+                                      std::tuple{"yaw", "beta, counts_beta", &shown[1]}}) {
     const std::string range = st->range_lo_deg && st->range_hi_deg
                                   ? fmt::format("{:+.2f} to {:+.2f}", *st->range_lo_deg, *st->range_hi_deg)
                                   : std::string("&ndash;");
@@ -149,34 +193,15 @@ void summary_section(std::string& h, const ReportInput& in) {
         opt(st->rms_arcsec, 2), st->points.value_or(0));
   }
   h += "</table>\n";
+  outliers_note(h, r.outliers);
   if (r.points.empty()) {
     h += "<p class=\"missing\">The recording has no null/offset changes to measure residuals on "
          "(slews and moves are not used).</p>\n";
   }
-  // The calibrator's own figures, when they disagree with the ones above, point at a stale file.
-  const auto& extra = in.calibration.extra;
-  if (extra.contains("residuals") && extra["residuals"].is_object()) {
-    std::string diffs;
-    for (const auto& [name, st] : {std::pair{"pitch", &r.pitch}, std::pair{"yaw", &r.yaw}}) {
-      if (!extra["residuals"].contains(name)) continue;
-      try {
-        const auto c = AxisResidualStats::from_json(extra["residuals"][name], "calibration.json");
-        const bool same_points = !c.points || c.points == st->points;
-        const bool same_mean = !c.mean_abs_arcsec || !st->mean_abs_arcsec ||
-                               std::abs(*c.mean_abs_arcsec - *st->mean_abs_arcsec) <= 1e-6 + 1e-6 * *c.mean_abs_arcsec;
-        if (!same_points || !same_mean) {
-          diffs += fmt::format(" {}: {} points, mean {} arcsec;", name, c.points.value_or(0),
-                               opt(c.mean_abs_arcsec, 3));
-        }
-      } catch (const InputError&) {
-        diffs += fmt::format(" {}: unreadable;", name);
-      }
-    }
-    if (!diffs.empty()) {
-      h += fmt::format("<p class=\"note\">The residuals block of calibration.json differs from the residuals "
-                       "recomputed here on this recording:{} was the calibration made on other data?</p>\n",
-                       html_escape(diffs));
-    }
+  if (!diffs.empty()) {
+    h += fmt::format("<p class=\"note\">The residuals block of calibration.json (shown above) differs from the "
+                     "residuals recomputed here on this recording:{} was the calibration made on other data?</p>\n",
+                     html_escape(diffs));
   }
   h += "</section>\n";
 }
@@ -411,12 +436,17 @@ std::string html_escape(const std::string& text) {
 }
 
 RunResiduals compute_residuals(const SampleTable& samples, const CoefficientSet& cal, const std::string& method) {
+  return compute_residuals(reduce(samples, reduction_options_of(cal.extra, "calibration.json")), cal, method);
+}
+
+RunResiduals compute_residuals(const Reduction& reduced, const CoefficientSet& cal, const std::string& method) {
   if (method != "differences" && method != "absolute") {
     throw InputError(fmt::format("unknown calibration method \"{}\" (expected differences or absolute)", method));
   }
   RunResiduals out;
   out.method = method;
-  const std::vector<Dwell> dwells = average_dwells(samples);
+  out.outliers = reduced.outliers;
+  const std::vector<Dwell>& dwells = reduced.dwells;
   for (const auto& d : dwells) (d.phase == Phase::null ? out.null_dwells : out.offset_dwells)++;
   fit::AxisData a, b;
   a.differences = b.differences = method == "differences";

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "calib/coefficients.h"
+#include "calib/reduction.h"
 #include "calib/samples.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/report/run_summary.h"
@@ -35,12 +36,16 @@ struct RunResiduals {
   std::vector<ResidualPoint> points;
   AxisResidualStats pitch, yaw;  // every figure set when there are points
   size_t null_dwells = 0, offset_dwells = 0;
+  OutlierSummary outliers;  // the frames the reduction left out of the dwells these residuals are of
 };
 
-// The residuals of `cal` on the recording, counted the way the calibrator counts them (its dwell
-// averaging, pairing and per-axis rows), so the summary equals calibration.json's residuals block
-// when `cal` is the calibrator's fit of `samples`. `method`: "differences" or "absolute".
+// The residuals of `cal` on the reduced recording, counted the way the calibrator counts them
+// (its pairing and per-axis rows), so the summary equals calibration.json's residuals block when
+// `cal` is the calibrator's fit of the same reduction. `method`: "differences" or "absolute".
 // Throws InputError for an unknown method, DataError for a recording the dwells cannot be read from.
+RunResiduals compute_residuals(const Reduction& reduced, const CoefficientSet& cal,
+                               const std::string& method = "differences");
+// The same on a recording, reduced as `cal`'s fit was (reduction_options_of its outliers block).
 RunResiduals compute_residuals(const SampleTable& samples, const CoefficientSet& cal,
                                const std::string& method = "differences");
 

@@ -123,7 +123,7 @@ void BM_CalibrateFile(benchmark::State& state) {
     const CalibrationReport r = calibrate_csv(path, opts);
     state.PauseTiming();
     peak_mb = std::max(peak_mb, status_kb("VmHWM:") / 1024.0);
-    outliers = r.outlier_frames;
+    outliers = r.outliers.any.outlier_frames;
     benchmark::DoNotOptimize(r.pitch.coeffs);
     state.ResumeTiming();
   }

@@ -4,6 +4,7 @@
 // (The full Monte Carlo with its targets is fpss_bench_calib_stats.)
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <functional>
@@ -60,7 +61,7 @@ TEST(Statistics, GeneratorAndFitAgreeOnErrorsAndTheirSigma) {
     EXPECT_NEAR(a.noise.ref_noise_arcsec, 0.05, 0.006);
     EXPECT_GE(a.angle_sigma_arcsec.size(), 41u);
     EXPECT_FALSE(a.model_remainder) << a.reduced_chi2 << " noise " << a.noise.count_noise_counts << " ref " << a.noise.ref_noise_arcsec;
-    EXPECT_EQ(r.outlier_frames, 0u);
+    EXPECT_EQ(r.outliers.any.outlier_frames, 0u);
   });
   const mc::AxisTally &pitch = t.pitch, &yaw = t.yaw;
   const auto cp = mc::range_counts(truth.alpha, design), cy = mc::range_counts(truth.beta, design);
@@ -172,8 +173,17 @@ TEST(Statistics, OutlierFramesStayOutOfTheFit) {
   CalibrationOptions o;
   o.threads = 1;
   const CalibrationReport r = calibrate(t, o);
-  EXPECT_GT(r.outlier_frames, 0u);  // ~6 of 605 frames
-  EXPECT_LT(r.outlier_frames, 20u);
+  EXPECT_GT(r.outliers.any.outlier_frames, 0u);  // ~6 of 605 frames
+  EXPECT_LT(r.outliers.any.outlier_frames, 20u);
+  // Counted per axis (a frame is off on one axis or both) and written to calibration.json.
+  EXPECT_GE(r.outliers.alpha.outlier_frames + r.outliers.beta.outlier_frames, r.outliers.any.outlier_frames);
+  EXPECT_LE(std::max(r.outliers.alpha.outlier_frames, r.outliers.beta.outlier_frames), r.outliers.any.outlier_frames);
+  EXPECT_LE(r.outliers.frames, t.size());
+  EXPECT_GT(r.outliers.frames, 500u);
+  const auto j = r.coefficients().extra;
+  EXPECT_EQ(j.at("outliers").at("pitch").at("outlier_frames"), r.outliers.alpha.outlier_frames);
+  EXPECT_EQ(j.at("outliers").at("yaw").at("outlier_frames"), r.outliers.beta.outlier_frames);
+  EXPECT_EQ(j.at("dwells").at("outlier_frames"), r.outliers.any.outlier_frames);
   const auto cp = mc::range_counts(truth.alpha, design);
   const double crb = mc::rms_of(mc::crb_sigma_arcsec(truth.alpha, design, true, cp));
   // One recording: within 4 bounds of the truth; a spike of 20..200 counts kept in a 5-frame mean
@@ -181,7 +191,7 @@ TEST(Statistics, OutlierFramesStayOutOfTheFit) {
   EXPECT_LT(compare_transfer(r.pitch.coeffs, truth.alpha, cp.front(), cp.back()).rms_arcsec, 4 * crb);
   o.reject_outliers = false;
   const CalibrationReport kept = calibrate(t, o);
-  EXPECT_EQ(kept.outlier_frames, 0u);
+  EXPECT_EQ(kept.outliers.any.outlier_frames, 0u);
   EXPECT_GT(compare_transfer(kept.pitch.coeffs, truth.alpha, cp.front(), cp.back()).rms_arcsec, 4 * crb);
 }
 

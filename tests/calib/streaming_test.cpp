@@ -107,8 +107,15 @@ TEST(Streaming, AFileCalibratedRowByRowEqualsTheBatchCalibration) {
     if (given_noise) o.count_noise_counts = 0.3;
     const CalibrationReport batch = calibrate(back, o);
     const CalibrationReport stream = calibrate_csv(path, o);
-    EXPECT_GT(batch.outlier_frames, 0u);
-    EXPECT_EQ(stream.outlier_frames, batch.outlier_frames);
+    EXPECT_GT(batch.outliers.any.outlier_frames, 0u);
+    EXPECT_EQ(stream.outliers.any.outlier_frames, batch.outliers.any.outlier_frames);
+    // One reduction: the file path counts the same frames per axis, under the same rule noise.
+    EXPECT_EQ(stream.outliers.alpha.outlier_frames, batch.outliers.alpha.outlier_frames);
+    EXPECT_EQ(stream.outliers.beta.outlier_frames, batch.outliers.beta.outlier_frames);
+    EXPECT_EQ(stream.outliers.frames, batch.outliers.frames);
+    ASSERT_TRUE(stream.outliers.count_noise_counts && batch.outliers.count_noise_counts);
+    EXPECT_DOUBLE_EQ(*stream.outliers.count_noise_counts, *batch.outliers.count_noise_counts);
+    EXPECT_EQ(stream.outliers.count_noise_source, batch.outliers.count_noise_source);
     EXPECT_EQ(stream.samples, batch.samples);
     EXPECT_EQ(stream.pairs, batch.pairs);
     EXPECT_EQ(stream.null_dwells, batch.null_dwells);

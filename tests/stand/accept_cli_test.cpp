@@ -5,12 +5,15 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
+#include <map>
 #include <filesystem>
 #include <set>
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "calib/coefficients.h"
@@ -59,7 +62,7 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
   EXPECT_EQ(cert["limits"]["sha256"], limits().sha256);
   EXPECT_NE(cert["stand"]["identity"].get<std::string>().find("emulated bench (seed 3"), std::string::npos);
   EXPECT_EQ(cert["run"]["points_completed"], 163);
-  ASSERT_EQ(cert["criteria"].size(), 18u);  // no history yet: no consistency criterion
+  ASSERT_EQ(cert["criteria"].size(), 19u);  // no history yet: no consistency criterion
   for (const auto& c : cert["criteria"]) {
     EXPECT_TRUE(c["passed"].get<bool>()) << c.dump();
     EXPECT_TRUE(c["measured"].is_number()) << c.dump();
@@ -129,7 +132,7 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
       EXPECT_NE(c["detail"].get<std::string>().find(", accepted"), std::string::npos) << c.dump();
     }
   }
-  EXPECT_EQ(c3["criteria"].size(), 19u);
+  EXPECT_EQ(c3["criteria"].size(), 20u);
 }
 
 TEST_F(AcceptCli, NoisyUnitFailsOnJitter) {
@@ -138,6 +141,53 @@ TEST_F(AcceptCli, NoisyUnitFailsOnJitter) {
   ASSERT_EQ(r.code, 3) << r.err << r.out;
   const auto cert = nlohmann::json::parse(r.out);
   EXPECT_EQ(failed(cert), (std::set<std::string>{"jitter_3sigma_pitch", "jitter_3sigma_yaw"})) << r.out;
+}
+
+// A unit that sends glitch frames (valid CRC, one axis 400 counts off, 0.4 % of frames) fails by
+// name on outlier_frames, while its transfer function and noise, measured without them, pass; the
+// report's Table 1, calibration.json and the certificate give one set of numbers.
+TEST_F(AcceptCli, GlitchingUnitFailsByNameOnOutlierFramesWithOneSetOfNumbers) {
+  const CommandResult r = accept("--seed 5 --fault sensor_glitch:rate=0.004,counts=400");
+  ASSERT_EQ(r.code, 3) << r.err << r.out;
+  const auto cert = nlohmann::json::parse(r.out);
+  EXPECT_EQ(failed(cert), (std::set<std::string>{"outlier_frames"})) << r.out;
+  const auto& o = cert["outliers"];
+  const size_t n = o["outlier_frames"].get<size_t>();
+  EXPECT_GE(n, 4u);
+  EXPECT_LE(n, 25u);  // 0.4 % of about 2,400 frames
+  EXPECT_EQ(o["pitch"]["outlier_frames"].get<size_t>() + o["yaw"]["outlier_frames"].get<size_t>(), n);
+  std::map<std::string, nlohmann::json> by_id;
+  for (const auto& c : cert["criteria"]) by_id[c["id"].get<std::string>()] = c;
+  EXPECT_NEAR(by_id.at("outlier_frames")["measured"].get<double>(), std::max(o["pitch"]["share"].get<double>(),
+                                                                                o["yaw"]["share"].get<double>()), 1e-12);
+  for (const char* id : {"accuracy_3sigma_pitch", "accuracy_3sigma_yaw", "accuracy_worst_point_pitch",
+                         "accuracy_worst_point_yaw", "accuracy_centre_pitch", "accuracy_centre_yaw"}) {
+    EXPECT_LT(by_id.at(id)["measured"].get<double>(), 0.5) << id;
+  }
+  const fs::path run = cert["run"]["dir"].get<std::string>();
+  const auto cal = nlohmann::json::parse(read_file(run / "calibration.json"));
+  const std::string html = read_file(run / "report.html");
+  const std::string text = read_file(run / "certificate.txt");
+  EXPECT_EQ(html.find("differs from the residuals"), std::string::npos);
+  for (const char* axis : {"pitch", "yaw"}) {
+    const auto& res = cal["residuals"][axis];
+    EXPECT_DOUBLE_EQ(by_id.at(std::string("residual_mean_") + axis)["measured"].get<double>(),
+                     res["mean_abs_arcsec"].get<double>());
+    EXPECT_DOUBLE_EQ(by_id.at(std::string("residual_max_") + axis)["measured"].get<double>(),
+                     res["max_abs_arcsec"].get<double>());
+    EXPECT_NE(html.find(fmt::format("{:.2f} &plusmn; {:.2f}</td><td>{:.2f}</td>", res["mean_abs_arcsec"].get<double>(),
+                                    res["sd_arcsec"].get<double>(), res["max_abs_arcsec"].get<double>())),
+              std::string::npos)
+        << axis;
+    EXPECT_LT(res["max_abs_arcsec"].get<double>(), 0.5) << axis;  // the glitches are not in the fit
+  }
+  // The certificate names the frames with their count; calibration.json and the report count the
+  // calibration's own (a part of the same frames).
+  EXPECT_NE(text.find(fmt::format("{} of {} dwell frames", n, o["frames"].get<size_t>())), std::string::npos) << text;
+  EXPECT_NE(text.find("outlier_frames"), std::string::npos);
+  const auto cal_n = cal["outliers"]["outlier_frames"].get<size_t>();
+  EXPECT_LE(cal_n, n);
+  EXPECT_NE(html.find(fmt::format("Outlier frames: {} of ", cal_n)), std::string::npos);
 }
 
 TEST_F(AcceptCli, BadTransferFunctionRegionFailsOnAccuracyOfThatAxis) {

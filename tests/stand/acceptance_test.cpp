@@ -1,6 +1,7 @@
 // Acceptance: the limits file, the roles of an acceptance procedure, the judge on recordings of the
 // simulated bench (good unit and each kind of defect), the certificate, all in-process.
 // `fpss-stand accept` end to end is accept_cli_test.cpp.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -64,9 +65,12 @@ TEST(AcceptanceLimits, DefaultFileHasEveryLimitWithItsSource) {
   for (const Limit* l : {&L.residual_mean_abs_arcsec, &L.residual_max_abs_arcsec, &L.accuracy_3sigma_arcsec,
                          &L.accuracy_worst_point_arcsec, &L.accuracy_centre_arcsec, &L.accuracy_radius_arcmin,
                          &L.jitter_3sigma_arcsec, &L.calibrated_range_deg, &L.verified_extent_deg,
-                         &L.verification_points_min, &L.sun_present_fraction, &L.consistency_arcsec}) {
+                         &L.verification_points_min, &L.sun_present_fraction, &L.consistency_arcsec,
+                         &L.outlier_frames_fraction}) {
     EXPECT_GT(l->source.size(), 30u) << "a limit without a real source";
   }
+  EXPECT_EQ(L.outlier_frames_fraction.value, 0.001);
+  EXPECT_NE(L.outlier_frames_fraction.source.find("Stand policy; the paper gives none"), std::string::npos);
   EXPECT_EQ(L.sha256.size(), 64u);
 }
 
@@ -237,9 +241,37 @@ TEST(AcceptanceJudge, GoodUnitPassesEveryCriterion) {
   EXPECT_NEAR(*criterion(j, "verified_extent_pitch").measured, 0.345, 0.002);
   EXPECT_NEAR(*criterion(j, "calibrated_range_yaw").measured, 0.42, 0.002);
   EXPECT_EQ(*criterion(j, "sun_present").measured, 1.0);
+  EXPECT_EQ(*criterion(j, "outlier_frames").measured, 0.0);
+  EXPECT_EQ(j.outliers.any.outlier_frames, 0u);
   EXPECT_EQ(j.points.size(), 97u + 7u);
   // No previous calibration: no consistency criterion.
   EXPECT_THROW(criterion(j, "consistency"), std::runtime_error);
+}
+
+// Glitch frames (one axis 400 counts off, valid otherwise) in the verification and rest dwells:
+// the unit fails on outlier_frames alone; accuracy and jitter are as the good unit's, and say
+// what they left out.
+TEST(AcceptanceJudge, GlitchingUnitFailsByNameNotThroughAccuracy) {
+  AcceptanceData data = record_unit(default_bench_config());
+  const Judgement clean = judge(data, limits());
+  SampleTable& t = data.samples;
+  size_t spiked = 0;
+  for (size_t i = t.size() / 2; i < t.size(); i += 61, ++spiked) {
+    (spiked % 2 ? t.counts_beta : t.counts_alpha)[i] += spiked % 3 ? 400 : -400;
+  }
+  ASSERT_GT(spiked, 10u);
+  const Judgement j = judge(data, limits());
+  EXPECT_EQ(j.failed(), std::vector<std::string>{"outlier_frames"}) << describe(j);
+  EXPECT_EQ(j.outliers.any.outlier_frames, spiked);
+  EXPECT_EQ(j.outliers.alpha.outlier_frames, (spiked + 1) / 2);
+  const Criterion& o = criterion(j, "outlier_frames");
+  EXPECT_NEAR(*o.measured, static_cast<double>((spiked + 1) / 2) / static_cast<double>(j.outliers.frames), 1e-12);
+  EXPECT_NE(o.detail.find(fmt::format("{} of {} dwell frames", spiked, j.outliers.frames)), std::string::npos) << o.detail;
+  for (const char* id : {"accuracy_3sigma_pitch", "accuracy_3sigma_yaw", "accuracy_centre_pitch", "jitter_3sigma_pitch",
+                         "jitter_3sigma_yaw"}) {
+    EXPECT_NEAR(*criterion(j, id).measured, *criterion(clean, id).measured, 0.1) << id;
+  }
+  EXPECT_NE(criterion(j, "jitter_3sigma_pitch").detail.find("outlier frames left out"), std::string::npos);
 }
 
 TEST(AcceptanceJudge, NoisyUnitFailsOnJitter) {

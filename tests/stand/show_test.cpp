@@ -3,10 +3,13 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
 #include <fstream>
 
 #include <nlohmann/json.hpp>
 
+#include "calib/samples.h"
 #include "tests/procedures/run_util.h"
 #include "tests/support/test_support.h"
 
@@ -205,6 +208,51 @@ TEST_F(ShowCli, CalibrateJsonIsMachineReadable) {
   EXPECT_EQ(j["file"], out.string());
   EXPECT_EQ(j["calibration"], nlohmann::json::parse(test::read_file(out)));
   EXPECT_TRUE(j["calibration"]["residuals"]["pitch"]["mean_abs_arcsec"].is_number());
+}
+
+// Offline, the same recording with glitch frames (one axis 400 counts off, as a glitching unit
+// sends them): `calibrate` then `report` give one set of numbers, and name the frames left out.
+TEST_F(ShowCli, CalibrateThenReportOnAGlitchingRecordingAgree) {
+  const fs::path dir = *tmp_ / "glitched";
+  fs::create_directories(dir);
+  SampleTable t = read_samples_csv(good_ / "samples.csv");
+  size_t spiked[2] = {0, 0};
+  for (size_t i = 7, k = 0; i < t.size(); i += 97, ++k) {
+    if (t.phase[i] != Phase::null && t.phase[i] != Phase::offset) continue;
+    (k % 2 ? t.counts_beta : t.counts_alpha)[i] += k % 3 ? 400 : -400;
+    ++spiked[k % 2];
+  }
+  ASSERT_GT(spiked[0], 5u);
+  ASSERT_GT(spiked[1], 5u);
+  write_samples_csv(dir / "samples.csv", t);
+  fs::copy_file(good_ / "run.json", dir / "run.json");
+  const CommandResult cal = test::run_stand(
+      {"calibrate", "--data", (dir / "samples.csv").string(), "--out", (dir / "calibration.json").string()},
+      tmp_->path(), "glitch-cal");
+  ASSERT_EQ(cal.code, 0) << cal.err;
+  const CommandResult rep = test::run_stand({"report", dir.string()}, tmp_->path(), "glitch-report");
+  ASSERT_EQ(rep.code, 0) << rep.err;
+  const auto j = nlohmann::json::parse(test::read_file(dir / "calibration.json"));
+  EXPECT_EQ(j["outliers"]["pitch"]["outlier_frames"], spiked[0]);
+  EXPECT_EQ(j["outliers"]["yaw"]["outlier_frames"], spiked[1]);
+  EXPECT_EQ(j["outliers"]["outlier_frames"], spiked[0] + spiked[1]);
+  // The glitches stay out: the fit is as good as on the clean recording.
+  const auto clean = nlohmann::json::parse(test::read_file(good_ / "calibration.json"));
+  for (const char* axis : {"pitch", "yaw"}) {
+    const auto& r = j["residuals"][axis];
+    EXPECT_LT(r["max_abs_arcsec"].get<double>(), clean["residuals"][axis]["max_abs_arcsec"].get<double>() + 0.3) << axis;
+  }
+  const std::string html = test::read_file(dir / "report.html");
+  EXPECT_THAT(html, Not(HasSubstr("differs from the residuals")));
+  for (const char* axis : {"pitch", "yaw"}) {
+    const auto& r = j["residuals"][axis];
+    EXPECT_THAT(html, HasSubstr(fmt::format("{:.2f} &plusmn; {:.2f}</td><td>{:.2f}</td>", r["mean_abs_arcsec"].get<double>(),
+                                            r["sd_arcsec"].get<double>(), r["max_abs_arcsec"].get<double>())))
+        << axis;
+  }
+  EXPECT_THAT(html, HasSubstr(fmt::format("Outlier frames: {} of ", spiked[0] + spiked[1])));
+  EXPECT_THAT(html, HasSubstr(fmt::format("pitch (alpha) {} (", spiked[0])));
+  EXPECT_THAT(html, HasSubstr(fmt::format("yaw (beta) {} (", spiked[1])));
 }
 
 // A folder that is not a run folder, or whose files do not parse, is bad input (exit 2, the file named).
