@@ -26,11 +26,32 @@ StreamingCalibrator::StreamingCalibrator(CalibrationOptions opts, std::string so
     throw std::invalid_argument("the streaming calibrator fits changes (method differences) only");
   }
   pitch_.differences = yaw_.differences = true;
+  const double s = opts_.count_noise_counts.value_or(0.0);
+  for (auto& sc : screen_) sc.set_min_sigma(std::sqrt(1.0 / 12.0 + s * s));
 }
 
 void StreamingCalibrator::add_sample(const Sample& s) {
   ++samples_;
-  if (auto d = builder_.add(s)) take_dwell(*d);
+  const bool dwell = s.phase == Phase::null || s.phase == Phase::offset;
+  if (!step_rows_.empty() && (!dwell || s.step != step_rows_.back().step)) close_step();
+  if (dwell) step_rows_.push_back(s);
+}
+
+void StreamingCalibrator::close_step() {
+  if (step_rows_.empty()) return;
+  StepValues v[2];
+  for (const Sample& r : step_rows_) {
+    v[0].add(r.counts_alpha);
+    v[1].add(r.counts_beta);
+  }
+  const double med[2] = {screen_[0].pool_step(v[0]), screen_[1].pool_step(v[1])};
+  for (const Sample& r : step_rows_) {
+    OutlierAxes o;
+    if (opts_.reject_outliers) o = {screen_[0].is_outlier(r.counts_alpha, med[0]), screen_[1].is_outlier(r.counts_beta, med[1])};
+    if (auto d = builder_.add(r, o)) take_dwell(*d);
+  }
+  step_rows_.clear();
+  if (auto d = builder_.flush()) take_dwell(*d);
 }
 
 void StreamingCalibrator::add_dwell(const Dwell& d) {
@@ -94,6 +115,7 @@ StreamingCalibrator::Estimate StreamingCalibrator::current() const {
 }
 
 CalibrationReport StreamingCalibrator::finish() {
+  close_step();
   if (auto d = builder_.flush()) take_dwell(*d);
   return fit_so_far(opts_);
 }

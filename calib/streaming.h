@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "calib/calibrator.h"
+#include "calib/outliers.h"
 
 namespace fpss {
 
@@ -21,7 +22,11 @@ class StreamingCalibrator {
   // Differences method only (the paper's); throws std::invalid_argument otherwise.
   explicit StreamingCalibrator(CalibrationOptions opts = {}, std::string source = "stream");
 
-  // Rows as they are recorded; a dwell enters when the next step starts (or at finish()).
+  // Rows as they are recorded; a dwell enters when the next step starts (or at finish()). With
+  // opts.reject_outliers, a step's frames are judged when it ends by the one outlier rule
+  // (calib/outliers.h): against the step's median, with the robust sigma pooled over the steps so
+  // far (floor: the rounded count noise when known, else the rounding's), so a glitch frame stays
+  // out of the live estimate as it stays out of the batch fit.
   void add_sample(const Sample& s);
   // A whole dwell: an offset pairs with the last null, a null with the offsets since the last null.
   void add_dwell(const Dwell& d);
@@ -56,10 +61,13 @@ class StreamingCalibrator {
 
  private:
   void take_dwell(const Dwell& d);
+  void close_step();  // the held step's rows, judged, into the builder and its dwell taken
 
   CalibrationOptions opts_;
   std::string source_;
   DwellBuilder builder_;
+  std::vector<Sample> step_rows_;   // the dwell step under way (outliers judged when it ends)
+  StepOutlierScreen screen_[2];     // alpha, beta
   DwellPairer pairer_;
   std::vector<Dwell> recent_;  // dwells the pairer may still refer to, by index
   size_t first_recent_ = 0;  // pairer index of recent_[0]

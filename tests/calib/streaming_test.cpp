@@ -90,6 +90,32 @@ TEST(Streaming, FinishAgreesWithTheBatchFitWhicheverWayTheDataComeIn) {
   EXPECT_EQ(a.offset_dwells, batch.offset_dwells);
 }
 
+// The live path (rows one at a time, as a run records them) with glitch frames: they stay out of
+// its dwells as they stay out of the batch fit's, and its estimate is as good as on clean data.
+TEST(Streaming, GlitchFramesStayOutOfTheLiveEstimate) {
+  const auto truth = load_published("a-6-fpss1");
+  SampleTable t = recording(truth, 23);
+  size_t spikes = 0;
+  for (size_t i = 40; i < t.size(); i += 31) {
+    if (t.phase[i] == Phase::slew || t.phase[i] == Phase::move) continue;
+    (spikes % 2 ? t.counts_beta : t.counts_alpha)[i] += 400;
+    ++spikes;
+  }
+  ASSERT_GT(spikes, 5u);
+  StreamingCalibrator live(one_thread());
+  for (size_t i = 0; i < t.size(); ++i) live.add_sample(t.row(i));
+  const auto e = live.current();
+  ASSERT_TRUE(e.valid) << e.why_not;
+  EXPECT_LT(e.rms_pitch_arcsec, 0.1);
+  EXPECT_LT(e.rms_yaw_arcsec, 0.1);
+  const CalibrationReport a = live.finish();
+  const CalibrationReport batch = calibrate(t, one_thread());
+  EXPECT_EQ(a.outliers.any.outlier_frames, spikes);
+  EXPECT_EQ(batch.outliers.any.outlier_frames, spikes);
+  EXPECT_LT(compare_transfer(a.pitch.coeffs, truth.alpha, a.pitch.counts_range[0], a.pitch.counts_range[1]).max_abs_arcsec,
+            0.3);
+}
+
 TEST(Streaming, AFileCalibratedRowByRowEqualsTheBatchCalibration) {
   const auto truth = load_published("a-6-fpss1");
   SampleTable t = recording(truth, 21);
