@@ -110,7 +110,7 @@ struct CheckStep {
   ResidualLimits pitch, yaw;
 };
 
-// The sim-to-real diagnosis (calib/diagnosis.h) of every point recorded before it, against a model:
+// The sim-to-real diagnosis (calib/diagnosis/diagnosis.h) of every point recorded before it, against a model:
 // GAP.json and GAP.html in the run folder.
 struct DiagnoseStep {
   std::filesystem::path model;  // the sim's coefficient file (relative to the procedure)

@@ -7,7 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calib/diagnosis.h"
+#include "calib/diagnosis/diagnosis.h"
 #include "fixtures/bench.h"
 #include "fixtures/recording.h"
 

@@ -3,7 +3,7 @@
 #include <cstdio>
 
 #include "calib/coefficients.h"
-#include "calib/diagnosis.h"
+#include "calib/diagnosis/diagnosis.h"
 #include "calib/errors.h"
 #include "calib/samples.h"
 #include "calib/text_file.h"

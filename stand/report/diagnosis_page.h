@@ -3,7 +3,7 @@
 #pragma once
 #include <string>
 
-#include "calib/diagnosis.h"
+#include "calib/diagnosis/diagnosis.h"
 
 namespace fpss {
 

@@ -3,7 +3,7 @@
 #include <fmt/format.h>
 
 #include "calib/coefficients.h"
-#include "calib/diagnosis.h"
+#include "calib/diagnosis/diagnosis.h"
 #include "calib/text_file.h"
 #include "stand/report/diagnosis_page.h"
 

@@ -5,4 +5,4 @@
 # 100k rows on backlash + time skew (BM_DiagnoseBacklashSkewRows, the same target).
 # Run: build/tests/bench/fpss_bench_diagnosis  (--benchmark_filter=Rows for the timing only)
 add_executable(fpss_bench_diagnosis ${CMAKE_CURRENT_SOURCE_DIR}/diagnosis_bench.cpp)
-target_link_libraries(fpss_bench_diagnosis PRIVATE fpss_stand_blindtest benchmark::benchmark_main)
+target_link_libraries(fpss_bench_diagnosis PRIVATE fpss_stand_blindtest fpss_diagnosis benchmark::benchmark_main)

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "calib/diagnosis.h"
+#include "calib/diagnosis/diagnosis.h"
 #include "calib/samples.h"
 #include "stand/blindtest/blindtest.h"
 

@@ -1,6 +1,6 @@
 // The gap diagnosis: forward models against the bench's physics, attribution, the paper's time
 // skew, what cannot be observed, the split, bad input and the report.
-#include "calib/diagnosis.h"
+#include "calib/diagnosis/diagnosis.h"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -12,7 +12,7 @@
 #include <set>
 #include <sstream>
 
-#include "calib/diagnosis_model.h"
+#include "calib/diagnosis/model.h"
 #include "calib/errors.h"
 #include "fixtures/bench.h"
 #include "fixtures/recording.h"

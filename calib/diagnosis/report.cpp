@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include "calib/diagnosis.h"
-#include "calib/diagnosis_internal.h"
-#include "calib/diagnosis_model.h"
+#include "calib/diagnosis/diagnosis.h"
+#include "calib/diagnosis/internal.h"
+#include "calib/diagnosis/model.h"
 
 namespace fpss {
 namespace {

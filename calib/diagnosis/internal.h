@@ -7,8 +7,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calib/diagnosis.h"
-#include "calib/diagnosis_model.h"
+#include "calib/diagnosis/diagnosis.h"
+#include "calib/diagnosis/model.h"
 
 namespace fpss::diag {
 

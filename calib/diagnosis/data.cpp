@@ -6,7 +6,7 @@
 #include <cmath>
 #include <limits>
 
-#include "calib/diagnosis_model.h"
+#include "calib/diagnosis/model.h"
 #include "calib/errors.h"
 #include "calib/outliers.h"
 #include "calib/samples.h"

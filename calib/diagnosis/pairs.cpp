@@ -7,7 +7,7 @@
 #include <optional>
 #include <utility>
 
-#include "calib/diagnosis_internal.h"
+#include "calib/diagnosis/internal.h"
 
 namespace fpss::diag {
 namespace {

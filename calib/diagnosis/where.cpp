@@ -8,7 +8,7 @@
 #include <functional>
 #include <limits>
 
-#include "calib/diagnosis_internal.h"
+#include "calib/diagnosis/internal.h"
 
 namespace fpss::diag {
 namespace {

@@ -1,6 +1,6 @@
 // The diagnosis: noise floor, observability, every candidate fitted on the fit steps and scored
 // on the held-out steps, a second effect when the first leaves a gap, and where the gap lies.
-#include "calib/diagnosis.h"
+#include "calib/diagnosis/diagnosis.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -13,9 +13,9 @@
 #include <map>
 #include <numeric>
 
-#include "calib/diagnosis_internal.h"
+#include "calib/diagnosis/internal.h"
 #include "calib/effect_catalogue.h"
-#include "calib/diagnosis_model.h"
+#include "calib/diagnosis/model.h"
 #include "calib/errors.h"
 
 namespace fpss {

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <limits>
 
-#include "calib/diagnosis_model.h"
+#include "calib/diagnosis/model.h"
 #include "calib/residuals.h"
 #include "calib/units.h"
 

@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calib/diagnosis.h"
+#include "calib/diagnosis/diagnosis.h"
 
 namespace fpss::diag {
 

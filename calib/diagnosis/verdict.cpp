@@ -7,7 +7,7 @@
 #include <limits>
 #include <map>
 
-#include "calib/diagnosis_internal.h"
+#include "calib/diagnosis/internal.h"
 
 namespace fpss::diag {
 namespace {

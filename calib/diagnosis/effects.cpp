@@ -9,7 +9,7 @@
 #include <limits>
 #include <numbers>
 
-#include "calib/diagnosis_model.h"
+#include "calib/diagnosis/model.h"
 #include "calib/units.h"
 
 namespace fpss::diag {
