@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <thread>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/outliers.h"
 #include "calib/quantisation.h"
 #include "calib/refine.h"

@@ -6,9 +6,9 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "calib/errors.h"
-#include "calib/json_file.h"
-#include "calib/text_file.h"
+#include "base/errors.h"
+#include "base/json_file.h"
+#include "base/text_file.h"
 
 namespace fpss {
 namespace {

@@ -5,7 +5,7 @@
 
 #include <fmt/format.h>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/units.h"
 
 namespace fpss {

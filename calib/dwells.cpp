@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 
 namespace fpss {
 

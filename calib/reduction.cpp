@@ -6,7 +6,7 @@
 #include <cmath>
 #include <limits>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/outliers.h"
 #include "calib/quantisation.h"
 

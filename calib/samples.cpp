@@ -12,8 +12,8 @@
 #include <fstream>
 #include <limits>
 
-#include "calib/errors.h"
-#include "calib/text_file.h"
+#include "base/errors.h"
+#include "base/text_file.h"
 
 namespace fpss {
 

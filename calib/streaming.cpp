@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <unordered_map>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/outliers.h"
 #include "calib/quantisation.h"
 #include "calib/refine.h"

@@ -21,6 +21,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "base/unique_fd.h"
 #include "drivers/endpoints.h"
 
 namespace fpss {
@@ -40,16 +41,13 @@ class FdStream : public ByteStream {
  public:
   explicit FdStream(std::string endpoint) : endpoint_(std::move(endpoint)) {}
   ~FdStream() override { FdStream::close(); }
-  void close() override {
-    if (fd_ >= 0) ::close(fd_);
-    fd_ = -1;
-  }
-  bool is_open() const override { return fd_ >= 0; }
+  void close() override { fd_.reset(); }
+  bool is_open() const override { return static_cast<bool>(fd_); }
   const std::string& endpoint() const override { return endpoint_; }
 
   std::size_t read(uint8_t* buf, std::size_t n, double timeout_s) override {
-    if (fd_ < 0) throw DeviceError(fmt::format("{}: read on a closed link", endpoint_));
-    pollfd p{fd_, POLLIN, 0};
+    if (!fd_) throw DeviceError(fmt::format("{}: read on a closed link", endpoint_));
+    pollfd p{fd_.get(), POLLIN, 0};
     int rc;
     do rc = ::poll(&p, 1, to_ms(timeout_s));
     while (rc < 0 && errno == EINTR);
@@ -69,7 +67,7 @@ class FdStream : public ByteStream {
   }
 
   void write(const uint8_t* data, std::size_t n, double timeout_s) override {
-    if (fd_ < 0) throw DeviceError(fmt::format("{}: write on a closed link", endpoint_));
+    if (!fd_) throw DeviceError(fmt::format("{}: write on a closed link", endpoint_));
     auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
     std::size_t done = 0;
     while (done < n) {
@@ -84,14 +82,14 @@ class FdStream : public ByteStream {
       if (left <= 0)
         throw DeviceError(fmt::format("{}: write timed out after {} s with {} of {} bytes sent", endpoint_,
                                       timeout_s, done, n));
-      pollfd p{fd_, POLLOUT, 0};
+      pollfd p{fd_.get(), POLLOUT, 0};
       if (::poll(&p, 1, to_ms(left)) < 0 && errno != EINTR) lost("poll", errno);
     }
   }
 
  protected:
-  virtual ssize_t recv_some(uint8_t* buf, std::size_t n) { return ::read(fd_, buf, n); }
-  virtual ssize_t send_some(const uint8_t* data, std::size_t n) { return ::write(fd_, data, n); }
+  virtual ssize_t recv_some(uint8_t* buf, std::size_t n) { return ::read(fd_.get(), buf, n); }
+  virtual ssize_t send_some(const uint8_t* data, std::size_t n) { return ::write(fd_.get(), data, n); }
   // The descriptor stays open: another thread may be blocked on it; the owner closes.
   [[noreturn]] void lost(const char* what, int e) {
     throw DeviceError(fmt::format("{}: {} failed: {}; link lost", endpoint_, what, errno_text(e)));
@@ -101,7 +99,7 @@ class FdStream : public ByteStream {
   }
 
   std::string endpoint_;
-  int fd_ = -1;
+  UniqueFd fd_;
 };
 
 // A pseudo-terminal slave: plain POSIX termios, raw 115200 8N1, no flow control.
@@ -110,12 +108,11 @@ class PtyStream final : public FdStream {
   PtyStream(std::string endpoint, std::string path) : FdStream(std::move(endpoint)), path_(std::move(path)) {}
   void open() override {
     close();
-    int fd = ::open(path_.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
-    if (fd < 0) throw DeviceError(fmt::format("{}: cannot open {}: {}", endpoint_, path_, errno_text(errno)));
+    UniqueFd fd(::open(path_.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC));
+    if (!fd) throw DeviceError(fmt::format("{}: cannot open {}: {}", endpoint_, path_, errno_text(errno)));
     termios t{};
-    if (::tcgetattr(fd, &t) != 0) {
+    if (::tcgetattr(fd.get(), &t) != 0) {
       int e = errno;
-      ::close(fd);
       throw DeviceError(fmt::format("{}: {} is not a terminal (tcgetattr: {})", endpoint_, path_, errno_text(e)));
     }
     ::cfmakeraw(&t);
@@ -126,12 +123,11 @@ class PtyStream final : public FdStream {
     t.c_cc[VTIME] = 0;
     ::cfsetispeed(&t, B115200);
     ::cfsetospeed(&t, B115200);
-    if (::tcsetattr(fd, TCSANOW, &t) != 0) {
+    if (::tcsetattr(fd.get(), TCSANOW, &t) != 0) {
       int e = errno;
-      ::close(fd);
       throw DeviceError(fmt::format("{}: tcsetattr on {}: {}", endpoint_, path_, errno_text(e)));
     }
-    fd_ = fd;
+    fd_ = std::move(fd);
   }
 
  private:
@@ -155,15 +151,15 @@ class TcpStream final : public FdStream {
       throw DeviceError(fmt::format("{}: cannot resolve host '{}': {}", endpoint_, host_, ::gai_strerror(rc)));
     std::string last = "no address";
     for (addrinfo* a = res; a; a = a->ai_next) {
-      int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, a->ai_protocol);
-      if (fd < 0) {
+      UniqueFd fd(::socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, a->ai_protocol));
+      if (!fd) {
         last = fmt::format("socket: {}", errno_text(errno));
         continue;
       }
-      int rc = ::connect(fd, a->ai_addr, a->ai_addrlen);
+      int rc = ::connect(fd.get(), a->ai_addr, a->ai_addrlen);
       int e = rc == 0 ? 0 : errno;
       if (rc != 0 && e == EINPROGRESS) {
-        pollfd p{fd, POLLOUT, 0};
+        pollfd p{fd.get(), POLLOUT, 0};
         int pr;
         do pr = ::poll(&p, 1, to_ms(connect_timeout_s_));
         while (pr < 0 && errno == EINTR);
@@ -171,27 +167,26 @@ class TcpStream final : public FdStream {
           e = ETIMEDOUT;
         } else {
           socklen_t len = sizeof e;
-          ::getsockopt(fd, SOL_SOCKET, SO_ERROR, &e, &len);
+          ::getsockopt(fd.get(), SOL_SOCKET, SO_ERROR, &e, &len);
         }
       }
       if (e != 0) {
         last = fmt::format("connect: {}", errno_text(e));
-        ::close(fd);
         continue;
       }
       int one = 1;
-      ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-      fd_ = fd;
+      ::setsockopt(fd.get(), IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+      fd_ = std::move(fd);
       break;
     }
     ::freeaddrinfo(res);
-    if (fd_ < 0) throw DeviceError(fmt::format("{}: cannot connect to {}:{}: {}", endpoint_, host_, port_, last));
+    if (!fd_) throw DeviceError(fmt::format("{}: cannot connect to {}:{}: {}", endpoint_, host_, port_, last));
   }
 
  protected:
-  ssize_t recv_some(uint8_t* buf, std::size_t n) override { return ::recv(fd_, buf, n, 0); }
+  ssize_t recv_some(uint8_t* buf, std::size_t n) override { return ::recv(fd_.get(), buf, n, 0); }
   // MSG_NOSIGNAL: a peer that went away must give EPIPE, not kill the process with SIGPIPE.
-  ssize_t send_some(const uint8_t* data, std::size_t n) override { return ::send(fd_, data, n, MSG_NOSIGNAL); }
+  ssize_t send_some(const uint8_t* data, std::size_t n) override { return ::send(fd_.get(), data, n, MSG_NOSIGNAL); }
 
  private:
   std::string host_;

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "base/clock.h"
 #include "procedures/plan.h"
 
 namespace fpss {

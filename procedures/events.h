@@ -8,7 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calib/unique_fd.h"
+#include "base/unique_fd.h"
 #include "procedures/recorder.h"
 
 namespace fpss {

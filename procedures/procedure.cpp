@@ -5,9 +5,9 @@
 
 #include <cmath>
 
+#include "base/errors.h"
+#include "base/text_file.h"
 #include "calib/coefficients.h"
-#include "calib/errors.h"
-#include "calib/text_file.h"
 
 namespace fpss {
 

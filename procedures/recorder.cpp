@@ -10,19 +10,12 @@
 #include <fstream>
 #include <sstream>
 
-#include "calib/errors.h"
-#include "calib/text_file.h"
+#include "base/clock.h"
+#include "base/errors.h"
+#include "base/text_file.h"
+#include "base/unique_fd.h"
 
 namespace fpss {
-
-std::string utc_now_iso() {
-  const auto now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
 
 namespace fs = std::filesystem;
 
@@ -71,11 +64,8 @@ std::string header_text() {
 }
 
 void fsync_dir(const fs::path& dir) {
-  int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
-  if (fd >= 0) {
-    ::fsync(fd);
-    ::close(fd);
-  }
+  const UniqueFd fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY));
+  if (fd) ::fsync(fd.get());
 }
 }  // namespace
 
@@ -92,16 +82,6 @@ fs::path make_run_dir(const fs::path& runs_dir, const std::string& utc_iso, cons
 }
 
 void write_json_atomic(const fs::path& path, const nlohmann::json& j) { write_text_atomic(path, j.dump(2) + "\n"); }
-
-nlohmann::json read_json_file(const fs::path& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(fmt::format("{}: cannot open", path.string()));
-  try {
-    return nlohmann::json::parse(in);
-  } catch (const nlohmann::json::exception& e) {
-    throw InputError(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
-  }
-}
 
 std::vector<JournalEntry> RunRecorder::read_journal(const fs::path& path) {
   std::vector<JournalEntry> out;
@@ -203,18 +183,15 @@ RunRecorder::RunRecorder(const fs::path& run_dir) : dir_(run_dir) {
     last_time_s_ = journal_.back().last_time_s;
     for (const auto& j : journal_) has_rows_ = has_rows_ || j.rows > 0;
   }
-  journal_fd_ = ::open(journal_path().c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-  if (journal_fd_ < 0) {
+  journal_fd_.reset(::open(journal_path().c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644));
+  if (!journal_fd_) {
     throw std::runtime_error(fmt::format("{}: cannot open ({})", journal_path().string(), std::strerror(errno)));
   }
   fsync_dir(dir_);
 }
 
 RunRecorder::~RunRecorder() {
-  if (journal_fd_ >= 0) {
-    ::fsync(journal_fd_);
-    ::close(journal_fd_);
-  }
+  if (journal_fd_) ::fsync(journal_fd_.get());  // closed by its owner
 }
 
 void RunRecorder::append_point(int64_t point, const std::vector<RecordedRow>& rows, int attempts, int session) {
@@ -255,7 +232,7 @@ void RunRecorder::journal_point(int64_t point, size_t rows, int attempts, int se
   const std::string line = j.dump() + "\n";
   // No fsync here: samples.csv is durable already, and a journal line lost in a crash only
   // means the point is cut and measured again on resume (one fsync per point, not two).
-  if (::write(journal_fd_, line.data(), line.size()) != static_cast<ssize_t>(line.size())) {
+  if (::write(journal_fd_.get(), line.data(), line.size()) != static_cast<ssize_t>(line.size())) {
     throw std::runtime_error(fmt::format("{}: journal write failed ({})", journal_path().string(),
                                          std::strerror(errno)));
   }

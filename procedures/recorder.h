@@ -7,6 +7,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/json_file.h"
+#include "base/unique_fd.h"
 #include "calib/samples.h"
 
 namespace fpss {
@@ -45,8 +47,6 @@ struct JournalEntry {
   std::string skipped;
 };
 
-// Now as ISO 8601 UTC, 2024-05-01T12:00:00Z.
-std::string utc_now_iso();
 
 // An ISO 8601 UTC time (utc_now_iso(), 2024-05-01T12:00:00Z) compact for folder names (20240501T120000Z).
 std::string utc_compact(const std::string& iso);
@@ -57,7 +57,7 @@ std::filesystem::path make_run_dir(const std::filesystem::path& runs_dir, const 
 
 // Writes JSON atomically (temporary file, fsync, rename): a crash leaves the old or the new file.
 void write_json_atomic(const std::filesystem::path& path, const nlohmann::json& j);
-nlohmann::json read_json_file(const std::filesystem::path& path);  // InputError naming the file
+// JSON files are read with base/json_file.h's read_json_file (size, depth, duplicate keys).
 
 // Where a run continues: the first point not yet durable, the last row's time and when it was journalled.
 struct ResumePoint {
@@ -103,7 +103,7 @@ class RunRecorder {
   std::filesystem::path dir_;
   std::unique_ptr<SamplesCsvWriter> writer_;
   std::vector<JournalEntry> journal_;
-  int journal_fd_ = -1;
+  UniqueFd journal_fd_;
   double last_time_s_ = 0;
   bool has_rows_ = false;
   uint64_t cut_bytes_ = 0;

@@ -7,7 +7,7 @@
 #include <tuple>
 #include <string>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 
 namespace fpss {
 

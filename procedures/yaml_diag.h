@@ -11,7 +11,7 @@
 
 #include <yaml-cpp/yaml.h>
 
-#include "calib/text_file.h"
+#include "base/text_file.h"
 
 namespace fpss {
 

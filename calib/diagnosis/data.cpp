@@ -6,8 +6,8 @@
 #include <cmath>
 #include <limits>
 
+#include "base/errors.h"
 #include "calib/diagnosis/model.h"
-#include "calib/errors.h"
 #include "calib/outliers.h"
 #include "calib/samples.h"
 #include "calib/units.h"

@@ -13,10 +13,10 @@
 #include <map>
 #include <numeric>
 
+#include "base/errors.h"
 #include "calib/diagnosis/internal.h"
-#include "calib/effect_catalogue.h"
 #include "calib/diagnosis/model.h"
-#include "calib/errors.h"
+#include "calib/effect_catalogue.h"
 
 namespace fpss {
 

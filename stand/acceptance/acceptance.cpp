@@ -6,8 +6,8 @@
 #include <cmath>
 #include <limits>
 
+#include "base/errors.h"
 #include "calib/compare.h"
-#include "calib/errors.h"
 #include "calib/outliers.h"
 #include "calib/units.h"
 #include "stand/report/report.h"

@@ -3,8 +3,8 @@
 
 #include <cstdlib>
 
-#include "calib/errors.h"
-#include "calib/text_file.h"
+#include "base/errors.h"
+#include "base/text_file.h"
 #include "procedures/yaml_diag.h"
 #include "stand/acceptance/acceptance.h"
 

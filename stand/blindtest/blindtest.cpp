@@ -11,7 +11,7 @@
 #include <random>
 #include <set>
 
-#include "calib/text_file.h"
+#include "base/text_file.h"
 #include "calib/units.h"
 
 namespace fpss {

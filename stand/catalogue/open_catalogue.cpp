@@ -9,7 +9,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/catalogue/postgres_catalogue.h"
 #include "stand/catalogue/sqlite_catalogue.h"

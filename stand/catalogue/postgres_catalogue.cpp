@@ -14,7 +14,7 @@
 #include <type_traits>
 #include <variant>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "stand/catalogue/schema.h"
 
 namespace fpss {

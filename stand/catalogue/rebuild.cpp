@@ -6,6 +6,7 @@
 #include <set>
 #include <system_error>
 
+#include "base/json_file.h"
 #include "procedures/recorder.h"
 
 namespace fpss {
@@ -54,7 +55,7 @@ std::vector<fs::path> calibration_files(const fs::path& dir) {
 }  // namespace
 
 void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
-  const nlohmann::json doc = read_json_file(dir / "run.json");
+  const nlohmann::json doc = read_json_file(dir / "run.json", "run file");
   const RunStart rs = run_start_of(doc, dir);
   const std::string outcome = doc.value("outcome", "running");
   const auto known = cat.find_run(rs.run_id);
@@ -69,7 +70,7 @@ void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
   std::set<std::string> have;
   for (const auto& c : cat.run_calibrations(rs.run_id)) have.insert(c.coefficients.dump());
   for (const auto& f : calibration_files(dir)) {
-    CalibrationRecord cr = CalibrationRecord::from_calibration_json(read_json_file(f), f.string());
+    CalibrationRecord cr = CalibrationRecord::from_calibration_json(read_json_file(f, "calibration file"), f.string());
     if (have.count(cr.coefficients.dump())) continue;
     cr.unit = rs.unit;
     cr.source = "run";
@@ -85,7 +86,7 @@ void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
     bool indexed = false;
     for (const auto& a : cat.unit_acceptances(rs.unit)) indexed |= a.run_id == rs.run_id;
     if (!indexed) {
-      const nlohmann::json cert = read_json_file(dir / "acceptance.json");
+      const nlohmann::json cert = read_json_file(dir / "acceptance.json", "acceptance file");
       AcceptanceRecord rec;
       rec.unit = cert.value("unit", rs.unit);
       rec.run_id = rs.run_id;

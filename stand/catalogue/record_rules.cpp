@@ -7,7 +7,8 @@
 #include <filesystem>
 #include <stdexcept>
 
-#include "calib/errors.h"
+#include "base/clock.h"
+#include "base/errors.h"
 #include "procedures/recorder.h"
 
 namespace fpss {

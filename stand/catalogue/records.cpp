@@ -3,8 +3,8 @@
 
 #include <cmath>
 
+#include "base/errors.h"
 #include "calib/coefficients.h"
-#include "calib/errors.h"
 #include "stand/catalogue/catalogue.h"
 
 namespace fpss {

@@ -7,6 +7,7 @@
 
 #include <stdexcept>
 
+#include "base/clock.h"
 #include "procedures/recorder.h"
 #include "stand/catalogue/record_rules.h"
 

@@ -18,8 +18,8 @@
 #include <type_traits>
 #include <variant>
 
+#include "base/errors.h"
 #include "calib/coefficients.h"
-#include "calib/errors.h"
 #include "stand/catalogue/schema.h"
 
 namespace fpss {

@@ -16,23 +16,24 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/clock.h"
+#include "base/errors.h"
+#include "base/json_file.h"
+#include "base/text_file.h"
 #include "calib/coefficients.h"
 #include "calib/compare.h"
-#include "calib/errors.h"
-#include "calib/json_file.h"
-#include "calib/text_file.h"
 #include "fixtures/bench.h"
-#include "stand/acceptance/acceptance.h"
-#include "stand/catalogue/catalogue.h"
 #include "procedures/plan.h"
 #include "procedures/recorder.h"
-#include "stand/report/compare_plot.h"
-#include "stand/report/report.h"
-#include "stand/session/session.h"
+#include "stand/acceptance/acceptance.h"
+#include "stand/catalogue/catalogue.h"
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/emulated_bench.h"
 #include "stand/config/stand_config.h"
+#include "stand/report/compare_plot.h"
+#include "stand/report/report.h"
+#include "stand/session/session.h"
 
 extern char** environ;
 
@@ -387,7 +388,7 @@ int accept_command(const AcceptArgs& a) {
     return 1;
   }
 
-  const nlohmann::json run_doc = read_json_file(run_dir / "run.json");
+  const nlohmann::json run_doc = read_json_file(run_dir / "run.json", "run file");
   const std::string unit = run_doc.value("unit", a.unit);
   AcceptanceData data;
   data.roles = p.roles;

@@ -7,8 +7,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/errors.h"
 #include "calib/coefficients.h"
-#include "calib/errors.h"
 #include "calib/units.h"
 #include "stand/cli/commands.h"
 

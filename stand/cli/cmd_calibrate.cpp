@@ -5,12 +5,13 @@
 #include <memory>
 #include <optional>
 
+#include "base/clock.h"
+#include "base/text_file.h"
 #include "calib/calibrator.h"
 #include "calib/coefficients.h"
 #include "calib/report.h"
 #include "calib/samples.h"
 #include "calib/streaming.h"
-#include "calib/text_file.h"
 #include "procedures/recorder.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/file_options.h"

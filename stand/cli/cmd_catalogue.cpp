@@ -9,9 +9,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/errors.h"
+#include "base/json_file.h"
 #include "calib/compare.h"
-#include "calib/errors.h"
-#include "calib/json_file.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/catalogue/copy.h"
 #include "stand/catalogue/rebuild.h"

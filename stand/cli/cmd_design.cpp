@@ -10,10 +10,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/errors.h"
+#include "base/text_file.h"
 #include "calib/coefficients.h"
 #include "calib/design.h"
-#include "calib/errors.h"
-#include "calib/text_file.h"
 #include "fixtures/bench.h"
 #include "procedures/design_procedure.h"
 #include "procedures/procedure.h"

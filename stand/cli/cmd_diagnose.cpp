@@ -2,11 +2,11 @@
 // fpss-stand blindtest (the diagnosis against random effects on the simulated bench).
 #include <cstdio>
 
+#include "base/errors.h"
+#include "base/text_file.h"
 #include "calib/coefficients.h"
 #include "calib/diagnosis/diagnosis.h"
-#include "calib/errors.h"
 #include "calib/samples.h"
-#include "calib/text_file.h"
 #include "stand/blindtest/blindtest.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/file_options.h"

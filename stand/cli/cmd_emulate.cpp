@@ -10,12 +10,12 @@
 #include <string>
 #include <vector>
 
+#include "base/errors.h"
+#include "base/text_file.h"
 #include "calib/coefficients.h"
-#include "calib/errors.h"
-#include "calib/text_file.h"
 #include "fixtures/emulator.h"
-#include "stand/cli/emulator_contract.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/emulator_contract.h"
 
 namespace fpss::cli {
 

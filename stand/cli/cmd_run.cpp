@@ -9,16 +9,16 @@
 #include <string>
 #include <vector>
 
-#include "calib/errors.h"
-#include "calib/text_file.h"
+#include "base/errors.h"
+#include "base/text_file.h"
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
-#include "stand/session/session.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/emulated_bench.h"
 #include "stand/config/stand_config.h"
+#include "stand/session/session.h"
 
 namespace fpss::cli {
 

@@ -10,12 +10,12 @@
 
 #include <fmt/format.h>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "stand/acceptance/acceptance.h"
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
-#include "stand/config/stand_config.h"
 #include "stand/cli/emulated_bench.h"
+#include "stand/config/stand_config.h"
 #include "stand/console/server.h"
 #include "stand/session/run_folder.h"
 

@@ -8,9 +8,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calib/errors.h"
-#include "calib/json_file.h"
-#include "calib/text_file.h"
+#include "base/errors.h"
+#include "base/json_file.h"
+#include "base/text_file.h"
 #include "stand/acceptance/acceptance.h"
 #include "stand/cli/commands.h"
 #include "stand/report/report.h"

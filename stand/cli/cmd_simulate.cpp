@@ -1,8 +1,8 @@
 // fpss-stand simulate: an in-process bench null-to-offset recording against a known truth.
 #include <cstdio>
 
+#include "base/text_file.h"
 #include "calib/samples.h"
-#include "calib/text_file.h"
 #include "fixtures/recording.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/file_options.h"

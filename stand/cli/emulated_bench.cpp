@@ -4,8 +4,8 @@
 
 #include <filesystem>
 
+#include "base/errors.h"
 #include "calib/coefficients.h"
-#include "calib/errors.h"
 #include "fixtures/bench.h"
 
 namespace fpss::cli {

@@ -3,8 +3,8 @@
 #include <fmt/format.h>
 
 
-#include "calib/errors.h"
-#include "calib/text_file.h"
+#include "base/errors.h"
+#include "base/text_file.h"
 
 namespace fpss {
 

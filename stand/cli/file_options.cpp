@@ -5,8 +5,8 @@
 #include <filesystem>
 #include <utility>
 
-#include "calib/errors.h"
-#include "calib/text_file.h"
+#include "base/errors.h"
+#include "base/text_file.h"
 
 namespace fpss::cli {
 

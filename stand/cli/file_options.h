@@ -9,7 +9,7 @@
 
 namespace fpss::cli {
 
-// Each output is checked as calib/text_file.h's check_output_path checks one (its folder exists and
+// Each output is checked as base/text_file.h's check_output_path checks one (its folder exists and
 // is writable; it is no input, however spelt), and no two outputs are the same file: a command that
 // names its files here cannot forget one of them in its checks.
 class FileOptions {

@@ -5,7 +5,7 @@
 #include <exception>
 #include <string>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "stand/cli/commands.h"
 
 int main(int argc, char** argv) {

@@ -4,8 +4,8 @@
 
 #include <cmath>
 
-#include "calib/errors.h"
-#include "calib/text_file.h"
+#include "base/errors.h"
+#include "base/text_file.h"
 #include "drivers/endpoints.h"
 
 namespace fpss {

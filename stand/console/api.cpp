@@ -8,10 +8,10 @@
 #include <fmt/format.h>
 #include <httplib.h>
 
+#include "base/json_file.h"
+#include "base/text_file.h"
 #include "calib/coefficients.h"
 #include "calib/compare.h"
-#include "calib/json_file.h"
-#include "calib/text_file.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/console/run_files.h"
 #include "stand/console/server.h"

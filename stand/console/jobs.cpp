@@ -14,7 +14,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "calib/text_file.h"
+#include "base/clock.h"
+#include "base/text_file.h"
 #include "procedures/recorder.h"
 #include "stand/console/run_files.h"
 

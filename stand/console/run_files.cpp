@@ -8,7 +8,7 @@
 #include <memory>
 #include <utility>
 
-#include "calib/text_file.h"
+#include "base/text_file.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/console/jobs.h"
 

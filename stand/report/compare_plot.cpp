@@ -2,7 +2,7 @@
 
 #include <fmt/format.h>
 
-#include "calib/text_file.h"
+#include "base/text_file.h"
 #include "calib/units.h"
 #include "stand/report/plot.h"
 

@@ -6,9 +6,9 @@
 #include <cmath>
 #include <sstream>
 
-#include "calib/text_file.h"
-#include "stand/report/report.h"
+#include "base/text_file.h"
 #include "stand/report/plot.h"
+#include "stand/report/report.h"
 
 namespace fpss {
 namespace {

@@ -7,12 +7,13 @@
 #include <map>
 #include <tuple>
 
+#include "base/clock.h"
+#include "base/errors.h"
+#include "base/text_file.h"
 #include "calib/calibrator.h"
 #include "calib/dwells.h"
-#include "calib/errors.h"
 #include "calib/outliers.h"
 #include "calib/residuals.h"
-#include "calib/text_file.h"
 #include "calib/units.h"
 #include "procedures/recorder.h"
 #include "stand/report/plot.h"

@@ -6,8 +6,8 @@
 #include <cctype>
 #include <fstream>
 
-#include "calib/errors.h"
-#include "calib/json_file.h"
+#include "base/errors.h"
+#include "base/json_file.h"
 #include "stand/report/report.h"
 
 namespace fpss {

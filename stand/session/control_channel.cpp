@@ -9,8 +9,9 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "calib/json_file.h"
-#include "calib/text_file.h"
+#include "base/clock.h"
+#include "base/json_file.h"
+#include "base/text_file.h"
 #include "procedures/recorder.h"
 
 namespace fpss {

@@ -2,9 +2,9 @@
 
 #include <fmt/format.h>
 
+#include "base/text_file.h"
 #include "calib/coefficients.h"
 #include "calib/diagnosis/diagnosis.h"
-#include "calib/text_file.h"
 #include "stand/report/diagnosis_page.h"
 
 namespace fpss {

@@ -42,11 +42,10 @@ void EmulatorProcess::start() {
   const std::vector<std::string> cmd = command();
   int out[2];
   if (::pipe2(out, O_CLOEXEC) != 0) throw std::runtime_error(fmt::format("emulator: pipe: {}", std::strerror(errno)));
-  int err_fd = ::open(launch_.log.empty() ? "/dev/null" : launch_.log.c_str(),
-                      O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-  if (err_fd < 0) {
-    ::close(out[0]);
-    ::close(out[1]);
+  UniqueFd out_read(out[0]), out_write(out[1]);
+  UniqueFd err_fd(::open(launch_.log.empty() ? "/dev/null" : launch_.log.c_str(),
+                         O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644));
+  if (!err_fd) {
     throw std::runtime_error(fmt::format("emulator: cannot open {}: {}", launch_.log.string(), std::strerror(errno)));
   }
   std::vector<char*> argv;
@@ -54,19 +53,14 @@ void EmulatorProcess::start() {
   argv.push_back(nullptr);
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
-  if (pid < 0) {
-    ::close(out[0]);
-    ::close(out[1]);
-    ::close(err_fd);
-    throw std::runtime_error(fmt::format("emulator: fork: {}", std::strerror(errno)));
-  }
+  if (pid < 0) throw std::runtime_error(fmt::format("emulator: fork: {}", std::strerror(errno)));
   if (pid == 0) {
     // Child: only async-signal-safe calls until exec.
     ::setpgid(0, 0);
     ::prctl(PR_SET_PDEATHSIG, SIGTERM);
     if (::getppid() != parent) ::_exit(127);  // the parent died before prctl took effect
-    ::dup2(out[1], STDOUT_FILENO);
-    ::dup2(err_fd, STDERR_FILENO);
+    ::dup2(out_write.get(), STDOUT_FILENO);
+    ::dup2(err_fd.get(), STDERR_FILENO);
     int devnull = ::open("/dev/null", O_RDONLY);
     if (devnull >= 0) ::dup2(devnull, STDIN_FILENO);
     // Signals the stand ignores or handles must start at their defaults in the bench.
@@ -79,10 +73,10 @@ void EmulatorProcess::start() {
     ::execv(argv[0], argv.data());
     ::_exit(127);
   }
-  ::close(out[1]);
-  ::close(err_fd);
+  out_write.reset();
+  err_fd.reset();
   pid_ = pid;
-  out_fd_ = out[0];
+  out_fd_ = std::move(out_read);
 
   std::string buf;
   EmulatorReadyLines ep;
@@ -93,18 +87,17 @@ void EmulatorProcess::start() {
       stop();
       throw std::runtime_error(fmt::format("emulator: not ready within {} s{}", launch_.ready_timeout_s, stderr_tail()));
     }
-    pollfd p{out_fd_, POLLIN, 0};
+    pollfd p{out_fd_.get(), POLLIN, 0};
     const int r = ::poll(&p, 1, static_cast<int>(std::min<long>(left.count(), 200)));
     if (r < 0 && errno != EINTR) break;
     if (r <= 0) continue;
     char chunk[512];
-    const ssize_t n = ::read(out_fd_, chunk, sizeof chunk);
+    const ssize_t n = ::read(out_fd_.get(), chunk, sizeof chunk);
     if (n <= 0) {
       int status = 0;
       ::waitpid(pid_, &status, 0);
       pid_ = -1;
-      ::close(out_fd_);
-      out_fd_ = -1;
+      out_fd_.reset();
       throw std::runtime_error(fmt::format("emulator: exited before it was ready ({}){}",
                                            WIFEXITED(status) ? fmt::format("exit code {}", WEXITSTATUS(status))
                                                              : fmt::format("signal {}", WTERMSIG(status)),
@@ -143,8 +136,7 @@ int EmulatorProcess::stop(double grace_s) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   pid_ = -1;
-  if (out_fd_ >= 0) ::close(out_fd_);
-  out_fd_ = -1;
+  out_fd_.reset();
   return status;
 }
 

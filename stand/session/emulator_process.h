@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "base/unique_fd.h"
+
 namespace fpss {
 
 struct EmulatorLaunch {
@@ -44,7 +46,7 @@ class EmulatorProcess {
   std::string stderr_tail() const;
   EmulatorLaunch launch_;
   pid_t pid_ = -1;
-  int out_fd_ = -1;
+  UniqueFd out_fd_;
   std::string gimbal_, sensor_;
 };
 

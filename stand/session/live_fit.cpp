@@ -10,7 +10,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/transfer_function.h"
 
 namespace fpss {

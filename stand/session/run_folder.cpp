@@ -13,7 +13,9 @@
 #include <cstring>
 #include <string>
 
-#include "calib/errors.h"
+#include "base/clock.h"
+#include "base/errors.h"
+#include "base/json_file.h"
 #include "procedures/procedure.h"
 #include "procedures/recorder.h"
 
@@ -33,14 +35,13 @@ RunFolderLock::RunFolderLock(const fs::path& run_dir) : RunFolderLock(run_dir, "
 
 RunFolderLock::RunFolderLock(const fs::path& run_dir, const std::string& file, const std::string& what) {
   const fs::path path = run_dir / file;
-  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
-  if (fd_ < 0) throw std::runtime_error(fmt::format("{}: cannot open: {}", path.string(), std::strerror(errno)));
-  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+  fd_.reset(::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644));
+  if (!fd_) throw std::runtime_error(fmt::format("{}: cannot open: {}", path.string(), std::strerror(errno)));
+  if (::flock(fd_.get(), LOCK_EX | LOCK_NB) != 0) {
     const int err = errno;
     char buf[32] = {0};
-    const ssize_t n = ::pread(fd_, buf, sizeof buf - 1, 0);
-    ::close(fd_);
-    fd_ = -1;
+    const ssize_t n = ::pread(fd_.get(), buf, sizeof buf - 1, 0);
+    fd_.reset();
     if (err != EWOULDBLOCK) throw std::runtime_error(fmt::format("{}: cannot lock: {}", path.string(), std::strerror(err)));
     const std::string pid = n > 0 ? std::string(buf, static_cast<size_t>(n)) : std::string("?");
     throw RunFolderBusy(fmt::format("{}: {} is in use by another fpss-stand (pid {}); nothing was written",
@@ -48,18 +49,16 @@ RunFolderLock::RunFolderLock(const fs::path& run_dir, const std::string& file, c
   }
   const std::string pid = std::to_string(::getpid()) + "\n";
   // Without the pid the lock still holds; only a second owner's message is poorer.
-  if (::ftruncate(fd_, 0) == 0) (void)!::pwrite(fd_, pid.data(), pid.size(), 0);
+  if (::ftruncate(fd_.get(), 0) == 0) (void)!::pwrite(fd_.get(), pid.data(), pid.size(), 0);
 }
 
-RunFolderLock::~RunFolderLock() {
-  if (fd_ >= 0) ::close(fd_);  // releases the flock
-}
+RunFolderLock::~RunFolderLock() = default;  // closing the descriptor releases the flock
 
 RunInfo read_run_info(const fs::path& run_dir) {
   const fs::path path = run_dir / "run.json";
   if (!fs::exists(path)) throw InputError(fmt::format("{}: not a run folder (no run.json)", run_dir.string()));
   RunInfo info;
-  info.doc = read_json_file(path);
+  info.doc = read_json_file(path, "run file");
   try {
     const auto& p = info.doc.at("procedure");
     info.procedure_text = p.at("text").get<std::string>();

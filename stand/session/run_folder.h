@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/unique_fd.h"
 #include "stand/catalogue/rebuild.h"  // kCataloguePending
 #include "stand/cli/emulator_contract.h"
 
@@ -32,7 +33,7 @@ class RunFolderLock {
   RunFolderLock& operator=(const RunFolderLock&) = delete;
 
  private:
-  int fd_ = -1;
+  UniqueFd fd_;  // closing it releases the flock
 };
 
 // What a run folder's run.json holds (for --resume and tools).

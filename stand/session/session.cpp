@@ -15,13 +15,16 @@
 #include <fstream>
 #include <sstream>
 
+#include "base/clock.h"
+#include "base/errors.h"
 #include "calib/calibrator.h"
-#include "calib/errors.h"
 #include "calib/report.h"
 #include "calib/streaming.h"
 #include "calib/transfer_function.h"
 #include "drivers/endpoints.h"
+#include "procedures/recorder.h"
 #include "stand/catalogue/catalogue.h"
+#include "stand/report/report.h"
 #include "stand/session/bench_launcher.h"
 #include "stand/session/catch_up.h"
 #include "stand/session/computation_checks.h"
@@ -32,8 +35,6 @@
 #include "stand/session/run_folder.h"
 #include "stand/session/signals.h"
 #include "stand/session/terminal_keys.h"
-#include "stand/report/report.h"
-#include "procedures/recorder.h"
 
 namespace fpss {
 

@@ -84,7 +84,10 @@ TerminalKeys::TerminalKeys(int fd, RunControl& control, std::function<void(const
     : fd_(fd), control_(control), say_(std::move(say)) {
   if (g_fd >= 0) throw std::logic_error("TerminalKeys: one terminal at a time");
   if (::tcgetattr(fd_, &g_saved) != 0) throw std::runtime_error("TerminalKeys: not a terminal");
-  if (::pipe2(wake_, O_CLOEXEC) != 0) throw std::runtime_error("TerminalKeys: pipe failed");
+  int wake[2];
+  if (::pipe2(wake, O_CLOEXEC) != 0) throw std::runtime_error("TerminalKeys: pipe failed");
+  wake_read_.reset(wake[0]);
+  wake_write_.reset(wake[1]);
   g_keys = g_saved;
   g_keys.c_lflag &= ~static_cast<tcflag_t>(ICANON | ECHO);  // ISIG stays: Ctrl-C as before
   g_keys.c_cc[VMIN] = 1;
@@ -103,14 +106,12 @@ TerminalKeys::TerminalKeys(int fd, RunControl& control, std::function<void(const
 
 TerminalKeys::~TerminalKeys() {
   const char c = 0;
-  while (::write(wake_[1], &c, 1) < 0 && errno == EINTR) {
+  while (::write(wake_write_.get(), &c, 1) < 0 && errno == EINTR) {
   }
   if (thread_.joinable()) thread_.join();
   ::tcsetattr(fd_, TCSANOW, &g_saved);
   for (size_t i = 0; i < sizeof kSignals / sizeof kSignals[0]; ++i) ::sigaction(kSignals[i], &g_old[i], nullptr);
   g_fd = -1;
-  ::close(wake_[0]);
-  ::close(wake_[1]);
 }
 
 bool TerminalKeys::foreground(int fd) { return ::isatty(fd) && ::tcgetpgrp(fd) == ::getpgrp(); }
@@ -120,7 +121,7 @@ void TerminalKeys::read_keys() {
     // A job put in the background must not read (SIGTTIN would stop it): look at the terminal
     // only while in the foreground, and again every 200 ms.
     const bool fg = foreground(fd_);
-    pollfd p[2] = {{fg ? fd_ : -1, POLLIN, 0}, {wake_[0], POLLIN, 0}};
+    pollfd p[2] = {{fg ? fd_ : -1, POLLIN, 0}, {wake_read_.get(), POLLIN, 0}};
     if (::poll(p, 2, 200) < 0) {
       if (errno == EINTR) continue;
       return;

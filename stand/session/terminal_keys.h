@@ -6,6 +6,7 @@
 #include <string>
 #include <thread>
 
+#include "base/unique_fd.h"
 #include "procedures/engine.h"
 
 namespace fpss {
@@ -35,7 +36,7 @@ class TerminalKeys {
   int fd_;
   RunControl& control_;
   std::function<void(const std::string&)> say_;
-  int wake_[2] = {-1, -1};  // the destructor writes here to end the thread
+  UniqueFd wake_read_, wake_write_;  // a pipe: the destructor writes to it to end the thread
   std::thread thread_;
 };
 

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <random>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/report.h"
 #include "fixtures/recording.h"
 #include "tests/support/test_support.h"

@@ -7,7 +7,8 @@
 #include <filesystem>
 #include <limits>
 
-#include "calib/errors.h"
+#include "base/errors.h"
+#include "base/text_file.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {
@@ -16,6 +17,8 @@ namespace {
 namespace fs = std::filesystem;
 
 using test::TempDir;
+
+const std::string kGood8 = "[1e-4, 5e-7, 3e-5, 3e-4, 3.4, -1e-4, 1e-4, 1.7]";
 
 TEST(Coefficients, FourteenPublishedSetsThreeFlagged) {
   const auto names = published_names();
@@ -92,6 +95,30 @@ TEST(Coefficients, NonFiniteValuesInAJsonObjectAreRefused) {
   j["beta"][4] = std::numeric_limits<double>::quiet_NaN();
   const std::string m = test::error_of<InputError>([&] { parse_coefficients(j, "mem"); });
   EXPECT_NE(m.find("mem: \"beta\"[4] (C5) must be a finite number"), std::string::npos) << m;
+}
+
+TEST(CoefficientFile, EveryHostileFileIsAnInputErrorNamingFileAndKey) {
+  TempDir d;
+  auto load_error = [&](const std::string& name, const std::string& text) {
+    const auto p = d.write(name, text);
+    return test::error_of<InputError>([&] { load_coefficients(p); });
+  };
+  std::string m = load_error("deep.json", std::string(200000, '[') + std::string(200000, ']'));
+  EXPECT_NE(m.find("deep.json:1:65: nested deeper than 64 levels"), std::string::npos) << m;
+  m = load_error("dup.json", "{\"alpha\": " + kGood8 + ", \"beta\": " + kGood8 + ", \"beta\": " + kGood8 + "}");
+  EXPECT_NE(m.find("dup.json:1:"), std::string::npos) << m;
+  EXPECT_NE(m.find("key \"beta\" given twice"), std::string::npos) << m;
+  m = load_error("huge.json", R"({"alpha": [0, 5e-7, 3e-5, 3e-4, 3.4, -1e-4, 1e-4, 1.7], "beta": [1e308, 5e-7, 3e-5, 3e-4, 3.4, -1e-4, 1e-4, 1.7]})");
+  EXPECT_NE(m.find("huge.json: \"beta\"[0] (C1) = 1e+308 is beyond +-1000"), std::string::npos) << m;
+  m = load_error("over.json", R"({"alpha": [1e400, 5e-7, 3e-5, 3e-4, 3.4, -1e-4, 1e-4, 1.7]})");
+  EXPECT_NE(m.find("over.json:1:"), std::string::npos) << m;
+  m = test::error_of<InputError>([&] { load_coefficients("/dev/zero"); });
+  EXPECT_NE(m.find("/dev/zero: not a regular file"), std::string::npos) << m;
+  m = test::error_of<InputError>([&] { load_coefficients(d.path()); });
+  EXPECT_NE(m.find("not a regular file (a folder); expected the coefficient file"), std::string::npos) << m;
+  const auto big = d.write("big.json", "{\"unit\": \"" + std::string(kMaxConfigFileBytes, 'x') + "\"}");
+  m = test::error_of<InputError>([&] { load_coefficients(big); });
+  EXPECT_NE(m.find("more than the 16777216 bytes a coefficient file may have"), std::string::npos) << m;
 }
 
 }  // namespace

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <string>
 
+#include "base/errors.h"
 #include "calib/compare.h"
-#include "calib/errors.h"
 
 namespace fpss {
 namespace {

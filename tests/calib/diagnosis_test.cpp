@@ -12,8 +12,8 @@
 #include <set>
 #include <sstream>
 
+#include "base/errors.h"
 #include "calib/diagnosis/model.h"
-#include "calib/errors.h"
 #include "fixtures/bench.h"
 #include "fixtures/recording.h"
 

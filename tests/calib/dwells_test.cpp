@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 
 namespace fpss {
 namespace {

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/reduction.h"
 
 namespace fpss {

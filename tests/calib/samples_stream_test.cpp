@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/samples.h"
 #include "tests/support/test_support.h"
 

@@ -8,7 +8,7 @@
 #include <cmath>
 #include <filesystem>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {

@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <functional>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/report.h"
 #include "tests/support/calib_mc.h"
 

@@ -5,7 +5,7 @@
 #include <regex>
 #include <set>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
 #include "tests/procedures/diag_util.h"

@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/samples.h"
 #include "procedures/align.h"
 #include "procedures/recorder.h"

@@ -13,8 +13,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/errors.h"
 #include "calib/calibrator.h"
-#include "calib/errors.h"
 #include "calib/units.h"
 #include "fixtures/bench.h"
 #include "fixtures/recording.h"

@@ -15,15 +15,15 @@
 #include <functional>
 #include <set>
 
+#include "base/errors.h"
+#include "base/unique_fd.h"
 #include "calib/coefficients.h"
-#include "calib/errors.h"
-#include "calib/unique_fd.h"
 #include "stand/catalogue/copy.h"
 #include "stand/catalogue/postgres_catalogue.h"
 #include "stand/catalogue/schema.h"
 #include "stand/catalogue/sqlite_catalogue.h"
-#include "tests/support/pg_server.h"
 #include "tests/stand/catalogue_fixtures.h"
+#include "tests/support/pg_server.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {

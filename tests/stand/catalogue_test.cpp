@@ -14,8 +14,8 @@
 #include <functional>
 #include <set>
 
+#include "base/errors.h"
 #include "calib/coefficients.h"
-#include "calib/errors.h"
 #include "tests/stand/catalogue_fixtures.h"
 #include "tests/support/test_support.h"
 #include "tests/support/text_order.h"

@@ -14,7 +14,7 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
-#include "calib/unique_fd.h"
+#include "base/unique_fd.h"
 #include "stand/catalogue/sqlite_catalogue.h"
 #include "stand/console/run_files.h"
 #include "tests/stand/catalogue_fixtures.h"

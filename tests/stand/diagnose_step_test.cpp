@@ -10,8 +10,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/text_file.h"
 #include "calib/samples.h"
-#include "calib/text_file.h"
 #include "tests/procedures/run_util.h"
 #include "tests/support/test_support.h"
 

@@ -9,9 +9,9 @@
 #include <regex>
 #include <set>
 
+#include "base/errors.h"
 #include "calib/calibrator.h"
 #include "calib/coefficients.h"
-#include "calib/errors.h"
 #include "calib/samples.h"
 #include "calib/units.h"
 #include "stand/report/plot.h"

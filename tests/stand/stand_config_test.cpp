@@ -1,7 +1,7 @@
 // Stand files: every field, the axis mapping (the paper's Table 2 geometry), and every error at file:line:column.
 #include <gtest/gtest.h>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "stand/config/stand_config.h"
 #include "tests/procedures/diag_util.h"
 #include "tests/support/test_support.h"

@@ -3,7 +3,7 @@
 #pragma once
 #include <cstdint>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "procedures/yaml_diag.h"
 #include "tests/support/fuzz_check.h"
 

@@ -26,6 +26,8 @@
 #include <utility>
 #include <vector>
 
+#include "base/unique_fd.h"
+
 extern char** environ;
 
 namespace fpss::test {
@@ -220,6 +222,7 @@ class Child {
       : out_path_(std::move(out_file)), err_path_(std::move(err_file)) {
     int fds[2] = {-1, -1};
     if (out_path_.empty() && ::pipe2(fds, O_CLOEXEC) != 0) throw std::runtime_error("pipe failed");
+    UniqueFd read_end(fds[0]), write_end(fds[1]);
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
     if (out_path_.empty()) {
@@ -233,20 +236,18 @@ class Child {
     args.push_back(nullptr);
     const int rc = ::posix_spawn(&pid_, args[0], &fa, nullptr, args.data(), environ);
     posix_spawn_file_actions_destroy(&fa);
-    if (fds[1] >= 0) ::close(fds[1]);
+    write_end.reset();  // the child has its own copy
     if (rc != 0) {
-      if (fds[0] >= 0) ::close(fds[0]);
       pid_ = -1;
       throw std::runtime_error("posix_spawn " + argv[0] + " failed");
     }
-    pipe_ = fds[0];
+    pipe_ = std::move(read_end);
   }
   ~Child() {
     if (pid_ > 0 && !done_) {
       ::kill(pid_, SIGKILL);
       ::waitpid(pid_, nullptr, 0);
     }
-    if (pipe_ >= 0) ::close(pipe_);
   }
   Child(const Child&) = delete;
   Child& operator=(const Child&) = delete;
@@ -290,11 +291,11 @@ class Child {
         return l;
       }
       const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(end - std::chrono::steady_clock::now());
-      if (left.count() <= 0 || pipe_ < 0) return std::nullopt;
-      pollfd p{pipe_, POLLIN, 0};
+      if (left.count() <= 0 || !pipe_) return std::nullopt;
+      pollfd p{pipe_.get(), POLLIN, 0};
       if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) continue;
       char b[4096];
-      const ssize_t n = ::read(pipe_, b, sizeof b);
+      const ssize_t n = ::read(pipe_.get(), b, sizeof b);
       if (n <= 0) return std::nullopt;
       buf_.append(b, static_cast<std::size_t>(n));
     }
@@ -305,7 +306,7 @@ class Child {
 
  private:
   pid_t pid_ = -1;
-  int pipe_ = -1;
+  UniqueFd pipe_;
   fs::path out_path_, err_path_;
   std::string buf_;
   bool done_ = false;

@@ -1,11 +1,11 @@
-// libFuzzer harness for the JSON coefficient reader (calib/json_file.cpp, calib/coefficients.cpp):
+// libFuzzer harness for the JSON coefficient reader (base/json_file.cpp, calib/coefficients.cpp):
 // any input is a coefficient set that survives a write/read round trip, or an InputError.
 #include <cmath>
 #include <cstdio>
 
+#include "base/errors.h"
+#include "base/json_file.h"
 #include "calib/coefficients.h"
-#include "calib/errors.h"
-#include "calib/json_file.h"
 #include "tests/support/fuzz_check.h"
 
 const fpss::test::Invariants check{"coefficient reader"};

@@ -2,7 +2,7 @@
 // table that keeps the format's promises or is an InputError; nothing else may escape.
 #include <cmath>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "calib/samples.h"
 #include "tests/support/fuzz_check.h"
 

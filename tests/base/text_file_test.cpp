@@ -1,6 +1,6 @@
 // Whole text files from hostile places: what is not a regular file, files too large, planted
 // symlinks, outputs that are inputs, missing / read-only folders and a full disk.
-#include "calib/text_file.h"
+#include "base/text_file.h"
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "calib/errors.h"
+#include "base/errors.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {

@@ -1,4 +1,4 @@
-#include "calib/text_file.h"
+#include "base/text_file.h"
 
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -11,7 +11,8 @@
 #include <random>
 #include <stdexcept>
 
-#include "calib/errors.h"
+#include "base/errors.h"
+#include "base/unique_fd.h"
 
 namespace fpss {
 
@@ -60,11 +61,10 @@ void check_input_file(const fs::path& path, std::string_view what, std::uintmax_
 std::string read_text_file(const fs::path& path, std::string_view what, std::uintmax_t max_bytes) {
   check_input_file(path, what, max_bytes);
   struct stat st{};
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOCTTY | O_NONBLOCK);
-  if (fd < 0) throw InputError(fmt::format("{}: cannot open {}: {}", path.string(), what, std::strerror(errno)));
+  const UniqueFd fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOCTTY | O_NONBLOCK));
+  if (!fd) throw InputError(fmt::format("{}: cannot open {}: {}", path.string(), what, std::strerror(errno)));
   // Checked again on the open descriptor: the path may have been swapped since stat().
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    ::close(fd);
+  if (::fstat(fd.get(), &st) != 0 || !S_ISREG(st.st_mode)) {
     throw InputError(fmt::format("{}: not a regular file; expected the {}", path.string(), what));
   }
   std::string text;
@@ -75,17 +75,15 @@ std::string read_text_file(const fs::path& path, std::string_view what, std::uin
       if (text.size() > max_bytes) break;
       text.resize(std::min<std::uintmax_t>(text.size() + 65536, max_bytes + 1));  // the file grew meanwhile
     }
-    const ssize_t n = ::read(fd, text.data() + got, text.size() - got);
+    const ssize_t n = ::read(fd.get(), text.data() + got, text.size() - got);
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) {
       const std::string why = std::strerror(errno);
-      ::close(fd);
       throw InputError(fmt::format("{}: cannot read {}: {}", path.string(), what, why));
     }
     if (n == 0) break;
     got += static_cast<size_t>(n);
   }
-  ::close(fd);
   if (got > max_bytes) {
     throw InputError(fmt::format("{}: more than the {} bytes a {} may have (docs/formats.md, Limits)", path.string(),
                                  max_bytes, what));
@@ -131,8 +129,8 @@ AtomicFile::AtomicFile(const fs::path& path) : path_(path) {
   const std::string name = path.filename().string();
   for (int attempt = 0; attempt < 16; ++attempt) {
     tmp_ = dir / ("." + name + ".tmp-" + random_hex(16));
-    fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
-    if (fd_ >= 0) return;
+    fd_.reset(::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644));
+    if (fd_) return;
     if (errno != EEXIST) break;
   }
   const std::string why = std::strerror(errno);
@@ -142,10 +140,7 @@ AtomicFile::AtomicFile(const fs::path& path) : path_(path) {
 AtomicFile::~AtomicFile() { discard(); }
 
 void AtomicFile::discard() noexcept {
-  if (fd_ >= 0) {
-    ::close(fd_);
-    fd_ = -1;
-  }
+  fd_.reset();
   if (!committed_ && !tmp_.empty()) {
     ::unlink(tmp_.c_str());
     tmp_.clear();
@@ -153,10 +148,10 @@ void AtomicFile::discard() noexcept {
 }
 
 void AtomicFile::write(std::string_view bytes) {
-  if (fd_ < 0) throw std::logic_error("AtomicFile::write after commit or failure");
+  if (!fd_) throw std::logic_error("AtomicFile::write after commit or failure");
   size_t done = 0;
   while (done < bytes.size()) {
-    const ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
+    const ssize_t n = ::write(fd_.get(), bytes.data() + done, bytes.size() - done);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
       const std::string why = n < 0 ? std::strerror(errno) : "nothing written";
@@ -168,15 +163,14 @@ void AtomicFile::write(std::string_view bytes) {
 }
 
 void AtomicFile::commit() {
-  if (fd_ < 0) throw std::logic_error("AtomicFile::commit twice or after a failure");
+  if (!fd_) throw std::logic_error("AtomicFile::commit twice or after a failure");
   // A full disk may show only at fsync or close (delayed allocation, NFS): both are checked.
-  if (::fsync(fd_) != 0) {
+  if (::fsync(fd_.get()) != 0) {
     const std::string why = std::strerror(errno);
     discard();
     throw std::runtime_error(fmt::format("{}: cannot sync: {} (nothing was written there)", path_.string(), why));
   }
-  const int rc = ::close(fd_);
-  fd_ = -1;
+  const int rc = ::close(fd_.release());  // its result counts: checked here, not in reset()
   if (rc != 0) {
     const std::string why = std::strerror(errno);
     discard();
@@ -190,10 +184,7 @@ void AtomicFile::commit() {
   committed_ = true;
   // The rename itself is durable only once the folder is synced.
   const fs::path dir = path_.parent_path().empty() ? fs::path(".") : path_.parent_path();
-  if (const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC); dfd >= 0) {
-    ::fsync(dfd);
-    ::close(dfd);
-  }
+  if (const UniqueFd dfd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)); dfd) ::fsync(dfd.get());
 }
 
 void write_text_atomic(const fs::path& path, const std::string& text) {

@@ -1,4 +1,4 @@
-#include "calib/json_file.h"
+#include "base/json_file.h"
 
 #include <fmt/format.h>
 
@@ -7,8 +7,8 @@
 #include <set>
 #include <vector>
 
-#include "calib/errors.h"
-#include "calib/text_file.h"
+#include "base/errors.h"
+#include "base/text_file.h"
 
 namespace fpss {
 namespace {

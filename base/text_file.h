@@ -9,6 +9,8 @@
 #include <string_view>
 #include <vector>
 
+#include "base/unique_fd.h"
+
 namespace fpss {
 
 // Largest text file any reader takes (a samples CSV of 2 million rows is about 150 MB).
@@ -55,7 +57,7 @@ class AtomicFile {
  private:
   void discard() noexcept;
   std::filesystem::path path_, tmp_;
-  int fd_ = -1;
+  UniqueFd fd_;
   bool committed_ = false;
 };
 

@@ -1,19 +1,15 @@
 // The one JSON reader of outside files: depth and size limits, duplicate keys, positions in messages.
-#include "calib/json_file.h"
+#include "base/json_file.h"
 
 #include <gtest/gtest.h>
 
 #include <string>
 
-#include "calib/coefficients.h"
-#include "calib/errors.h"
-#include "calib/text_file.h"
+#include "base/errors.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {
 namespace {
-
-using test::TempDir;
 
 const std::string kGood8 = "[1e-4, 5e-7, 3e-5, 3e-4, 3.4, -1e-4, 1e-4, 1.7]";
 
@@ -52,30 +48,6 @@ TEST(JsonFile, NumbersBeyondADoubleAndSyntaxErrors) {
 
 TEST(JsonFile, ByteOrderMarkAccepted) {
   EXPECT_EQ(parse_json_text("\xEF\xBB\xBF{\"unit\": \"X\"}", "f.json").at("unit"), "X");
-}
-
-TEST(CoefficientFile, EveryHostileFileIsAnInputErrorNamingFileAndKey) {
-  TempDir d;
-  auto load_error = [&](const std::string& name, const std::string& text) {
-    const auto p = d.write(name, text);
-    return test::error_of<InputError>([&] { load_coefficients(p); });
-  };
-  std::string m = load_error("deep.json", std::string(200000, '[') + std::string(200000, ']'));
-  EXPECT_NE(m.find("deep.json:1:65: nested deeper than 64 levels"), std::string::npos) << m;
-  m = load_error("dup.json", "{\"alpha\": " + kGood8 + ", \"beta\": " + kGood8 + ", \"beta\": " + kGood8 + "}");
-  EXPECT_NE(m.find("dup.json:1:"), std::string::npos) << m;
-  EXPECT_NE(m.find("key \"beta\" given twice"), std::string::npos) << m;
-  m = load_error("huge.json", R"({"alpha": [0, 5e-7, 3e-5, 3e-4, 3.4, -1e-4, 1e-4, 1.7], "beta": [1e308, 5e-7, 3e-5, 3e-4, 3.4, -1e-4, 1e-4, 1.7]})");
-  EXPECT_NE(m.find("huge.json: \"beta\"[0] (C1) = 1e+308 is beyond +-1000"), std::string::npos) << m;
-  m = load_error("over.json", R"({"alpha": [1e400, 5e-7, 3e-5, 3e-4, 3.4, -1e-4, 1e-4, 1.7]})");
-  EXPECT_NE(m.find("over.json:1:"), std::string::npos) << m;
-  m = test::error_of<InputError>([&] { load_coefficients("/dev/zero"); });
-  EXPECT_NE(m.find("/dev/zero: not a regular file"), std::string::npos) << m;
-  m = test::error_of<InputError>([&] { load_coefficients(d.path()); });
-  EXPECT_NE(m.find("not a regular file (a folder); expected the coefficient file"), std::string::npos) << m;
-  const auto big = d.write("big.json", "{\"unit\": \"" + std::string(kMaxConfigFileBytes, 'x') + "\"}");
-  m = test::error_of<InputError>([&] { load_coefficients(big); });
-  EXPECT_NE(m.find("more than the 16777216 bytes a coefficient file may have"), std::string::npos) << m;
 }
 
 }  // namespace
