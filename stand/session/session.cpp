@@ -453,10 +453,12 @@ void Session::finish(const EngineResult& er) {
 // The report needs a calibration (this session's or an earlier one's); a failure to draw it
 // never fails the run: the recording is what matters.
 void Session::write_report() {
-  if (!fs::exists(res_.run_dir / "calibration.json")) return;
+  if (!req_.write_report || !fs::exists(res_.run_dir / "calibration.json")) return;
   try {
     const auto t0 = std::chrono::steady_clock::now();
-    res_.report = fpss::write_report(res_.run_dir);
+    ReportOptions ro;
+    ro.recording = &recorded_;
+    res_.report = fpss::write_report(res_.run_dir, ro);
     log_->info("report: {} ({:.2f} s)", res_.report->string(), seconds_since(t0));
   } catch (const std::exception& e) {
     log_->warn("report not written: {}", e.what());
@@ -559,6 +561,7 @@ SessionResult Session::run() {
     res_.catalogue_error = catalogue_error_;
   }
   res_.wall_s = seconds_since(t_start);
+  res_.recording = std::move(recorded_);
   log_->flush();
   return res_;
 }
