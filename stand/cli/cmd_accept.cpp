@@ -290,9 +290,9 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   req.write_report = false;  // drawn once, with the certificate (write_acceptance_files)
   // The operator's prompts, answered through the run folder's control channel (docs/console.md).
   if (a.operator_prompts) {
-    req.prompts = {{"serial", "Mount the unit, then scan or type its serial", "serial"},
-                   {"lamp", "Sun simulator lamp on and stable?", "confirm"},
-                   {"operator", "Your name (operator)", "text"}};
+    req.prompts = {{"serial", "Mount the unit, then scan or type its serial", PromptKind::serial},
+                   {"lamp", "Sun simulator lamp on and stable?", PromptKind::confirm},
+                   {"operator", "Your name (operator)", PromptKind::text}};
   }
   return p;
 }
