@@ -435,7 +435,7 @@ void Session::finish(const EngineResult& er) {
   }
   if (res_.calibration) doc_["files"]["calibration"] = res_.calibration->filename().string();
   write_json_atomic(res_.run_dir / "run.json", doc_);
-  with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, to_string(er.outcome), end_utc); });
+  with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, er.outcome, end_utc); });
   if (!catalogue_error_.empty()) {
     // The entry catches up from the folder, which holds everything, once the catalogue is back.
     const double window_s = catalogue_away_ ? req_.catch_up_s : 0;

@@ -294,12 +294,12 @@ TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
     EXPECT_EQ(cat.unit_history(unit).size(), 1u);
     const auto runs_of = cat.list_runs({.unit = unit, .limit = 0});
     ASSERT_EQ(runs_of.size(), 1u);
-    EXPECT_EQ(runs_of[0].outcome, "completed");
+    EXPECT_EQ(runs_of[0].outcome, RunOutcome::completed);
   }
   // The killed one: its run stays "running" and is seen as stale; no verdict was recorded.
   const auto killed = cat.list_runs({.unit = "UNIT-C", .limit = 0});
   ASSERT_EQ(killed.size(), 1u);
-  EXPECT_EQ(killed[0].outcome, "running");
+  EXPECT_TRUE(killed[0].running());
   EXPECT_TRUE(killed[0].stale());
   EXPECT_TRUE(cat.unit_acceptances("UNIT-C").empty());
   // And the catalogue takes the next acceptance as usual.
