@@ -168,6 +168,10 @@ void Session::open_folder() {
   }
   event_log_ = std::make_unique<EventLog>(res_.run_dir / "events.jsonl");
   if (rec_->has_rows()) recorded_ = read_samples_csv(rec_->samples_path());
+  // The provenance as numbers (a resume's columns stay as read: new rows are written into them).
+  if (recorded_.extra_names().empty()) {
+    for (const auto& c : recorder_extra_columns()) recorded_.add_numeric_column(c);
+  }
   recorded_.origin = rec_->samples_path().string();
 }
 
@@ -255,7 +259,7 @@ void Session::subscribe() {
   record_with(bus_, *rec_);
   bus_.subscribe([this](const Event& e) {
     if (const auto* s = std::get_if<Samples>(&e)) {
-      for (const auto& r : *s->rows) recorded_.push_back(r.sample);
+      for (const auto& r : *s->rows) recorded_.push_back(r.sample, r.provenance());
     }
   });
   bus_.subscribe([this](const Event& e) { event_log_->write(e); });

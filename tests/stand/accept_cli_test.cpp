@@ -188,6 +188,15 @@ TEST_F(AcceptCli, GlitchingUnitFailsByNameOnOutlierFramesWithOneSetOfNumbers) {
   const auto cal_n = cal["outliers"]["outlier_frames"].get<size_t>();
   EXPECT_LE(cal_n, n);
   EXPECT_NE(html.find(fmt::format("Outlier frames: {} of ", cal_n)), std::string::npos);
+  // accept drew the page from the recording in memory; `report` draws it again from samples.csv:
+  // the same page but for the time it was written.
+  const CommandResult again = test::run_stand({"report", run.string()}, scratch_.path(), "glitch-report");
+  ASSERT_EQ(again.code, 0) << again.err;
+  const auto untimed = [](std::string h) {
+    const auto at = h.find("Report written ");
+    return at == std::string::npos ? h : h.erase(at, h.find(" by fpss-stand", at) - at);
+  };
+  EXPECT_EQ(untimed(read_file(run / "report.html")), untimed(html));
 }
 
 TEST_F(AcceptCli, BadTransferFunctionRegionFailsOnAccuracyOfThatAxis) {
