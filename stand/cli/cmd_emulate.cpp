@@ -14,7 +14,7 @@
 #include "calib/errors.h"
 #include "calib/text_file.h"
 #include "fixtures/emulator.h"
-#include "stand/cli/emulator_contract.h"
+#include "stand/contract/emulator_contract.h"
 #include "stand/cli/commands.h"
 
 namespace fpss::cli {

@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "stand/catalogue/rebuild.h"  // kCataloguePending
-#include "stand/cli/emulator_contract.h"
+#include "stand/contract/emulator_contract.h"
 
 namespace fpss {
 

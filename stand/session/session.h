@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "procedures/settings.h"
-#include "stand/cli/emulator_contract.h"
+#include "stand/contract/emulator_contract.h"
 #include "stand/session/run_folder.h"
 #include "stand/session/control_channel.h"
 #include "stand/config/stand_config.h"
