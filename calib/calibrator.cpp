@@ -369,7 +369,7 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
     Prepared pr = prepare_gls(d, opts);
     GlsFit gf = refine_gls(pr.g, out.coeffs, d.counts_lo, d.counts_hi, opts.remainder_sigmas);
     out.coeffs = gf.coeffs;
-    out.fit_form = "gls";
+    out.fit_form = FitForm::gls;
     out.noise = pr.noise;
     out.reduced_chi2 = gf.reduced_chi2;
     out.chi2_dof = gf.dof;
@@ -390,7 +390,7 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
 
   out.residuals = residual_stats(d, out.coeffs);
   out.counts_range = {d.counts_lo, d.counts_hi};
-  if (out.fit_form == "gls") {
+  if (out.fit_form == FitForm::gls) {
     // The GLS minimises the dwells' standardised residuals, not the changes' sum of squares: the
     // costs reported are the changes' at the search's own origin (the nominal scale factor alone,
     // as the grid starts) and at the returned coefficients.

@@ -8,6 +8,8 @@
 #include <string_view>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "calib/coefficients.h"
 #include "calib/dwells.h"
 #include "calib/reduction.h"
@@ -23,6 +25,12 @@ enum class Method {
 };
 std::string_view to_string(Method m);
 std::optional<Method> parse_method(std::string_view s);
+
+// How an axis was fitted: gls (the changes with their covariance: dwells, one level per joined
+// set, weighted by the noise model) or ols (changes or absolute angles, equal weights).
+enum class FitForm { ols, gls };
+// Its names in calibration.json (uncertainties.<axis>.fit).
+NLOHMANN_JSON_SERIALIZE_ENUM(FitForm, {{FitForm::ols, "ols"}, {FitForm::gls, "gls"}})
 
 struct CalibrationOptions {
   Method method = Method::differences;
@@ -114,9 +122,7 @@ struct AxisFit {
   ResidualStats residuals;
   SolverInfo solver;
 
-  // How the fit was made: "gls" (changes with their covariance: dwells, one level per joined set,
-  // weighted by the noise model), or "ols" (changes or absolute angles, equal weights).
-  std::string fit_form = "ols";
+  FitForm fit_form = FitForm::ols;
   NoiseInfo noise;
   // [angle_arcsec, sigma_arcsec]: 1-sigma of (fitted - true angle) at evenly spaced angles over the
   // calibrated reference range, C1 (the null condition) included.

@@ -122,7 +122,7 @@ std::string summary_text(const CalibrationReport& r) {
                      a->covariance_pseudo_inverse ? " (pseudo-inverse: J^T J rank deficient)" : "");
   }
   for (const AxisFit* a : {&r.pitch, &r.yaw}) {
-    if (a->fit_form != "gls") continue;
+    if (a->fit_form != FitForm::gls) continue;
     o += fmt::format("{}: GLS of the changes over {} dwells; count noise {} ({}{}), reference noise {:.3f} arcsec; "
                      "chi2/dof {:.2f} ({} dof){}\n",
                      a->axis, a->dwells_fitted,

@@ -35,47 +35,6 @@ std::optional<Phase> parse_phase(std::string_view s) {
   return std::nullopt;
 }
 
-void SampleTable::reserve(size_t n) {
-  time_s.reserve(n); phase.reserve(n); step.reserve(n);
-  ref_pitch_arcsec.reserve(n); ref_yaw_arcsec.reserve(n);
-  counts_alpha.reserve(n); counts_beta.reserve(n);
-  for (auto& c : extra_) c.reserve(n);
-}
-
-void SampleTable::push_back(const Sample& s) {
-  time_s.push_back(s.time_s); phase.push_back(s.phase); step.push_back(s.step);
-  ref_pitch_arcsec.push_back(s.ref_pitch_arcsec); ref_yaw_arcsec.push_back(s.ref_yaw_arcsec);
-  counts_alpha.push_back(s.counts_alpha); counts_beta.push_back(s.counts_beta);
-  for (auto& c : extra_) c.emplace_back();
-}
-
-void SampleTable::push_back(const Sample& s, const std::vector<std::string>& extras) {
-  push_back(s);
-  for (size_t i = 0; i < extra_.size() && i < extras.size(); ++i) extra_[i].back() = extras[i];
-}
-
-Sample SampleTable::row(size_t i) const {
-  return Sample{time_s[i], phase[i], step[i], ref_pitch_arcsec[i], ref_yaw_arcsec[i],
-                counts_alpha[i], counts_beta[i]};
-}
-
-void SampleTable::add_extra_column(const std::string& name) {
-  if (has_column(name)) throw InputError(fmt::format("{}: duplicate column \"{}\"", origin, name));
-  extra_names_.push_back(name);
-  extra_.emplace_back(size());
-}
-
-bool SampleTable::has_column(std::string_view name) const {
-  for (const char* r : kRequired) if (name == r) return true;
-  for (const auto& n : extra_names_) if (n == name) return true;
-  return false;
-}
-
-const std::vector<std::string>& SampleTable::extra_column(std::string_view name) const {
-  for (size_t i = 0; i < extra_names_.size(); ++i) if (extra_names_[i] == name) return extra_[i];
-  throw InputError(fmt::format("{}: no column \"{}\"", origin, name));
-}
-
 namespace {
 
 bool parse_double(std::string_view s, double& out) {
@@ -86,6 +45,98 @@ bool parse_double(std::string_view s, double& out) {
   auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
   return ec == std::errc() && p == s.data() + s.size() && std::isfinite(out);
 }
+
+}  // namespace
+
+void SampleTable::reserve(size_t n) {
+  time_s.reserve(n); phase.reserve(n); step.reserve(n);
+  ref_pitch_arcsec.reserve(n); ref_yaw_arcsec.reserve(n);
+  counts_alpha.reserve(n); counts_beta.reserve(n);
+  for (auto& c : extra_) {
+    c.numbers.reserve(c.numeric ? n : 0);
+    c.text.reserve(c.numeric ? 0 : n);
+  }
+}
+
+void SampleTable::push_back(const Sample& s) {
+  time_s.push_back(s.time_s); phase.push_back(s.phase); step.push_back(s.step);
+  ref_pitch_arcsec.push_back(s.ref_pitch_arcsec); ref_yaw_arcsec.push_back(s.ref_yaw_arcsec);
+  counts_alpha.push_back(s.counts_alpha); counts_beta.push_back(s.counts_beta);
+  for (auto& c : extra_) {
+    if (c.numeric) c.numbers.push_back(std::numeric_limits<double>::quiet_NaN());
+    else c.text.emplace_back();
+  }
+}
+
+void SampleTable::push_back(const Sample& s, const std::vector<std::string>& extras) {
+  // Every cell is read before anything is added: a bad one leaves the table as it was.
+  std::vector<double> numbers(extra_.size(), std::numeric_limits<double>::quiet_NaN());
+  for (size_t i = 0; i < extra_.size() && i < extras.size(); ++i) {
+    if (extra_[i].numeric && !extras[i].empty() && !parse_double(extras[i], numbers[i])) {
+      throw InputError(fmt::format("{}: data row {}, column \"{}\": expected a number, got \"{}\"", origin,
+                                   size() + 1, extra_names_[i], extras[i]));
+    }
+  }
+  push_back(s);
+  for (size_t i = 0; i < extra_.size() && i < extras.size(); ++i) {
+    if (extra_[i].numeric) extra_[i].numbers.back() = numbers[i];
+    else extra_[i].text.back() = extras[i];
+  }
+}
+
+void SampleTable::push_back(const Sample& s, const std::vector<double>& extras) {
+  push_back(s);
+  for (size_t i = 0; i < extra_.size() && i < extras.size(); ++i) {
+    Extra& c = extra_[i];
+    if (c.numeric) c.numbers.back() = extras[i];
+    else c.text.back() = std::isfinite(extras[i]) ? format_number(extras[i]) : std::string();
+  }
+}
+
+Sample SampleTable::row(size_t i) const {
+  return Sample{time_s[i], phase[i], step[i], ref_pitch_arcsec[i], ref_yaw_arcsec[i],
+                counts_alpha[i], counts_beta[i]};
+}
+
+void SampleTable::add_extra_column(const std::string& name) {
+  if (has_column(name)) throw InputError(fmt::format("{}: duplicate column \"{}\"", origin, name));
+  extra_names_.push_back(name);
+  extra_.push_back(Extra{false, std::vector<std::string>(size()), {}});
+}
+
+void SampleTable::add_numeric_column(const std::string& name) {
+  if (has_column(name)) throw InputError(fmt::format("{}: duplicate column \"{}\"", origin, name));
+  extra_names_.push_back(name);
+  extra_.push_back(Extra{true, {}, std::vector<double>(size(), std::numeric_limits<double>::quiet_NaN())});
+}
+
+bool SampleTable::has_column(std::string_view name) const {
+  for (const char* r : kRequired) if (name == r) return true;
+  for (const auto& n : extra_names_) if (n == name) return true;
+  return false;
+}
+
+size_t SampleTable::extra_index(std::string_view name) const {
+  for (size_t i = 0; i < extra_names_.size(); ++i) if (extra_names_[i] == name) return i;
+  throw InputError(fmt::format("{}: no column \"{}\"", origin, name));
+}
+
+std::string SampleTable::extra_text(size_t k, size_t row) const {
+  const Extra& c = extra_[k];
+  if (!c.numeric) return c.text[row];
+  return std::isfinite(c.numbers[row]) ? format_number(c.numbers[row]) : std::string();
+}
+
+std::vector<std::string> SampleTable::extra_column(std::string_view name) const {
+  const size_t k = extra_index(name);
+  if (!extra_[k].numeric) return extra_[k].text;
+  std::vector<std::string> out(size());
+  for (size_t i = 0; i < size(); ++i) out[i] = extra_text(k, i);
+  return out;
+}
+
+namespace {
+
 
 // Splits one CSV record (RFC 4180 quoting) into fields; returns false on an unterminated quote.
 bool split_csv(std::string_view line, std::vector<std::string>& fields) {
@@ -124,7 +175,9 @@ std::string csv_escape(const std::string& s) {
 }  // namespace
 
 std::vector<double> SampleTable::numeric_column(std::string_view name) const {
-  const auto& col = extra_column(name);
+  const size_t k = extra_index(name);
+  if (extra_[k].numeric) return extra_[k].numbers;
+  const auto& col = extra_[k].text;
   std::vector<double> v(col.size());
   for (size_t i = 0; i < col.size(); ++i) {
     if (col[i].empty()) { v[i] = std::numeric_limits<double>::quiet_NaN(); continue; }
@@ -375,7 +428,7 @@ void write_samples_csv(const std::filesystem::path& path, const SampleTable& t) 
   std::string chunk = header_line(t.extra_names());
   std::vector<std::string> extras(t.extra_names().size());
   for (size_t i = 0; i < t.size(); ++i) {
-    for (size_t k = 0; k < extras.size(); ++k) extras[k] = t.extra_column(t.extra_names()[k])[i];
+    for (size_t k = 0; k < extras.size(); ++k) extras[k] = t.extra_text(k, i);
     chunk += row_line(t.row(i), extras, extras.size());
     if (chunk.size() >= (1u << 20)) {
       out.write(chunk);

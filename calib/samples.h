@@ -34,7 +34,8 @@ inline bool same_reading(double pitch_a, double yaw_a, double pitch_b, double ya
   return pitch_a == pitch_b && yaw_a == yaw_b;
 }
 
-// Column-major so that two million rows stay compact; extra columns are kept as text.
+// Column-major so that two million rows stay compact. An extra column is numbers (a recorder's
+// provenance, NaN for an empty cell) or text (a column read from a file, kept as written).
 class SampleTable {
  public:
   static constexpr const char* kRequired[] = {"time_s", "phase", "step", "ref_pitch_arcsec",
@@ -44,14 +45,21 @@ class SampleTable {
   bool empty() const { return time_s.empty(); }
   void reserve(size_t n);
   void push_back(const Sample& s);
-  // Extras in the order of extra_names(); adds missing cells as "".
+  // Extras in the order of extra_names(); adds missing cells as "" (NaN). A numeric column takes
+  // the text as a number (InputError naming the column for one that is not).
   void push_back(const Sample& s, const std::vector<std::string>& extras);
+  // The same from numbers: a text column gets the number's shortest round-trip text ("" for NaN).
+  void push_back(const Sample& s, const std::vector<double>& extras);
   Sample row(size_t i) const;
 
   const std::vector<std::string>& extra_names() const { return extra_names_; }
-  void add_extra_column(const std::string& name);  // filled with "" for existing rows
+  void add_extra_column(const std::string& name);    // text, filled with "" for existing rows
+  void add_numeric_column(const std::string& name);  // numbers, filled with NaN for existing rows
   bool has_column(std::string_view name) const;
-  const std::vector<std::string>& extra_column(std::string_view name) const;
+  // An extra column as text (a numeric one formatted as samples.csv writes it).
+  std::vector<std::string> extra_column(std::string_view name) const;
+  // One cell of the k-th extra column as samples.csv writes it.
+  std::string extra_text(size_t k, size_t row) const;
   // An extra column as numbers; empty cells are NaN. Throws InputError naming the row.
   std::vector<double> numeric_column(std::string_view name) const;
 
@@ -64,8 +72,14 @@ class SampleTable {
   std::string origin;  // file it was read from, for messages
 
  private:
+  struct Extra {
+    bool numeric = false;
+    std::vector<std::string> text;
+    std::vector<double> numbers;
+  };
+  size_t extra_index(std::string_view name) const;  // InputError naming the table for none
   std::vector<std::string> extra_names_;
-  std::vector<std::vector<std::string>> extra_;
+  std::vector<Extra> extra_;
 };
 
 // Reads a samples CSV. Throws InputError naming file, line and column for every format break:

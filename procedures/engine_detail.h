@@ -1,4 +1,4 @@
-// The engine's own helpers, shared by its two source files (engine.cpp, engine_measure.cpp); not an interface.
+// The engine's own helpers, shared by its parts (the run, the measurer, the scheduler, the clock); not an interface.
 #pragma once
 #include <fmt/format.h>
 
@@ -52,6 +52,14 @@ struct GimbalFailure : std::runtime_error {
       : std::runtime_error(what), cause(c) {}
   StopCause cause;
 };
+// A failure no other device can explain (a step's check, a fit, a move that cannot be put back).
+struct PointFailure : std::runtime_error {
+  explicit PointFailure(const std::string& what, StopCause c = StopCause::other)
+      : std::runtime_error(what), cause(c) {}
+  StopCause cause;
+};
+// The operator or a signal asked for the abort: unwinds to run(), which stops safely.
+struct Aborted {};
 
 }  // namespace engine_detail
 

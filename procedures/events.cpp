@@ -25,6 +25,13 @@ const char* to_string(RunOutcome o) {
   return "?";
 }
 
+std::optional<RunOutcome> parse_outcome(std::string_view name) {
+  for (const RunOutcome o : {RunOutcome::completed, RunOutcome::failed, RunOutcome::interrupted}) {
+    if (name == to_string(o)) return o;
+  }
+  return std::nullopt;
+}
+
 const char* to_string(StopCause c) {
   switch (c) {
     case StopCause::none: return "none";

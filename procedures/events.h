@@ -2,7 +2,9 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <variant>
 #include <vector>
 
@@ -18,6 +20,8 @@ struct Plan;
 
 enum class RunOutcome { completed, failed, interrupted };
 const char* to_string(RunOutcome o);
+// The name's outcome; nullopt for any other text.
+std::optional<RunOutcome> parse_outcome(std::string_view name);
 
 // Why a run stopped: decided where the failure is caught, never by reading a message.
 enum class StopCause {

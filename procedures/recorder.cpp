@@ -27,20 +27,16 @@ const std::vector<std::string>& recorder_extra_columns() {
   return c;
 }
 
+std::vector<double> RecordedRow::provenance() const {
+  return {sensor_time_s, static_cast<double>(frame_seq), static_cast<double>(sensor_status), host_time_s, gimbal_time_s,
+          gimbal_pitch_arcsec, gimbal_yaw_arcsec, static_cast<double>(gimbal_status), target_pitch_arcsec,
+          target_yaw_arcsec, temperature_c, static_cast<double>(attempt), static_cast<double>(session)};
+}
+
 std::vector<std::string> RecordedRow::extras() const {
-  return {format_number(sensor_time_s),
-          std::to_string(frame_seq),
-          std::to_string(sensor_status),
-          format_number(host_time_s),
-          format_number(gimbal_time_s),
-          format_number(gimbal_pitch_arcsec),
-          format_number(gimbal_yaw_arcsec),
-          std::to_string(gimbal_status),
-          format_number(target_pitch_arcsec),
-          format_number(target_yaw_arcsec),
-          std::isfinite(temperature_c) ? format_number(temperature_c) : std::string(),
-          std::to_string(attempt),
-          std::to_string(session)};
+  std::vector<std::string> out;
+  for (const double v : provenance()) out.push_back(std::isfinite(v) ? format_number(v) : std::string());
+  return out;
 }
 
 std::string utc_compact(const std::string& iso) {

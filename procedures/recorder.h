@@ -30,6 +30,9 @@ struct RecordedRow {
   double temperature_c = 0;   // NaN when the sensor did not answer
   int attempt = 1;            // measurement attempt of the point that was kept
   int session = 1;            // 1 + number of resumes before this row
+  // The recorder's columns as numbers (temperature NaN when not answered), in their order.
+  std::vector<double> provenance() const;
+  // The same as samples.csv writes them ("" for NaN).
   std::vector<std::string> extras() const;
 };
 

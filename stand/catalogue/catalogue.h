@@ -11,6 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "procedures/events.h"
+
 namespace fpss {
 
 // Table 1 of the paper for one axis, as the calibrator writes `residuals.<axis>` in
@@ -46,13 +48,8 @@ struct RunStart {
   std::string software_version = FPSS_VERSION;
 };
 
-// Outcomes the engine records; `running` until record_run_end.
-namespace outcome {
-inline constexpr const char* running = "running";
-inline constexpr const char* completed = "completed";
-inline constexpr const char* interrupted = "interrupted";
-inline constexpr const char* failed = "failed";
-}  // namespace outcome
+// The catalogue's text for a run's state: "running" until record_run_end gives it an outcome.
+inline constexpr const char* kRunningName = "running";
 
 struct RunRecord {
   std::string run_id;
@@ -61,7 +58,7 @@ struct RunRecord {
   std::string procedure_hash;
   std::string started_utc;
   std::optional<std::string> ended_utc;
-  std::string outcome;
+  std::optional<RunOutcome> outcome;  // none while the run is running
   std::string run_dir;
   bool emulated = false;
   std::string stand;
@@ -73,6 +70,11 @@ struct RunRecord {
   // run folder's lock is not held (run_folder_owned), or, without the folder here, no process has
   // its pid. A run of another host is never called stale from here: its pid means nothing on this one.
   bool stale() const;
+  bool running() const { return !outcome; }
+  // "running" or the outcome's name, as the catalogue's column and the JSON outputs spell it.
+  std::string outcome_name() const { return outcome ? to_string(*outcome) : kRunningName; }
+  // From that text; InputError naming `where` for any other.
+  static std::optional<RunOutcome> outcome_of(const std::string& name, const std::string& where);
 };
 
 // Whether a process holds the run folder's lock (RUN_DIR/.lock, taken by the run before it writes
@@ -153,7 +155,7 @@ class Catalogue {
   // start time, sets it back to `running`, clears its end and counts the resume.
   virtual void record_run_start(const RunStart& run) = 0;
   // Sets the end time (empty: now) and outcome. Throws std::invalid_argument for an unknown run.
-  virtual void record_run_end(const std::string& run_id, const std::string& outcome,
+  virtual void record_run_end(const std::string& run_id, RunOutcome outcome,
                               const std::string& ended_utc = "") = 0;
   // A whole run record as another catalogue holds it (catalogue copy): inserted when its id is
   // new, left as it is otherwise. Returns true when it was new.

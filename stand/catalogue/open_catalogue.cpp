@@ -49,8 +49,14 @@ bool run_alive(const fs::path& run_dir, int64_t pid) {
 }
 
 bool RunRecord::stale() const {
-  if (outcome != outcome::running || pid <= 0 || host.empty() || host != this_host()) return false;
+  if (!running() || pid <= 0 || host.empty() || host != this_host()) return false;
   return !run_alive(run_dir, pid);
+}
+
+std::optional<RunOutcome> RunRecord::outcome_of(const std::string& name, const std::string& where) {
+  if (name == kRunningName) return std::nullopt;
+  if (auto o = parse_outcome(name)) return o;
+  throw InputError(fmt::format("{}: run outcome \"{}\" (expected running, completed, failed or interrupted)", where, name));
 }
 
 fs::path Catalogue::default_path(const fs::path& runs_dir) { return runs_dir / "stand.db"; }

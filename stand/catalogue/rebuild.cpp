@@ -57,14 +57,15 @@ std::vector<fs::path> calibration_files(const fs::path& dir) {
 void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
   const nlohmann::json doc = read_json_file(dir / "run.json", "run file");
   const RunStart rs = run_start_of(doc, dir);
-  const std::string outcome = doc.value("outcome", "running");
+  const std::optional<RunOutcome> outcome =
+      RunRecord::outcome_of(doc.value("outcome", kRunningName), (dir / "run.json").string() + ": outcome");
   const auto known = cat.find_run(rs.run_id);
   if (!known) {
     cat.record_run_start(rs);
     ++r.runs_added;
-    if (outcome != "running") cat.record_run_end(rs.run_id, outcome, doc.value("ended_utc", ""));
-  } else if (known->outcome != outcome && outcome != "running") {
-    cat.record_run_end(rs.run_id, outcome, doc.value("ended_utc", ""));
+    if (outcome) cat.record_run_end(rs.run_id, *outcome, doc.value("ended_utc", ""));
+  } else if (known->outcome != outcome && outcome) {
+    cat.record_run_end(rs.run_id, *outcome, doc.value("ended_utc", ""));
     ++r.runs_updated;
   }
   std::set<std::string> have;

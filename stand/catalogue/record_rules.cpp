@@ -22,12 +22,6 @@ void check_run_start(const RunStart& run) {
   require_unit(run.unit);
 }
 
-void check_run_end(const std::string& outcome) {
-  if (outcome.empty() || outcome == outcome::running) {
-    throw std::invalid_argument("record_run_end: the outcome must be a final one");
-  }
-}
-
 void check_calibration(const CalibrationRecord& cal) {
   require_unit(cal.unit);
   if (cal.source != "run" && cal.source != "import") {

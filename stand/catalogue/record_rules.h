@@ -16,7 +16,6 @@ void require_unit(const std::string& serial);
 // std::invalid_argument for a run start without its id; InputError without its unit.
 void check_run_start(const RunStart& run);
 // std::invalid_argument for an outcome that is not a final one.
-void check_run_end(const std::string& outcome);
 // std::invalid_argument for a calibration no backend may store (unknown source, a run's without
 // its run id, an import with one, coefficients that are not an object).
 void check_calibration(const CalibrationRecord& cal);
@@ -62,7 +61,7 @@ std::optional<AxisResidualStats> stats_of_row(const Row& r, const std::string& a
 template <typename Row>
 RunRecord run_of_row(const Row& r) {
   return RunRecord{r.text("run_id"),      r.text("unit"),          r.text("procedure"),        r.text("procedure_hash"),
-                   r.text("started_utc"), r.opt_text("ended_utc"), r.text("outcome"),          r.text("run_dir"),
+                   r.text("started_utc"), r.opt_text("ended_utc"), RunRecord::outcome_of(r.text("outcome"), "catalogue runs.outcome"), r.text("run_dir"),
                    r.flag("emulated"),    r.text("stand"),         r.text("software_version"), r.integer("resumes"),
                    r.integer("pid"),      r.text("host")};
 }

@@ -162,12 +162,11 @@ void SqlCatalogue::record_run_start(const RunStart& start) {
   });
 }
 
-void SqlCatalogue::record_run_end(const std::string& run_id, const std::string& outcome, const std::string& ended_utc) {
-  check_run_end(outcome);
+void SqlCatalogue::record_run_end(const std::string& run_id, RunOutcome outcome, const std::string& ended_utc) {
   transact("record the end of run " + run_id, [&](SqlSession& s) {
     const auto sql = fmt::format("UPDATE runs SET ended_utc = {}, outcome = {} WHERE run_id = {}", param(dialect_, 1),
                                  param(dialect_, 2), param(dialect_, 3));
-    if (s.exec(sql, {ended_utc.empty() ? utc_now_iso() : ended_utc, outcome, run_id}) != 1) {
+    if (s.exec(sql, {ended_utc.empty() ? utc_now_iso() : ended_utc, std::string(to_string(outcome)), run_id}) != 1) {
       throw std::invalid_argument(fmt::format("record_run_end: no run {}", run_id));
     }
   });
@@ -180,7 +179,7 @@ bool SqlCatalogue::copy_run(const RunRecord& r) {
     insert_unit(s, dialect_, r.unit);
     const auto sql = insert_if_new(dialect_, fmt::format("runs({})", kRunColumns), "run_id", 14);
     copied =
-        s.exec(sql, {r.run_id, r.unit, r.procedure, r.procedure_hash, r.started_utc, or_null(r.ended_utc), r.outcome,
+        s.exec(sql, {r.run_id, r.unit, r.procedure, r.procedure_hash, r.started_utc, or_null(r.ended_utc), r.outcome_name(),
                      r.run_dir, r.emulated, r.stand, r.software_version, r.resumes, r.pid, r.host}) == 1;
   });
   return copied;

@@ -288,11 +288,12 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   all.throw_if_any();
   p.roles = acceptance_roles(req.procedure, p.plan);
   if (a.emulate) req.emulator = emulator_spec(a.emu, a.unit);
+  req.write_report = false;  // drawn once, with the certificate (write_acceptance_files)
   // The operator's prompts, answered through the run folder's control channel (docs/console.md).
   if (a.operator_prompts) {
-    req.prompts = {{"serial", "Mount the unit, then scan or type its serial", "serial"},
-                   {"lamp", "Sun simulator lamp on and stable?", "confirm"},
-                   {"operator", "Your name (operator)", "text"}};
+    req.prompts = {{"serial", "Mount the unit, then scan or type its serial", PromptKind::serial},
+                   {"lamp", "Sun simulator lamp on and stable?", PromptKind::confirm},
+                   {"operator", "Your name (operator)", PromptKind::text}};
   }
   return p;
 }
@@ -350,7 +351,8 @@ CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r
 
 // acceptance.json, certificate.txt, the report page with the certificate, and run.json's verdict.
 std::string write_acceptance_files(const fs::path& run_dir, const nlohmann::ordered_json& cert, const Judgement& j,
-                                   const AcceptanceLimits& limits, nlohmann::json run_doc, const std::string& title) {
+                                   const AcceptanceLimits& limits, nlohmann::json run_doc, const std::string& title,
+                                   const SampleTable& recording) {
   write_text_atomic(run_dir / "acceptance.json", cert.dump(1) + "\n");
   const std::string text = certificate_text(cert);
   write_text_atomic(run_dir / "certificate.txt", text);
@@ -365,6 +367,7 @@ std::string write_acceptance_files(const fs::path& run_dir, const nlohmann::orde
     ReportOptions ro;
     ro.extra_sections.push_back({"acceptance", "Acceptance", section});
     ro.verdict = verdict;
+    ro.recording = &recording;
     write_report(run_dir, ro);
   } catch (const std::exception& e) {
     write_text_atomic(run_dir / "report.html",
@@ -374,9 +377,21 @@ std::string write_acceptance_files(const fs::path& run_dir, const nlohmann::orde
   return text;
 }
 
+// The run's own report, when no verdict comes (the session leaves report.html to accept).
+void write_plain_report(const SessionResult& r) {
+  if (!r.calibration) return;
+  try {
+    ReportOptions ro;
+    ro.recording = &r.recording;
+    write_report(r.run_dir, ro);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fpss-stand accept: report not written: %s\n", e.what());
+  }
+}
+
 int accept_command(const AcceptArgs& a) {
   const AcceptancePlan p = plan_acceptance(a);
-  const SessionResult r = run_session(p.req);
+  SessionResult r = run_session(p.req);
   const fs::path run_dir = r.run_dir;
   const bool completed = r.outcome == RunOutcome::completed;
   // A unit that gives invalid frames (no Sun, an axis invalid, saturated) stops the run: that is
@@ -385,6 +400,7 @@ int accept_command(const AcceptArgs& a) {
   if (!completed && !unit_stopped) {
     std::fprintf(stderr, "fpss-stand accept: the run %s: %s\nno verdict; the run folder is %s\n",
                  to_string(r.outcome), r.reason.c_str(), run_dir.c_str());
+    write_plain_report(r);
     return 1;
   }
 
@@ -395,7 +411,7 @@ int accept_command(const AcceptArgs& a) {
   data.points_planned = p.plan.points;
   data.run_completed = completed;
   data.run_reason = r.reason;
-  if (fs::exists(run_dir / "samples.csv")) data.samples = read_samples_csv(run_dir / "samples.csv");
+  data.samples = std::move(r.recording);  // the session's recording: samples.csv is not read again
   if (r.calibration && fs::exists(*r.calibration)) data.calibration = load_coefficients(*r.calibration);
   const std::string cat_url = p.req.catalogue;
   const std::string run_id = run_doc.value("run_id", run_dir.filename().string());
@@ -409,7 +425,7 @@ int accept_command(const AcceptArgs& a) {
     cert["signed_off_utc"] = r.signed_off_utc;
   }
   const std::string text = write_acceptance_files(run_dir, cert, j, p.limits, run_doc,
-                                                  fmt::format("Acceptance of {} ({})", unit, run_id));
+                                                  fmt::format("Acceptance of {} ({})", unit, run_id), data.samples);
   int64_t acc_id = 0;
   try {
     const auto cat = open_catalogue(cat_url);

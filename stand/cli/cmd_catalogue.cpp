@@ -68,8 +68,8 @@ void print_table(const std::vector<std::string>& header, const std::vector<std::
 }
 
 std::string outcome_text(const RunRecord& r) {
-  if (r.stale()) return fmt::format("{} (stale: pid {} gone)", r.outcome, r.pid);
-  return r.outcome;
+  if (r.stale()) return fmt::format("{} (stale: pid {} gone)", r.outcome_name(), r.pid);
+  return r.outcome_name();
 }
 
 // A text that may be missing: null when it is.
@@ -80,7 +80,7 @@ nlohmann::json text_or_null(const std::optional<std::string>& s) {
 nlohmann::json run_json(const RunRecord& r) {
   return {{"run_id", r.run_id}, {"unit", r.unit}, {"procedure", r.procedure}, {"procedure_hash", r.procedure_hash},
           {"started_utc", r.started_utc}, {"ended_utc", text_or_null(r.ended_utc)},
-          {"outcome", r.outcome}, {"stale", r.stale()},
+          {"outcome", r.outcome_name()}, {"stale", r.stale()},
           {"run_dir", r.run_dir}, {"emulated", r.emulated}, {"stand", r.stand}, {"host", r.host},
           {"software_version", r.software_version}, {"resumes", r.resumes}};
 }
@@ -105,7 +105,7 @@ FolderStatus folder_status(const RunRecord& r) {
 }
 
 std::string status_text(const RunRecord& r, const FolderStatus& st) {
-  if (r.outcome == "running" && !r.stale()) return fmt::format("running {}/{} points (pid {})", st.done, st.total, r.pid);
+  if (r.running() && !r.stale()) return fmt::format("running {}/{} points (pid {})", st.done, st.total, r.pid);
   return outcome_text(r);
 }
 

@@ -15,7 +15,7 @@
 #include "calib/coefficients.h"
 #include "fixtures/emulator.h"
 #include "stand/cli/commands.h"
-#include "stand/cli/emulator_contract.h"
+#include "stand/contract/emulator_contract.h"
 
 namespace fpss::cli {
 

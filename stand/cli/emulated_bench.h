@@ -8,7 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "stand/cli/emulator_contract.h"
+#include "stand/contract/emulator_contract.h"
 
 namespace fpss::cli {
 

@@ -16,7 +16,6 @@
 
 #include "base/clock.h"
 #include "base/text_file.h"
-#include "procedures/recorder.h"
 #include "stand/console/run_files.h"
 
 extern char** environ;

@@ -23,7 +23,7 @@ RunRef ref_of(const RunRecord& r) {
   x.run_id = r.run_id;
   x.dir = r.run_dir;
   x.pid = static_cast<int>(r.pid);
-  x.live = r.outcome == "running" && run_alive(r.run_dir, r.pid);
+  x.live = r.running() && run_alive(r.run_dir, r.pid);
   return x;
 }
 
@@ -91,10 +91,10 @@ nlohmann::json runs_json(const fs::path& runs_dir, const std::string& catalogue_
   if (!unit.empty()) f.unit = unit;
   for (const auto& r : cat->list_runs(f)) {
     const RunRef ref = ref_of(r);
-    std::string oc = r.outcome == "running" && !ref.live ? "stale" : r.outcome;
+    std::string oc = r.running() && !ref.live ? "stale" : r.outcome_name();
     const nlohmann::json doc = read_run_doc(r.run_dir);
     if (doc.contains("stop_cause") && doc["stop_cause"] == "aborted") oc = "aborted";
-    if (!outcome.empty() && oc != outcome && r.outcome != outcome) continue;
+    if (!outcome.empty() && oc != outcome && r.outcome_name() != outcome) continue;
     const std::string day = r.started_utc.substr(0, 10);
     if (!from_date.empty() && day < from_date) continue;
     if (!to_date.empty() && day > to_date) continue;

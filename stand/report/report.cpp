@@ -15,7 +15,6 @@
 #include "calib/outliers.h"
 #include "calib/residuals.h"
 #include "calib/units.h"
-#include "procedures/recorder.h"
 #include "stand/report/plot.h"
 
 namespace fpss {
@@ -484,12 +483,14 @@ RunResiduals compute_residuals(const Reduction& reduced, const CoefficientSet& c
   return out;
 }
 
-ReportInput load_report_input(const fs::path& run_dir) {
+ReportInput load_report_input(const fs::path& run_dir, const SampleTable* recording) {
   if (!fs::is_directory(run_dir)) throw InputError(fmt::format("{}: not a run folder (no such directory)", run_dir.string()));
   ReportInput in;
   const fs::path samples_path = run_dir / "samples.csv";
   const fs::path run_path = run_dir / "run.json";
-  if (!fs::exists(samples_path)) throw InputError(fmt::format("{}: missing: the run recorded no samples", samples_path.string()));
+  if (!recording && !fs::exists(samples_path)) {
+    throw InputError(fmt::format("{}: missing: the run recorded no samples", samples_path.string()));
+  }
   if (fs::exists(run_path)) {
     try {
       in.run = nlohmann::json::parse(read_text_file(run_path, "run.json"));
@@ -523,9 +524,13 @@ ReportInput load_report_input(const fs::path& run_dir) {
       throw InputError(fmt::format("{}: \"method\" is \"{}\", expected differences or absolute", cal_path.string(), method));
     }
   }
-  SampleTable samples = read_samples_csv(samples_path);
+  SampleTable read;
+  if (!recording) read = read_samples_csv(samples_path);
+  const SampleTable& all = recording ? *recording : read;
   in.fit_last_step = fit_last_step(in.calibration, cal_path.string());
-  if (in.fit_last_step) samples = rows_up_to_step(samples, *in.fit_last_step);
+  SampleTable fitted;
+  if (in.fit_last_step) fitted = rows_up_to_step(all, *in.fit_last_step);
+  const SampleTable& samples = in.fit_last_step ? fitted : all;
   in.samples_origin = samples_path.filename().string();
   in.samples = samples.size();
   in.residuals = compute_residuals(samples, in.calibration, method);
@@ -575,7 +580,7 @@ std::string render_report(const ReportInput& in, const ReportOptions& opts) {
 }
 
 fs::path write_report(const fs::path& run_dir, const ReportOptions& opts) {
-  const ReportInput in = load_report_input(run_dir);
+  const ReportInput in = load_report_input(run_dir, opts.recording);
   const fs::path out = run_dir / "report.html";
   write_text_atomic(out, render_report(in, opts));
   return out;

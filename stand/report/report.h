@@ -58,6 +58,10 @@ struct ReportSection {
 
 struct ReportOptions {
   std::string gnuplot;  // program; empty: $FPSS_GNUPLOT, else "gnuplot"
+  // The run's recording as the session holds it in memory (samples.csv's rows, exactly: numbers
+  // are written shortest-round-trip); null: read samples.csv. A session and `accept` hand it over,
+  // so a process reads its recording at most once.
+  const SampleTable* recording = nullptr;
   std::vector<ReportSection> extra_sections;
   std::optional<RunVerdict> verdict;  // the banner at the top; empty: run_verdict of run.json
 };
@@ -74,9 +78,9 @@ struct ReportInput {
   RunResiduals residuals;
 };
 
-// Loads <run_dir>/samples.csv, calibration.json and (when present) run.json. InputError naming
-// the file for anything missing or malformed.
-ReportInput load_report_input(const std::filesystem::path& run_dir);
+// Loads <run_dir>/samples.csv (unless `recording` is given), calibration.json and (when present)
+// run.json. InputError naming the file for anything missing or malformed.
+ReportInput load_report_input(const std::filesystem::path& run_dir, const SampleTable* recording = nullptr);
 
 // The page. Plots that gnuplot cannot draw are replaced by a note saying why; never throws for that.
 std::string render_report(const ReportInput& in, const ReportOptions& opts = {});

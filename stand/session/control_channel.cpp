@@ -99,16 +99,16 @@ OperatorAnswers ask_operator(const std::vector<OperatorPrompt>& prompts, const s
       if (!answer) return out;  // aborted while waiting
       events.write_note("prompt_answered", {{"id", id}, {"value", *answer}});
       std::string problem;
-      if (p.kind == "serial" && *answer != unit_serial) {
+      if (p.kind == PromptKind::serial && *answer != unit_serial) {
         problem = fmt::format("the sensor reports serial \"{}\", not \"{}\"", unit_serial, *answer);
-      } else if (p.kind == "text" && answer->empty()) {
+      } else if (p.kind == PromptKind::text && answer->empty()) {
         problem = "an answer is needed";
       }
       if (!problem.empty() && attempt < 5) {
         events.write_note("prompt_rejected", {{"id", id}, {"message", problem}});
         continue;
       }
-      if (!problem.empty() || (p.kind == "confirm" && *answer != "yes")) {
+      if (!problem.empty() || (p.kind == PromptKind::confirm && *answer != "yes")) {
         log.warn("operator prompt {}: {}; the run is aborted", id, problem.empty() ? "answered " + *answer : problem);
         control.abort.store(true);
         return out;

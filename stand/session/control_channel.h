@@ -9,6 +9,7 @@
 #include <thread>
 #include <vector>
 
+#include <nlohmann/json.hpp>
 #include <spdlog/logger.h>
 
 #include "procedures/engine.h"
@@ -31,10 +32,17 @@ std::optional<ControlRequest> read_control(const std::filesystem::path& run_dir)
 void write_control(const std::filesystem::path& run_dir, const ControlRequest& c);
 
 // A question the run asks the operator before anything moves (in the manner of OpenHTF's user input).
+// What answer a prompt takes: serial (must equal the serial the sensor reports), confirm (yes or
+// no; no aborts), text (not empty).
+enum class PromptKind { serial, confirm, text };
+// Its names in the prompt events and control.json (docs/console.md).
+NLOHMANN_JSON_SERIALIZE_ENUM(PromptKind, {{PromptKind::serial, "serial"}, {PromptKind::confirm, "confirm"},
+                                          {PromptKind::text, "text"}})
+
 struct OperatorPrompt {
-  std::string id;      // key of the answer in control.json and in the prompt events
-  std::string text;    // what the operator reads
-  std::string kind;    // "text" or "confirm" (yes/no)
+  std::string id;    // key of the answer in control.json and in the prompt events
+  std::string text;  // what the operator reads
+  PromptKind kind = PromptKind::text;
 };
 
 // Writes a clean RUN_DIR/control.json, then polls it every 50 ms on its own thread and applies changes to `control`:

@@ -1,6 +1,6 @@
 #include "stand/session/emulator_process.h"
 
-#include "stand/cli/emulator_contract.h"
+#include "stand/contract/emulator_contract.h"
 
 #include <fcntl.h>
 #include <fmt/format.h>

@@ -8,7 +8,7 @@
 
 #include "base/unique_fd.h"
 #include "stand/catalogue/rebuild.h"  // kCataloguePending
-#include "stand/cli/emulator_contract.h"
+#include "stand/contract/emulator_contract.h"
 
 namespace fpss {
 

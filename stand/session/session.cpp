@@ -169,6 +169,10 @@ void Session::open_folder() {
   }
   event_log_ = std::make_unique<EventLog>(res_.run_dir / "events.jsonl");
   if (rec_->has_rows()) recorded_ = read_samples_csv(rec_->samples_path());
+  // The provenance as numbers (a resume's columns stay as read: new rows are written into them).
+  if (recorded_.extra_names().empty()) {
+    for (const auto& c : recorder_extra_columns()) recorded_.add_numeric_column(c);
+  }
   recorded_.origin = rec_->samples_path().string();
 }
 
@@ -256,7 +260,7 @@ void Session::subscribe() {
   record_with(bus_, *rec_);
   bus_.subscribe([this](const Event& e) {
     if (const auto* s = std::get_if<Samples>(&e)) {
-      for (const auto& r : *s->rows) recorded_.push_back(r.sample);
+      for (const auto& r : *s->rows) recorded_.push_back(r.sample, r.provenance());
     }
   });
   bus_.subscribe([this](const Event& e) { event_log_->write(e); });
@@ -436,7 +440,7 @@ void Session::finish(const EngineResult& er) {
   }
   if (res_.calibration) doc_["files"]["calibration"] = res_.calibration->filename().string();
   write_json_atomic(res_.run_dir / "run.json", doc_);
-  with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, to_string(er.outcome), end_utc); });
+  with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, er.outcome, end_utc); });
   if (!catalogue_error_.empty()) {
     // The entry catches up from the folder, which holds everything, once the catalogue is back.
     const double window_s = catalogue_away_ ? req_.catch_up_s : 0;
@@ -454,10 +458,12 @@ void Session::finish(const EngineResult& er) {
 // The report needs a calibration (this session's or an earlier one's); a failure to draw it
 // never fails the run: the recording is what matters.
 void Session::write_report() {
-  if (!fs::exists(res_.run_dir / "calibration.json")) return;
+  if (!req_.write_report || !fs::exists(res_.run_dir / "calibration.json")) return;
   try {
     const auto t0 = std::chrono::steady_clock::now();
-    res_.report = fpss::write_report(res_.run_dir);
+    ReportOptions ro;
+    ro.recording = &recorded_;
+    res_.report = fpss::write_report(res_.run_dir, ro);
     log_->info("report: {} ({:.2f} s)", res_.report->string(), seconds_since(t0));
   } catch (const std::exception& e) {
     log_->warn("report not written: {}", e.what());
@@ -560,6 +566,7 @@ SessionResult Session::run() {
     res_.catalogue_error = catalogue_error_;
   }
   res_.wall_s = seconds_since(t_start);
+  res_.recording = std::move(recorded_);
   log_->flush();
   return res_;
 }

@@ -10,12 +10,13 @@
 #include <nlohmann/json.hpp>
 
 #include "procedures/settings.h"
-#include "stand/cli/emulator_contract.h"
+#include "stand/contract/emulator_contract.h"
 #include "stand/session/run_folder.h"
 #include "stand/session/control_channel.h"
 #include "stand/config/stand_config.h"
 #include "procedures/engine.h"
 #include "procedures/procedure.h"
+#include "calib/samples.h"
 
 namespace fpss {
 
@@ -36,6 +37,9 @@ struct SessionRequest {
   // the sensor reports, "confirm" must be yes (else the run is aborted), "text" must not be empty.
   std::vector<OperatorPrompt> prompts;
   std::string operator_name;  // recorded in run.json when given
+  // false: the caller draws report.html itself, once, with what it adds (accept: the certificate),
+  // from SessionResult::recording.
+  bool write_report = true;
 };
 
 struct SessionResult {
@@ -52,6 +56,9 @@ struct SessionResult {
   double wall_s = 0;  // whole session, emulator start to report
   std::map<std::string, std::string> answers;  // the prompts' answers, by id
   std::string signed_off_utc;                  // when the last prompt was answered
+  // Every row of the run (a resume's earlier rows too), as samples.csv holds them: the one
+  // recording the session's calibrate steps fitted, handed on so nothing reads the file again.
+  SampleTable recording;
 };
 
 // Throws InputError for bad input found before anything moved (invalid procedure or stand, a

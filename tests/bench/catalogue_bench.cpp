@@ -70,7 +70,7 @@ void writer(const std::string& url, int w, int runs, int out_fd, int go_fd) {
     rs.run_dir = "/tmp/none";
     timed([&] { cat->record_run_start(rs); });
     timed([&] { cat->record_calibration(calibration(rs.unit, rs.run_id, i)); });
-    timed([&] { cat->record_run_end(rs.run_id, fpss::outcome::completed); });
+    timed([&] { cat->record_run_end(rs.run_id, fpss::RunOutcome::completed); });
   }
   const ssize_t n = ::write(out_fd, lat.data(), lat.size() * sizeof(double));
   ::_exit(n == static_cast<ssize_t>(lat.size() * sizeof(double)) ? 0 : 1);

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <cmath>
 #include <filesystem>
 
@@ -114,6 +116,32 @@ TEST(Samples, WriteReadRoundTripIsExact) {
   EXPECT_EQ(r.counts_beta, t.counts_beta);
   EXPECT_EQ(r.extra_column("temperature_c"), t.extra_column("temperature_c"));
   EXPECT_EQ(r.origin, p.string());
+}
+
+// A recorder's provenance is held as numbers (no text per cell in memory) and written as the
+// same text a text column would hold: the file and the table in memory are one recording.
+TEST(Samples, NumericColumnsHoldNumbersAndWriteTheSameText) {
+  SampleTable t;
+  t.add_numeric_column("gimbal_pitch_arcsec");
+  t.add_extra_column("note");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  t.push_back({0.1, Phase::null, 1, 0, 0, 3, -4}, std::vector<double>{0.1 + 0.2, 7});
+  t.push_back({0.2, Phase::null, 1, 0, 0, 3, -4}, std::vector<double>{nan, nan});
+  t.push_back({0.3, Phase::null, 1, 0, 0, 3, -4}, std::vector<std::string>{"-12.5", "a, b"});
+  EXPECT_EQ(t.numeric_column("gimbal_pitch_arcsec")[0], 0.1 + 0.2);
+  EXPECT_TRUE(std::isnan(t.numeric_column("gimbal_pitch_arcsec")[1]));
+  EXPECT_EQ(t.extra_column("gimbal_pitch_arcsec"), (std::vector<std::string>{"0.30000000000000004", "", "-12.5"}));
+  EXPECT_EQ(t.extra_column("note"), (std::vector<std::string>{"7", "", "a, b"}));
+  EXPECT_THROW(t.push_back({0.4, Phase::null, 1, 0, 0, 3, -4}, std::vector<std::string>{"x", ""}), InputError);
+  TempDir dir("samples");
+  write_samples_csv(dir / "rec.csv", t);
+  const SampleTable r = read_samples_csv(dir / "rec.csv");
+  const auto a = r.numeric_column("gimbal_pitch_arcsec"), b = t.numeric_column("gimbal_pitch_arcsec");
+  ASSERT_EQ(a.size(), 3u);
+  EXPECT_EQ(a[0], b[0]);
+  EXPECT_TRUE(std::isnan(a[1]));
+  EXPECT_EQ(a[2], b[2]);
+  EXPECT_EQ(r.extra_column("note"), t.extra_column("note"));
 }
 
 TEST(Samples, WriterAppendsAfterAMatchingHeaderOnly) {

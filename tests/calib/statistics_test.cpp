@@ -50,7 +50,7 @@ TEST(Statistics, GeneratorAndFitAgreeOnErrorsAndTheirSigma) {
   double noise_sum = 0;
   int noise_n = 0;
   const Tallies t = fit_all(files, truth, design, [&](const CalibrationReport& r, const AxisFit& a) {
-    EXPECT_EQ(a.fit_form, "gls");
+    EXPECT_EQ(a.fit_form, FitForm::gls);
     EXPECT_EQ(a.noise.count_noise_source, "within-dwell scatter");
     EXPECT_TRUE(a.noise.quantisation_corrected);
     // 121 dwells x 4 degrees of freedom of lumpy whole-count scatter (61 of them at the null's

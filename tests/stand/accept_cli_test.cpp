@@ -188,6 +188,15 @@ TEST_F(AcceptCli, GlitchingUnitFailsByNameOnOutlierFramesWithOneSetOfNumbers) {
   const auto cal_n = cal["outliers"]["outlier_frames"].get<size_t>();
   EXPECT_LE(cal_n, n);
   EXPECT_NE(html.find(fmt::format("Outlier frames: {} of ", cal_n)), std::string::npos);
+  // accept drew the page from the recording in memory; `report` draws it again from samples.csv:
+  // the same page but for the time it was written.
+  const CommandResult again = test::run_stand({"report", run.string()}, scratch_.path(), "glitch-report");
+  ASSERT_EQ(again.code, 0) << again.err;
+  const auto untimed = [](std::string h) {
+    const auto at = h.find("Report written ");
+    return at == std::string::npos ? h : h.erase(at, h.find(" by fpss-stand", at) - at);
+  };
+  EXPECT_EQ(untimed(read_file(run / "report.html")), untimed(html));
 }
 
 TEST_F(AcceptCli, BadTransferFunctionRegionFailsOnAccuracyOfThatAxis) {
@@ -294,12 +303,12 @@ TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
     EXPECT_EQ(cat.unit_history(unit).size(), 1u);
     const auto runs_of = cat.list_runs({.unit = unit, .limit = 0});
     ASSERT_EQ(runs_of.size(), 1u);
-    EXPECT_EQ(runs_of[0].outcome, "completed");
+    EXPECT_EQ(runs_of[0].outcome, RunOutcome::completed);
   }
   // The killed one: its run stays "running" and is seen as stale; no verdict was recorded.
   const auto killed = cat.list_runs({.unit = "UNIT-C", .limit = 0});
   ASSERT_EQ(killed.size(), 1u);
-  EXPECT_EQ(killed[0].outcome, "running");
+  EXPECT_TRUE(killed[0].running());
   EXPECT_TRUE(killed[0].stale());
   EXPECT_TRUE(cat.unit_acceptances("UNIT-C").empty());
   // And the catalogue takes the next acceptance as usual.

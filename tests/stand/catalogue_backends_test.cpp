@@ -101,10 +101,10 @@ TEST_P(Backends, RecordsRunsFromStartToEndAndCountsResumes) {
   c->record_run_start(make_run("r1", "SN-1", "2024-05-01T10:00:00Z"));
   c->record_run_start(make_run("r2", "SN-1", "2024-05-02T10:00:00Z"));
   c->record_run_start(make_run("r3", "SN-2", "2024-05-03T10:00:00Z"));
-  c->record_run_end("r1", outcome::interrupted, "2024-05-01T11:00:00Z");
+  c->record_run_end("r1", RunOutcome::interrupted, "2024-05-01T11:00:00Z");
   c->record_run_start(make_run("r1", "SN-1", "2099-01-01T00:00:00Z"));  // a resume keeps the start
-  c->record_run_end("r1", outcome::completed);
-  EXPECT_THROW(c->record_run_end("nope", outcome::completed), std::invalid_argument);
+  c->record_run_end("r1", RunOutcome::completed);
+  EXPECT_THROW(c->record_run_end("nope", RunOutcome::completed), std::invalid_argument);
   EXPECT_THROW(c->record_run_start(make_run("r1", "SN-9")), std::invalid_argument);  // another unit's id
 
   const auto runs = c->list_runs();
@@ -113,7 +113,7 @@ TEST_P(Backends, RecordsRunsFromStartToEndAndCountsResumes) {
   EXPECT_EQ(runs[2].run_id, "r1");
   const auto r1 = c->find_run("r1").value();
   EXPECT_EQ(r1.started_utc, "2024-05-01T10:00:00Z");
-  EXPECT_EQ(r1.outcome, "completed");
+  EXPECT_EQ(r1.outcome, RunOutcome::completed);
   EXPECT_EQ(r1.resumes, 1);
   EXPECT_EQ(r1.stand, "stand-A");
   EXPECT_EQ(r1.host, this_host());
@@ -242,7 +242,7 @@ TEST_P(Backends, ConcurrentWritersLoseAndDuplicateNothing) {
   std::set<std::string> ids;
   for (const auto& r : runs) {
     ids.insert(r.run_id);
-    EXPECT_EQ(r.outcome, "completed");
+    EXPECT_EQ(r.outcome, RunOutcome::completed);
   }
   EXPECT_EQ(ids.size(), runs.size());
   std::set<int64_t> cal_ids;
@@ -279,7 +279,7 @@ TEST_P(Backends, ConcurrentImportsOfOneFileRecordItOnce) {
 TEST_P(Backends, CopiesToTheOtherBackendIdempotently) {
   auto src = open();
   src->record_run_start(make_run("r1", "SN-1", "2024-05-01T10:00:00Z"));
-  src->record_run_end("r1", outcome::completed, "2024-05-01T11:00:00Z");
+  src->record_run_end("r1", RunOutcome::completed, "2024-05-01T11:00:00Z");
   src->record_run_start(make_run("r2", "SN-1", "2024-05-02T10:00:00Z"));  // still running
   auto cal = CalibrationRecord::from_calibration_json(calibration_json("SN-1", 0.2), "x");
   cal.source = "run";
@@ -315,7 +315,7 @@ TEST_P(Backends, CopiesToTheOtherBackendIdempotently) {
   const auto r1 = dst->find_run("r1").value();
   EXPECT_EQ(r1.ended_utc.value_or(""), "2024-05-01T11:00:00Z");
   EXPECT_EQ(r1.host, this_host());
-  EXPECT_EQ(dst->find_run("r2")->outcome, "running");
+  EXPECT_TRUE(dst->find_run("r2")->running());
   const auto h = dst->unit_history("SN-1");
   ASSERT_EQ(h.size(), 2u);
   EXPECT_EQ(h[0].source, "import");
@@ -362,7 +362,7 @@ INSTANTIATE_TEST_SUITE_P(Catalogue, Backends, ::testing::Values(Backend::sqlite,
 // Staleness needs the run's own host: a pid of another host is never judged from here.
 TEST(RunRecord, IsStaleOnlyOnItsOwnHostWithItsProcessGone) {
   RunRecord r;
-  r.outcome = outcome::running;
+  r.outcome.reset();  // running
   r.host = this_host();
   r.pid = ::getpid();
   EXPECT_FALSE(r.stale());
@@ -380,7 +380,7 @@ TEST(RunRecord, IsStaleOnlyOnItsOwnHostWithItsProcessGone) {
 TEST(RunRecord, IsStaleWhenNoProcessHoldsItsFoldersLockWhateverHasItsPid) {
   test::TempDir dir;
   RunRecord r;
-  r.outcome = outcome::running;
+  r.outcome.reset();  // running
   r.host = this_host();
   r.pid = ::getpid();  // alive, as a reused pid would be
   r.run_dir = dir.path().string();

@@ -48,7 +48,7 @@ void write_runs(Catalogue& cat, int w, int runs, int units, unsigned seed, MakeR
     auto cal = CalibrationRecord::from_calibration_json(calibration(unit, writer_pitch_mean(w, i)), id);
     cal.run_id = id;
     cat.record_calibration(cal);
-    cat.record_run_end(id, outcome::completed);
+    cat.record_run_end(id, RunOutcome::completed);
   }
 }
 

@@ -94,28 +94,28 @@ TEST(Catalogue, RecordsRunsFromStartToEndAndCountsResumes) {
   auto runs = c.list_runs();
   ASSERT_EQ(runs.size(), 2u);
   EXPECT_EQ(runs[0].run_id, "20240502T080000Z-FPSS2-full_grid");  // most recent first
-  EXPECT_EQ(runs[1].outcome, outcome::running);
+  EXPECT_TRUE(runs[1].running());
   EXPECT_FALSE(runs[1].ended_utc);
   EXPECT_FALSE(runs[1].stale());  // this process is alive
   EXPECT_TRUE(fs::path(runs[1].run_dir).is_absolute());
   EXPECT_EQ(runs[1].software_version, FPSS_VERSION);
   EXPECT_TRUE(runs[1].emulated);
 
-  c.record_run_end("20240501T120000Z-FPSS1-discrete_grid", outcome::interrupted, "2024-05-01T12:05:00Z");
+  c.record_run_end("20240501T120000Z-FPSS1-discrete_grid", RunOutcome::interrupted, "2024-05-01T12:05:00Z");
   auto r = c.find_run("20240501T120000Z-FPSS1-discrete_grid");
   ASSERT_TRUE(r);
-  EXPECT_EQ(r->outcome, "interrupted");
+  EXPECT_EQ(r->outcome, RunOutcome::interrupted);
   EXPECT_EQ(r->ended_utc.value_or(""), "2024-05-01T12:05:00Z");
 
   // Resume: same id, later start time given; the original start stays, the end is cleared.
   c.record_run_start(make_run("20240501T120000Z-FPSS1-discrete_grid", "FPSS1", "2024-05-01T13:00:00Z"));
   r = c.find_run("20240501T120000Z-FPSS1-discrete_grid");
   EXPECT_EQ(r->started_utc, "2024-05-01T12:00:00Z");
-  EXPECT_EQ(r->outcome, "running");
+  EXPECT_TRUE(r->running());
   EXPECT_FALSE(r->ended_utc);
   EXPECT_EQ(r->resumes, 1);
-  c.record_run_end("20240501T120000Z-FPSS1-discrete_grid", outcome::completed);
-  EXPECT_EQ(c.find_run("20240501T120000Z-FPSS1-discrete_grid")->outcome, "completed");
+  c.record_run_end("20240501T120000Z-FPSS1-discrete_grid", RunOutcome::completed);
+  EXPECT_EQ(c.find_run("20240501T120000Z-FPSS1-discrete_grid")->outcome, RunOutcome::completed);
 
   EXPECT_EQ(c.list_runs({.unit = "FPSS2"}).size(), 1u);
   EXPECT_EQ(c.list_runs({.unit = std::nullopt, .limit = 1}).size(), 1u);
@@ -125,9 +125,25 @@ TEST(Catalogue, RecordsRunsFromStartToEndAndCountsResumes) {
   // A resume under another unit is a bug, an unknown run cannot end, a run needs a unit.
   EXPECT_THROW(c.record_run_start(make_run("20240501T120000Z-FPSS1-discrete_grid", "FPSS2")),
                std::invalid_argument);
-  EXPECT_THROW(c.record_run_end("nope", outcome::completed), std::invalid_argument);
-  EXPECT_THROW(c.record_run_end("20240502T080000Z-FPSS2-full_grid", outcome::running), std::invalid_argument);
+  EXPECT_THROW(c.record_run_end("nope", RunOutcome::completed), std::invalid_argument);
   EXPECT_THROW(c.record_run_start(make_run("x", "")), InputError);
+}
+
+// A run's outcome is a RunOutcome, "running" its absence; any other text in a file or a row is
+// bad input naming where it was read.
+TEST(CatalogueOutcome, ItsTextIsReadAsATypeOrRefused) {
+  EXPECT_EQ(RunRecord::outcome_of("running", "x"), std::nullopt);
+  EXPECT_EQ(RunRecord::outcome_of("interrupted", "x"), RunOutcome::interrupted);
+  RunRecord r;
+  EXPECT_EQ(r.outcome_name(), "running");
+  r.outcome = RunOutcome::failed;
+  EXPECT_EQ(r.outcome_name(), "failed");
+  try {
+    RunRecord::outcome_of("done", "runs/a/run.json: outcome");
+    FAIL() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("runs/a/run.json: outcome"), std::string::npos);
+  }
 }
 
 TEST(Catalogue, KeepsEachUnitsCalibrationsInDateOrder) {
@@ -414,7 +430,7 @@ TEST(Catalogue, WriterKilledMidTransactionLeavesASoundFile) {
   const auto runs = cat.list_runs();
   ASSERT_EQ(runs.size(), static_cast<size_t>(kCommitted));
   for (const auto& r : runs) EXPECT_TRUE(r.stale()) << r.run_id;
-  cat.record_run_end("committed-000", outcome::interrupted);
+  cat.record_run_end("committed-000", RunOutcome::interrupted);
   cat.record_run_start(make_run("after-the-kill", "FPSS1"));
   EXPECT_EQ(count_rows(db, "runs"), kCommitted + 1);
 }
@@ -471,9 +487,9 @@ class CatalogueCli : public ::testing::Test {
     cal.run_id = "20240501T120000Z-FPSS1-discrete_grid";
     cal.date_utc = "2024-05-01T12:20:00Z";
     c.record_calibration(cal);
-    c.record_run_end("20240501T120000Z-FPSS1-discrete_grid", outcome::completed, "2024-05-01T12:21:00Z");
+    c.record_run_end("20240501T120000Z-FPSS1-discrete_grid", RunOutcome::completed, "2024-05-01T12:21:00Z");
     c.record_run_start(make_run("20240502T090000Z-SN-7-full_grid", "SN-7", "2024-05-02T09:00:00Z"));
-    c.record_run_end("20240502T090000Z-SN-7-full_grid", outcome::failed, "2024-05-02T09:03:00Z");
+    c.record_run_end("20240502T090000Z-SN-7-full_grid", RunOutcome::failed, "2024-05-02T09:03:00Z");
     CalibrationRecord imp;
     imp.unit = "FPSS1";
     imp.source = "import";

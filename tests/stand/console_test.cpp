@@ -303,7 +303,7 @@ TEST(Console, AJobsRunIsNotAnEarlierRunOfAProcessWithTheSamePid) {
   std::filesystem::create_directories(runs);
   SqliteCatalogue cat(Catalogue::default_path(runs));
   cat.record_run_start(make_run("earlier", "FPSS-1", "2026-01-01T00:00:00Z"));
-  cat.record_run_end("earlier", outcome::completed, "2026-01-01T00:05:00Z");
+  cat.record_run_end("earlier", RunOutcome::completed, "2026-01-01T00:05:00Z");
   const int pid = static_cast<int>(::getpid());  // both runs are recorded by this process
   EXPECT_FALSE(run_of_pid(runs, "", pid, "2026-06-01T00:00:00Z"));
   ASSERT_TRUE(run_of_pid(runs, "", pid, "2025-12-31T23:59:59Z"));  // spawned before it: that run

@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "stand/cli/emulator_contract.h"
+#include "stand/contract/emulator_contract.h"
 #include "tests/support/test_support.h"
 
 namespace fpss::test {

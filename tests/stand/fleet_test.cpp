@@ -151,7 +151,7 @@ TEST(Fleet, FourStandsAcceptTwentyUnitsIntoOneDatabaseWithOneKilled) {
       EXPECT_EQ(r.unit, killed_unit);
       EXPECT_EQ(r.stand, "stand-D");
     } else {
-      EXPECT_NE(r.outcome, "running") << r.run_id;
+      EXPECT_FALSE(r.running()) << r.run_id;
     }
   }
   EXPECT_EQ(stale, 1);
@@ -242,7 +242,7 @@ TEST(Fleet, TheDatabaseAwayMidRunTheEntryCatchesUp) {
   const auto cat = open_catalogue(url, Catalogue::Mode::read_only);
   const auto runs = cat->list_runs();
   ASSERT_EQ(runs.size(), 1u);
-  EXPECT_EQ(runs[0].outcome, "completed");
+  EXPECT_EQ(runs[0].outcome, RunOutcome::completed);
   EXPECT_EQ(runs[0].stand, "stand-R");
   EXPECT_EQ(cat->unit_history("RESTART-1").size(), 1u);
   ASSERT_EQ(cat->unit_acceptances("RESTART-1").size(), 1u);
@@ -257,7 +257,7 @@ TEST(Fleet, TheDatabaseAwayMidRunTheEntryCatchesUp) {
   const auto after = open_catalogue(url, Catalogue::Mode::read_only);
   const auto r2 = after->list_runs({.unit = "RESTART-2", .limit = 0});
   ASSERT_EQ(r2.size(), 1u);
-  EXPECT_EQ(r2[0].outcome, "completed");
+  EXPECT_EQ(r2[0].outcome, RunOutcome::completed);
   EXPECT_EQ(after->unit_history("RESTART-2").size(), 1u);
   EXPECT_EQ(after->unit_acceptances("RESTART-2").size(), 1u);
 }
@@ -312,7 +312,7 @@ TEST(Fleet, ARunTheDatabaseMissedCatchesUpOnTheNextRunOrARebuild) {
   const auto cat = open_catalogue(url, Catalogue::Mode::read_only);
   const auto all = cat->list_runs();
   EXPECT_EQ(all.size(), 4u);
-  for (const auto& x : all) EXPECT_EQ(x.outcome, "completed") << x.run_id;
+  for (const auto& x : all) EXPECT_EQ(x.outcome, RunOutcome::completed) << x.run_id;
   for (const auto& e : fs::directory_iterator(runs)) EXPECT_FALSE(fs::exists(e.path() / "catalogue.pending"));
 }
 

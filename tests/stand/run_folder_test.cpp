@@ -55,7 +55,7 @@ TEST(RunFolder, ASecondOwnerIsRefusedAndEverySpellingReachesTheSameRun) {
   EXPECT_FALSE(fs::exists(run / "stand.db"));
   EXPECT_EQ(run_json(run)["outcome"], "completed");
   SqliteCatalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
-  EXPECT_EQ(cat.find_run(run_id_of(run))->outcome, "completed");
+  EXPECT_EQ(cat.find_run(run_id_of(run))->outcome, RunOutcome::completed);
   EXPECT_EQ(cat.run_calibrations(run_id_of(run)).size(), 1u);
 }
 
@@ -109,7 +109,7 @@ TEST(RunFolder, ACatalogueThatCannotRecordExitsOneThenRebuildIndexesTheFolder) {
   SqliteCatalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
   const auto rec = cat.find_run(run_id_of(run));
   ASSERT_TRUE(rec);
-  EXPECT_EQ(rec->outcome, "completed");
+  EXPECT_EQ(rec->outcome, RunOutcome::completed);
   EXPECT_EQ(cat.run_calibrations(run_id_of(run)).size(), 1u);
 }
 

@@ -96,7 +96,7 @@ TEST(Run, SigtermAndSigintStopSafelyAndMarkTheRunInterrupted) {
     const SampleTable t = read_samples_csv(run / "samples.csv");
     expect_contiguous_points(t, static_cast<int64_t>(RunRecorder::read_journal(run / "points.jsonl").size()));
     SqliteCatalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
-    EXPECT_EQ(cat.find_run(run_id_of(run))->outcome, "interrupted");
+    EXPECT_EQ(cat.find_run(run_id_of(run))->outcome, RunOutcome::interrupted);
   }
 }
 

@@ -52,7 +52,7 @@ TEST(Run, DiscreteGridCalibratesWithinATenthOfAnArcsecondOfTheTruth) {
   SqliteCatalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
   const auto rec = cat.find_run(run_id_of(run));
   ASSERT_TRUE(rec);
-  EXPECT_EQ(rec->outcome, "completed");
+  EXPECT_EQ(rec->outcome, RunOutcome::completed);
   EXPECT_EQ(rec->procedure_hash, doc["procedure"]["sha256"]);
   EXPECT_EQ(cat.unit_history("EMU-0001").size(), 1u);
 }

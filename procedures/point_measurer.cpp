@@ -1,19 +1,24 @@
-// The engine's measurements: a dwell (frames at rest, each with its own encoder reading) and a
-// slew segment (frames aligned with the gimbal's readings by interpolation).
+#include "procedures/point_measurer.h"
+
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <thread>
 #include <utility>
 
 #include "procedures/align.h"
-#include "procedures/engine.h"
 #include "procedures/engine_detail.h"
 
 namespace fpss {
 
 using namespace engine_detail;
+
+PointMeasurer::PointMeasurer(EngineIo& io, EngineClock& clock, MoveScheduler& scheduler, int64_t next_point)
+    : io_(io), clock_(clock), sched_(scheduler), b_(io.settings()), events_(io.events()), log_(io.log()),
+      stats_(io.stats()), next_point_(next_point) {}
 
 namespace {
 // At rest in position at a target (pitch, yaw) within tol.
@@ -23,70 +28,155 @@ bool in_position_at(const GimbalState& st, std::pair<double, double> target, dou
 }
 }  // namespace
 
-void Engine::check_still(const Action& a, const GimbalState& st, const char* when) {
-  if (st.has(kFault) || st.fault != GimbalFault::none) {
-    throw GimbalFailure(fmt::format("gimbal fault ({}) {} sampling", fault_name(st), when));
+void PointMeasurer::publish_point(const Action& a, const std::vector<RecordedRow>& rows, int attempt, int session,
+                                  int invalid) {
+  try {
+    Timed t(stats_.storage_s);
+    events_.publish(Samples{&a, &rows, attempt, session});
+  } catch (const std::exception& e) {
+    throw StorageFailure(e.what());
   }
-  const double tol = b_.in_position_tolerance_arcsec;
-  if (st.has(kMoving) || std::fabs(st.pitch_arcsec - a.pitch_arcsec) > tol || std::fabs(st.yaw_arcsec - a.yaw_arcsec) > tol) {
-    verify_command();  // another client's move explains it: say so
-    throw GimbalFailure(fmt::format("gimbal left the point {} sampling (pitch {}, yaw {}, status 0x{:02x})", when,
-                                    deg(st.pitch_arcsec), deg(st.yaw_arcsec), st.status));
+  next_point_ = a.point + 1;
+  ++stats_.points;
+  events_.publish(PointDone{&a, &rows, PointStats::of(rows), attempt, invalid});
+}
+
+RecordedRow PointMeasurer::make_row(const Action& a, Phase phase, const SensorSample& f, double sensor_time_s,
+                                    const GimbalRef& g, double temperature_c, int attempt, int session) {
+  const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(g.pitch_arcsec, g.yaw_arcsec);
+  RecordedRow r;
+  r.sensor_time_s = sensor_time_s;
+  r.sample = Sample{clock_.stand_time(sensor_time_s), phase, a.point + 1, ref_a, ref_b,
+                    static_cast<double>(f.counts_alpha), static_cast<double>(f.counts_beta)};
+  r.frame_seq = f.seq;
+  r.sensor_status = f.status;
+  r.host_time_s = clock_.session_host_s(f.host_time_s);
+  r.gimbal_time_s = g.time_s;
+  r.gimbal_pitch_arcsec = g.pitch_arcsec;
+  r.gimbal_yaw_arcsec = g.yaw_arcsec;
+  r.gimbal_status = g.status;
+  r.target_pitch_arcsec = a.pitch_arcsec;
+  r.target_yaw_arcsec = a.yaw_arcsec;
+  r.temperature_c = temperature_c;
+  r.attempt = attempt;
+  r.session = session;
+  return r;
+}
+
+void PointMeasurer::recover(const std::string& reason, bool sensor_side) {
+  ++stats_.recoveries;
+  sched_.drop_moves_ahead();  // the gimbal is stopped below: a move commanded ahead is void
+  // A short pause lets a dropped link come back (the drivers reconnect on the next request).
+  sched_.sleep_physical(0);
+  {
+    Timed t(stats_.sleep_s);
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  try {
+    GimbalState st = io_.read_gimbal();
+    Timed t(stats_.device_s);
+    // Whoever changed them, the stand's settings are written back.
+    if (io_.commanded().max_rate_arcsec_s > 0) io_.command_rate(io_.commanded().max_rate_arcsec_s);
+    io_.command_watchdog(io_.commanded().watchdog_s);
+    if (st.has(kFault) || st.fault != GimbalFault::none) {
+      io_.warn(nullptr, fmt::format("clearing gimbal fault ({})", fault_name(st)));
+      io_.gimbal().clear_fault();
+    } else if (st.has(kMoving) || st.has(kMovePending)) {
+      io_.gimbal().stop();
+    }
+  } catch (const DeviceError& e) {
+    log_.warn("gimbal not answering while recovering: {}", e.what());
+  }
+  if (sensor_side) {
+    try {
+      Timed t(stats_.device_s);
+      log_.warn("restarting the sensor stream");
+      io_.sensor().stop();
+      io_.sensor().flush();
+      io_.sensor().start();
+    } catch (const DeviceError& e) {
+      log_.warn("sensor not answering while recovering: {}", e.what());
+    }
   }
 }
 
-std::optional<SensorSample> Engine::settle(const Action& a, const GimbalState& arrived, double& settled_host_s) {
+void PointMeasurer::with_remeasure(const Action& a, const std::function<void(int)>& attempt_fn) {
+  std::string reason;
+  StopCause cause = StopCause::other;
+  const int attempts = 1 + std::max(0, b_.max_remeasure);
+  for (int attempt = 1; attempt <= attempts; ++attempt) {
+    bool sensor_side = false;
+    try {
+      if (a.is_point()) events_.publish(PointStarted{&a, attempt});
+      attempt_fn(attempt);
+      if (attempt > 1) log_.info("{} done on attempt {}", label(a), attempt);
+      return;
+    } catch (const SensorFailure& e) {
+      reason = e.what();
+      cause = e.cause;
+      sensor_side = true;
+    } catch (const GimbalFailure& e) {
+      reason = e.what();
+      cause = e.cause;
+    } catch (const PointFailure& e) {
+      reason = e.what();
+      cause = e.cause;
+    } catch (const LimitError&) {
+      throw;  // refused before the wire: retrying cannot help
+    } catch (const DeviceError& e) {
+      reason = e.what();
+      cause = StopCause::other;
+      sensor_side = true;  // not knowing which device failed, reset both
+    }
+    io_.warn(&a, fmt::format("{} attempt {}/{} not counted: {}", label(a), attempt, attempts, reason));
+    io_.check_abort();
+    if (attempt < attempts) {
+      ++stats_.remeasured;
+      recover(reason, sensor_side);
+    }
+  }
+  throw PointFailure(fmt::format("{} failed after {} attempts: {}",
+                                 a.is_point() ? a.describe() : fmt::format("{} ({})", label(a), a.describe()), attempts,
+                                 reason),
+                     cause);
+}
+
+std::optional<SensorSample> PointMeasurer::settle(const Action& a, const GimbalState& arrived, double& settled_host_s) {
   // The settle counts from the gimbal's arrival. One clock for both devices: the frames say when
   // it is over, and the first frame after it is the dwell's first; else the host clock says, and
   // a reading after it starts the dwell.
-  std::optional<SensorSample> first = wait_bench_until(arrived_s_ + a.settle_s);
-  settled_host_s = host_now_s();
+  std::optional<SensorSample> first = sched_.wait_bench_until(sched_.arrived_s() + a.settle_s);
+  settled_host_s = clock_.host_now_s();
   if (!first && b_.clock != ClockSync::shared) {
     try {
       {
         Timed t(stats_.device_s);
-        s_.flush();
+        io_.sensor().flush();
       }
-      check_still(a, read_gimbal(), "before");
+      io_.check_still(a, io_.read_gimbal(), "before");
     } catch (const DeviceError& e) {
       throw PointFailure(e.what());
     }
   } else {
-    check_still(a, arrived, "before");
+    io_.check_still(a, arrived, "before");
   }
   return first;
 }
 
-std::optional<SensorSample> Engine::next_dwell_frame(std::optional<SensorSample>& first) {
+std::optional<SensorSample> PointMeasurer::next_dwell_frame(std::optional<SensorSample>& first) {
   if (first) return std::exchange(first, std::nullopt);
   try {
     Timed t(stats_.device_s);
-    return s_.next_sample(b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s);
+    return io_.sensor().next_sample(b_.wall(1.0 / b_.sample_rate_hz) + b_.frame_timeout_s);
   } catch (const DeviceError& e) {
     throw SensorFailure(e.what());
   }
 }
 
-void Engine::reschedule_next_move(const Action& a, double& move_at_s, double start_s) {
-  // Only if it has not started (a reading says: still pending), else the point is measured again.
-  move_at_s = start_s;
-  pending_.reset();
-  GimbalState st;
-  try {
-    send_move_at(plan_.actions[action_ + 1], move_at_s);
-    st = read_gimbal();
-  } catch (const DeviceError& e) {
-    throw PointFailure(fmt::format("the next move, scheduled for the dwell's end, could not be put back: {}", e.what()));
-  }
-  if (!st.has(kMovePending)) throw PointFailure("the next move had started before the dwell's last frame");
-  check_still(a, st, "while");
-  schedule_pending(plan_.actions[action_ + 1], a, move_at_s);
-}
-
-Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arrived) {
+PointMeasurer::DwellFrames PointMeasurer::take_dwell(const Action& a, const GimbalState& arrived) {
   const bool shared = b_.clock == ClockSync::shared;
   double settled_host = 0;
-  const double settled_bench = arrived_s_ + a.settle_s;
+  const double settled_bench = sched_.arrived_s() + a.settle_s;
   const double period_s = 1.0 / b_.sample_rate_hz;
   const bool link_slower_than_frames = b_.link_round_trip_s * b_.time_scale > period_s;
   DwellFrames d;
@@ -97,22 +187,22 @@ Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arriv
   // says where the dwell's frames fall, else at its first frame.
   // With the move queued while the gimbal came here, that one (queue_move_after_next).
   std::optional<double> move_at_s;
-  if (shared && std::isfinite(frame_grid_s_)) {
-    const double end_s = dwell_end_s(a, first_frame_from(settled_bench));
-    move_at_s = queued_ ? adopt_queued_move(a, end_s, arrived) : schedule_next_move(a, end_s);
+  if (shared && clock_.frame_grid_known()) {
+    const double end_s = clock_.dwell_end_s(a, clock_.first_frame_from(settled_bench));
+    move_at_s = sched_.has_queued() ? sched_.adopt_queued_move(a, end_s, arrived) : sched_.schedule_next_move(a, end_s);
   }
   std::optional<SensorSample> first = settle(a, arrived, settled_host);
   bool reading = true;  // readings after the next move's start are no reference of this dwell
   uint8_t last_bad_status = 0;
   while (static_cast<int>(d.frames.size()) < a.frames) {
-    check_abort();
+    io_.check_abort();
     std::optional<SensorSample> f = next_dwell_frame(first);
     if (!f) throw SensorFailure(fmt::format("the sensor sent no frame within {:.2f} s", b_.wall(period_s) + b_.frame_timeout_s));
     // One clock for both devices: a frame stamped before the settle ended was taken during
     // it, however late it arrives (a sensor stream catching up after a stall).
-    if (shared && sensor_clock_s(*f) + 1e-6 < settled_bench) continue;
+    if (shared && clock_.sensor_clock_s(*f) + 1e-6 < settled_bench) continue;
     if (!shared && f->host_time_s < settled_host) continue;  // on its way before the settle ended
-    if (move_at_s && sensor_clock_s(*f) + 1e-6 >= *move_at_s) {
+    if (move_at_s && clock_.sensor_clock_s(*f) + 1e-6 >= *move_at_s) {
       throw PointFailure("a frame came after the next move's scheduled start (frames missing from the stream)");
     }
     if (!f->valid()) {
@@ -123,15 +213,15 @@ Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arriv
                             StopCause::sensor_invalid);
       }
       // One frame more (before the first valid frame, that frame puts the end where it belongs).
-      if (move_at_s && !d.frames.empty()) reschedule_next_move(a, *move_at_s, *move_at_s + period_s);
+      if (move_at_s && !d.frames.empty()) sched_.reschedule_next_move(a, *move_at_s, *move_at_s + period_s);
       continue;
     }
     d.frames.push_back(*f);
-    if (shared) frame_grid_s_ = sensor_clock_s(*f);
+    if (shared) clock_.note_frame(clock_.sensor_clock_s(*f));
     if (d.frames.size() == 1 && shared) {
-      const double end_s = dwell_end_s(a, sensor_clock_s(*f));
-      if (!move_at_s) move_at_s = schedule_next_move(a, end_s);
-      else if (end_s > *move_at_s + 1e-6) reschedule_next_move(a, *move_at_s, end_s);  // frames missing
+      const double end_s = clock_.dwell_end_s(a, clock_.sensor_clock_s(*f));
+      if (!move_at_s) move_at_s = sched_.schedule_next_move(a, end_s);
+      else if (end_s > *move_at_s + 1e-6) sched_.reschedule_next_move(a, *move_at_s, end_s);  // frames missing
     }
     const bool last = static_cast<int>(d.frames.size()) == a.frames;
     // Each frame is referenced to the first encoder reading after it: the gimbal is read after
@@ -144,7 +234,7 @@ Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arriv
     if (link_slower_than_frames && !last) {
       try {
         Timed t(stats_.device_s);
-        first = s_.next_sample(0.0);
+        first = io_.sensor().next_sample(0.0);
       } catch (const DeviceError& e) {
         throw SensorFailure(e.what());
       }
@@ -152,50 +242,50 @@ Engine::DwellFrames Engine::take_dwell(const Action& a, const GimbalState& arriv
     }
     GimbalState st;
     try {
-      st = read_gimbal();
+      st = io_.read_gimbal();
     } catch (const DeviceError& e) {
       throw GimbalFailure(e.what());
     }
-    if (move_at_s && last_gimbal_time_s_ + 1e-6 >= *move_at_s) {
+    if (move_at_s && clock_.last_gimbal_s() + 1e-6 >= *move_at_s) {
       reading = false;  // the move has begun: no reference, no stillness to check
       continue;
     }
-    check_still(a, st, "while");
+    io_.check_still(a, st, "while");
     d.refs.push_back(st);
     d.ref_of.resize(d.frames.size(), d.refs.size() - 1);
   }
   // A host so late that the gimbal had left before it could read it during the dwell: the frames
   // take the reading that found it there (at rest at the point, one reading for all), and the next
   // move waits for this dwell's end, so the gimbal stays put until the host has read it.
-  late_for_schedule_ = move_at_s && d.refs.empty();
+  sched_.set_late_for_schedule(move_at_s && d.refs.empty());
   if (d.refs.empty()) d.refs.push_back(arrived);
   d.ref_of.resize(d.frames.size(), d.refs.size() - 1);
   return d;
 }
 
-void Engine::measure_dwell(const Action& a, int session) {
+void PointMeasurer::measure_dwell(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
-    const GimbalState arrived = move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
+    const GimbalState arrived = sched_.move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
     const DwellFrames d = take_dwell(a, arrived);
     // Everything the gimbal had to do here is done: its next move starts now (unless scheduled
     // already), and the checks and the storing below overlap it.
-    command_next_move();
-    queue_move_after_next();
-    verify_command();
-    const double temp = read_temperature_c(a);
+    sched_.command_next_move();
+    sched_.queue_move_after_next();
+    io_.verify_command();
+    const double temp = io_.read_temperature_c(a);
     std::vector<RecordedRow> rows;
     rows.reserve(d.frames.size());
     for (size_t i = 0; i < d.frames.size(); ++i) {
       const GimbalState& g = d.refs[d.ref_of[i]];
       const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
-      rows.push_back(make_row(a, a.phase, d.frames[i], sensor_clock_s(d.frames[i]), ref, temp, attempt, session));
+      rows.push_back(make_row(a, a.phase, d.frames[i], clock_.sensor_clock_s(d.frames[i]), ref, temp, attempt, session));
     }
     publish_point(a, rows, attempt, session, d.invalid);
   });
 }
 
-void Engine::slew_times(const std::vector<SensorSample>& frames, const std::vector<GimbalFix>& fixes,
-                        std::vector<double>& s_times, std::vector<double>& g_times) const {
+void PointMeasurer::slew_times(const std::vector<SensorSample>& frames, const std::vector<GimbalFix>& fixes,
+                               std::vector<double>& s_times, std::vector<double>& g_times) const {
   g_times.assign(frames.size(), 0.0);
   s_times.assign(frames.size(), 0.0);
   if (b_.clock == ClockSync::shared) {
@@ -225,16 +315,16 @@ void Engine::slew_times(const std::vector<SensorSample>& frames, const std::vect
   }
 }
 
-void Engine::measure_slew(const Action& a, int session) {
+void PointMeasurer::measure_slew(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
-    move_and_wait(a.start_pitch_arcsec, a.start_yaw_arcsec, b_.move_timeout_s);
-    wait_bench_until(arrived_s_ + a.settle_s);
+    sched_.move_and_wait(a.start_pitch_arcsec, a.start_yaw_arcsec, b_.move_timeout_s);
+    sched_.wait_bench_until(sched_.arrived_s() + a.settle_s);
     struct RateGuard {
-      Engine& e;
+      PointMeasurer& e;
       ~RateGuard() {
         try {
           Timed t(e.stats_.device_s);
-          e.command_rate(e.b_.profile_rate_arcsec_s);
+          e.io_.command_rate(e.b_.profile_rate_arcsec_s);
         } catch (const DeviceError& ex) {
           e.log_.warn("could not restore the profile rate: {}", ex.what());
         }
@@ -249,20 +339,20 @@ void Engine::measure_slew(const Action& a, int session) {
     auto drain = [&] {  // true when a frame came
       Timed t(stats_.device_s);
       const size_t n = frames.size();
-      while (auto f = s_.next_sample(0.0)) frames.push_back(*f);
+      while (auto f = io_.sensor().next_sample(0.0)) frames.push_back(*f);
       return frames.size() > n;
     };
     try {
       RateGuard guard{*this};  // restores the profile rate however this ends
       {
         Timed t(stats_.device_s);
-        command_rate(a.rate_arcsec_s);
-        s_.flush();
+        io_.command_rate(a.rate_arcsec_s);
+        io_.sensor().flush();
       }
-      fix(read_gimbal());
+      fix(io_.read_gimbal());
       {
         Timed t(stats_.device_s);
-        command_move(a.pitch_arcsec, a.yaw_arcsec);
+        io_.command_move(a.pitch_arcsec, a.yaw_arcsec);
       }
       const double leg_s = a.slew_span_arcsec() / a.rate_arcsec_s * 2 + b_.move_timeout_s;
       const double timeout_wall = b_.wall(leg_s * (a.reversals + 1)) + 2.0;
@@ -270,8 +360,8 @@ void Engine::measure_slew(const Action& a, int session) {
       const double tol = b_.in_position_tolerance_arcsec;
       const double reading_wait = b_.wall(0.25 / b_.sample_rate_hz);  // frames between close readings
       for (int leg = 0;;) {  // legs: Action::leg_target, each from the instant the last is in position
-        check_abort();
-        GimbalState st = read_gimbal();
+        io_.check_abort();
+        GimbalState st = io_.read_gimbal();
         fix(st);
         if (st.has(kFault) || st.fault != GimbalFault::none) {
           throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
@@ -279,7 +369,7 @@ void Engine::measure_slew(const Action& a, int session) {
         if (in_position_at(st, a.leg_target(leg), tol)) {
           if (leg++ == a.reversals) break;
           Timed t(stats_.device_s);
-          command_move(a.leg_target(leg).first, a.leg_target(leg).second);
+          io_.command_move(a.leg_target(leg).first, a.leg_target(leg).second);
         }
         if (seconds_since(start) > timeout_wall) {
           throw GimbalFailure(fmt::format("slew did not reach its end within {:.1f} s (at pitch {}, yaw {})",
@@ -288,24 +378,24 @@ void Engine::measure_slew(const Action& a, int session) {
         // No frame since the last reading: the next is waited for, a quarter frame period at most.
         if (!drain()) {
           Timed t(stats_.device_s);
-          if (auto f = s_.next_sample(reading_wait)) frames.push_back(*f);
+          if (auto f = io_.sensor().next_sample(reading_wait)) frames.push_back(*f);
         }
       }
       // Frames sampled before the arrival may still be on the line: wait one frame period more.
       {
         const double frame_wait = b_.wall(2.0 / b_.sample_rate_hz) + 0.05;
         Timed t(stats_.device_s);
-        if (auto f = s_.next_sample(frame_wait)) frames.push_back(*f);
+        if (auto f = io_.sensor().next_sample(frame_wait)) frames.push_back(*f);
       }
       drain();
     } catch (const DeviceError& e) {
       throw PointFailure(e.what());
     }
-    verify_command();
+    io_.verify_command();
     if (frames.empty()) throw SensorFailure("the sensor sent no frame during the slew");
     std::vector<double> s_times, g_times;  // sensor time -> gimbal time
     slew_times(frames, fixes, s_times, g_times);
-    const double temp = read_temperature_c(a);
+    const double temp = io_.read_temperature_c(a);
     std::vector<RecordedRow> rows;
     int invalid = 0, gapped = 0;
     double next_keep = -std::numeric_limits<double>::infinity();
@@ -333,7 +423,7 @@ void Engine::measure_slew(const Action& a, int session) {
                                       frames.size(), invalid),
                           invalid > 0 ? StopCause::sensor_invalid : StopCause::sensor_timeout);
     }
-    if (invalid > 0) warn(&a, fmt::format("point {}: {} invalid frame(s) during the slew skipped", a.point + 1, invalid));
+    if (invalid > 0) io_.warn(&a, fmt::format("point {}: {} invalid frame(s) during the slew skipped", a.point + 1, invalid));
     if (gapped > 0) {
       log_.info("point {}: {} frame(s) skipped: gimbal readings around them more than {} s apart", a.point + 1, gapped,
                 b_.max_reference_gap_s);

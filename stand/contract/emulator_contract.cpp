@@ -1,4 +1,4 @@
-#include "stand/cli/emulator_contract.h"
+#include "stand/contract/emulator_contract.h"
 
 #include <fmt/format.h>
 

@@ -1,0 +1,71 @@
+// The engine's estimate of time: the bench's clock from the devices' stamps, stand time from the sensor's, the frame grid.
+#pragma once
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include "drivers/sensor.h"
+#include "procedures/plan.h"
+#include "procedures/recorder.h"
+#include "procedures/settings.h"
+
+namespace fpss {
+
+// The devices stamp their readings on their own clocks and the host only receives them: everything
+// the engine waits for is in bench time, which the host can only estimate between two stamps.
+class EngineClock {
+ public:
+  explicit EngineClock(const EngineSettings& bench) : b_(bench) {}
+
+  // A session's start: stand time goes on from a resumed run's last time, and from the time the
+  // run was down (at the bench's pace).
+  void start(const ResumePoint& from);
+  // The drivers stamp receipts with the same steady clock (SensorSample/GimbalState::host_time_s).
+  double host_now_s() const;
+  double session_host_s(double host_s) const { return host_s - host_t0_; }
+
+  void note_bench(double bench_s, double host_s);
+  // A gimbal reading's stamp: it is also what a shared clock's sensor time is unwrapped against.
+  void note_gimbal(double gimbal_s, double host_s);
+  // The bench clock (the devices' own) now: the latest device time stamp, advanced by the host
+  // clock since at the bench's pace.
+  double bench_now_s() const { return bench_now_at(host_now_s()); }
+  double bench_now_at(double host_s) const;
+  double last_bench_s() const { return last_bench_s_; }
+  double last_gimbal_s() const { return last_gimbal_time_s_; }
+
+  // Stand time: base + (sensor time - sensor t0), kept non-decreasing across sensor restarts.
+  double stand_time(double sensor_time_s);
+  double sensor_clock_s(const SensorSample& f) const;
+
+  // A frame's time (shared clock): the sensor's frames come on a grid of its period from it.
+  bool frame_grid_known() const { return std::isfinite(frame_grid_s_); }
+  void note_frame(double sensor_clock_s) { frame_grid_s_ = sensor_clock_s; }
+  // The first frame at or after t_s on the sensor's frame grid (one clock for both devices).
+  double first_frame_from(double t_s) const;
+  // When a dwell of `a` whose first frame is at first_frame_s ends: half a frame period after its
+  // last frame, when the move after it is scheduled to start.
+  double dwell_end_s(const Action& a, double first_frame_s) const;
+
+  // Bench time counts from the next gimbal reading: the link's setup before it is not the procedure's.
+  void count_bench_from_next_reading() { bench_start_s_ = -1; }
+  void reset_bench_count() {
+    bench_start_s_ = -1;
+    off_bench_s_ = 0;
+  }
+  void add_off_bench(double s) { off_bench_s_ += s; }
+  // Bench seconds counted since the first reading, computation steps left out; nullopt if none came.
+  std::optional<double> bench_s() const;
+
+ private:
+  const EngineSettings& b_;
+  double host_t0_ = 0;
+  std::optional<double> sensor_t0_;
+  double time_base_ = 0, last_time_ = 0;
+  double last_gimbal_time_s_ = 0;
+  double frame_grid_s_ = std::numeric_limits<double>::quiet_NaN();
+  double last_bench_s_ = 0, last_bench_host_s_ = 0;  // the latest device time stamp and its receipt
+  double bench_start_s_ = -1, off_bench_s_ = 0;
+};
+
+}  // namespace fpss

@@ -1,0 +1,118 @@
+#include "procedures/engine_io.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include "procedures/engine_detail.h"
+
+namespace fpss {
+
+using namespace engine_detail;
+
+GimbalState EngineIo::read_gimbal() {
+  GimbalState st;
+  {
+    Timed t(stats_.device_s);
+    st = g_.read_state();
+  }
+  last_pitch_arcsec_ = st.pitch_arcsec;
+  last_yaw_arcsec_ = st.yaw_arcsec;
+  clock_.note_gimbal(static_cast<double>(st.sample_time_us) * 1e-6,
+                     st.host_time_s > 0 ? st.host_time_s : clock_.host_now_s());
+  return st;
+}
+
+double EngineIo::read_temperature_c(const Action& a) {
+  try {
+    Timed t(stats_.device_s);
+    return s_.temperature_c();
+  } catch (const DeviceError& e) {
+    log_.warn("point {}: no temperature ({})", a.point + 1, e.what());
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+}
+
+void EngineIo::command_rate(double arcsec_s) {
+  g_.set_max_rate(arcsec_s);
+  commanded_.max_rate_arcsec_s = arcsec_s;
+}
+
+void EngineIo::command_move(double pitch_arcsec, double yaw_arcsec) {
+  g_.move_to(pitch_arcsec, yaw_arcsec);
+  targets_written(pitch_arcsec, yaw_arcsec);
+}
+
+void EngineIo::command_home() {
+  g_.home();
+  commanded_.target_pitch_arcsec = commanded_.target_yaw_arcsec = 0;
+  target_known_ = false;
+}
+
+void EngineIo::command_watchdog(double s) {
+  g_.set_watchdog(s);
+  commanded_.watchdog_s = s;
+}
+
+void EngineIo::targets_written(double pitch_arcsec, double yaw_arcsec) {
+  commanded_.target_pitch_arcsec = pitch_arcsec;
+  commanded_.target_yaw_arcsec = yaw_arcsec;
+  target_known_ = true;
+}
+
+double EngineIo::move_rate_arcsec_s() const {
+  return commanded_.max_rate_arcsec_s > 0 ? commanded_.max_rate_arcsec_s : b_.profile_rate_arcsec_s;
+}
+
+void EngineIo::verify_command() {
+  std::optional<GimbalCommand> c;
+  try {
+    Timed t(stats_.device_s);
+    c = g_.read_command();
+  } catch (const DeviceError& e) {
+    throw GimbalFailure(e.what());
+  }
+  if (!c) return;
+  // The registers hold whole milliarcseconds (and ms for the watchdog): allow their rounding.
+  const double mas = 1e-3 * 1.01;
+  std::string what;
+  auto differs = [&](const char* name, double read, double wrote, double tol, const char* unit) {
+    if (std::fabs(read - wrote) > tol) what += fmt::format("{}{} {} {} (this run wrote {})", what.empty() ? "" : ", ", name, read, unit, wrote);
+  };
+  if (target_known_) {
+    differs("pitch target", c->target_pitch_arcsec, commanded_.target_pitch_arcsec, mas, "arcsec");
+    differs("yaw target", c->target_yaw_arcsec, commanded_.target_yaw_arcsec, mas, "arcsec");
+  }
+  if (commanded_.max_rate_arcsec_s > 0) differs("max rate", c->max_rate_arcsec_s, commanded_.max_rate_arcsec_s, mas, "arcsec/s");
+  differs("watchdog", c->watchdog_s, commanded_.watchdog_s, 1.01e-3, "s");
+  if (c->command == 5) what += fmt::format("{}rate mode commanded", what.empty() ? "" : ", ");
+  if (!what.empty()) {
+    throw GimbalFailure(fmt::format("gimbal commanded by another client: {}", what), StopCause::commanded_elsewhere);
+  }
+}
+
+void EngineIo::check_still(const Action& a, const GimbalState& st, const char* when) {
+  if (st.has(kFault) || st.fault != GimbalFault::none) {
+    throw GimbalFailure(fmt::format("gimbal fault ({}) {} sampling", fault_name(st), when));
+  }
+  const double tol = b_.in_position_tolerance_arcsec;
+  if (st.has(kMoving) || std::fabs(st.pitch_arcsec - a.pitch_arcsec) > tol || std::fabs(st.yaw_arcsec - a.yaw_arcsec) > tol) {
+    verify_command();  // another client's move explains it: say so
+    throw GimbalFailure(fmt::format("gimbal left the point {} sampling (pitch {}, yaw {}, status 0x{:02x})", when,
+                                    deg(st.pitch_arcsec), deg(st.yaw_arcsec), st.status));
+  }
+}
+
+void EngineIo::check_abort() {
+  if (stopping_) return;
+  if (ctl_.abort.load()) throw Aborted{};
+}
+
+void EngineIo::warn(const Action* a, const std::string& message) {
+  log_.warn("{}", message);
+  events_.publish(Fault{Fault::Level::warning, a && a->is_point() ? a->point : -1, message});
+}
+
+}  // namespace fpss

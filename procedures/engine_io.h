@@ -1,0 +1,81 @@
+// The engine's hold on its devices and its operator: every command and reading goes through here, so each part knows what the gimbal should hold.
+#pragma once
+#include <string>
+
+#include <spdlog/logger.h>
+
+#include "drivers/gimbal.h"
+#include "drivers/sensor.h"
+#include "procedures/engine.h"
+#include "procedures/engine_clock.h"
+#include "procedures/events.h"
+#include "procedures/plan.h"
+#include "procedures/settings.h"
+
+namespace fpss {
+
+// Shared by the engine's parts, which borrow it: one record of what this run wrote to the gimbal
+// (another client's change is noticed against it) and of where the gimbal last was.
+class EngineIo {
+ public:
+  EngineIo(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, EventBus& events, spdlog::logger& log,
+           RunControl& control, EngineStats& stats, EngineClock& clock)
+      : g_(gimbal), s_(sensor), b_(bench), events_(events), log_(log), ctl_(control), stats_(stats), clock_(clock) {}
+
+  Gimbal& gimbal() { return g_; }
+  Sensor& sensor() { return s_; }
+  const EngineSettings& settings() const { return b_; }
+  EventBus& events() { return events_; }
+  spdlog::logger& log() { return log_; }
+  RunControl& control() { return ctl_; }
+  EngineStats& stats() { return stats_; }
+  EngineClock& clock() { return clock_; }
+
+  GimbalState read_gimbal();
+  double last_pitch_arcsec() const { return last_pitch_arcsec_; }
+  double last_yaw_arcsec() const { return last_yaw_arcsec_; }
+  // The sensor's temperature for point `a`'s rows; NaN (and a warning) when it does not answer.
+  double read_temperature_c(const Action& a);
+
+  // Every command the engine sends goes through these, so it knows what the gimbal should hold.
+  void command_rate(double arcsec_s);
+  void command_move(double pitch_arcsec, double yaw_arcsec);
+  void command_home();  // a home need not write the target registers: they are not known after it
+  void command_watchdog(double s);
+  // The targets this run last wrote to the gimbal, which verify_command reads back.
+  void targets_written(double pitch_arcsec, double yaw_arcsec);
+  void targets_unknown() { target_known_ = false; }  // a command that failed may have written them
+  const GimbalCommand& commanded() const { return commanded_; }
+  // The rate moves run at: the last one commanded, else the profile's.
+  double move_rate_arcsec_s() const;
+  // Reads the gimbal's commanded state back; GimbalFailure (commanded_elsewhere) when another
+  // client changed a target, the rate, the watchdog, or put it in rate mode.
+  void verify_command();
+  // GimbalFailure unless the gimbal is still at `a`'s point, unfaulted and not moving.
+  void check_still(const Action& a, const GimbalState& st, const char* when);
+
+  // Whether this run moved the gimbal: only then does the safe stop return it to null.
+  bool moved() const { return moved_; }
+  void mark_moved() { moved_ = true; }
+
+  void check_abort();
+  void set_stopping(bool stopping) { stopping_ = stopping; }  // during the safe stop an abort no longer interrupts
+  void warn(const Action* a, const std::string& message);
+
+ private:
+  Gimbal& g_;
+  Sensor& s_;
+  const EngineSettings& b_;
+  EventBus& events_;
+  spdlog::logger& log_;
+  RunControl& ctl_;
+  EngineStats& stats_;
+  EngineClock& clock_;
+  GimbalCommand commanded_;
+  bool target_known_ = false;
+  bool moved_ = false;
+  bool stopping_ = false;
+  double last_pitch_arcsec_ = 0, last_yaw_arcsec_ = 0;  // the latest encoder reading
+};
+
+}  // namespace fpss

@@ -1,0 +1,77 @@
+// The engine's measurement of a point: a dwell or a slew, its settle, its re-measurement, and publishing its rows.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <spdlog/logger.h>
+
+#include "drivers/gimbal.h"
+#include "drivers/sensor.h"
+#include "procedures/align.h"
+#include "procedures/engine_clock.h"
+#include "procedures/engine_io.h"
+#include "procedures/events.h"
+#include "procedures/move_scheduler.h"
+#include "procedures/plan.h"
+#include "procedures/recorder.h"
+
+namespace fpss {
+
+// A dwell's frames are at rest, each with its own encoder reading; a slew's are aligned with the
+// gimbal's readings by interpolation. Either way a point is durable before it is reported done.
+class PointMeasurer {
+ public:
+  // `next_point`: points durable so far (all sessions).
+  PointMeasurer(EngineIo& io, EngineClock& clock, MoveScheduler& scheduler, int64_t next_point);
+
+  void measure_dwell(const Action& a, int session);
+  void measure_slew(const Action& a, int session);
+  // Runs attempt(1), attempt(2), ... until one succeeds or the stand's re-measurements run out.
+  void with_remeasure(const Action& a, const std::function<void(int)>& attempt);
+
+  int64_t next_point() const { return next_point_; }
+  // Points an adaptive stop leaves unmeasured count as done: a resume goes on after them.
+  void skip_to(int64_t next_point) { next_point_ = next_point; }
+
+ private:
+  // A dwell's frames and the encoder readings they are referenced to (ref_of: each frame's reading).
+  struct DwellFrames {
+    std::vector<SensorSample> frames;
+    std::vector<GimbalState> refs;
+    std::vector<size_t> ref_of;
+    int invalid = 0;  // frames skipped as invalid
+  };
+  DwellFrames take_dwell(const Action& a, const GimbalState& arrived);
+  // Waits out the settle after the arrival; the dwell's first frame when the frames told.
+  std::optional<SensorSample> settle(const Action& a, const GimbalState& arrived, double& settled_host_s);
+  std::optional<SensorSample> next_dwell_frame(std::optional<SensorSample>& first);
+  // Each slew frame's time on the sensor's clock and the same instant on the gimbal's clock.
+  void slew_times(const std::vector<SensorSample>& frames, const std::vector<GimbalFix>& fixes,
+                  std::vector<double>& s_times, std::vector<double>& g_times) const;
+  void recover(const std::string& reason, bool sensor_side);
+  // Publishes the rows (the recorder makes them durable), then PointDone.
+  void publish_point(const Action& a, const std::vector<RecordedRow>& rows, int attempt, int session, int invalid);
+  // The gimbal reading a row is referenced to (stand frame) and the gimbal-clock time it stands for.
+  struct GimbalRef {
+    double time_s = 0, pitch_arcsec = 0, yaw_arcsec = 0;
+    uint16_t status = 0;
+  };
+  // One row of point `a`: frame `f` at `sensor_time_s` (sensor clock) with its reference `g`.
+  RecordedRow make_row(const Action& a, Phase phase, const SensorSample& f, double sensor_time_s, const GimbalRef& g,
+                       double temperature_c, int attempt, int session);
+
+  EngineIo& io_;
+  EngineClock& clock_;
+  MoveScheduler& sched_;
+  const EngineSettings& b_;
+  EventBus& events_;
+  spdlog::logger& log_;
+  EngineStats& stats_;
+  int64_t next_point_ = 0;
+};
+
+}  // namespace fpss
