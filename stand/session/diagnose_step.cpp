@@ -6,16 +6,17 @@
 #include "calib/coefficients.h"
 #include "calib/diagnosis/diagnosis.h"
 #include "stand/report/diagnosis_page.h"
+#include "stand/report/run_summary.h"
 
 namespace fpss {
 
-DiagnoseStepResult run_diagnose_step(const std::filesystem::path& samples_csv, int64_t last_step,
-                                     const DiagnoseStep& step, const std::filesystem::path& run_dir, int nth) {
+DiagnoseStepResult run_diagnose_step(const SampleTable& recording, int64_t last_step, const DiagnoseStep& step,
+                                     const std::filesystem::path& run_dir, int nth) {
   const CoefficientSet model = load_coefficients(step.model);
   DiagnosisOptions opts;
   opts.settle_s = step.settle_s;
   DiagnosisFigures figures;
-  const Diagnosis d = diagnose(read_diagnosis_columns(samples_csv, last_step), model, opts, &figures);
+  const Diagnosis d = diagnose(DiagnosisColumns::of(rows_up_to_step(recording, last_step)), model, opts, &figures);
   const std::string stem = nth == 1 ? "GAP" : fmt::format("GAP-{}", nth);
   DiagnoseStepResult r{run_dir / (stem + ".json"), run_dir / (stem + ".html"), d.verdict, d.verdict_sentence,
                        d.cause, d.incomplete_recording()};

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <string>
 
+#include "calib/samples.h"
 #include "procedures/procedure.h"
 
 namespace fpss {
@@ -14,11 +15,11 @@ struct DiagnoseStepResult {
   bool incomplete = false;  // the recording cannot tell every effect apart (see not_observable)
 };
 
-// Diagnoses the rows of `samples_csv` up to step `last_step` (the points before the diagnose step)
-// against the step's model, read straight into the diagnosis's columns (no table of every column,
-// no copy); `nth` counts the run's diagnose steps from 1. Both files are written atomically.
-// Throws InputError when the rows cannot be diagnosed.
-DiagnoseStepResult run_diagnose_step(const std::filesystem::path& samples_csv, int64_t last_step,
-                                     const DiagnoseStep& step, const std::filesystem::path& run_dir, int nth);
+// Diagnoses the run's recording (the session's, in memory) up to step `last_step` (the points
+// before the diagnose step) against the step's model: the same columns `fpss-stand diagnose --data`
+// reads from samples.csv (temperature_c from the provenance). `nth` counts the run's diagnose steps
+// from 1. Both files are written atomically. Throws InputError when the rows cannot be diagnosed.
+DiagnoseStepResult run_diagnose_step(const SampleTable& recording, int64_t last_step, const DiagnoseStep& step,
+                                     const std::filesystem::path& run_dir, int nth);
 
 }  // namespace fpss

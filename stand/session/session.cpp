@@ -379,11 +379,9 @@ void Session::on_calibrate(const Action& a) {
 
 void Session::on_diagnose(const Action& a) {
   progress_->clear();
-  // From samples.csv, not the rows in memory: the diagnosis reads the columns the recording has
-  // (temperature, time since the move), exactly as `fpss-stand diagnose --data` would, up to the
-  // last point before this step, straight into its own columns.
-  const DiagnoseStepResult r =
-      run_diagnose_step(rec_->samples_path(), points_before(a), *a.diagnose, res_.run_dir, ++diagnoses_);
+  // The rows in memory hold every column samples.csv does (the provenance as numbers): the
+  // diagnosis reads the same ones `fpss-stand diagnose --data` would, up to the last point before.
+  const DiagnoseStepResult r = run_diagnose_step(recorded_, points_before(a), *a.diagnose, res_.run_dir, ++diagnoses_);
   log_->info("diagnosis -> {}, {}: verdict {}, cause {}: {}", r.json.filename().string(),
              r.html.filename().string(), r.verdict, r.cause, r.sentence);
   if (r.incomplete && !a.diagnose->partial) {
