@@ -3,9 +3,19 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <vector>
 
 namespace fpss {
+
+// The floor under the robust sigma for whole counts: the rounded noise, sqrt(1/12 + s^2) counts,
+// s the count noise per frame (unknown: the rounding's own 1/sqrt(12)). With little noise the
+// pooled MAD of whole counts is zero, and the rounding alone would flag ordinary 2-count
+// excursions at 0.3 counts of noise.
+inline double count_outlier_floor(std::optional<double> noise_counts) {
+  const double s = noise_counts.value_or(0.0);
+  return std::sqrt(1.0 / 12.0 + s * s);
+}
 
 struct OutlierRule {
   // A frame is an outlier when it lies more than `threshold_sigma` robust sigmas from its step's

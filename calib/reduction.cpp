@@ -80,6 +80,13 @@ ReductionOptions reduction_options_of(const nlohmann::json& extra, const std::st
   return OutlierSummary::from_json(extra["outliers"], origin).options();
 }
 
+bool count_scatters(const Dwell& d, CountScatter out[2]) {
+  if (d.samples < 2 || !d.whole_counts_alpha || !d.whole_counts_beta) return false;
+  out[0] = {d.counts_alpha, d.sd_counts_alpha * d.sd_counts_alpha, d.samples};
+  out[1] = {d.counts_beta, d.sd_counts_beta * d.sd_counts_beta, d.samples};
+  return true;
+}
+
 std::vector<OutlierAxes> flag_count_outliers(const SampleTable& t, double floor_counts) {
   std::vector<OutlierAxes> out(t.size());
   OutlierRule rule;
@@ -103,9 +110,8 @@ namespace {
 std::optional<double> scatter_noise(const std::vector<Dwell>& dwells) {
   std::vector<CountScatter> sc;
   for (const Dwell& d : dwells) {
-    if (d.samples < 2 || !d.whole_counts_alpha || !d.whole_counts_beta) continue;
-    sc.push_back({d.counts_alpha, d.sd_counts_alpha * d.sd_counts_alpha, d.samples});
-    sc.push_back({d.counts_beta, d.sd_counts_beta * d.sd_counts_beta, d.samples});
+    CountScatter two[2];
+    if (count_scatters(d, two)) sc.insert(sc.end(), two, two + 2);
   }
   return estimate_count_noise(sc.data(), sc.size());
 }
@@ -116,17 +122,16 @@ Reduction reduce(const SampleTable& t, const ReductionOptions& opts) {
   Reduction r;
   r.outliers.applied = opts.reject_outliers;
   if (opts.reject_outliers) {
-    // With whole counts and little noise the pooled MAD is zero, and the rounding's scatter alone
-    // (1/sqrt(12)) would flag ordinary 2-count excursions at 0.3 counts of noise: the floor is the
-    // rounded noise.
+    // Unknown noise: a first pass with the rounding's floor keeps gross spikes out of the
+    // within-dwell scatter the noise is estimated from.
     std::optional<double> s = opts.count_noise_counts;
     std::string source = opts.count_noise_source;
     if (!s) {
-      r.flags = flag_count_outliers(t, std::sqrt(1.0 / 12.0));
+      r.flags = flag_count_outliers(t, count_outlier_floor(std::nullopt));
       s = scatter_noise(average_dwells(t, r.flags));
       source = s ? "within-dwell scatter" : "unknown";
     }
-    if (s) r.flags = flag_count_outliers(t, std::sqrt(1.0 / 12.0 + *s * *s));
+    if (s) r.flags = flag_count_outliers(t, count_outlier_floor(s));
     r.outliers.count_noise_counts = s;
     r.outliers.count_noise_source = source;
   }

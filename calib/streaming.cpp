@@ -26,8 +26,7 @@ StreamingCalibrator::StreamingCalibrator(CalibrationOptions opts, std::string so
     throw std::invalid_argument("the streaming calibrator fits changes (method differences) only");
   }
   pitch_.differences = yaw_.differences = true;
-  const double s = opts_.count_noise_counts.value_or(0.0);
-  for (auto& sc : screen_) sc.set_min_sigma(std::sqrt(1.0 / 12.0 + s * s));
+  for (auto& sc : screen_) sc.set_min_sigma(count_outlier_floor(opts_.count_noise_counts));
 }
 
 void StreamingCalibrator::add_sample(const Sample& s) {
@@ -196,9 +195,8 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
   if (opts.method != Method::differences) return calibrate(read_samples_csv(path), opts);
   const std::string origin = path.string();
   // Pass 1: every step's median count per axis, and the pooled deviations (calib/outliers.h).
-  const double kRounding = std::sqrt(1.0 / 12.0);
   OutlierRule rule;
-  rule.min_sigma = kRounding;
+  rule.min_sigma = count_outlier_floor(std::nullopt);  // until the noise is known (pass 2)
   StepOutlierScreen screen[2] = {StepOutlierScreen(rule), StepOutlierScreen(rule)};
   StepMedians medians;  // per step: alpha, beta
   if (opts.reject_outliers) {
@@ -233,9 +231,10 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
       CountNoiseEstimator est;
       DwellBuilder b(origin);
       auto take = [&](const Dwell& d) {
-        if (d.samples < 2 || !d.whole_counts_alpha || !d.whole_counts_beta) return;
-        est.add({d.counts_alpha, d.sd_counts_alpha * d.sd_counts_alpha, d.samples});
-        est.add({d.counts_beta, d.sd_counts_beta * d.sd_counts_beta, d.samples});
+        CountScatter two[2];
+        if (!count_scatters(d, two)) return;
+        est.add(two[0]);
+        est.add(two[1]);
       };
       each_dwell_row(path, [&](const Sample& s, size_t k) {
         if (auto d = b.add(s, outlier(s, k))) take(*d);
@@ -246,7 +245,7 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
       rule_noise_source = noise ? "within-dwell scatter" : "unknown";
     }
     if (noise) {
-      for (auto& sc : screen) sc.set_min_sigma(std::sqrt(1.0 / 12.0 + *noise * *noise));
+      for (auto& sc : screen) sc.set_min_sigma(count_outlier_floor(noise));
     }
   }
   // Pass 3: the dwells, into the streaming calibrator.
