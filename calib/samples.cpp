@@ -8,6 +8,7 @@
 #include <charconv>
 #include <cerrno>
 #include <cmath>
+#include <type_traits>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -91,6 +92,27 @@ void SampleTable::push_back(const Sample& s, const std::vector<double>& extras) 
     if (c.numeric) c.numbers.back() = extras[i];
     else c.text.back() = std::isfinite(extras[i]) ? format_number(extras[i]) : std::string();
   }
+}
+
+SampleTable SampleTable::up_to_step(int64_t last_step) const {
+  size_t n = 0;
+  while (n < size() && step[n] <= last_step) ++n;
+  const auto head = [n](const auto& v) { return std::decay_t<decltype(v)>(v.begin(), v.begin() + static_cast<long>(n)); };
+  SampleTable t;
+  t.origin = origin;
+  t.time_s = head(time_s);
+  t.phase = head(phase);
+  t.step = head(step);
+  t.ref_pitch_arcsec = head(ref_pitch_arcsec);
+  t.ref_yaw_arcsec = head(ref_yaw_arcsec);
+  t.counts_alpha = head(counts_alpha);
+  t.counts_beta = head(counts_beta);
+  t.extra_names_ = extra_names_;
+  for (const Extra& c : extra_) {
+    t.extra_.push_back(Extra{c.numeric, c.numeric ? std::vector<std::string>() : head(c.text),
+                             c.numeric ? head(c.numbers) : std::vector<double>()});
+  }
+  return t;
 }
 
 Sample SampleTable::row(size_t i) const {

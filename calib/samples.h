@@ -51,6 +51,9 @@ class SampleTable {
   // The same from numbers: a text column gets the number's shortest round-trip text ("" for NaN).
   void push_back(const Sample& s, const std::vector<double>& extras);
   Sample row(size_t i) const;
+  // The rows of steps up to `last_step` (steps increase: a leading part of the table), every
+  // column kept as it is (extras with their type), and the origin.
+  SampleTable up_to_step(int64_t last_step) const;
 
   const std::vector<std::string>& extra_names() const { return extra_names_; }
   void add_extra_column(const std::string& name);    // text, filled with "" for existing rows

@@ -529,7 +529,7 @@ ReportInput load_report_input(const fs::path& run_dir, const SampleTable* record
   const SampleTable& all = recording ? *recording : read;
   in.fit_last_step = fit_last_step(in.calibration, cal_path.string());
   SampleTable fitted;
-  if (in.fit_last_step) fitted = rows_up_to_step(all, *in.fit_last_step);
+  if (in.fit_last_step) fitted = all.up_to_step(*in.fit_last_step);
   const SampleTable& samples = in.fit_last_step ? fitted : all;
   in.samples_origin = samples_path.filename().string();
   in.samples = samples.size();

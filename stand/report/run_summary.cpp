@@ -79,15 +79,6 @@ std::optional<int64_t> fit_last_step(const CoefficientSet& cal, const std::strin
   return v.get<int64_t>();
 }
 
-SampleTable rows_up_to_step(const SampleTable& all, int64_t last_step) {
-  SampleTable t;
-  t.origin = all.origin;
-  for (size_t i = 0; i < all.size(); ++i) {
-    if (all.step[i] <= last_step) t.push_back(all.row(i));
-  }
-  return t;
-}
-
 int64_t journal_points(const fs::path& run_dir) {
   const fs::path p = run_dir / "points.jsonl";
   std::error_code ec;

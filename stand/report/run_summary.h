@@ -30,8 +30,6 @@ std::string verdict_banner_html(const RunVerdict& v);
 // The last step a calibration was fitted on (calibration.json "fit_last_step", written by the run);
 // empty for a calibration that does not say. InputError naming `origin` for a wrong value.
 std::optional<int64_t> fit_last_step(const CoefficientSet& cal, const std::string& origin);
-// The rows of steps 1..last_step.
-SampleTable rows_up_to_step(const SampleTable& all, int64_t last_step);
 
 struct RunSummary {
   std::filesystem::path dir;

@@ -4,14 +4,6 @@
 
 namespace fpss {
 
-SampleTable rows_up_to(const SampleTable& all, int64_t last_step) {
-  SampleTable t;
-  t.origin = all.origin;
-  t.reserve(all.size());
-  for (size_t i = 0; i < all.size() && all.step[i] <= last_step; ++i) t.push_back(all.row(i));
-  return t;
-}
-
 std::string check_limits(const ResidualLimits& lim, const ResidualStats& r, const char* axis) {
   std::string broken;
   auto add = [&](std::string s) { broken += (broken.empty() ? "" : "; ") + s; };

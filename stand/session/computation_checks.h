@@ -9,8 +9,6 @@
 
 namespace fpss {
 
-// The rows of the points before a computation step (points 1..last_step): what it may use.
-SampleTable rows_up_to(const SampleTable& all, int64_t last_step);
 // The limits `r` breaks, one clause each ("pitch max |residual| 2.300 arcsec > 2.1 arcsec; ..."),
 // or "" when none.
 std::string check_limits(const ResidualLimits& lim, const ResidualStats& r, const char* axis);

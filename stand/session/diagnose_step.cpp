@@ -6,7 +6,6 @@
 #include "calib/coefficients.h"
 #include "calib/diagnosis/diagnosis.h"
 #include "stand/report/diagnosis_page.h"
-#include "stand/report/run_summary.h"
 
 namespace fpss {
 
@@ -16,7 +15,7 @@ DiagnoseStepResult run_diagnose_step(const SampleTable& recording, int64_t last_
   DiagnosisOptions opts;
   opts.settle_s = step.settle_s;
   DiagnosisFigures figures;
-  const Diagnosis d = diagnose(DiagnosisColumns::of(rows_up_to_step(recording, last_step)), model, opts, &figures);
+  const Diagnosis d = diagnose(DiagnosisColumns::of(recording.up_to_step(last_step)), model, opts, &figures);
   const std::string stem = nth == 1 ? "GAP" : fmt::format("GAP-{}", nth);
   DiagnoseStepResult r{run_dir / (stem + ".json"), run_dir / (stem + ".html"), d.verdict, d.verdict_sentence,
                        d.cause, d.incomplete_recording()};

@@ -343,7 +343,7 @@ int64_t Session::points_before(const Action& a) const {
 
 void Session::on_calibrate(const Action& a) {
   progress_->clear();
-  const SampleTable rows = rows_up_to(recorded_, points_before(a));
+  const SampleTable rows = recorded_.up_to_step(points_before(a));
   CalibrationOptions o;
   o.method = parse_method(a.calibrate->method).value_or(Method::differences);
   if (a.calibrate->init) o.init = load_coefficients(*a.calibrate->init);

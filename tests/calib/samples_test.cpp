@@ -142,6 +142,14 @@ TEST(Samples, NumericColumnsHoldNumbersAndWriteTheSameText) {
   EXPECT_TRUE(std::isnan(a[1]));
   EXPECT_EQ(a[2], b[2]);
   EXPECT_EQ(r.extra_column("note"), t.extra_column("note"));
+  // The rows up to a step keep every column with its type (what a computation step is handed).
+  t.push_back({0.4, Phase::offset, 2, 0, 0, 5, 6}, std::vector<double>{1.5, 2});
+  const SampleTable head = t.up_to_step(1);
+  ASSERT_EQ(head.size(), 3u);
+  EXPECT_EQ(head.extra_names(), t.extra_names());
+  EXPECT_EQ(head.numeric_column("gimbal_pitch_arcsec")[0], 0.1 + 0.2);
+  EXPECT_EQ(head.extra_column("note")[2], "a, b");
+  EXPECT_EQ(t.up_to_step(2).size(), 4u);
 }
 
 TEST(Samples, WriterAppendsAfterAMatchingHeaderOnly) {
