@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "calib/quantisation.h"
+#include "calib/refine.h"
 #include "calib/residuals.h"
 #include "calib/units.h"
 
@@ -18,18 +19,10 @@ namespace {
 
 using Vec8 = Eigen::Matrix<double, 8, 1>;
 using Mat8 = Eigen::Matrix<double, 8, 8>;
-constexpr double kScale = fit::kCountScale;  // the fit's one count scale (calib/residuals.h)
 constexpr int kSigmaAngles = 41;
 
-// d angle(n) / d(u1..u7, level), arcsec per scaled unit (the fit's scaled coefficients, C1 as a level).
-Vec8 gradient(const AxisCoeffs& c, double n) {
-  const double x = n / kScale;
-  const double u2 = rad_to_arcsec(c[2]), u3 = c[3] * kScale, u5 = rad_to_arcsec(c[5]), u6 = c[6] * kScale;
-  const double a = u3 * x + c[4], b = u6 * x + c[7];
-  Vec8 g;
-  g << x, std::sin(a), u2 * std::cos(a) * x, u2 * std::cos(a), std::sin(b), u5 * std::cos(b) * x, u5 * std::cos(b), 1.0;
-  return g;
-}
+// d angle(n) / d(u1..u7, level), arcsec per scaled unit: the fit's own Jacobian row (calib/refine.h).
+Vec8 gradient(const AxisCoeffs& c, double n) { return fit::dwell_gradient(c, n); }
 
 // What one axis needs: the counts at its null, and per candidate angle the count and the dwell's
 // information row (gradient over sigma, times its transpose) at a given frames-per-dwell.

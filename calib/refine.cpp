@@ -107,7 +107,58 @@ Eigen::Matrix<double, 8, 1> angle_gradient(const Scaled& u, bool differences, do
   return g;
 }
 
+// Levenberg-Marquardt on the rows' problem (u its parameters); the report with u as coefficients.
+Refined solve_rows(ceres::Problem& problem, const RefineOptions& opts, const Scaled& u) {
+  ceres::Solver::Options so;
+  // QR, not normal equations: the coefficients are strongly correlated over +-0.4 deg and
+  // squaring the Jacobian's condition number would cost the digits the fit needs.
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = opts.max_iterations;
+  so.function_tolerance = 1e-12;
+  so.gradient_tolerance = 1e-14;
+  so.parameter_tolerance = 1e-12;
+  so.num_threads = std::max(1, opts.threads);
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  Refined r;
+  r.initial_cost = summary.initial_cost;
+  r.final_cost = summary.final_cost;
+  r.iterations = static_cast<int>(summary.iterations.size());
+  r.usable = summary.IsSolutionUsable() && std::isfinite(summary.final_cost);
+  r.converged = summary.termination_type == ceres::CONVERGENCE;
+  r.brief = summary.BriefReport();
+  r.coeffs = from_scaled(u);
+  return r;
+}
+
+// sqrt(weight) (u - u0): the prior as residuals. Parameter block: u[0..7].
+struct PriorResiduals {
+  ScaledPrior prior;
+  template <typename T>
+  bool operator()(const T* u, T* r) const {
+    for (int i = 0; i < 8; ++i) r[i] = (u[i] - T(prior.u0[i])) * std::sqrt(prior.weight[i]);
+    return true;
+  }
+};
+
 }  // namespace
+
+Refined refine_rows(const std::vector<double>& counts, const std::vector<double>& angle_arcsec, const AxisCoeffs& start,
+                    const RefineOptions& opts, const ScaledPrior* prior) {
+  const RowView v{counts.data(), nullptr, angle_arcsec.data(), std::min(counts.size(), angle_arcsec.size())};
+  Scaled u = to_scaled(start);
+  ceres::Problem problem;
+  build_problem(problem, v, false, u, opts.rows_per_block);
+  if (prior) {
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PriorResiduals, 8, 8>(new PriorResiduals{*prior}), nullptr,
+                             u.data());
+  }
+  Refined r = solve_rows(problem, opts, u);
+  r.rows = v.count;
+  return r;
+}
 
 double null_condition_c1(const AxisData& d, const AxisCoeffs& c) {
   AxisCoeffs g = c;
@@ -126,29 +177,8 @@ Refined refine_axis(const AxisData& d, const AxisCoeffs& start, const RefineOpti
   ceres::Problem problem(po);
   build_problem(problem, v, d.differences, u, opts.rows_per_block);
 
-  ceres::Solver::Options so;
-  // QR, not normal equations: the coefficients are strongly correlated over +-0.4 deg and
-  // squaring the Jacobian's condition number would cost the digits the fit needs.
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = opts.max_iterations;
-  so.function_tolerance = 1e-12;
-  so.gradient_tolerance = 1e-14;
-  so.parameter_tolerance = 1e-12;
-  so.num_threads = std::max(1, opts.threads);
-  so.logging_type = ceres::SILENT;
-  so.minimizer_progress_to_stdout = false;
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
-
-  Refined r;
+  Refined r = solve_rows(problem, opts, u);
   r.rows = v.count;
-  r.initial_cost = summary.initial_cost;
-  r.final_cost = summary.final_cost;
-  r.iterations = static_cast<int>(summary.iterations.size());
-  r.usable = summary.IsSolutionUsable() && std::isfinite(summary.final_cost);
-  r.converged = summary.termination_type == ceres::CONVERGENCE;
-  r.brief = summary.BriefReport();
-  r.coeffs = from_scaled(u);
   normalise(r.coeffs);
   if (d.differences) r.coeffs[0] = null_condition_c1(d, r.coeffs);
   return r;
@@ -252,6 +282,15 @@ Uncertainty uncertainty(const AxisData& d, const AxisCoeffs& fit, const RefineOp
 
 namespace fpss::fit {
 
+Eigen::Matrix<double, 8, 1> dwell_gradient(const AxisCoeffs& c, double counts) {
+  using J = ceres::Jet<double, 8>;
+  const Scaled u = to_scaled(c);
+  J u27[7];
+  for (int i = 0; i < 7; ++i) u27[i] = J(u[1 + i], i);
+  const J a = DwellLevelResidual{counts, 0.0, 1.0}(u27, J(u[0], 7));
+  return a.v;
+}
+
 double angle_sigma_arcsec(const Uncertainty& u, const AxisCoeffs& fit, double counts) {
   const Eigen::Matrix<double, 8, 1> g = angle_gradient(to_scaled(fit), false, counts);
   return std::sqrt(std::max(0.0, g.dot(u.covariance_scaled * g)));
@@ -273,48 +312,40 @@ double angle_and_gradient(const Scaled& u, double n, Vec7& grad) {
   return a.a;
 }
 
-// f0 and its gradient as the iteration sees it: over u[1..7] (C3 sin(C4 N + C5), the reported form)
-// or, while iterating, in the Cartesian form a sin(w x) + b cos(w x) (x = N / kCountScale), where
-// the amplitudes enter linearly: a slow sinusoid over less than half its period is nearly a
-// polynomial, and in (amplitude, phase) its valley is long and curved (Gauss-Newton then crawls
-// along it for hundreds of iterations); in (a, b) only the frequencies are nonlinear.
-struct Model {
-  bool cartesian = false;
-  Scaled u{};
-  // slope, a1, b1, a2, b2 (the linear parameters, arcsec), then w1, w2 (rad per kCountScale counts)
-  Vec7 v = Vec7::Zero();
+// The coefficients as the fit moves them: polar (u[1..7], the reported form C3 sin(C4 N + C5)), or
+// while iterating the Cartesian form a sin(w x) + b cos(w x) (x = N / kCountScale), where the
+// amplitudes enter linearly: a slow sinusoid over less than half its period is nearly a polynomial,
+// and in (amplitude, phase) its valley is long and curved (the solver then crawls along it for
+// hundreds of iterations); in (a, b) only the frequencies are nonlinear.
+//   v = (slope, a1, b1, a2, b2, w1, w2): slope u[1], a = C3' cos C5, b = C3' sin C5 in arcsec, w in
+//   rad per kCountScale counts.
+using Vec7Array = std::array<double, 7>;
 
-  static Model polar(const Scaled& u) {
-    Model m;
-    m.u = u;
-    return m;
-  }
-  static Model from_polar(const Scaled& u) {
-    Model m;
-    m.cartesian = true;
-    m.v << u[1], u[2] * std::cos(u[4]), u[2] * std::sin(u[4]), u[5] * std::cos(u[7]), u[5] * std::sin(u[7]), u[3], u[6];
-    return m;
-  }
-  Scaled to_polar() const {
-    if (!cartesian) return u;
-    Scaled out{};
-    out[1] = v(0);
-    out[2] = std::hypot(v(1), v(2));
-    out[3] = v(5);
-    out[4] = std::atan2(v(2), v(1));
-    out[5] = std::hypot(v(3), v(4));
-    out[6] = v(6);
-    out[7] = std::atan2(v(4), v(3));
-    return out;
-  }
-  double operator()(double n, Vec7& grad) const {
-    if (!cartesian) return angle_and_gradient(u, n, grad);
-    const double x = n / kCountScale;
-    const double s1 = std::sin(v(5) * x), c1 = std::cos(v(5) * x);
-    const double s2 = std::sin(v(6) * x), c2 = std::cos(v(6) * x);
-    grad << x, s1, c1, s2, c2, x * (v(1) * c1 - v(2) * s1), x * (v(3) * c2 - v(4) * s2);
-    return v(0) * x + v(1) * s1 + v(2) * c1 + v(3) * s2 + v(4) * c2;
-  }
+Vec7Array cartesian_of(const Scaled& u) {
+  return {u[1], u[2] * std::cos(u[4]), u[2] * std::sin(u[4]), u[5] * std::cos(u[7]), u[5] * std::sin(u[7]), u[3], u[6]};
+}
+
+// u[1..7] of the Cartesian v: a sin(w x) + b cos(w x) = hypot(a, b) sin(w x + atan2(b, a)). For
+// doubles and jets alike, so the one transfer function is evaluated in either form.
+template <typename T>
+std::array<T, 7> polar_of(const T* v) {
+  using std::atan2;
+  using std::hypot;
+  return {v[0], hypot(v[1], v[2]), v[5], atan2(v[2], v[1]), hypot(v[3], v[4]), v[6], atan2(v[4], v[3])};
+}
+
+Scaled polar_scaled(const Vec7Array& v) {
+  const std::array<double, 7> p = polar_of(v.data());
+  Scaled u{};
+  std::copy(p.begin(), p.end(), u.begin() + 1);
+  return u;
+}
+
+// The polar form's f0 and gradient, for the levels and the covariance at the solution.
+struct Model {
+  Scaled u{};
+  static Model polar(const Scaled& u) { return Model{u}; }
+  double operator()(double n, Vec7& grad) const { return angle_and_gradient(u, n, grad); }
 };
 
 // The dwells' weights, 1 / variance in arcsec^-2, from the start's slope, computed when read (no
@@ -416,77 +447,94 @@ Solve solve_r(const Eigen::Matrix<double, 8, 8>& r) {
   return s;
 }
 
-// The linear parameters (slope and both sinusoids' a, b) exactly at their optimum for the current
-// frequencies: the leading 5 x 5 block of the projected QR, as the model is linear in them.
-void solve_linear(const GlsData& g, const Weights& w, Model& f, Pass& p) {
-  const Eigen::Matrix<double, 8, 8> rl = projected_r(g, w, f, p);
-  const Eigen::Matrix<double, 5, 5> r_lin = rl.topLeftCorner<5, 5>();
-  Eigen::JacobiSVD<Eigen::Matrix<double, 5, 5>> svd(r_lin, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix<double, 5, 1> inv = Eigen::Matrix<double, 5, 1>::Zero();
-  for (int i = 0; i < 5; ++i) {
-    if (svd.singularValues()(i) > 1e-10 * svd.singularValues()(0)) inv(i) = 1.0 / svd.singularValues()(i);
+// A run of dwells of one reference level as one Ceres residual block, compressed by QR (TSQR):
+// with [J | r] = Q R for the run's standardised residuals r and their Jacobian J over (v, level),
+// the block returns R's last column (z, rho) with Jacobian R's first columns (R11, then a zero
+// row), which give Ceres the same cost, J^T J and J^T r, so the same steps, while the problem
+// holds 9 residuals per run of up to kDwellsPerBlock dwells instead of one per dwell: memory does
+// not grow with the dwells. Parameter blocks: v (7, Cartesian, above) and the level (1, arcsec).
+class DwellRun final : public ceres::CostFunction {
+ public:
+  static constexpr int kResiduals = 9;
+  DwellRun(const GlsData& g, const Weights& w, size_t begin, size_t end) : g_(g), w_(w), begin_(begin), end_(end) {
+    set_num_residuals(kResiduals);
+    mutable_parameter_block_sizes()->push_back(7);
+    mutable_parameter_block_sizes()->push_back(1);
   }
-  Model lin = f;
-  lin.v.head<5>() -= svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose() * rl.block<5, 1>(0, 7);
-  Pass q = level_pass(g, w, lin);
-  if (q.cost < p.cost) {
-    f = lin;
-    p = std::move(q);
-  }
-}
 
-// Moves `f` (Cartesian) to the minimum; `p` is its pass. Sets out.iterations and out.converged.
-void minimise(const GlsData& g, const Weights& w, Model& f, Pass& p, GlsFit& out) {
-  // Levenberg-Marquardt on the projected problem: Gauss-Newton steps while they lower the cost,
-  // damped (Marquardt's diagonal scaling) when they do not. A slow sinusoid over less than half its
-  // period is nearly a polynomial, and the cost is flat and curved along its frequency: undamped
-  // steps halved along one direction stopped at a 30-iteration cap short of the minimum on 23 of 200
-  // yaw fits of Table A-5 FPSS2's grid (docs/calibration.md). Converged when the whole Gauss-Newton step
-  // would gain less than kGainTolerance of chi^2 (|z|^2, the residuals' part in the Jacobian's column
-  // space), or less than kGainOfResidualVariance of one residual's variance (cost / dof: a change of
-  // the transfer function of about a hundredth of its sigma), or no step lowers the cost.
-  constexpr int kMaxIterations = 300;
-  constexpr double kGainTolerance = 1e-10;
-  constexpr double kGainOfResidualVariance = 1e-4;
-  const double dof = static_cast<double>(std::max<size_t>(1, g.size() > 7 + g.levels ? g.size() - 7 - g.levels : 1));
-  double lambda = 0;
-  for (int it = 0; it < kMaxIterations; ++it) {
-    out.iterations = it + 1;
-    // Variable projection: the linear parameters first go exactly to their optimum at these
-    // frequencies (the QR's leading 5 x 5 block: the model is linear in them), so the step below
-    // only has the frequencies' flat but short valley to follow.
-    solve_linear(g, w, f, p);
-    const Eigen::Matrix<double, 8, 8> r = projected_r(g, w, f, p);
-    const Vec7 z = r.topRightCorner<7, 1>();
-    if (z.squaredNorm() <= std::max(kGainTolerance, kGainOfResidualVariance / dof) * p.cost || p.cost <= 1e-300) {
-      out.converged = true;
-      break;
+  bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
+    using J = ceres::Jet<double, 8>;
+    J v[7];
+    for (int i = 0; i < 7; ++i) v[i] = J(p[0][i], i);
+    const std::array<J, 7> u27 = polar_of(v);
+    const J level(p[1][0], 7);
+    const int m = static_cast<int>(end_ - begin_);
+    Eigen::Matrix<double, Eigen::Dynamic, kResiduals> a(std::max(m, kResiduals), kResiduals);
+    a.setZero();
+    for (int i = 0; i < m; ++i) {
+      const size_t k = begin_ + static_cast<size_t>(i);
+      const double sw = std::sqrt(static_cast<double>(w_(k)));
+      const J r = DwellLevelResidual{g_.counts[k], g_.ref_arcsec(k), sw}(u27.data(), level);
+      if (!ceres::isfinite(r)) return false;
+      a.row(i).head<8>() = r.v.transpose();
+      a(i, 8) = r.a;
     }
-    const Solve gn = solve_r(r);
-    const Mat7 r11 = r.topLeftCorner<7, 7>();
-    const Mat7 a = r11.transpose() * r11;
-    const Vec7 rhs = -(r11.transpose() * z);
-    const Vec7 diag = a.diagonal().cwiseMax(1e-12 * a.diagonal().maxCoeff());
-    bool moved = false;
-    for (int tries = 0; tries < 24; ++tries) {
-      const Vec7 step = lambda == 0 ? gn.step : Vec7((a + lambda * Mat7(diag.asDiagonal())).ldlt().solve(rhs));
-      Model trial = f;
-      trial.v += step;
-      Pass q = level_pass(g, w, trial);
-      if (q.cost < p.cost) {
-        f = trial;
-        p = std::move(q);
-        moved = true;
-        lambda = lambda < 1e-7 ? 0 : lambda / 3;
-        break;
+    const Eigen::HouseholderQR<Eigen::Matrix<double, Eigen::Dynamic, kResiduals>> qr(a);
+    const Eigen::Matrix<double, kResiduals, kResiduals> rr =
+        qr.matrixQR().topRows<kResiduals>().triangularView<Eigen::Upper>();
+    for (int i = 0; i < kResiduals; ++i) residuals[i] = rr(i, 8);
+    if (jacobians) {
+      if (jacobians[0]) {
+        for (int i = 0; i < kResiduals; ++i) {
+          for (int j = 0; j < 7; ++j) jacobians[0][i * 7 + j] = rr(i, j);
+        }
       }
-      lambda = lambda == 0 ? 1e-6 : lambda * 4;
+      if (jacobians[1]) {
+        for (int i = 0; i < kResiduals; ++i) jacobians[1][i] = rr(i, 7);
+      }
     }
-    if (!moved) {
-      out.converged = true;  // no step lowers the cost: at the minimum to round-off
-      break;
-    }
+    return true;
   }
+
+ private:
+  const GlsData& g_;
+  const Weights& w_;
+  size_t begin_, end_;
+};
+
+// Ceres's Levenberg-Marquardt over v (Cartesian) and the levels, from `u` (the start, whose levels
+// `p` holds). Stops when a step gains less than max(1e-10, 1e-4 / dof) of the cost (a change of
+// the transfer function of about a hundredth of its sigma), or after kMaxIterations.
+Scaled minimise(const GlsData& g, const Weights& w, const Scaled& u, const Pass& p, GlsFit& out) {
+  constexpr int kMaxIterations = 300;
+  constexpr size_t kDwellsPerBlock = 256;
+  Vec7Array v = cartesian_of(u);
+  std::vector<double> levels(g.levels, 0.0);
+  for (size_t l = 0; l < g.levels; ++l) levels[l] = p.lv[l].w > 0 ? p.lv[l].we / p.lv[l].w : 0.0;
+  ceres::Problem problem;
+  problem.AddParameterBlock(v.data(), 7);
+  for (double& l : levels) problem.AddParameterBlock(&l, 1);
+  for (size_t b = 0; b < g.size();) {
+    const uint32_t level = g.level_of(b);
+    size_t e = b + 1;
+    while (e < g.size() && e - b < kDwellsPerBlock && g.level_of(e) == level) ++e;
+    problem.AddResidualBlock(new DwellRun(g, w, b, e), nullptr, v.data(), &levels[level]);
+    b = e;
+  }
+  const double dof = static_cast<double>(std::max<size_t>(1, g.size() > 7 + g.levels ? g.size() - 7 - g.levels : 1));
+  ceres::Solver::Options so;
+  // The levels are eliminated first (each run sees one): the Schur complement is 7 x 7.
+  so.linear_solver_type = ceres::DENSE_SCHUR;
+  so.max_num_iterations = kMaxIterations;
+  so.function_tolerance = std::max(1e-10, 1e-4 / dof);
+  so.gradient_tolerance = 1e-14;
+  so.parameter_tolerance = 1e-12;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  out.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  out.converged = summary.termination_type == ceres::CONVERGENCE;
+  return summary.IsSolutionUsable() ? polar_scaled(v) : u;
 }
 
 }  // namespace
@@ -500,10 +548,8 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
   Scaled u = to_scaled(c0);
   // Weights from the start's slope (the count noise enters as slope x count error).
   const Weights w{&g, c0};
-  Model f = Model::from_polar(u);
-  Pass p = level_pass(g, w, f);
-  minimise(g, w, f, p, out);
-  u = f.to_polar();
+  Pass p = level_pass(g, w, Model::polar(u));
+  u = minimise(g, w, u, p, out);
   // Back to the normalised form (positive frequencies, phases in (-pi, pi]) before the covariance.
   AxisCoeffs c = from_scaled(u);
   normalise(c);

@@ -43,6 +43,11 @@ struct Uncertainty {
   Eigen::Matrix<double, 8, 8> covariance_scaled = Eigen::Matrix<double, 8, 8>::Zero();
 };
 
+// d angle(counts) / d(u[1..7], level), arcsec per scaled unit: one dwell's row of the GLS's
+// Jacobian (DwellLevelResidual, the fit's own functor, with C1 as the level). The design predicts
+// the fit's Fisher information from it.
+Eigen::Matrix<double, 8, 1> dwell_gradient(const AxisCoeffs& c, double counts);
+
 // 1-sigma of the fitted angle at `counts`, arcsec, from the scaled covariance (C1 included).
 double angle_sigma_arcsec(const Uncertainty& u, const AxisCoeffs& fit, double counts);
 
@@ -84,16 +89,30 @@ struct GlsFit {
   Uncertainty uncertainty;
 };
 
-// Levenberg-Marquardt from `start` (the changes' least-squares fit) with the levels projected out
-// (variable projection: each level is its dwells' weighted mean at any C2..C8), the sinusoids as
-// a sin + b cos while iterating and the linear parameters solved exactly before every step; QR of
-// the projected Jacobian accumulated in chunks (TSQR), so memory does not grow with the dwells.
+// Ceres's Levenberg-Marquardt from `start` (the changes' least-squares fit) over C2..C8 and one
+// level per joined set of dwells, the sinusoids as a sin + b cos while iterating; runs of dwells
+// are residual blocks compressed by QR (TSQR), so memory does not grow with the dwells. The
+// covariance is the levels-projected Fisher information at the solution.
 GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, double counts_hi,
                   double remainder_sigmas = 3.0);
 
 // Least squares from `start` over an evenly spread `fraction` of the rows of `d` (in_spread_subset).
 // Throws nothing on a poor fit; `usable` false means Ceres could not produce a solution.
 Refined refine_axis(const AxisData& d, const AxisCoeffs& start, const RefineOptions& opts, double fraction = 1.0);
+
+// A Gaussian prior on the scaled coefficients (residuals.h): weight[i] (1 / sigma_i^2, in the units
+// of the rows' squared residuals) about u0; a weight of 0 leaves that coefficient free.
+struct ScaledPrior {
+  Scaled u0{};
+  std::array<double, 8> weight{};
+};
+
+// Least squares of eq. 1, C1..C8, on absolute rows (counts, angle in arcsec) from `start`, with an
+// optional prior: the diagnosis's refit of a sensor's transfer function. The same solver and
+// functor as refine_axis; the coefficients are returned as fitted (not normalised), so a prior's
+// phases keep their meaning across calls.
+Refined refine_rows(const std::vector<double>& counts, const std::vector<double>& angle_arcsec, const AxisCoeffs& start,
+                    const RefineOptions& opts, const ScaledPrior* prior = nullptr);
 
 // The covariance of the coefficients at `fit` over all rows, scaled by the residual variance.
 // The differences method's C1 inherits its uncertainty through the null condition; the angle

@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "calib/diagnosis/model.h"
+#include "calib/refine.h"
 #include "calib/residuals.h"
 #include "calib/units.h"
 
@@ -39,14 +40,10 @@ double eq1_arcsec(const std::array<double, 8>& u, double n) {
   return u[0] + u[1] * x + sinusoids_arcsec(u, x);
 }
 
-std::array<double, 8> to_u(const AxisCoeffs& c) {
-  return {rad_to_arcsec(c[0]), rad_to_arcsec(c[1]) * kS, rad_to_arcsec(c[2]), c[3] * kS, c[4],
-          rad_to_arcsec(c[5]), c[6] * kS, c[7]};
-}
-AxisCoeffs from_u(const std::array<double, 8>& u) {
-  return {arcsec_to_rad(u[0]), arcsec_to_rad(u[1]) / kS, arcsec_to_rad(u[2]), u[3] / kS, u[4],
-          arcsec_to_rad(u[5]), u[6] / kS, u[7]};
-}
+// The fit's scaled coefficients (calib/residuals.h): u[0] C1 arcsec, u[1] C2 arcsec per kS counts,
+// u[2] C3 arcsec, u[3] C4 rad per kS counts, u[4] C5, u[5..7] likewise.
+std::array<double, 8> to_u(const AxisCoeffs& c) { return fit::to_scaled(c); }
+AxisCoeffs from_u(const std::array<double, 8>& u) { return fit::from_scaled(u); }
 
 double cost_of(const std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y) {
   double c = 0;
@@ -57,114 +54,33 @@ double cost_of(const std::array<double, 8>& u, const std::vector<double>& n, con
   return c;
 }
 
-// The sum of squared residuals at u with its normal equations: A = J^T J, g = J^T r. One pass,
-// two sincos a row (the Jacobian of eq. 1 written out).
-struct NormalEquations {
-  Eigen::Matrix<double, 8, 8> A = Eigen::Matrix<double, 8, 8>::Zero();
-  Eigen::Matrix<double, 8, 1> g = Eigen::Matrix<double, 8, 1>::Zero();
-  double cost = 0;
-};
-
-NormalEquations normal_equations(const std::array<double, 8>& u, const std::vector<double>& n,
-                                 const std::vector<double>& y) {
-  NormalEquations ne;
-  double j[8];
-  for (size_t i = 0; i < n.size(); ++i) {
-    const double x = n[i] / kS;
-    const double a3 = u[3] * x + u[4], a6 = u[6] * x + u[7];
-    const double s3 = std::sin(a3), c3 = std::cos(a3), s6 = std::sin(a6), c6 = std::cos(a6);
-    const double r = u[0] + u[1] * x + u[2] * s3 + u[5] * s6 - y[i];
-    j[0] = 1;
-    j[1] = x;
-    j[2] = s3;
-    j[3] = u[2] * c3 * x;
-    j[4] = u[2] * c3;
-    j[5] = s6;
-    j[6] = u[5] * c6 * x;
-    j[7] = u[5] * c6;
-    ne.cost += r * r;
-    for (int p = 0; p < 8; ++p) {
-      ne.g(p) += j[p] * r;
-      for (int q = 0; q <= p; ++q) ne.A(p, q) += j[p] * j[q];
-    }
-  }
-  ne.A = ne.A.selfadjointView<Eigen::Lower>();
-  return ne;
-}
-
 // "The sensor is the model's unit, changed a little": a weak Gaussian prior on the sinusoids about
 // the model's (amplitude 1-sigma half the model's amplitude plus 1 arcsec, frequency 10 %, phase
 // 0.5 rad; C1 and C2, a bias and a scale, are free), in the units of the data's cost (weights =
 // residual variance / sigma^2). Where the fit rows hold many angles it is negligible; where they
 // hold a few levels only (a coarse grid, its one slew of an axis held out) eq. 1's eight
 // parameters would otherwise interpolate them and swing between them.
-struct Prior {
-  std::array<double, 8> u0{};
-  std::array<double, 8> w{};
-};
-
-Prior sinusoid_prior(const std::array<double, 8>& model_u, double variance) {
-  Prior p;
+fit::ScaledPrior sinusoid_prior(const std::array<double, 8>& model_u, double variance) {
+  fit::ScaledPrior p;
   p.u0 = model_u;
   auto weight = [&](double sigma) { return variance / (sigma * sigma); };
   for (int k : {2, 5}) {
-    p.w[k] = weight(0.5 * std::abs(model_u[k]) + 1.0);
-    p.w[k + 1] = weight(0.1 * std::abs(model_u[k + 1]) + 1e-6);
-    p.w[k + 2] = weight(0.5);
+    p.weight[k] = weight(0.5 * std::abs(model_u[k]) + 1.0);
+    p.weight[k + 1] = weight(0.1 * std::abs(model_u[k + 1]) + 1e-6);
+    p.weight[k + 2] = weight(0.5);
   }
   return p;
 }
 
-void add_prior(NormalEquations& ne, const std::array<double, 8>& u, const Prior* prior) {
-  if (!prior) return;
-  for (int p = 0; p < 8; ++p) {
-    const double d = u[p] - prior->u0[p];
-    ne.cost += prior->w[p] * d * d;
-    ne.g(p) += prior->w[p] * d;
-    ne.A(p, p) += prior->w[p];
-  }
-}
-
-// Levenberg-Marquardt from u to the least-squares minimum of eq. 1 on (n, y), with the
-// tolerances the refit always had (relative cost change or step 1e-12, at most 100 iterations).
-// Written out rather than Ceres: eight parameters need only 8 x 8 normal equations, and the trial
-// point's pass gives them for the next step, so an iteration is one pass of two sincos a row
-// (Ceres evaluated each accepted point twice and factored the whole Jacobian): the refit is the
-// inner loop of every joint fit with a refitted transfer function.
+// Eq. 1 refitted from u to the least-squares minimum on (n, y) by the calibrator's solver
+// (fit::refine_rows: Ceres over the same functor), at most 100 iterations; u stays where it was
+// when the solver cannot produce a solution.
 void refine(std::array<double, 8>& u, const std::vector<double>& n, const std::vector<double>& y,
-            const Prior* prior = nullptr) {
-  using Vec8 = Eigen::Matrix<double, 8, 1>;
-  constexpr int kMaxIterations = 100;
-  constexpr double kTolerance = 1e-12, kGradientTolerance = 1e-10, kMinRelativeDecrease = 1e-3;
-  NormalEquations ne = normal_equations(u, n, y);
-  add_prior(ne, u, prior);
-  double mu = 1e-4, nu = 2;  // damping relative to diag(J^T J), and its growth on a rejected step
-  for (int it = 0; it < kMaxIterations && std::isfinite(ne.cost); ++it) {
-    if (ne.g.cwiseAbs().maxCoeff() <= kGradientTolerance) return;
-    Eigen::Matrix<double, 8, 8> M = ne.A;
-    M.diagonal() += mu * ne.A.diagonal().cwiseMax(1e-6).cwiseMin(1e32);
-    const Vec8 step = M.ldlt().solve(-ne.g);
-    std::array<double, 8> trial = u;
-    for (int p = 0; p < 8; ++p) trial[p] += step(p);
-    NormalEquations next = normal_equations(trial, n, y);
-    add_prior(next, trial, prior);
-    // Gain ratio: the cost's fall against the fall the linearised model predicts.
-    const double predicted = -(2 * ne.g.dot(step) + step.dot(ne.A * step));
-    const double rho = predicted > 0 ? (ne.cost - next.cost) / predicted : -1.0;
-    if (!(std::isfinite(next.cost) && rho > kMinRelativeDecrease)) {
-      mu *= nu;
-      nu *= 2;
-      continue;
-    }
-    const double fall = ne.cost - next.cost;
-    const double u_norm = Eigen::Map<const Vec8>(u.data()).norm();
-    u = trial;
-    const bool done = fall <= kTolerance * ne.cost || step.norm() <= kTolerance * (u_norm + kTolerance);
-    ne = std::move(next);
-    if (done) return;
-    mu *= std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3));
-    nu = 2;
-  }
+            const fit::ScaledPrior* prior = nullptr) {
+  fit::RefineOptions o;
+  o.max_iterations = 100;
+  const fit::Refined r = fit::refine_rows(n, y, from_u(u), o, prior);
+  if (r.usable) u = to_u(r.coeffs);
 }
 
 // What one axis's refit sees of the fit rows: the counts and the angle the sensor's true function
@@ -336,7 +252,7 @@ Refit refit_axis(const AxisCoeffs& model, const AxisRows& s) {
   refine(best_u, nr, yr);
   Refit out;
   out.variance = cost_of(best_u, nr, yr) / std::max(1.0, static_cast<double>(nr.size()) - 8.0);
-  const Prior prior = sinusoid_prior(to_u(model), out.variance);
+  const fit::ScaledPrior prior = sinusoid_prior(to_u(model), out.variance);
   refine(from_model, nr, yr, &prior);
   // A free solution the sensor family cannot have is no rival to the model-near one (a second
   // effect in the rows, a time shift in slews, would otherwise pull it into one).
@@ -361,7 +277,7 @@ class Coefficients : public NamedCandidate<Coefficients> {
       } else if (fitted_) {
         // Refitted again (a joint fit with another effect): the last solution is a good start.
         std::array<double, 8> u = to_u(c_[a]);
-        const Prior prior = sinusoid_prior(to_u(model[a]), variance_[a]);
+        const fit::ScaledPrior prior = sinusoid_prior(to_u(model[a]), variance_[a]);
         refine(u, s.n_fine, s.y_fine, prior_kept_[a] ? &prior : nullptr);
         set_axis(a, from_u(u));
       } else {

@@ -169,5 +169,47 @@ TEST(Refine, RankDeficientCovarianceFallsBackToThePseudoInverseAndSaysSo) {
   EXPECT_FALSE(ok.pseudo_inverse) << ok.note;
 }
 
+TEST(Refine, DwellGradientIsTheTransferFunctionsDerivativeInScaledUnits) {
+  // Central differences of the angle in arcsec over u[1..7] and C1 (as the level), at a few counts.
+  const Scaled u0 = to_scaled(kOnGrid);
+  for (double n : {-12000.0, -300.0, 0.0, 4711.0, 15000.0}) {
+    const Eigen::Matrix<double, 8, 1> g = dwell_gradient(kOnGrid, n);
+    for (int p = 0; p < 8; ++p) {
+      const int k = p < 7 ? p + 1 : 0;  // u[1..7], then the level u[0]
+      const double h = 1e-6 * std::max(1.0, std::abs(u0[k]));
+      Scaled up = u0, dn = u0;
+      up[k] += h;
+      dn[k] -= h;
+      const double fd = rad_to_arcsec(transfer_angle(from_scaled(up).data(), n) - transfer_angle(from_scaled(dn).data(), n)) / (2 * h);
+      EXPECT_NEAR(g(p), fd, 1e-5 * std::max(1.0, std::abs(fd))) << "n " << n << " parameter " << p;
+    }
+  }
+}
+
+TEST(Refine, RowsFitFindsTheTruthAndAPriorHoldsWhatTheRowsCannotSee) {
+  // Absolute rows over the whole field: from a start 1 % off in every sinusoid term, the truth.
+  const AxisModel m(kOnGrid);
+  std::vector<double> n, y;
+  for (int i = 0; i <= 200; ++i) {
+    n.push_back(-15000.0 + 150.0 * i);
+    y.push_back(m.angle_arcsec(n.back()));
+  }
+  AxisCoeffs start = kOnGrid;
+  for (int k : {2, 3, 5, 6}) start[k] *= 1.01;
+  const Refined free = refine_rows(n, y, start, RefineOptions{});
+  ASSERT_TRUE(free.usable) << free.brief;
+  EXPECT_LT(max_diff_arcsec(free.coeffs, kOnGrid, -15000, 15000), 1e-6);
+  // Rows at two counts only: eight coefficients cannot be told apart. A stiff prior about the start
+  // on the sinusoids keeps them where it says (the line through the two rows stays free).
+  const std::vector<double> n2 = {-1000.0, 1000.0}, y2 = {m.angle_arcsec(-1000.0), m.angle_arcsec(1000.0)};
+  ScaledPrior prior;
+  prior.u0 = to_scaled(start);
+  for (int k : {2, 3, 4, 5, 6, 7}) prior.weight[k] = 1e12;
+  const Refined held = refine_rows(n2, y2, start, RefineOptions{}, &prior);
+  ASSERT_TRUE(held.usable) << held.brief;
+  for (int k : {2, 3, 4, 5, 6, 7}) EXPECT_NEAR(to_scaled(held.coeffs)[k], prior.u0[k], 1e-6 * std::max(1.0, std::abs(prior.u0[k]))) << k;
+  for (size_t i = 0; i < n2.size(); ++i) EXPECT_NEAR(AxisModel(held.coeffs).angle_arcsec(n2[i]), y2[i], 1e-6);
+}
+
 }  // namespace
 }  // namespace fpss::fit
