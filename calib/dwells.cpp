@@ -150,10 +150,14 @@ std::vector<Dwell> average_dwells(const SampleTable& t) {
 }
 
 std::vector<Dwell> average_dwells(const SampleTable& t, const std::vector<OutlierAxes>& skip) {
+  return average_dwells(t.frames(), skip);
+}
+
+std::vector<Dwell> average_dwells(const FrameColumns& f, const std::vector<OutlierAxes>& skip) {
   std::vector<Dwell> out;
-  DwellBuilder b(t.origin);
-  for (size_t i = 0; i < t.size(); ++i) {
-    if (auto d = b.add(t.row(i), i < skip.size() ? skip[i] : OutlierAxes{})) out.push_back(*d);
+  DwellBuilder b(f.origin);
+  for (size_t i = 0; i < f.size(); ++i) {
+    if (auto d = b.add(f.row(i), i < skip.size() ? skip[i] : OutlierAxes{})) out.push_back(*d);
   }
   if (auto d = b.flush()) out.push_back(*d);
   return out;

@@ -104,6 +104,7 @@ class DwellPairer {
 std::vector<Dwell> average_dwells(const SampleTable& t);
 // The same, leaving out the rows flagged in `skip` (one entry per row; each dwell counts its own).
 std::vector<Dwell> average_dwells(const SampleTable& t, const std::vector<OutlierAxes>& skip);
+std::vector<Dwell> average_dwells(const FrameColumns& f, const std::vector<OutlierAxes>& skip);
 std::vector<DwellPair> pair_dwells(const std::vector<Dwell>& dwells);
 
 }  // namespace fpss

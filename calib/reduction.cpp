@@ -87,7 +87,7 @@ bool count_scatters(const Dwell& d, CountScatter out[2]) {
   return true;
 }
 
-std::vector<OutlierAxes> flag_count_outliers(const SampleTable& t, double floor_counts) {
+std::vector<OutlierAxes> flag_count_outliers(const FrameColumns& t, double floor_counts) {
   std::vector<OutlierAxes> out(t.size());
   OutlierRule rule;
   rule.min_sigma = floor_counts;
@@ -118,7 +118,9 @@ std::optional<double> scatter_noise(const std::vector<Dwell>& dwells) {
 
 }  // namespace
 
-Reduction reduce(const SampleTable& t, const ReductionOptions& opts) {
+Reduction reduce(const SampleTable& t, const ReductionOptions& opts) { return reduce(t.frames(), opts); }
+
+Reduction reduce(const FrameColumns& t, const ReductionOptions& opts) {
   Reduction r;
   r.outliers.applied = opts.reject_outliers;
   if (opts.reject_outliers) {

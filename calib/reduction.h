@@ -59,12 +59,14 @@ ReductionOptions reduction_options_of(const nlohmann::json& calibration_extra, c
 // Null and offset rows become dwells here and nowhere else: the calibrator, the report's Table 1,
 // acceptance's accuracy and jitter and the outlier counts all read this result.
 Reduction reduce(const SampleTable& t, const ReductionOptions& opts = {});
+// The same on borrowed columns (the diagnosis's recording, which holds no SampleTable).
+Reduction reduce(const FrameColumns& f, const ReductionOptions& opts = {});
 
 // A dwell's evidence of the count noise: its two axes' within-dwell scatter, when it has at least
 // two frames of whole counts (the sensor's own output); false otherwise.
 bool count_scatters(const Dwell& d, CountScatter out[2]);
 
 // Per row, the axes whose counts the rule rejects with this floor under the robust sigma.
-std::vector<OutlierAxes> flag_count_outliers(const SampleTable& t, double floor_counts);
+std::vector<OutlierAxes> flag_count_outliers(const FrameColumns& f, double floor_counts);
 
 }  // namespace fpss

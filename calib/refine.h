@@ -1,5 +1,5 @@
-// The nonlinear refinement of one axis with Ceres, and its covariance. The only place that
-// includes ceres.h (refine.cpp), to keep the build cheap.
+// The nonlinear refinement of one axis with Ceres, and its covariance: the one solver of eq. 1.
+// Only refine.cpp and refine_gls.cpp include ceres.h, to keep the build cheap.
 #pragma once
 #include <algorithm>
 #include <array>
@@ -118,6 +118,9 @@ Refined refine_rows(const std::vector<double>& counts, const std::vector<double>
 // The differences method's C1 inherits its uncertainty through the null condition; the angle
 // uncertainty then is that of the angle relative to null (zero at the null counts).
 Uncertainty uncertainty(const AxisData& d, const AxisCoeffs& fit, const RefineOptions& opts);
+
+// The same function with positive frequencies and phases in (-pi, pi]: sin(-wN + p) = -sin(wN - p).
+void normalise(AxisCoeffs& c);
 
 // C1 of the differences method: angle(mean null counts) = mean null reference (eq. 3; the
 // bench reference reads zero at null, so this is the paper's angle(N_null) = 0).

@@ -34,6 +34,23 @@ inline bool same_reading(double pitch_a, double yaw_a, double pitch_b, double ya
   return pitch_a == pitch_b && yaw_a == yaw_b;
 }
 
+// The columns a reduction reads of every frame, borrowed: a SampleTable's, or the leaner set the
+// diagnosis reads a large file into. All of one length.
+struct FrameColumns {
+  const std::string& origin;
+  const std::vector<double>& time_s;
+  const std::vector<Phase>& phase;
+  const std::vector<int64_t>& step;
+  const std::vector<double>& ref_pitch_arcsec;
+  const std::vector<double>& ref_yaw_arcsec;
+  const std::vector<double>& counts_alpha;
+  const std::vector<double>& counts_beta;
+  size_t size() const { return time_s.size(); }
+  Sample row(size_t i) const {
+    return Sample{time_s[i], phase[i], step[i], ref_pitch_arcsec[i], ref_yaw_arcsec[i], counts_alpha[i], counts_beta[i]};
+  }
+};
+
 // Column-major so that two million rows stay compact. An extra column is numbers (a recorder's
 // provenance, NaN for an empty cell) or text (a column read from a file, kept as written).
 class SampleTable {
@@ -51,6 +68,10 @@ class SampleTable {
   // The same from numbers: a text column gets the number's shortest round-trip text ("" for NaN).
   void push_back(const Sample& s, const std::vector<double>& extras);
   Sample row(size_t i) const;
+  // The required columns, borrowed.
+  FrameColumns frames() const {
+    return {origin, time_s, phase, step, ref_pitch_arcsec, ref_yaw_arcsec, counts_alpha, counts_beta};
+  }
   // The rows of steps up to `last_step` (steps increase: a leading part of the table), every
   // column kept as it is (extras with their type), and the origin.
   SampleTable up_to_step(int64_t last_step) const;

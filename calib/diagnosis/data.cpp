@@ -25,6 +25,12 @@ constexpr double kReverse_arcsec = 0.5;
 
 int8_t sign_of(double v) { return v > 0 ? 1 : (v < 0 ? -1 : 0); }
 
+// Whether the reference moved during rows [b, e) on the axis (a slew, not a dwell).
+bool moved(const std::vector<double>& ref, size_t b, size_t e) {
+  const auto [lo, hi] = std::minmax_element(ref.begin() + static_cast<ptrdiff_t>(b), ref.begin() + static_cast<ptrdiff_t>(e));
+  return *hi - *lo > kMotionSpan_arcsec;
+}
+
 // Takes the columns over (moved, not copied) and computes the residuals through the model.
 void residuals(Recording& r, DiagnosisColumns& data, const CoefficientSet& model) {
   const size_t n = r.n;
@@ -63,10 +69,7 @@ void find_steps(Recording& r, const std::vector<int64_t>& step) {
     s.begin = i;
     while (i < n && step[i] == s.id) r.step_of[i++] = static_cast<uint32_t>(r.steps.size());
     s.end = i;
-    for (int a = 0; a < 2; ++a) {
-      const auto [lo, hi] = std::minmax_element(r.ref[a].begin() + s.begin, r.ref[a].begin() + s.end);
-      s.moves[a] = *hi - *lo > kMotionSpan_arcsec;
-    }
+    for (int a = 0; a < 2; ++a) s.moves[a] = moved(r.ref[a], s.begin, s.end);
     s.kind = (s.moves[0] || s.moves[1]) ? StepKind::motion : StepKind::dwell;
     (s.kind == StepKind::dwell ? r.dwells : r.motions)++;
     r.steps.push_back(s);
@@ -89,6 +92,30 @@ void expected_scatter(Recording& r, const CoefficientSet& model) {
     }
     r.expected_scatter = v.get<double>();
   }
+}
+
+// The frames of the steps at rest are judged by the recording's one reduction (calib/reduction.h:
+// the count outlier rule the calibrator, the report and acceptance apply), so a glitch frame is
+// the same finding in GAP.json as in calibration.json. At rest by the reference, not by the phase
+// labels, which the diagnosis never trusts (a foreign recorder's may be wrong): the steps at rest
+// go to the reduction as dwells, the others as slews.
+void reduce_dwells(Recording& r, const DiagnosisColumns& data, const DiagnosisOptions& opts) {
+  std::vector<Phase> phase(r.n, Phase::slew);
+  for (size_t b = 0; b < r.n;) {
+    size_t e = b;
+    while (e < r.n && data.step[e] == data.step[b]) ++e;
+    if (!moved(data.ref_pitch_arcsec, b, e) && !moved(data.ref_yaw_arcsec, b, e)) {
+      std::fill(phase.begin() + static_cast<ptrdiff_t>(b), phase.begin() + static_cast<ptrdiff_t>(e), Phase::offset);
+    }
+    b = e;
+  }
+  Reduction red = reduce(FrameColumns{r.origin, data.time_s, phase, data.step, data.ref_pitch_arcsec,
+                                      data.ref_yaw_arcsec, data.counts_alpha, data.counts_beta},
+                         opts.reduction);
+  r.dwell_outliers = red.outliers;
+  r.dwell_flags = std::move(red.flags);
+  r.in_dwell.assign(r.n, false);
+  for (size_t i = 0; i < r.n; ++i) r.in_dwell[i] = phase[i] == Phase::offset;
 }
 
 void flag_outlier_frames(Recording& r, const CoefficientSet& model, const DiagnosisOptions& opts) {
@@ -125,11 +152,16 @@ void flag_outlier_frames(Recording& r, const CoefficientSet& model, const Diagno
     for (int a = 0; a < 2; ++a) {
       const OutlierFlags f = flag_outliers(r.res[a], ids, rule, r.shared_reading);
       for (size_t i = 0; i < n; ++i) {
-        if (!f.outlier[i] || !judged[i]) continue;
+        // Dwell frames: the reduction's verdict; slew frames: the running-median rule above.
+        const bool flagged = r.in_dwell[i] ? (i < r.dwell_flags.size() && (a == 0 ? r.dwell_flags[i].alpha
+                                                                                   : r.dwell_flags[i].beta))
+                                           : f.outlier[i] && judged[i];
+        if (!flagged) continue;
         r.outlier[i] = true;
         ++r.outliers_axis[a];
       }
     }
+    std::vector<OutlierAxes>().swap(r.dwell_flags);
     for (size_t i = 0; i < n; ++i) {
       if (!r.outlier[i]) continue;
       ++r.outliers;
@@ -361,6 +393,7 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   for (const auto* v : {&data.temperature_c, &data.time_since_move_s}) {
     if (!v->empty() && v->size() != r.n) throw InputError(fmt::format("{}: an optional column's length differs", r.origin));
   }
+  reduce_dwells(r, data, opts);
   residuals(r, data, model);
   find_steps(r, data.step);
   release(data.step);

@@ -388,6 +388,7 @@ void Diagnoser::locate() {
   d.outliers = static_cast<int64_t>(r.outliers);
   d.outlier_fraction = static_cast<double>(r.outliers) / static_cast<double>(r.n);
   d.outlier_steps = r.outlier_steps;
+  d.dwell_outliers = r.dwell_outliers;
   d.outliers_pitch = static_cast<int64_t>(r.outliers_axis[0]);
   d.outliers_yaw = static_cast<int64_t>(r.outliers_axis[1]);
   d.frames = static_cast<int64_t>(r.n);
@@ -512,8 +513,11 @@ ojson Diagnosis::to_json() const {
                    {"pitch", {{"outlier_frames", outliers_pitch}, {"share", share(outliers_pitch)}}},
                    {"yaw", {{"outlier_frames", outliers_yaw}, {"share", share(outliers_yaw)}}},
                    {"step_ids", outlier_steps},
-                   {"rule", "more than 6 robust sigmas from the median of the frame and up to 3 neighbours on each side in its step, either axis "
-                            "(calib/outliers.h); kept out of every fit and score"}};
+                   {"rule", "null and offset dwells: the recording's one reduction (calib/reduction.h, as in calibration.json: "
+                            "more than 6 robust sigmas of the counts from their dwell's median); slews: more than 6 robust "
+                            "sigmas from the median of the frame and up to 3 neighbours on each side in its step "
+                            "(calib/outliers.h); either axis; kept out of every fit and score"},
+                   {"dwells", dwell_outliers.to_json()}};
   j["split"] = split;
   j["recording"] = recording;
   j["warnings"] = warnings;

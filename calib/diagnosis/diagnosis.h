@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "calib/coefficients.h"
+#include "calib/reduction.h"
 #include "calib/samples.h"
 
 namespace fpss {
@@ -39,6 +40,9 @@ struct DiagnosisOptions {
   // A second effect is looked for only while the first leaves more than this times the noise floor
   // (held out or on the fit rows).
   double second_effect_gap_ratio = 1.2;
+  // How the recording's one reduction judges the frames of null and offset dwells (the count
+  // noise under the outlier rule's floor, when the stand knows it).
+  ReductionOptions reduction;
 };
 
 struct WhereEntry {
@@ -112,6 +116,9 @@ struct Diagnosis {
   int64_t outliers_pitch = 0, outliers_yaw = 0;  // flagged on that axis (a frame may be on both)
   int64_t frames = 0;                            // rows the fractions are of
   std::vector<int64_t> outlier_steps;
+  // The null and offset dwells' outlier frames as the recording's one reduction counts them (the
+  // numbers calibration.json and acceptance.json give for the same rows).
+  OutlierSummary dwell_outliers;
 
   bool incomplete_recording() const;
   // GAP.json

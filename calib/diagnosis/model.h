@@ -55,6 +55,11 @@ struct Recording {
   size_t outliers = 0;
   size_t outliers_axis[2] = {0, 0};  // frames flagged on pitch (alpha), on yaw (beta)
   std::vector<int64_t> outlier_steps;
+  // The reduction's count of the null and offset dwells' outlier frames (calib/reduction.h), and
+  // while preparing its flags per row and which rows are dwell frames.
+  OutlierSummary dwell_outliers;
+  std::vector<OutlierAxes> dwell_flags;
+  std::vector<bool> in_dwell;
   double expected_scatter = std::numeric_limits<double>::quiet_NaN();  // model file's, arcsec
   std::vector<uint32_t> fit_rows, heldout_rows;
   CoefficientSet model;

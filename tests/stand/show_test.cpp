@@ -253,6 +253,15 @@ TEST_F(ShowCli, CalibrateThenReportOnAGlitchingRecordingAgree) {
   EXPECT_THAT(html, HasSubstr(fmt::format("Outlier frames: {} of ", spiked[0] + spiked[1])));
   EXPECT_THAT(html, HasSubstr(fmt::format("pitch (alpha) {} (", spiked[0])));
   EXPECT_THAT(html, HasSubstr(fmt::format("yaw (beta) {} (", spiked[1])));
+  // The diagnosis judges the dwell frames by the same reduction: GAP.json counts the same frames.
+  const CommandResult dia = test::run_stand({"diagnose", "--model", (good_ / "calibration.json").string(), "--data",
+                                             (dir / "samples.csv").string(), "--out", (dir / "GAP.json").string(), "--partial"},
+                                            tmp_->path(), "glitch-diagnose");
+  ASSERT_EQ(dia.code, 0) << dia.err;
+  const auto gap = nlohmann::json::parse(test::read_file(dir / "GAP.json"));
+  EXPECT_EQ(gap["outliers"]["dwells"], j["outliers"]);
+  EXPECT_GE(gap["outliers"]["pitch"]["outlier_frames"].get<size_t>(), spiked[0]);
+  EXPECT_GE(gap["outliers"]["yaw"]["outlier_frames"].get<size_t>(), spiked[1]);
 }
 
 // A folder that is not a run folder, or whose files do not parse, is bad input (exit 2, the file named).
