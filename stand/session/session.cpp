@@ -285,10 +285,10 @@ void Session::on_point_done(const PointDone& p) {
   std::vector<Sample> rows;
   rows.reserve(p.rows->size());
   for (const auto& r : *p.rows) rows.push_back(r.sample);
-  publish_live_fit(p.action->point + 1, progress_->done() + 1 >= plan_.points, rows);
+  publish_live_fit(p.point.index + 1, progress_->done() + 1 >= plan_.points, rows);
   // Each point against the latest live fit, for the console's residual chart and map.
   live_guarded([&] {
-    for (const auto& r : live_->residuals(p.action->point + 1, p.stats)) {
+    for (const auto& r : live_->residuals(p.point.index + 1, p.stats)) {
       event_log_->write_note("point_residual", {{"point", r.point}, {"ref_pitch_arcsec", r.ref_pitch_arcsec},
                                                 {"ref_yaw_arcsec", r.ref_yaw_arcsec},
                                                 {"residual_pitch_arcsec", r.residual_pitch_arcsec},
@@ -320,6 +320,8 @@ void Session::on_step_stopped(const StepStopped& s) {
   nlohmann::json j = nlohmann::json::parse(to_json(Event{s}).dump());
   j.erase("type");
   j.erase("utc");
+  j.erase("skipped_points");  // run.json's adaptive stops keep the keys they always had
+  j.erase("session");
   doc_["adaptive_stops"].push_back(j);
   size_t skipped = 0;
   for (const auto& st : doc_["adaptive_stops"]) skipped += st.value("points_skipped", size_t{0});
