@@ -36,7 +36,7 @@ void Engine::wait_while_paused() {
   log_.info("paused at the last point; the gimbal holds (the key r, or SIGUSR1 again, continues)");
   // Moves scheduled ahead would start during the pause (the next point commands its move afresh).
   if (scheduler_->has_moves_ahead()) scheduler_->call_off_moves_ahead();
-  events_.publish(Paused{measurer_->next_point()});
+  events_.publish(Paused{measurer_->next_point(), {}});
   while (ctl_.pause.load()) {
     io_->check_abort();
     io_->read_gimbal();  // keeps the link (and a watchdog) alive
@@ -44,7 +44,7 @@ void Engine::wait_while_paused() {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   log_.info("continuing");
-  events_.publish(Resumed{measurer_->next_point()});
+  events_.publish(Resumed{measurer_->next_point(), {}});
 }
 
 void Engine::prepare() {
@@ -286,7 +286,7 @@ EngineResult Engine::run(int session) {
     // seconds of bench time at 1000x) is not the procedure's.
     clock_->count_bench_from_next_reading();
     io_->read_gimbal();
-    events_.publish(RunStarted{session, cursor_.first, &plan_});
+    events_.publish(RunStarted::of(session, cursor_.first, plan_));
     if (cursor_.resuming) log_.info("resuming at point {} of {}", cursor_.first + 1, plan_.points);
     for (size_t i = 0; i < plan_.actions.size(); ++i) {
       io_->check_abort();
@@ -334,7 +334,7 @@ EngineResult Engine::run(int session) {
     log_.info("bench time {:.2f} s (computation steps left out); the plan's physical minimum {:.2f} s, estimate {:.2f} s",
               bench, plan_.physical_s, plan_.estimated_s);
   }
-  events_.publish(RunStopped{r.outcome, r.cause, r.reason, r.points_done, r.safe_state});
+  events_.publish(RunStopped{r.outcome, r.cause, r.reason, r.points_done, r.safe_state, {}});
   stats_.wall_s += seconds_since(t0);
   return r;
 }

@@ -112,7 +112,7 @@ void EngineIo::check_abort() {
 
 void EngineIo::warn(const Action* a, const std::string& message) {
   log_.warn("{}", message);
-  events_.publish(Fault{Fault::Level::warning, a && a->is_point() ? a->point : -1, message});
+  events_.publish(Fault{Fault::Level::warning, a && a->is_point() ? a->point : -1, message, {}});
 }
 
 }  // namespace fpss

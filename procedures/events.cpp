@@ -52,6 +52,37 @@ const char* to_string(StopCause c) {
   return "?";
 }
 
+std::optional<StopCause> parse_stop_cause(std::string_view name) {
+  for (int i = 0; i <= static_cast<int>(StopCause::other); ++i) {
+    if (name == to_string(static_cast<StopCause>(i))) return static_cast<StopCause>(i);
+  }
+  return std::nullopt;
+}
+
+EventPoint EventPoint::of(const Action& a) {
+  return {a.point, a.step_index, a.kind == Action::Kind::slew ? Action::Kind::slew : Action::Kind::dwell, a.phase,
+          a.pitch_arcsec, a.yaw_arcsec};
+}
+
+RunStarted RunStarted::of(int session, int64_t first_point, const Plan& plan) {
+  RunStarted r;
+  r.session = session;
+  r.first_point = first_point;
+  r.points_total = plan.points;
+  r.estimated_s = plan.estimated_s;
+  r.points.reserve(plan.point_action.size());
+  for (size_t i : plan.point_action) {
+    const Action& a = plan.actions[i];
+    r.points.push_back({a.point, a.pitch_arcsec, a.yaw_arcsec});
+  }
+  return r;
+}
+
+std::string StepStopped::reason() const {
+  return fmt::format("adaptive stop: the live fit's largest 1-sigma {:.4f} arcsec is at most the target {:.4f} arcsec",
+                     sigma_max_arcsec, until_sigma_arcsec);
+}
+
 PointStats PointStats::of(const std::vector<RecordedRow>& rows) {
   PointStats s;
   s.rows = rows.size();
@@ -91,15 +122,14 @@ std::string utc_now_ms() {
 }
 
 // A point as the outside sees it: 1-based number, the step it came from, its target.
-ojson point_json(const Action* a) {
-  if (!a) return nullptr;
+ojson point_json(const EventPoint& p) {
   ojson j;
-  j["point"] = a->point + 1;
-  j["step"] = a->step_index;
-  j["kind"] = a->kind == Action::Kind::slew ? "slew" : "dwell";
-  j["phase"] = std::string(to_string(a->phase));
-  j["target_pitch_arcsec"] = a->pitch_arcsec;
-  j["target_yaw_arcsec"] = a->yaw_arcsec;
+  j["point"] = p.index + 1;
+  j["step"] = p.step_index;
+  j["kind"] = p.kind == Action::Kind::slew ? "slew" : "dwell";
+  j["phase"] = std::string(to_string(p.phase));
+  j["target_pitch_arcsec"] = p.target_pitch_arcsec;
+  j["target_yaw_arcsec"] = p.target_yaw_arcsec;
   return j;
 }
 
@@ -108,34 +138,30 @@ ojson finite_or_null(double v) { return std::isfinite(v) ? ojson(v) : ojson(null
 struct ToJson {
   ojson operator()(const RunStarted& e) const {
     ojson j{{"type", "run_started"}, {"session", e.session}, {"first_point", e.first_point + 1}};
-    if (e.plan) {
-      j["points_total"] = e.plan->points;
-      j["estimated_s"] = e.plan->estimated_s;
-      ojson pts = ojson::array();
-      for (size_t i : e.plan->point_action) {
-        const Action& a = e.plan->actions[i];
-        pts.push_back({a.point + 1, a.pitch_arcsec, a.yaw_arcsec});
-      }
-      j["points"] = std::move(pts);  // [point, target_pitch_arcsec, target_yaw_arcsec]
-    }
+    j["points_total"] = e.points_total;
+    j["estimated_s"] = e.estimated_s;
+    ojson pts = ojson::array();
+    for (const auto& p : e.points) pts.push_back({p.index + 1, p.target_pitch_arcsec, p.target_yaw_arcsec});
+    j["points"] = std::move(pts);  // [point, target_pitch_arcsec, target_yaw_arcsec]
     return j;
   }
   ojson operator()(const PointStarted& e) const {
     ojson j{{"type", "point_started"}};
-    j.update(point_json(e.action));
+    j.update(point_json(e.point));
     j["attempt"] = e.attempt;
     return j;
   }
   ojson operator()(const Samples& e) const {
     ojson j{{"type", "samples"}};
-    j.update(point_json(e.action));
-    j["rows"] = e.rows ? e.rows->size() : 0;
+    j.update(point_json(e.point));
+    j["rows"] = e.rows ? e.rows->size() : e.row_count;
     j["attempt"] = e.attempt;
+    j["session"] = e.session;
     return j;
   }
   ojson operator()(const PointDone& e) const {
     ojson j{{"type", "point_done"}};
-    j.update(point_json(e.action));
+    j.update(point_json(e.point));
     j["rows"] = e.stats.rows;
     j["ref_pitch_arcsec"] = e.stats.ref_pitch_arcsec;
     j["ref_yaw_arcsec"] = e.stats.ref_yaw_arcsec;
@@ -145,8 +171,8 @@ struct ToJson {
     j["sd_counts_beta"] = e.stats.sd_counts_beta;
     j["attempts"] = e.attempts;
     j["invalid_frames"] = e.invalid_frames;
-    j["temperature_c"] = e.rows && !e.rows->empty() ? finite_or_null(e.rows->front().temperature_c) : ojson(nullptr);
-    j["valid"] = true;
+    j["temperature_c"] = finite_or_null(e.temperature_c);
+    j["valid"] = e.valid;
     return j;
   }
   ojson operator()(const FitUpdated& e) const {
@@ -159,6 +185,8 @@ struct ToJson {
             {"sigma_max_yaw_arcsec", finite_or_null(e.sigma_max_yaw_arcsec)}};
   }
   ojson operator()(const StepStopped& e) const {
+    ojson skipped = ojson::array();
+    for (int64_t p : e.skipped) skipped.push_back(p + 1);
     return {{"type", "step_stopped"},
             {"step", e.step_index},
             {"axes", e.axes},
@@ -166,9 +194,9 @@ struct ToJson {
             {"until_sigma_arcsec", e.until_sigma_arcsec},
             {"points_skipped", e.skipped.size()},
             {"first_skipped_point", e.skipped.empty() ? ojson(nullptr) : ojson(e.skipped.front() + 1)},
-            {"reason", fmt::format("adaptive stop: the live fit's largest 1-sigma {:.4f} arcsec is at most the "
-                                   "target {:.4f} arcsec",
-                                   e.sigma_max_arcsec, e.until_sigma_arcsec)}};
+            {"reason", e.reason()},
+            {"skipped_points", std::move(skipped)},
+            {"session", e.session}};
   }
   ojson operator()(const Paused& e) const { return {{"type", "paused"}, {"next_point", e.next_point + 1}}; }
   ojson operator()(const Resumed& e) const { return {{"type", "resumed"}, {"next_point", e.next_point + 1}}; }
@@ -188,7 +216,8 @@ struct ToJson {
 
 nlohmann::ordered_json to_json(const Event& e) {
   ojson body = std::visit(ToJson{}, e);
-  ojson j{{"type", body["type"]}, {"utc", utc_now_ms()}};
+  const std::string& utc = std::visit([](const auto& x) -> const std::string& { return x.utc; }, e);
+  ojson j{{"type", body["type"]}, {"utc", utc.empty() ? utc_now_ms() : utc}};
   body.erase("type");
   j.update(body);
   return j;
@@ -196,7 +225,10 @@ nlohmann::ordered_json to_json(const Event& e) {
 
 void record_with(EventBus& bus, RunRecorder& rec) {
   bus.subscribe([&rec](const Event& e) {
-    if (const auto* s = std::get_if<Samples>(&e)) rec.append_point(s->action->point, *s->rows, s->attempt, s->session);
+    if (const auto* s = std::get_if<Samples>(&e)) {
+      if (!s->rows) throw std::logic_error("record_with: a Samples event without its rows (a replayed one?)");
+      rec.append_point(s->point.index, *s->rows, s->attempt, s->session);
+    }
     if (const auto* s = std::get_if<StepStopped>(&e)) {
       for (int64_t p : s->skipped) rec.skip_point(p, s->session, "until");
     }

@@ -28,17 +28,22 @@ bool in_position_at(const GimbalState& st, std::pair<double, double> target, dou
 }
 }  // namespace
 
-void PointMeasurer::publish_point(const Action& a, const std::vector<RecordedRow>& rows, int attempt, int session,
+void PointMeasurer::publish_point(const Action& a, std::vector<RecordedRow> measured, int attempt, int session,
                                   int invalid) {
+  // One copy of the rows, shared by both events and whoever keeps them.
+  const SharedRows rows = std::make_shared<const std::vector<RecordedRow>>(std::move(measured));
+  const EventPoint point = EventPoint::of(a);
   try {
     Timed t(stats_.storage_s);
-    events_.publish(Samples{&a, &rows, attempt, session});
+    events_.publish(Samples{point, rows, rows->size(), attempt, session, {}});
   } catch (const std::exception& e) {
     throw StorageFailure(e.what());
   }
   next_point_ = a.point + 1;
   ++stats_.points;
-  events_.publish(PointDone{&a, &rows, PointStats::of(rows), attempt, invalid});
+  PointDone done{point, rows, PointStats::of(*rows), attempt, invalid};
+  if (!rows->empty()) done.temperature_c = rows->front().temperature_c;
+  events_.publish(done);
 }
 
 RecordedRow PointMeasurer::make_row(const Action& a, Phase phase, const SensorSample& f, double sensor_time_s,
@@ -107,7 +112,7 @@ void PointMeasurer::with_remeasure(const Action& a, const std::function<void(int
   for (int attempt = 1; attempt <= attempts; ++attempt) {
     bool sensor_side = false;
     try {
-      if (a.is_point()) events_.publish(PointStarted{&a, attempt});
+      if (a.is_point()) events_.publish(PointStarted{EventPoint::of(a), attempt, {}});
       attempt_fn(attempt);
       if (attempt > 1) log_.info("{} done on attempt {}", label(a), attempt);
       return;
@@ -280,7 +285,7 @@ void PointMeasurer::measure_dwell(const Action& a, int session) {
       const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
       rows.push_back(make_row(a, a.phase, d.frames[i], clock_.sensor_clock_s(d.frames[i]), ref, temp, attempt, session));
     }
-    publish_point(a, rows, attempt, session, d.invalid);
+    publish_point(a, std::move(rows), attempt, session, d.invalid);
   });
 }
 
@@ -432,7 +437,7 @@ void PointMeasurer::measure_slew(const Action& a, int session) {
     for (size_t i = 1; i < fixes.size(); ++i) max_gap = std::max(max_gap, fixes[i].gimbal_time_s - fixes[i - 1].gimbal_time_s);
     log_.debug("point {}: slew of {} frames, {} kept, {} gimbal readings (largest gap {:.1f} ms of bench time)",
                a.point + 1, frames.size(), rows.size(), fixes.size(), max_gap * 1e3);
-    publish_point(a, rows, attempt, session, invalid);
+    publish_point(a, std::move(rows), attempt, session, invalid);
   });
 }
 

@@ -54,7 +54,7 @@ class PointMeasurer {
                   std::vector<double>& s_times, std::vector<double>& g_times) const;
   void recover(const std::string& reason, bool sensor_side);
   // Publishes the rows (the recorder makes them durable), then PointDone.
-  void publish_point(const Action& a, const std::vector<RecordedRow>& rows, int attempt, int session, int invalid);
+  void publish_point(const Action& a, std::vector<RecordedRow> rows, int attempt, int session, int invalid);
   // The gimbal reading a row is referenced to (stand frame) and the gimbal-clock time it stands for.
   struct GimbalRef {
     double time_s = 0, pitch_arcsec = 0, yaw_arcsec = 0;

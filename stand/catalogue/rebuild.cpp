@@ -8,6 +8,7 @@
 
 #include "base/json_file.h"
 #include "procedures/recorder.h"
+#include "stand/catalogue/run_file.h"
 
 namespace fpss {
 
@@ -15,21 +16,18 @@ namespace fs = std::filesystem;
 
 namespace {
 
-RunStart run_start_of(const nlohmann::json& doc, const fs::path& dir) {
+RunStart run_start_of(const RunFile& run, const fs::path& dir) {
   RunStart rs;
   // run.json's run_id (a UUIDv7); runs made before it was one used the folder's name.
-  rs.run_id = doc.value("run_id", dir.filename().string());
-  if (rs.run_id.empty()) rs.run_id = dir.filename().string();
-  rs.unit = doc.value("unit", "");
-  rs.procedure = doc.at("procedure").value("name", "");
-  rs.procedure_hash = doc.at("procedure").value("sha256", "");
-  rs.started_utc = doc.value("started_utc", "");
+  rs.run_id = run.id_or(dir);
+  rs.unit = run.unit;
+  rs.procedure = run.procedure.name;
+  rs.procedure_hash = run.procedure.sha256;
+  rs.started_utc = run.started_utc;
   rs.run_dir = fs::absolute(dir);
-  rs.emulated = doc.value("emulated", false);
-  if (doc.contains("stand") && doc["stand"].contains("settings") && doc["stand"]["settings"].is_object()) {
-    rs.stand = doc["stand"]["settings"].value("stand", "");
-  }
-  if (doc.contains("software")) rs.software_version = doc["software"].value("version", rs.software_version);
+  rs.emulated = run.emulated;
+  if (run.stand && run.stand->settings.is_object()) rs.stand = run.stand->settings.value("stand", "");
+  if (run.software) rs.software_version = run.software->version;
   return rs;
 }
 
@@ -55,17 +53,17 @@ std::vector<fs::path> calibration_files(const fs::path& dir) {
 }  // namespace
 
 void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
-  const nlohmann::json doc = read_json_file(dir / "run.json", "run file");
-  const RunStart rs = run_start_of(doc, dir);
-  const std::optional<RunOutcome> outcome =
-      RunRecord::outcome_of(doc.value("outcome", kRunningName), (dir / "run.json").string() + ": outcome");
+  const RunFile run = read_run_file(dir);
+  const RunStart rs = run_start_of(run, dir);
+  const std::string ended_utc = run.ended_utc.value_or("");
+  const std::optional<RunOutcome> outcome = RunRecord::outcome_of(run.outcome, (dir / "run.json").string() + ": outcome");
   const auto known = cat.find_run(rs.run_id);
   if (!known) {
     cat.record_run_start(rs);
     ++r.runs_added;
-    if (outcome) cat.record_run_end(rs.run_id, *outcome, doc.value("ended_utc", ""));
+    if (outcome) cat.record_run_end(rs.run_id, *outcome, ended_utc);
   } else if (known->outcome != outcome && outcome) {
-    cat.record_run_end(rs.run_id, *outcome, doc.value("ended_utc", ""));
+    cat.record_run_end(rs.run_id, *outcome, ended_utc);
     ++r.runs_updated;
   }
   std::set<std::string> have;
@@ -77,7 +75,7 @@ void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
     cr.source = "run";
     cr.run_id = rs.run_id;
     cr.source_ref = rs.run_id;
-    cr.date_utc = cr.coefficients.value("calibrated_at", doc.value("ended_utc", rs.started_utc));
+    cr.date_utc = cr.coefficients.value("calibrated_at", run.ended_utc.value_or(rs.started_utc));
     cr.stand = rs.stand;
     cat.record_calibration(cr);
     have.insert(cr.coefficients.dump());
@@ -92,7 +90,7 @@ void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
       rec.unit = cert.value("unit", rs.unit);
       rec.run_id = rs.run_id;
       rec.passed = cert.value("passed", false);
-      rec.date_utc = cert.value("date_utc", doc.value("ended_utc", ""));
+      rec.date_utc = cert.value("date_utc", ended_utc);
       rec.certificate = cert;
       rec.stand = rs.stand;
       cat.record_acceptance(rec);

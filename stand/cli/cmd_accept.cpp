@@ -26,6 +26,7 @@
 #include "procedures/plan.h"
 #include "procedures/recorder.h"
 #include "stand/acceptance/acceptance.h"
+#include "stand/catalogue/run_file.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
@@ -320,7 +321,7 @@ void find_reference(AcceptanceData& data, const std::string& url, const std::str
   }
 }
 
-CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r, const nlohmann::json& run_doc,
+CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r, const RunFile& run,
                                  const std::string& unit) {
   const SessionRequest& req = p.req;
   CertificateInfo info;
@@ -337,8 +338,8 @@ CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r
   }
   info.procedure_name = req.procedure.name;
   info.procedure_file = fs::absolute(p.procedure_path).lexically_normal().string();
-  info.procedure_sha256 = run_doc["procedure"].value("sha256", sha256_hex(req.procedure.text));
-  info.run_id = run_doc.value("run_id", r.run_dir.filename().string());
+  info.procedure_sha256 = run.procedure.sha256;
+  info.run_id = run.id_or(r.run_dir);
   info.run_dir = fs::absolute(r.run_dir).string();
   info.run_outcome = to_string(r.outcome);
   info.run_reason = r.reason;
@@ -351,18 +352,22 @@ CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r
 
 // acceptance.json, certificate.txt, the report page with the certificate, and run.json's verdict.
 std::string write_acceptance_files(const fs::path& run_dir, const nlohmann::ordered_json& cert, const Judgement& j,
-                                   const AcceptanceLimits& limits, nlohmann::json run_doc, const std::string& title,
+                                   const AcceptanceLimits& limits, RunFile run, const std::string& title,
                                    const SampleTable& recording) {
   write_text_atomic(run_dir / "acceptance.json", cert.dump(1) + "\n");
   const std::string text = certificate_text(cert);
   write_text_atomic(run_dir / "certificate.txt", text);
   // The page: the run's report with the certificate as a section, or the certificate alone.
   const std::string section = certificate_html(cert);
-  run_doc["acceptance"] = {{"file", "acceptance.json"}, {"certificate", "certificate.txt"},
-                           {"verdict", j.passed ? "pass" : "fail"}, {"failed", j.failed()},
-                           {"limits", {{"file", limits.origin}, {"sha256", limits.sha256}}}};
-  write_json_atomic(run_dir / "run.json", run_doc);
-  const RunVerdict verdict = run_verdict(run_doc);
+  RunFileAcceptance acc;
+  acc.file = "acceptance.json";
+  acc.certificate = "certificate.txt";
+  acc.verdict = j.passed ? "pass" : "fail";
+  acc.failed = j.failed();
+  acc.limits = RunFileAcceptance::Limits{limits.origin, limits.sha256};
+  run.acceptance = acc;
+  write_run_file(run_dir, run);
+  const RunVerdict verdict = run_verdict(run);
   try {
     ReportOptions ro;
     ro.extra_sections.push_back({"acceptance", "Acceptance", section});
@@ -404,8 +409,8 @@ int accept_command(const AcceptArgs& a) {
     return 1;
   }
 
-  const nlohmann::json run_doc = read_json_file(run_dir / "run.json", "run file");
-  const std::string unit = run_doc.value("unit", a.unit);
+  const RunFile run = read_run_file(run_dir);
+  const std::string unit = run.unit.empty() ? a.unit : run.unit;
   AcceptanceData data;
   data.roles = p.roles;
   data.points_planned = p.plan.points;
@@ -414,17 +419,17 @@ int accept_command(const AcceptArgs& a) {
   data.samples = std::move(r.recording);  // the session's recording: samples.csv is not read again
   if (r.calibration && fs::exists(*r.calibration)) data.calibration = load_coefficients(*r.calibration);
   const std::string cat_url = p.req.catalogue;
-  const std::string run_id = run_doc.value("run_id", run_dir.filename().string());
+  const std::string run_id = run.id_or(run_dir);
   find_reference(data, cat_url, unit, run_id);
 
   const Judgement j = judge(data, p.limits);
-  const CertificateInfo info = certificate_info(p, r, run_doc, unit);
+  const CertificateInfo info = certificate_info(p, r, run, unit);
   nlohmann::ordered_json cert = certificate_json(j, p.limits, info);
   if (r.answers.count("operator")) {
     cert["operator"] = r.answers.at("operator");
     cert["signed_off_utc"] = r.signed_off_utc;
   }
-  const std::string text = write_acceptance_files(run_dir, cert, j, p.limits, run_doc,
+  const std::string text = write_acceptance_files(run_dir, cert, j, p.limits, run,
                                                   fmt::format("Acceptance of {} ({})", unit, run_id), data.samples);
   int64_t acc_id = 0;
   try {

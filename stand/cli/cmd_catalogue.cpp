@@ -12,6 +12,7 @@
 #include "base/errors.h"
 #include "base/json_file.h"
 #include "calib/compare.h"
+#include "stand/catalogue/run_file.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/catalogue/copy.h"
 #include "stand/catalogue/rebuild.h"
@@ -94,9 +95,9 @@ struct FolderStatus {
 FolderStatus folder_status(const RunRecord& r) {
   FolderStatus st;
   try {
-    const nlohmann::json doc = read_json_file(std::filesystem::path(r.run_dir) / "run.json", "run.json");
-    if (doc.contains("points") && doc["points"].is_object()) st.total = doc["points"].value("total", int64_t{0});
-    if (doc.contains("acceptance") && doc["acceptance"].is_object()) st.verdict = doc["acceptance"].value("verdict", "");
+    const RunFile run = read_run_file(r.run_dir);
+    st.total = run.points.total;
+    if (run.acceptance) st.verdict = run.acceptance->verdict;
     st.done = journal_points(r.run_dir);
   } catch (const std::exception&) {
     // the folder moved or is being written: the catalogue's row alone

@@ -12,6 +12,7 @@
 #include "base/json_file.h"
 #include "base/text_file.h"
 #include "stand/acceptance/acceptance.h"
+#include "stand/catalogue/run_file.h"
 #include "stand/cli/commands.h"
 #include "stand/report/report.h"
 #include "stand/report/run_summary.h"
@@ -40,8 +41,7 @@ fs::path find_run(const ShowArgs& a) {
     for (const auto& e : fs::directory_iterator(a.runs_dir, ec)) {
       if (!e.is_directory() || e.is_symlink() || !fs::is_regular_file(e.path() / "run.json")) continue;
       try {
-        const auto j = read_json_file(e.path() / "run.json", "run file");
-        if (j.is_object() && j.value("run_id", std::string()) == a.run) return e.path();
+        if (read_run_file(e.path()).run_id == a.run) return e.path();
       } catch (const InputError&) {
       }
     }

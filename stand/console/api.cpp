@@ -1,17 +1,22 @@
 // The console's JSON API (docs/console.md): status, stand, procedures, jobs, runs, control, prompts, units, compare.
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <functional>
 #include <memory>
+#include <optional>
+#include <variant>
 #include <vector>
 
 #include <fmt/format.h>
 #include <httplib.h>
 
+#include "base/errors.h"
 #include "base/json_file.h"
 #include "base/text_file.h"
 #include "calib/coefficients.h"
 #include "calib/compare.h"
+#include "procedures/events.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/console/run_files.h"
 #include "stand/console/server.h"
@@ -64,27 +69,35 @@ json stand_state(const Context& c) {
   if (ec) return s;
   const EventChunk ch = read_events(r.dir, size > 65536 ? size - 65536 : 0, 65536);
   for (const auto& line : ch.lines) {
-    const json e = json::parse(line, nullptr, false);
-    if (!e.is_object()) continue;
-    const std::string t = str(e, "type");
-    if (t == "point_done") {
-      s["gimbal"] = {{"pitch_arcsec", e.value("ref_pitch_arcsec", 0.0)}, {"yaw_arcsec", e.value("ref_yaw_arcsec", 0.0)},
-                     {"point", e.value("point", 0)}};
-      s["sensor"] = {{"rows", e.value("rows", 0)}, {"invalid_frames", e.value("invalid_frames", 0)},
-                     {"attempts", e.value("attempts", 1)}};
-      if (e.contains("temperature_c")) s["temperature_c"] = e["temperature_c"];
+    std::optional<EventLine> l;
+    try {
+      const std::string origin = (r.dir / "events.jsonl").string();
+      l = event_line_from_json(parse_json_text(line, origin), origin);
+    } catch (const InputError&) {
+      continue;  // the first line of a chunk cut mid-way, or a line this version does not know
+    }
+    if (const auto* n = std::get_if<Note>(&*l)) {
+      if (n->type == "prompt") s["state"] = "waiting for the operator";
+      continue;
+    }
+    const Event& e = std::get<Event>(*l);
+    if (const auto* p = std::get_if<PointDone>(&e)) {
+      s["gimbal"] = {{"pitch_arcsec", p->stats.ref_pitch_arcsec}, {"yaw_arcsec", p->stats.ref_yaw_arcsec},
+                     {"point", p->point.index + 1}};
+      s["sensor"] = {{"rows", p->stats.rows}, {"invalid_frames", p->invalid_frames}, {"attempts", p->attempts}};
+      s["temperature_c"] = std::isfinite(p->temperature_c) ? json(p->temperature_c) : json(nullptr);
       if (s["state"] != "faulted") s["state"] = "running";
-    } else if (t == "paused") {
+    } else if (std::holds_alternative<Paused>(e)) {
       s["state"] = "paused";
-    } else if (t == "resumed") {
+    } else if (std::holds_alternative<Resumed>(e)) {
       s["state"] = "running";
-    } else if (t == "fault") {
-      s["state"] = "faulted";
-      s["last_fault"] = e.value("message", "");
-    } else if (t == "warning") {
-      s["last_warning"] = e.value("message", "");
-    } else if (t == "prompt") {
-      s["state"] = "waiting for the operator";
+    } else if (const auto* f = std::get_if<Fault>(&e)) {
+      if (f->level == Fault::Level::fault) {
+        s["state"] = "faulted";
+        s["last_fault"] = f->message;
+      } else {
+        s["last_warning"] = f->message;
+      }
     }
   }
   return s;

@@ -10,6 +10,7 @@
 
 #include "base/text_file.h"
 #include "stand/catalogue/catalogue.h"
+#include "stand/catalogue/run_file.h"
 #include "stand/console/jobs.h"
 
 namespace fpss::console {
@@ -27,11 +28,12 @@ RunRef ref_of(const RunRecord& r) {
   return x;
 }
 
-nlohmann::json read_run_doc(const fs::path& dir) {
+// run.json, typed; empty when the folder has none or it does not read (a run being written, moved).
+std::optional<RunFile> read_run(const fs::path& dir) {
   try {
-    return nlohmann::json::parse(read_text_file(dir / "run.json", "run.json", 16 * 1024 * 1024));
+    return read_run_file(dir);
   } catch (const std::exception&) {
-    return nlohmann::json::object();
+    return std::nullopt;
   }
 }
 
@@ -92,8 +94,8 @@ nlohmann::json runs_json(const fs::path& runs_dir, const std::string& catalogue_
   for (const auto& r : cat->list_runs(f)) {
     const RunRef ref = ref_of(r);
     std::string oc = r.running() && !ref.live ? "stale" : r.outcome_name();
-    const nlohmann::json doc = read_run_doc(r.run_dir);
-    if (doc.contains("stop_cause") && doc["stop_cause"] == "aborted") oc = "aborted";
+    const std::optional<RunFile> run = read_run(r.run_dir);
+    if (run && run->stop_cause == StopCause::aborted) oc = "aborted";
     if (!outcome.empty() && oc != outcome && r.outcome_name() != outcome) continue;
     const std::string day = r.started_utc.substr(0, 10);
     if (!from_date.empty() && day < from_date) continue;
@@ -101,9 +103,11 @@ nlohmann::json runs_json(const fs::path& runs_dir, const std::string& catalogue_
     nlohmann::json j{{"run_id", r.run_id}, {"unit", r.unit},        {"procedure", r.procedure},
                      {"started_utc", r.started_utc}, {"ended_utc", r.ended_utc ? nlohmann::json(*r.ended_utc) : nlohmann::json()},
                      {"outcome", oc},   {"live", ref.live},       {"emulated", r.emulated}};
-    if (doc.contains("points")) j["points"] = doc["points"];
-    if (doc.contains("acceptance")) j["verdict"] = doc["acceptance"].value("verdict", "");
-    if (doc.contains("operator")) j["operator"] = doc["operator"];
+    if (run) {
+      j["points"] = to_json(*run)["points"];
+      if (run->acceptance) j["verdict"] = run->acceptance->verdict;
+      if (run->operator_name) j["operator"] = *run->operator_name;
+    }
     out.push_back(j);
     if (limit && out.size() >= limit) break;
   }
@@ -111,7 +115,8 @@ nlohmann::json runs_json(const fs::path& runs_dir, const std::string& catalogue_
 }
 
 nlohmann::json run_json(const RunRef& r) {
-  nlohmann::json doc = read_run_doc(r.dir);
+  const std::optional<RunFile> run = read_run(r.dir);
+  const nlohmann::json doc = run ? to_json(*run) : nlohmann::json::object();
   nlohmann::json j{{"run_id", r.run_id}, {"live", r.live}};
   for (const char* k : {"unit", "procedure", "outcome", "stop_cause", "reason", "started_utc", "ended_utc", "points",
                         "safe_state", "operator", "signed_off_utc", "acceptance", "emulated"}) {

@@ -90,29 +90,28 @@ void flatten_run(const std::string& key, const nlohmann::json& v, int depth, std
   }
 }
 
-void run_section(std::string& h, const nlohmann::json& run) {
+void run_section(std::string& h, const std::optional<RunFile>& run) {
   h += "<section id=\"run\"><h2>Run</h2>\n";
-  if (!run.is_object() || run.empty()) {
+  if (!run) {
     h += "<p class=\"note\">No run.json in this folder: the run's settings are not known.</p></section>\n";
     return;
   }
   std::string rows, blocks;
-  flatten_run("", run, 0, rows, blocks);
+  flatten_run("", to_json(*run), 0, rows, blocks);
   h += "<table>\n" + rows + "</table>\n" + blocks + "</section>\n";
 }
 
 // Why a grid took fewer points than planned (run.json `adaptive_stops`).
-void adaptive_stop_note(std::string& h, const nlohmann::json& run) {
-  if (!run.contains("adaptive_stops") || !run["adaptive_stops"].is_array()) return;
-  for (const auto& st : run["adaptive_stops"]) {
-    if (!st.is_object()) continue;
-    auto number = [&](const char* k) { return st.contains(k) && st[k].is_number() ? st[k].get<double>() : std::nan(""); };
+void adaptive_stop_note(std::string& h, const std::optional<RunFile>& run) {
+  if (!run || !run->adaptive_stops) return;
+  for (const auto& st : *run->adaptive_stops) {
+    const double nan = std::nan("");
     h += fmt::format("<p class=\"note\">Adaptive stop, step {} ({}): the live fit's largest 1-sigma over the grid's "
                      "range was {} arcsec, at most the target {} arcsec, so {} of its points were not measured "
                      "(from point {}).</p>\n",
-                     num(number("step"), 0), html_escape(st.value("axes", "?")), num(number("sigma_max_arcsec"), 4),
-                     num(number("until_sigma_arcsec"), 4), num(number("points_skipped"), 0),
-                     num(number("first_skipped_point"), 0));
+                     num(static_cast<double>(st.step), 0), html_escape(st.axes), num(st.sigma_max_arcsec.value_or(nan), 4),
+                     num(st.until_sigma_arcsec, 4), num(static_cast<double>(st.points_skipped), 0),
+                     num(st.first_skipped_point ? static_cast<double>(*st.first_skipped_point) : nan, 0));
   }
 }
 
@@ -491,19 +490,11 @@ ReportInput load_report_input(const fs::path& run_dir, const SampleTable* record
   if (!recording && !fs::exists(samples_path)) {
     throw InputError(fmt::format("{}: missing: the run recorded no samples", samples_path.string()));
   }
-  if (fs::exists(run_path)) {
-    try {
-      in.run = nlohmann::json::parse(read_text_file(run_path, "run.json"));
-    } catch (const nlohmann::json::parse_error& e) {
-      throw InputError(fmt::format("{}: not valid JSON: {}", run_path.string(), e.what()));
-    }
-    if (!in.run.is_object()) throw InputError(fmt::format("{}: expected a JSON object", run_path.string()));
-  }
+  if (fs::exists(run_path)) in.run = read_run_file(run_dir);
   // A procedure may calibrate more than once (calibration-2.json, ...): run.json names the last.
   fs::path cal_path = run_dir / "calibration.json";
-  if (in.run.contains("files") && in.run["files"].is_object() && in.run["files"].contains("calibration") &&
-      in.run["files"]["calibration"].is_string()) {
-    const fs::path named = in.run["files"]["calibration"].get<std::string>();
+  if (in.run && in.run->files.calibration) {
+    const fs::path named = *in.run->files.calibration;
     if (named.has_parent_path() || named.empty()) {
       throw InputError(fmt::format("{}: files.calibration must be a file name in the run folder, got \"{}\"",
                                    run_path.string(), named.string()));
@@ -535,15 +526,9 @@ ReportInput load_report_input(const fs::path& run_dir, const SampleTable* record
   in.samples = samples.size();
   in.residuals = compute_residuals(samples, in.calibration, method);
 
-  auto field = [&](const char* k) -> std::string {
-    return in.run.contains(k) && in.run[k].is_string() ? in.run[k].get<std::string>() : std::string();
-  };
-  std::string unit = field("unit");
+  std::string unit = in.run ? in.run->unit : std::string();
   if (unit.empty()) unit = in.calibration.unit;
-  std::string procedure = field("procedure");
-  if (in.run.contains("procedure") && in.run["procedure"].is_object()) {
-    procedure = in.run["procedure"].value("name", "");
-  }
+  const std::string procedure = in.run ? in.run->procedure.name : std::string();
   in.title = fmt::format("Run {}{}{}", run_dir.filename().string(), unit.empty() ? "" : " \u2014 unit " + unit,
                          procedure.empty() ? "" : ", " + procedure);
   return in;
@@ -558,7 +543,7 @@ std::string render_report(const ReportInput& in, const ReportOptions& opts) {
   h += fmt::format("<h1>{}</h1>\n<p class=\"sub\">Report written {} by fpss-stand {}. Angles in arcsec unless "
                    "marked deg; pitch from alpha (counts_alpha), yaw from beta (counts_beta).</p>\n",
                    html_escape(in.title), utc_now_iso(), FPSS_VERSION);
-  h += verdict_banner_html(opts.verdict ? *opts.verdict : run_verdict(in.run));
+  h += verdict_banner_html(opts.verdict ? *opts.verdict : run_verdict(in.run));  // no run.json: incomplete
   h += "<nav><a href=\"#summary\">summary</a> &middot; <a href=\"#plots\">residuals against angle</a> &middot; "
        "<a href=\"#map\">residual map</a> &middot; <a href=\"#coefficients\">coefficients</a> &middot; "
        "<a href=\"#run\">run</a>";

@@ -69,7 +69,7 @@ struct ReportOptions {
 // Everything the page shows, for callers that already hold it in memory.
 struct ReportInput {
   std::string title;
-  nlohmann::json run = nlohmann::json::object();  // run.json's content; may be empty
+  std::optional<RunFile> run;  // run.json; empty when the folder has none
   std::string samples_origin;                     // file the samples came from
   size_t samples = 0;
   std::optional<int64_t> fit_last_step;  // the calibration saw steps 1..this; Table 1 counts those rows only

@@ -16,10 +16,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string str(const nlohmann::json& doc, const char* key) {
-  return doc.is_object() && doc.contains(key) && doc[key].is_string() ? doc[key].get<std::string>() : std::string();
-}
-
 std::string stats_text(const std::optional<AxisResidualStats>& s) {
   if (!s || !s->mean_abs_arcsec) return "-";
   std::string t = fmt::format("mean |r| {:.3f}", *s->mean_abs_arcsec);
@@ -34,30 +30,29 @@ std::string stats_text(const std::optional<AxisResidualStats>& s) {
 
 }  // namespace
 
-RunVerdict run_verdict(const nlohmann::json& doc) {
-  const std::string outcome = str(doc, "outcome"), cause = str(doc, "stop_cause"), reason = str(doc, "reason");
-  if (doc.is_object() && doc.contains("acceptance") && doc["acceptance"].is_object()) {
-    const auto& acc = doc["acceptance"];
-    const std::string v = str(acc, "verdict");
-    if (v == "pass") return {"pass", "acceptance passed: every criterion within its limit"};
-    if (v == "fail") {
-      std::string failed;
-      if (acc.contains("failed") && acc["failed"].is_array()) {
-        for (const auto& f : acc["failed"]) {
-          if (f.is_string()) failed += (failed.empty() ? "" : ", ") + f.get<std::string>();
-        }
-      }
-      return {"fail", failed.empty() ? "acceptance failed" : "acceptance failed: " + failed};
-    }
+RunVerdict run_verdict(const RunFile& run) {
+  const std::string& outcome = run.outcome;
+  const std::string cause = run.stop_cause ? to_string(*run.stop_cause) : "";
+  const std::string reason = run.reason.value_or("");
+  if (run.acceptance) {
+    const auto& acc = *run.acceptance;
+    if (acc.verdict == "pass") return {"pass", "acceptance passed: every criterion within its limit"};
+    std::string failed;
+    for (const auto& f : acc.failed.value_or(std::vector<std::string>{})) failed += (failed.empty() ? "" : ", ") + f;
+    return {"fail", failed.empty() ? "acceptance failed" : "acceptance failed: " + failed};
   }
   if (outcome == "running") return {"running", "the run is in progress"};
   if (outcome == "completed") return {"pass", "the run completed and every check step held"};
   if (outcome == "failed" && (cause == "check_failed" || cause == "calibration_failed")) {
     return {"fail", reason.empty() ? cause : reason};
   }
-  if (outcome.empty()) return {"incomplete", "run.json does not say how the run ended"};
   return {"incomplete", fmt::format("the run {}{} before a verdict{}", outcome, cause.empty() ? "" : " (" + cause + ")",
                                     reason.empty() ? "" : ": " + reason)};
+}
+
+RunVerdict run_verdict(const std::optional<RunFile>& run) {
+  if (!run) return {"incomplete", "run.json does not say how the run ended"};
+  return run_verdict(*run);
 }
 
 std::string verdict_banner_html(const RunVerdict& v) {
@@ -96,28 +91,24 @@ RunSummary read_run_summary(const fs::path& run_dir) {
   const fs::path run_json = run_dir / "run.json";
   if (!fs::is_directory(run_dir)) throw InputError(fmt::format("{}: not a run folder (no such folder)", run_dir.string()));
   if (!fs::exists(run_json)) throw InputError(fmt::format("{}: missing: not a run folder", run_json.string()));
-  const nlohmann::json doc = read_json_file(run_json, "run.json");
-  if (!doc.is_object()) throw InputError(fmt::format("{}: expected a JSON object", run_json.string()));
+  const RunFile run = read_run_file(run_dir);
   RunSummary s;
   s.dir = run_dir;
-  s.run_id = str(doc, "run_id").empty() ? run_dir.filename().string() : str(doc, "run_id");
-  s.unit = str(doc, "unit");
-  if (doc.contains("procedure") && doc["procedure"].is_object()) s.procedure = str(doc["procedure"], "name");
-  s.outcome = str(doc, "outcome");
-  s.stop_cause = str(doc, "stop_cause");
-  s.reason = str(doc, "reason");
-  s.started_utc = str(doc, "started_utc");
-  s.ended_utc = str(doc, "ended_utc");
-  s.emulated = doc.contains("emulated") && doc["emulated"].is_boolean() && doc["emulated"].get<bool>();
-  if (doc.contains("points") && doc["points"].is_object()) {
-    const auto& pts = doc["points"];
-    if (pts.contains("total") && pts["total"].is_number_integer()) s.points_total = pts["total"].get<int64_t>();
-  }
+  s.run_id = run.id_or(run_dir);
+  s.unit = run.unit;
+  s.procedure = run.procedure.name;
+  s.outcome = run.outcome;
+  s.stop_cause = run.stop_cause ? to_string(*run.stop_cause) : "";
+  s.reason = run.reason.value_or("");
+  s.started_utc = run.started_utc;
+  s.ended_utc = run.ended_utc.value_or("");
+  s.emulated = run.emulated;
+  s.points_total = run.points.total;
   s.points_done = journal_points(run_dir);
-  s.verdict = run_verdict(doc);
+  s.verdict = run_verdict(run);
   std::string cal = "calibration.json";
-  if (doc.contains("files") && doc["files"].is_object()) {
-    const std::string named = str(doc["files"], "calibration");
+  if (run.files.calibration) {
+    const std::string& named = *run.files.calibration;
     if (!named.empty() && fs::path(named).filename() == named) cal = named;
   }
   if (fs::is_regular_file(run_dir / cal)) {

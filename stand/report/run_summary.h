@@ -12,6 +12,7 @@
 #include "calib/coefficients.h"
 #include "calib/samples.h"
 #include "stand/catalogue/catalogue.h"
+#include "stand/catalogue/run_file.h"
 
 namespace fpss {
 
@@ -22,7 +23,9 @@ struct RunVerdict {
   std::string verdict;  // pass | fail | running | incomplete
   std::string why;      // one sentence for people (the stop reason, the failed limits)
 };
-RunVerdict run_verdict(const nlohmann::json& run_doc);
+RunVerdict run_verdict(const RunFile& run);
+// A folder without run.json: "incomplete", the run's end unknown.
+RunVerdict run_verdict(const std::optional<RunFile>& run);
 
 // The banner at the top of report.html: PASS / FAIL / RUNNING / INCOMPLETE in a coloured box.
 std::string verdict_banner_html(const RunVerdict& v);

@@ -58,23 +58,23 @@ RunInfo read_run_info(const fs::path& run_dir) {
   const fs::path path = run_dir / "run.json";
   if (!fs::exists(path)) throw InputError(fmt::format("{}: not a run folder (no run.json)", run_dir.string()));
   RunInfo info;
-  info.doc = read_json_file(path, "run file");
-  try {
-    const auto& p = info.doc.at("procedure");
-    info.procedure_text = p.at("text").get<std::string>();
-    info.procedure_origin = p.value("file", "procedure.yaml");
-    const std::string hash = p.at("sha256").get<std::string>();
-    if (sha256_hex(info.procedure_text) != hash) {
-      throw InputError(fmt::format("{}: the procedure text does not match its recorded hash", path.string()));
+  info.run = read_run_file(run_dir);
+  info.procedure_text = info.run.procedure.text;
+  info.procedure_origin = info.run.procedure.file.value_or("procedure.yaml");
+  if (sha256_hex(info.procedure_text) != info.run.procedure.sha256) {
+    throw InputError(fmt::format("{}: the procedure text does not match its recorded hash", path.string()));
+  }
+  if (info.run.stand) {
+    info.stand_text = info.run.stand->text.value_or("");
+    info.stand_origin = info.run.stand->file.value_or("");
+  }
+  if (info.run.emulated) {
+    if (!info.run.emulator) throw InputError(fmt::format("{}: key \"emulator\": missing", path.string()));
+    try {
+      info.emulator = EmulatorSpec::from_json(*info.run.emulator, path.string());
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError(fmt::format("{}: emulator: {}", path.string(), e.what()));
     }
-    const auto& s = info.doc.at("stand");
-    if (s.contains("text") && s["text"].is_string()) info.stand_text = s["text"].get<std::string>();
-    if (s.contains("file") && s["file"].is_string()) info.stand_origin = s["file"].get<std::string>();
-    if (info.doc.value("emulated", false)) {
-      info.emulator = EmulatorSpec::from_json(info.doc.at("emulator"), path.string());
-    }
-  } catch (const nlohmann::json::exception& e) {
-    throw InputError(fmt::format("{}: {}", path.string(), e.what()));
   }
   return info;
 }

@@ -8,6 +8,7 @@
 
 #include "base/unique_fd.h"
 #include "stand/catalogue/rebuild.h"  // kCataloguePending
+#include "stand/catalogue/run_file.h"
 #include "stand/contract/emulator_contract.h"
 
 namespace fpss {
@@ -38,7 +39,7 @@ class RunFolderLock {
 
 // What a run folder's run.json holds (for --resume and tools).
 struct RunInfo {
-  nlohmann::json doc;
+  RunFile run;
   std::string procedure_text, procedure_origin, stand_text, stand_origin;
   std::optional<EmulatorSpec> emulator;
 };

@@ -102,7 +102,7 @@ class Session {
   std::unique_ptr<RunRecorder> rec_;
   std::unique_ptr<EventLog> event_log_;
   EventBus bus_;
-  nlohmann::json doc_;
+  RunFile run_;  // run.json
   int session_ = 1;
   std::string catalogue_url_;
   std::string catalogue_error_;
@@ -139,9 +139,9 @@ void Session::connect_devices() {
     throw InputError(fmt::format("{}: the sensor reports serial \"{}\" ({}), the stand file expects \"{}\"",
                                  stand_.origin.empty() ? "stand" : stand_.origin, unit_, id_reply_, stand_.unit_serial));
   }
-  if (resuming_ && prior_.doc.value("unit", unit_) != unit_) {
+  if (resuming_ && prior_.run.unit != unit_) {
     throw InputError(fmt::format("{}: the run was made on unit \"{}\", the sensor now reports \"{}\"",
-                                 req_.resume_dir.string(), prior_.doc.value("unit", ""), unit_));
+                                 req_.resume_dir.string(), prior_.run.unit, unit_));
   }
 }
 
@@ -149,15 +149,15 @@ void Session::open_folder() {
   const std::string now_utc = utc_now_iso();
   if (resuming_) {
     res_.run_dir = req_.resume_dir;  // locked and canonical already
-    doc_ = prior_.doc;
-    session_ = static_cast<int>(doc_.value("sessions", nlohmann::json::array()).size()) + 1;
+    run_ = prior_.run;
+    session_ = static_cast<int>(run_.sessions.size()) + 1;
   } else {
     res_.run_dir = make_run_dir(req_.runs_dir, now_utc, unit_, req_.procedure.name);
     lock_.emplace(res_.run_dir);
     bench_.settle_log(res_.run_dir);
   }
   // A fleet-wide id (UUIDv7); a run made before ids were one keeps its folder's name.
-  run_id_ = resuming_ ? doc_.value("run_id", res_.run_dir.filename().string()) : new_run_id();
+  run_id_ = resuming_ ? run_.run_id.value_or(res_.run_dir.filename().string()) : new_run_id();
   auto file_sink = std::make_shared<spdlog::sinks::basic_file_sink_mt>((res_.run_dir / "events.log").string());
   file_sink->set_pattern("%Y-%m-%dT%H:%M:%S.%e [%l] %v");
   log_->sinks().push_back(file_sink);
@@ -179,40 +179,40 @@ void Session::open_folder() {
 void Session::write_start_record() {
   const std::string now_utc = utc_now_iso();
   if (!resuming_) {
-    doc_ = nlohmann::json::object();
-    doc_["format"] = "fpss-stand run/1";
-    doc_["run_id"] = run_id_;
-    doc_["software"] = {{"name", "fpss-stand"}, {"version", FPSS_VERSION}};
-    doc_["procedure"] = {{"name", req_.procedure.name},
-                         {"file", req_.procedure.origin},
-                         {"sha256", sha256_hex(req_.procedure.text)},
-                         {"text", req_.procedure.text}};
-    doc_["stand"] = {{"file", stand_.origin.empty() ? nlohmann::json() : nlohmann::json(stand_.origin)},
-                     {"text", stand_.text.empty() ? nlohmann::json() : nlohmann::json(stand_.text)},
-                     {"settings", to_json(stand_)}};
-    doc_["unit"] = unit_;
-    doc_["sensor_id"] = id_reply_;
-    doc_["emulated"] = req_.emulator.has_value();
-    if (req_.emulator) doc_["emulator"] = req_.emulator->to_json();
-    doc_["started_utc"] = now_utc;
-    doc_["points"] = {{"total", plan_.points}, {"completed", 0}};
-    doc_["sessions"] = nlohmann::json::array();
-    doc_["files"] = {{"samples", "samples.csv"}, {"journal", "points.jsonl"}, {"events", "events.log"},
-                     {"event_stream", "events.jsonl"}};
+    run_ = RunFile{};
+    run_.format = kRunFileFormat;
+    run_.run_id = run_id_;
+    run_.software = RunFile::Software{"fpss-stand", FPSS_VERSION};
+    run_.procedure = {req_.procedure.name, sha256_hex(req_.procedure.text), req_.procedure.text, req_.procedure.origin};
+    run_.stand = RunFile::Stand{stand_.origin.empty() ? std::nullopt : std::optional(stand_.origin),
+                                stand_.text.empty() ? std::nullopt : std::optional(stand_.text), to_json(stand_)};
+    run_.unit = unit_;
+    run_.sensor_id = id_reply_;
+    run_.emulated = req_.emulator.has_value();
+    if (req_.emulator) run_.emulator = req_.emulator->to_json();
+    run_.started_utc = now_utc;
+    run_.points = {static_cast<int64_t>(plan_.points), 0, std::nullopt};
+    run_.files.samples = "samples.csv";
+    run_.files.journal = "points.jsonl";
+    run_.files.events = "events.log";
+    run_.files.event_stream = "events.jsonl";
   }
-  if (!req_.operator_name.empty()) doc_["operator"] = req_.operator_name;
-  doc_["outcome"] = "running";
-  doc_.erase("ended_utc");
-  doc_.erase("reason");
-  doc_.erase("stop_cause");
-  nlohmann::json sess{{"session", session_}, {"started_utc", now_utc}, {"first_point", rec_->next_point() + 1},
-                      {"pid", ::getpid()}};
+  if (!req_.operator_name.empty()) run_.operator_name = req_.operator_name;
+  run_.outcome = "running";
+  run_.ended_utc.reset();
+  run_.reason.reset();
+  run_.stop_cause.reset();
+  RunFileSession sess;
+  sess.session = session_;
+  sess.started_utc = now_utc;
+  sess.first_point = rec_->next_point() + 1;
+  sess.pid = ::getpid();
   if (bench_.emu) {
-    sess["emulator"] = {{"command", bench_.emu->command()}, {"gimbal", stand_.gimbal.endpoint},
-                        {"sensor", stand_.sensor.endpoint}};
+    sess.emulator = nlohmann::json{{"command", bench_.emu->command()}, {"gimbal", stand_.gimbal.endpoint},
+                                   {"sensor", stand_.sensor.endpoint}};
   }
-  doc_["sessions"].push_back(sess);
-  write_json_atomic(res_.run_dir / "run.json", doc_);
+  run_.sessions.push_back(sess);
+  write_run_file(res_.run_dir, run_);
 }
 
 // A catalogue that cannot record never loses the run (the folder is complete), but the command
@@ -245,8 +245,8 @@ void Session::start_catalogue_record() {
     rs.run_id = run_id_;
     rs.unit = unit_;
     rs.procedure = req_.procedure.name;
-    rs.procedure_hash = doc_["procedure"]["sha256"].get<std::string>();
-    rs.started_utc = doc_["started_utc"].get<std::string>();
+    rs.procedure_hash = run_.procedure.sha256;
+    rs.started_utc = run_.started_utc;
     rs.run_dir = fs::absolute(res_.run_dir);
     rs.emulated = req_.emulator.has_value();
     rs.stand = !stand_.stand_id.empty() ? stand_.stand_id : req_.emulator ? "" : stand_.origin;
@@ -285,10 +285,10 @@ void Session::on_point_done(const PointDone& p) {
   std::vector<Sample> rows;
   rows.reserve(p.rows->size());
   for (const auto& r : *p.rows) rows.push_back(r.sample);
-  publish_live_fit(p.action->point + 1, progress_->done() + 1 >= plan_.points, rows);
+  publish_live_fit(p.point.index + 1, progress_->done() + 1 >= plan_.points, rows);
   // Each point against the latest live fit, for the console's residual chart and map.
   live_guarded([&] {
-    for (const auto& r : live_->residuals(p.action->point + 1, p.stats)) {
+    for (const auto& r : live_->residuals(p.point.index + 1, p.stats)) {
       event_log_->write_note("point_residual", {{"point", r.point}, {"ref_pitch_arcsec", r.ref_pitch_arcsec},
                                                 {"ref_yaw_arcsec", r.ref_yaw_arcsec},
                                                 {"residual_pitch_arcsec", r.residual_pitch_arcsec},
@@ -317,18 +317,16 @@ void Session::live_guarded(F&& f) {
 }
 
 void Session::on_step_stopped(const StepStopped& s) {
-  nlohmann::json j = nlohmann::json::parse(to_json(Event{s}).dump());
-  j.erase("type");
-  j.erase("utc");
-  doc_["adaptive_stops"].push_back(j);
-  size_t skipped = 0;
-  for (const auto& st : doc_["adaptive_stops"]) skipped += st.value("points_skipped", size_t{0});
-  doc_["points"]["skipped"] = skipped;
+  if (!run_.adaptive_stops) run_.adaptive_stops.emplace();
+  run_.adaptive_stops->push_back(RunFileAdaptiveStop::of(s));
+  int64_t skipped = 0;
+  for (const auto& st : *run_.adaptive_stops) skipped += st.points_skipped;
+  run_.points.skipped = skipped;
   progress_->skipped(s.skipped.size());
   // The fit that stopped the step is always published, whatever the display's refresh rate: the
   // console and events.jsonl show the sigma that met the target.
   publish_live_fit(s.skipped.empty() ? 0 : s.skipped.front());
-  progress_->note(j.value("reason", "") + fmt::format(" (step {}, {}: {} points not measured)", s.step_index, s.axes,
+  progress_->note(s.reason() + fmt::format(" (step {}, {}: {} points not measured)", s.step_index, s.axes,
                                                       s.skipped.size()));
 }
 
@@ -387,7 +385,7 @@ void Session::on_diagnose(const Action& a) {
   if (r.incomplete && !a.diagnose->partial) {
     log_->warn("diagnosis: this recording cannot tell every effect apart (GAP.json, not_observable)");
   }
-  if (diagnoses_ == 1) doc_["files"]["gap"] = r.json.filename().string();
+  if (diagnoses_ == 1) run_.files.gap = r.json.filename().string();
 }
 
 std::string Session::on_check(const Action& a) {
@@ -412,32 +410,32 @@ void Session::finish(const EngineResult& er) {
   res_.reason = er.reason;
   res_.points_done = er.points_done;
   const std::string end_utc = utc_now_iso();
-  doc_["outcome"] = to_string(er.outcome);
-  doc_["stop_cause"] = to_string(er.cause);
-  if (!er.reason.empty()) doc_["reason"] = er.reason;
-  doc_["ended_utc"] = end_utc;
-  doc_["points"]["completed"] = er.points_done;
-  res_.points_skipped = doc_["points"].value("skipped", int64_t{0});
-  doc_["safe_state"] = er.safe_state;
-  auto& s = doc_["sessions"].back();
-  s["ended_utc"] = end_utc;
-  s["outcome"] = to_string(er.outcome);
-  if (!er.reason.empty()) s["reason"] = er.reason;
-  s["points_completed"] = er.points_done;
+  run_.outcome = to_string(er.outcome);
+  run_.stop_cause = er.cause;
+  if (!er.reason.empty()) run_.reason = er.reason;
+  run_.ended_utc = end_utc;
+  run_.points.completed = er.points_done;
+  res_.points_skipped = run_.points.skipped.value_or(0);
+  run_.safe_state = er.safe_state;
+  RunFileSession& s = run_.sessions.back();
+  s.ended_utc = end_utc;
+  s.outcome = to_string(er.outcome);
+  if (!er.reason.empty()) s.reason = er.reason;
+  s.points_completed = er.points_done;
   const EngineStats& st = res_.stats;
-  s["engine"] = {{"wall_s", st.wall_s},         {"device_s", st.device_s},       {"sleep_s", st.sleep_s},
-                 {"storage_s", st.storage_s},   {"calibrate_s", st.calibrate_s}, {"own_s", st.own_s()},
-                 {"points", st.points},         {"remeasured", st.remeasured},   {"recoveries", st.recoveries},
-                 {"bench_s", st.bench_s},       {"physical_s", plan_.physical_s},
-                 {"estimated_s", plan_.estimated_s}, {"scheduled_moves", st.scheduled_moves}};
+  s.engine = nlohmann::json{{"wall_s", st.wall_s},         {"device_s", st.device_s},       {"sleep_s", st.sleep_s},
+                            {"storage_s", st.storage_s},   {"calibrate_s", st.calibrate_s}, {"own_s", st.own_s()},
+                            {"points", st.points},         {"remeasured", st.remeasured},   {"recoveries", st.recoveries},
+                            {"bench_s", st.bench_s},       {"physical_s", plan_.physical_s},
+                            {"estimated_s", plan_.estimated_s}, {"scheduled_moves", st.scheduled_moves}};
   if (sensor_) {
     const SensorStats ss = sensor_->stats();
-    s["sensor_stats"] = {{"frames", ss.frames},           {"crc_errors", ss.crc_errors},
-                         {"garbage_bytes", ss.garbage_bytes}, {"seq_gaps", ss.seq_gaps},
-                         {"frames_lost", ss.frames_lost}};
+    s.sensor_stats = nlohmann::json{{"frames", ss.frames},           {"crc_errors", ss.crc_errors},
+                                    {"garbage_bytes", ss.garbage_bytes}, {"seq_gaps", ss.seq_gaps},
+                                    {"frames_lost", ss.frames_lost}};
   }
-  if (res_.calibration) doc_["files"]["calibration"] = res_.calibration->filename().string();
-  write_json_atomic(res_.run_dir / "run.json", doc_);
+  if (res_.calibration) run_.files.calibration = res_.calibration->filename().string();
+  write_run_file(res_.run_dir, run_);
   with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, er.outcome, end_utc); });
   if (!catalogue_error_.empty()) {
     // The entry catches up from the folder, which holds everything, once the catalogue is back.
@@ -474,9 +472,9 @@ void Session::ask_prompts(ControlPoller& poller, RunControl& control) {
   if (!got.complete) return;  // aborted: the engine stops before it moves
   res_.answers = got.answers;
   res_.signed_off_utc = got.signed_off_utc;
-  if (res_.answers.count("operator")) doc_["operator"] = res_.answers["operator"];
-  doc_["signed_off_utc"] = res_.signed_off_utc;
-  write_json_atomic(res_.run_dir / "run.json", doc_);
+  if (res_.answers.count("operator")) run_.operator_name = res_.answers["operator"];
+  run_.signed_off_utc = res_.signed_off_utc;
+  write_run_file(res_.run_dir, run_);
 }
 
 SessionResult Session::run() {
@@ -496,7 +494,7 @@ SessionResult Session::run() {
   if (resuming_) {
     lock_.emplace(req_.resume_dir);  // before anything is started or written
     prior_ = read_run_info(req_.resume_dir);
-    if (prior_.doc.value("outcome", "") == "completed") {
+    if (prior_.run.outcome == "completed") {
       throw InputError(fmt::format("{}: the run is already completed; nothing to resume", req_.resume_dir.string()));
     }
   }
@@ -554,7 +552,7 @@ SessionResult Session::run() {
   if (bench_.emu) log_->info("emulated bench stopped (status {})", bench_.stop());
   finish(er);
   write_report();
-  const size_t skipped = doc_["points"].value("skipped", size_t{0});
+  const int64_t skipped = run_.points.skipped.value_or(0);
   log_->info("run {}: {} ({} of {} points{}){}", run_id_, to_string(er.outcome), er.points_done, plan_.points,
              skipped ? fmt::format(", {} of them skipped by the adaptive stop", skipped) : "",
              er.reason.empty() ? "" : ": " + er.reason);

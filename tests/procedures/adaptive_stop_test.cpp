@@ -51,7 +51,7 @@ TEST(AdaptiveStop, AReachedTargetSkipsTheGroupsRestAndTheRunGoesOn) {
   Bench bench(tmp / "run", kUntil);
   int pitch_done = 0;
   std::vector<int64_t> asked;
-  bench.on_point_done([&](const PointDone& p) { pitch_done += p.action->axis == StandAxis::pitch ? 1 : 0; });
+  bench.on_point_done([&](const PointDone& p) { pitch_done += bench.plan.actions[bench.plan.point_action[p.point.index]].axis == StandAxis::pitch ? 1 : 0; });
   // The pitch fit is good enough after 7 pitch points; yaw never is.
   bench.hooks.until_sigma = [&](const Action& a) {
     asked.push_back(a.point);
@@ -95,7 +95,7 @@ TEST(AdaptiveStop, AResumeAfterAStopDoesNotMeasureTheSkippedPoints) {
   bench.hooks.until_sigma = [](const Action& a) { return a.point >= 5 && a.axis == StandAxis::pitch ? 0.01 : kInf; };
   // Interrupt during the yaw group.
   bench.on_point_done([&](const PointDone& p) {
-    if (p.action->point == 20) {
+    if (p.point.index == 20) {
       bench.ctl.signal = SIGINT;
       bench.ctl.abort = true;
     }

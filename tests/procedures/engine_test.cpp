@@ -34,7 +34,7 @@ TEST(Engine, RunsAPlanAndRecordsEveryPoint) {
   bench.on_point_done([&](const PointDone& p) {
     ++done_hooks;
     EXPECT_EQ(p.rows->size(), 4u);
-    EXPECT_EQ(p.rows->front().sample.step, p.action->point + 1);
+    EXPECT_EQ(p.rows->front().sample.step, p.point.index + 1);
   });
   const auto engine = bench.engine();
   const EngineResult r = engine->run();
@@ -65,7 +65,7 @@ TEST(Engine, AbortStopsReturnsToNullAndKeepsTheRecording) {
   // Abort while the gimbal is away from null: after the first offset point.
   bool abort_armed = true;
   bench.on_point_done([&](const PointDone& p) {
-    if (abort_armed && p.action->point == 1) {
+    if (abort_armed && p.point.index == 1) {
       ctl.signal = SIGINT;
       ctl.abort = true;
     }
@@ -117,7 +117,7 @@ TEST(Engine, PauseHoldsBetweenPoints) {
     if (std::holds_alternative<Resumed>(e)) arrival_at_resume_s = bench.fake.bench().last_arrival_s();
   });
   bench.on_point_done([&](const PointDone& p) {
-    const Action& a = *p.action;
+    const Action& a = plan.actions[plan.point_action[p.point.index]];
     done = a.point + 1;
     if (a.point == 2) {
       ctl.pause = true;
@@ -198,7 +198,7 @@ TEST(Engine, AGimbalCommandedByAnotherClientIsNoticedAndThePointMeasuredAgainOrT
     Bench bench(tmp / "once");
     bool done = false;
     bench.on_point_done([&](const PointDone& pd) {
-      if (pd.action->point == 2 && !done) {
+      if (pd.point.index == 2 && !done) {
         done = true;
         bench.gimbal.foreign_max_rate(1000);
       }
@@ -218,7 +218,7 @@ TEST(Engine, AGimbalCommandedByAnotherClientIsNoticedAndThePointMeasuredAgainOrT
   {
     Bench bench(tmp / "always");
     bench.bus.subscribe([&](const Event& e) {
-      if (const auto* ps = std::get_if<PointStarted>(&e); ps && ps->action->point >= 2)
+      if (const auto* ps = std::get_if<PointStarted>(&e); ps && ps->point.index >= 2)
         bench.gimbal.foreign_max_rate(1000 + ps->attempt);
     });
     const EngineResult r = bench.engine()->run();
@@ -342,8 +342,8 @@ TEST(Engine, AnInvalidFramePutsTheScheduledMoveBack) {
     ASSERT_EQ(p->rows->size(), 4u);
     for (const auto& r : *p->rows) {
       EXPECT_EQ(r.sensor_status & 0x7, 0x7);
-      EXPECT_NEAR(r.gimbal_pitch_arcsec, p->action->pitch_arcsec, 0.5) << "point " << p->action->point + 1;
-      EXPECT_NEAR(r.gimbal_yaw_arcsec, p->action->yaw_arcsec, 0.5) << "point " << p->action->point + 1;
+      EXPECT_NEAR(r.gimbal_pitch_arcsec, p->point.target_pitch_arcsec, 0.5) << "point " << p->point.index + 1;
+      EXPECT_NEAR(r.gimbal_yaw_arcsec, p->point.target_yaw_arcsec, 0.5) << "point " << p->point.index + 1;
     }
   });
   Engine engine = v.engine(b, plan);
@@ -386,10 +386,10 @@ TEST(Engine, MovesScheduledBehindTheMoveUnderWayKeepTheHostsStorageOffTheBenchTi
   const auto storing = [&](VirtualBench& v) {
     v.bus.subscribe([&](const Event& e) {
       const auto* p = std::get_if<PointDone>(&e);
-      const size_t next = p ? static_cast<size_t>(p->action - plan.actions.data()) + 1 : 0;
+      const size_t next = p ? plan.point_action[p->point.index] + 1 : 0;
       // (After the last point the host's work is the calibrate step's, off the bench time.)
       if (!p || next >= plan.actions.size() || plan.actions[next].kind != Action::Kind::dwell) return;
-      const Action &a = *p->action, &n = plan.actions[next];
+      const Action &a = plan.actions[next - 1], &n = plan.actions[next];
       const double start_s = p->rows->back().sensor_time_s + 0.5 * period_s;  // the next move's
       const double dur_s = move_duration_s(a.pitch_arcsec, a.yaw_arcsec, n.pitch_arcsec, n.yaw_arcsec,
                                            b.profile_rate_arcsec_s, b.acceleration_arcsec_s2);
@@ -418,8 +418,8 @@ TEST(Engine, AHostLateForAQueuedMoveDelaysTheGimbalAndLosesNoPoint) {
       const auto* p = std::get_if<PointDone>(&e);
       if (!p) return;
       for (const auto& r : *p->rows) {
-        EXPECT_NEAR(r.gimbal_pitch_arcsec, p->action->pitch_arcsec, 0.5) << "point " << p->action->point + 1;
-        EXPECT_NEAR(r.gimbal_yaw_arcsec, p->action->yaw_arcsec, 0.5) << "point " << p->action->point + 1;
+        EXPECT_NEAR(r.gimbal_pitch_arcsec, p->point.target_pitch_arcsec, 0.5) << "point " << p->point.index + 1;
+        EXPECT_NEAR(r.gimbal_yaw_arcsec, p->point.target_yaw_arcsec, 0.5) << "point " << p->point.index + 1;
       }
       if (++points % 10 != 0) return;
       std::lock_guard lock(v.fake.mutex());
@@ -450,13 +450,13 @@ TEST(Engine, ASettleCountsFromTheArrivalNotFromALateLook) {
   v.bus.subscribe([&](const Event& e) {
     const auto* p = std::get_if<PointDone>(&e);
     if (!p || p->rows->empty()) return;
-    const std::pair<double, double> target{p->action->pitch_arcsec, p->action->yaw_arcsec};
+    const std::pair<double, double> target{p->point.target_pitch_arcsec, p->point.target_yaw_arcsec};
     if (std::exchange(at, target) == target) return;
     // The next move may have been commanded, but bench time has not reached its arrival yet.
     const double arrival_s = v.fake.bench().last_arrival_s();
     const double late_s = p->rows->front().sensor_time_s - arrival_s - settle_s;
-    EXPECT_GE(late_s, -1e-9) << "point " << p->action->point + 1;
-    EXPECT_LE(late_s, period_s + model_error_s) << "point " << p->action->point + 1;
+    EXPECT_GE(late_s, -1e-9) << "point " << p->point.index + 1;
+    EXPECT_LE(late_s, period_s + model_error_s) << "point " << p->point.index + 1;
     ++dwells;
   });
   Engine engine = v.engine(b, plan);

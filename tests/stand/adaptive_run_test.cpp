@@ -8,6 +8,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/json_file.h"
+#include "procedures/events.h"
+#include "stand/catalogue/run_file.h"
 #include "tests/procedures/run_util.h"
 #include "tests/support/test_support.h"
 
@@ -48,6 +51,21 @@ TEST(AdaptiveRun, TheShippedAdaptiveGridStopsEachAxisAtItsTargetAndSaysWhy) {
   }
   EXPECT_GT(skipped, 20u);
   EXPECT_EQ(run["points"]["skipped"], skipped);
+  // run.json is one type (stand/catalogue/run_file.h): read and written again, the same bytes; its
+  // adaptive stops keep the keys they always had.
+  EXPECT_EQ(to_json(read_run_file(dir)).dump(2) + "\n", test::read_file(dir / "run.json"));
+  EXPECT_EQ(run["adaptive_stops"][0].size(), 7u) << run["adaptive_stops"][0].dump();
+  // Every line of events.jsonl reads back to the same line; the stops name every point they skipped.
+  std::istringstream lines(test::read_file(dir / "events.jsonl"));
+  size_t listed = 0;
+  for (std::string line; std::getline(lines, line);) {
+    const EventLine l = event_line_from_json(parse_json_text(line, "events.jsonl"), "events.jsonl");
+    if (const auto* e = std::get_if<Event>(&l)) {
+      EXPECT_EQ(to_json(*e).dump(), line);
+      if (const auto* s = std::get_if<StepStopped>(e)) listed += s->skipped.size();
+    }
+  }
+  EXPECT_EQ(listed, skipped);
   EXPECT_EQ(run["points"]["completed"], run["points"]["total"]);
   EXPECT_NE(r.out.find("run completed: 113/113 points (" + std::to_string(skipped) + " skipped by the adaptive stop)"),
             std::string::npos) << r.out;

@@ -107,7 +107,9 @@ nlohmann::json run_json() {
             {"text", "name: discrete_grid\nsteps:\n  - home: {}\n  - null_offset_grid: {extent_deg: 0.42}\n"}}},
           {"emulated", true},
           {"emulator", {{"seed", 7}}},
+          {"started_utc", "2024-05-01T12:00:00Z"},
           {"outcome", "completed"},
+          {"points", {{"total", 113}, {"completed", 113}}},
           {"sessions", {{{"session", 1}, {"pid", 123}}}},
           {"files", {{"samples", "samples.csv"}, {"calibration", "calibration.json"}}},
           {"note", "<b>operator</b> & co"}};
@@ -442,7 +444,8 @@ TEST(Report, BadOrMissingFilesAreClearErrors) {
   make_run_folder(run);
   std::ofstream(run / "run.json") << "{\"unit\": ";
   m = message([&] { write_report(run); });
-  EXPECT_NE(m.find("run.json: not valid JSON"), std::string::npos) << m;
+  EXPECT_NE(m.find("run.json:1:"), std::string::npos) << m;
+  EXPECT_NE(m.find("not valid JSON"), std::string::npos) << m;
   EXPECT_FALSE(fs::exists(run / "report.html"));  // nothing half-written on error
 }
 

@@ -7,6 +7,8 @@
 
 #include <sstream>
 
+#include "procedures/events.h"
+#include "stand/catalogue/run_file.h"
 #include "tests/stand/run_helpers.h"
 
 namespace fpss {
@@ -94,6 +96,32 @@ TEST(RunFolder, ACatalogueThatCannotRecordExitsOneThenRebuildIndexesTheFolder) {
     last_point = e["point"].get<int64_t>();
   }
   EXPECT_EQ(done, points);
+
+  // The finished run replayed from its events.jsonl drives a summary as the live run did.
+  EventBus bus;
+  size_t replayed_done = 0;
+  std::optional<RunStopped> stopped;
+  std::optional<RunStarted> started;
+  bus.subscribe([&](const Event& e) {
+    replayed_done += std::holds_alternative<PointDone>(e);
+    if (const auto* s = std::get_if<RunStopped>(&e)) stopped = *s;
+    if (const auto* s = std::get_if<RunStarted>(&e)) started = *s;
+  });
+  const ReplayCount c = replay_events(run / "events.jsonl", bus);
+  EXPECT_EQ(replayed_done, points);
+  EXPECT_GE(c.events, 2 * points + 2);
+  ASSERT_TRUE(started);
+  EXPECT_EQ(static_cast<int64_t>(started->points_total), doc["points"]["total"].get<int64_t>());
+  ASSERT_TRUE(stopped);
+  EXPECT_EQ(to_string(stopped->outcome), doc["outcome"].get<std::string>());
+  EXPECT_EQ(to_string(stopped->cause), doc["stop_cause"].get<std::string>());
+  EXPECT_EQ(stopped->points_done, static_cast<int64_t>(points));
+  EXPECT_EQ(stopped->safe_state, doc["safe_state"].get<bool>());
+  // run.json read as its one type and written again: the same bytes.
+  const RunFile rf = read_run_file(run);
+  EXPECT_EQ(to_json(rf).dump(2) + "\n", test::read_file(run / "run.json"));
+  EXPECT_EQ(rf.stop_cause, StopCause::none);
+  EXPECT_EQ(rf.points.completed, static_cast<int64_t>(points));
 
   // Nothing recorded on disk is lost to the index: rebuild, twice (the second adds nothing).
   auto rb = run_stand({"catalogue", "rebuild", "--runs-dir", runs.string(), "--json"}, tmp.path(), "rebuild");

@@ -277,14 +277,24 @@ TEST(ShowHostile, BadRunFoldersAreExitTwoNamingTheFile) {
   r = show("torn");
   EXPECT_EQ(r.code, 2);
   EXPECT_THAT(r.err, HasSubstr("run.json"));
-  // Wrong types where a summary reads them: ignored, not a crash; a calibration out of its folder: not followed.
-  test::write_file(dir / "run.json", "{\"outcome\": 3, \"emulated\": \"yes\", \"points\": {\"total\": \"many\"},"
-                                     " \"files\": {\"calibration\": \"../../etc/passwd\"}}");
+  // Wrong types are bad input naming the key (run.json is read as one type, stand/catalogue/run_file.h).
+  const std::string good_head =
+      "{\"procedure\": {\"name\": \"g\", \"sha256\": \"x\", \"text\": \"t\"}, \"unit\": \"U\", \"emulated\": true,"
+      " \"started_utc\": \"2024-05-01T12:00:00Z\", \"sessions\": [],";
+  test::write_file(dir / "run.json", good_head + " \"outcome\": \"failed\", \"points\": {\"total\": \"many\", \"completed\": 0},"
+                                                 " \"files\": {}}");
+  r = show("types");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_THAT(r.err, HasSubstr("run.json"));
+  EXPECT_THAT(r.err, HasSubstr("\"points.total\""));
+  // A calibration named out of its folder is not followed.
+  test::write_file(dir / "run.json", good_head + " \"outcome\": \"failed\", \"points\": {\"total\": 4, \"completed\": 0},"
+                                                 " \"files\": {\"calibration\": \"../../etc/passwd\"}}");
   r = show("types");
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  EXPECT_EQ(j["emulated"], false);
-  EXPECT_EQ(j["points"]["total"], 0);
+  EXPECT_EQ(j["emulated"], true);
+  EXPECT_EQ(j["points"]["total"], 4);
   EXPECT_TRUE(j["calibration"].is_null());
   EXPECT_EQ(j["verdict"], "incomplete");
   test::write_file(dir / "calibration.json", "{\"residuals\": {\"pitch\": {\"mean_abs_arcsec\": \"small\"}}}");
