@@ -6,6 +6,7 @@ DataFrame or a dict of numpy arrays with the columns of samples.csv (docs/format
 arcsec, coefficients C1..C8 radians (rad/count), as in the coefficient files. See docs/python.md.
 """
 import os
+import re
 import tempfile
 from contextlib import contextmanager
 
@@ -62,7 +63,12 @@ def _samples_file(samples, name=None):
     with tempfile.TemporaryDirectory(prefix="fpss_stand-") as d:
         path = os.path.join(d, "samples.csv")
         _native.write_samples(path, columns, label)
-        yield path, label
+        try:
+            yield path, label
+        except InputError as e:
+            # The reader names lines of the file written ("DataFrame:LINE:", the header line 1): name the row.
+            message = re.sub(re.escape(label) + r":(\d+):", lambda m: f"{label}: row {int(m.group(1)) - 2}:", str(e))
+            raise type(e)(message) from None
 
 
 def _coefficients_arg(c):

@@ -55,7 +55,7 @@ def test_a_bad_file_names_the_file_and_line(tmp_path):
     with pytest.raises(ValueError) as e:
         fs.calibrate(bad)
     assert isinstance(e.value, fs.InputError)
-    assert "broken_samples.csv" in str(e.value) and "3" in str(e.value)
+    assert "broken_samples.csv:3:" in str(e.value) and "sideways" in str(e.value)
     with pytest.raises(fs.InputError, match="no_such.csv"):
         fs.calibrate(tmp_path / "no_such.csv")
 
@@ -68,6 +68,10 @@ def test_a_bad_dataframe_names_the_dataframe_and_the_column(recording):
     df.loc[10, "phase"] = "sideways"
     with pytest.raises(ValueError, match="DataFrame: row 10: phase 'sideways'"):
         fs.calibrate(df)
+    df.loc[10, "phase"] = "null"
+    df.loc[12, "counts_alpha"] = np.nan
+    with pytest.raises(fs.InputError, match="DataFrame: row 12: .*counts_alpha"):
+        fs.calibrate(df, name="DataFrame")
 
 
 def test_too_little_data_is_a_data_error(recording):
