@@ -77,7 +77,10 @@ py::tuple calibrate_file(const std::string& path, const std::string& label, cons
     opts.count_noise_counts = *count_noise_counts;
     opts.count_noise_source = "command line";
   }
-  CalibrationReport rep = relabeled(path, label, [&] { return calibrate_csv(path, opts); });
+  CalibrationReport rep = relabeled(path, label, [&] {
+    py::gil_scoped_release release;  // the fit touches no Python object: other threads run meanwhile
+    return calibrate_csv(path, opts);
+  });
   if (label != path) rep.source = label;
   CoefficientSet set = rep.coefficients();
   set.extra["calibrated_at"] = utc_now_iso();
@@ -104,6 +107,7 @@ py::object diagnose_file(const py::object& model, const std::string& model_name,
   opts.settle_s = settle_s;
   opts.max_skew_s = max_skew_s;
   const Diagnosis d = relabeled(path, label, [&] {
+    py::gil_scoped_release release;
     DiagnosisColumns cols = read_diagnosis_columns(path);
     cols.origin = label;
     return diagnose(std::move(cols), set, opts);

@@ -2,6 +2,7 @@
 import pytest
 
 import fpss_stand as fs
+from pg_server import PgServer
 
 SHORT_GRID = """name: short_grid
 description: a short null-to-offset grid (no fit), for the Python package's tests
@@ -51,3 +52,23 @@ def test_runs_and_history(catalogue):
 def test_a_bad_url_is_an_error_naming_it(tmp_path):
     with pytest.raises(Exception, match="nowhere"):
         fs.Catalogue(str(tmp_path / "nowhere" / "stand.db"))
+
+
+@pytest.fixture(scope="module")
+def postgres(fpss, catalogue):
+    """A PostgreSQL catalogue holding what the SQLite one holds (`fpss-stand catalogue copy`)."""
+    server = PgServer()
+    try:
+        fpss("catalogue", "copy", "--from", f"sqlite:{catalogue}", "--to", server.url)
+        yield server.url
+    finally:
+        server.stop()
+
+
+def test_postgresql_holds_the_same_runs_and_history(catalogue, postgres):
+    lite, pg = fs.Catalogue(str(catalogue)), fs.Catalogue(postgres)
+    assert pg.backend == "postgresql" and "fpss@127.0.0.1" in pg.location
+    keys = ["run_id", "unit", "procedure", "started_utc", "ended_utc", "outcome"]
+    assert pg.runs()[keys].to_dict("records") == lite.runs()[keys].to_dict("records")
+    keys = ["unit", "source", "date_utc", "method", "label", "coefficients"]
+    assert pg.history("EMU-0001")[keys].to_dict("records") == lite.history("EMU-0001")[keys].to_dict("records")
