@@ -37,10 +37,13 @@ class Obj {
     return v.get<std::string>();
   }
   // Absent or null: nullopt.
-  std::optional<std::string> opt_text(const char* k) const {
+  // An optional key: absent or null is nullopt, anything else must be what `get` reads.
+  template <typename T>
+  std::optional<T> optional(const char* k, T (Obj::*get)(const char*) const) const {
     if (!has(k) || j_.at(k).is_null()) return std::nullopt;
-    return text(k);
+    return (this->*get)(k);
   }
+  std::optional<std::string> opt_text(const char* k) const { return optional(k, &Obj::text); }
   int64_t integer(const char* k) const {
     const json& v = at(k);
     if (!v.is_number_integer() || (v.is_number_unsigned() && v.get<uint64_t>() > uint64_t{1} << 62)) {
@@ -48,19 +51,13 @@ class Obj {
     }
     return v.get<int64_t>();
   }
-  std::optional<int64_t> opt_integer(const char* k) const {
-    if (!has(k) || j_.at(k).is_null()) return std::nullopt;
-    return integer(k);
-  }
+  std::optional<int64_t> opt_integer(const char* k) const { return optional(k, &Obj::integer); }
   double number(const char* k) const {
     const json& v = at(k);
     if (!v.is_number()) bad(k, "expected a number");
     return v.get<double>();
   }
-  std::optional<double> opt_number(const char* k) const {
-    if (!has(k) || j_.at(k).is_null()) return std::nullopt;
-    return number(k);
-  }
+  std::optional<double> opt_number(const char* k) const { return optional(k, &Obj::number); }
   bool boolean(const char* k) const {
     const json& v = at(k);
     if (!v.is_boolean()) bad(k, "expected true or false");
