@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "base/text_file.h"
+#include "base/unique_fd.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/catalogue/run_file.h"
 #include "stand/console/jobs.h"
@@ -135,16 +136,12 @@ nlohmann::json run_json(const RunRef& r) {
 EventChunk read_events(const fs::path& run_dir, uint64_t offset, size_t max_bytes) {
   EventChunk c;
   c.next = offset;
-  const int fd = ::open((run_dir / "events.jsonl").c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
-  if (fd < 0) return c;
+  const UniqueFd fd(::open((run_dir / "events.jsonl").c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW));
+  if (!fd) return c;
   struct stat st {};
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) || static_cast<uint64_t>(st.st_size) <= offset) {
-    ::close(fd);
-    return c;
-  }
+  if (::fstat(fd.get(), &st) != 0 || !S_ISREG(st.st_mode) || static_cast<uint64_t>(st.st_size) <= offset) return c;
   std::string buf(std::min<uint64_t>(max_bytes, static_cast<uint64_t>(st.st_size) - offset), '\0');
-  const ssize_t n = ::pread(fd, buf.data(), buf.size(), static_cast<off_t>(offset));
-  ::close(fd);
+  const ssize_t n = ::pread(fd.get(), buf.data(), buf.size(), static_cast<off_t>(offset));
   if (n <= 0) return c;
   buf.resize(static_cast<size_t>(n));
   size_t start = 0;

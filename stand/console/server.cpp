@@ -12,6 +12,7 @@
 #include <httplib.h>
 #include <spdlog/spdlog.h>
 
+#include "base/unique_fd.h"
 #include "stand/console/assets.h"
 #include "stand/console/run_files.h"
 
@@ -23,37 +24,30 @@ Token load_or_create_token(const fs::path& runs_dir) {
   fs::create_directories(runs_dir);
   const fs::path p = runs_dir / "console.token";
   Token t;
-  int fd = ::open(p.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
-  if (fd >= 0) {
+  if (UniqueFd fd(::open(p.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600)); fd) {
     unsigned char raw[32];
-    const int r = ::open("/dev/urandom", O_RDONLY | O_CLOEXEC);
-    if (r < 0 || ::read(r, raw, sizeof raw) != static_cast<ssize_t>(sizeof raw)) {
-      if (r >= 0) ::close(r);
-      ::close(fd);
+    const UniqueFd r(::open("/dev/urandom", O_RDONLY | O_CLOEXEC));
+    if (!r || ::read(r.get(), raw, sizeof raw) != static_cast<ssize_t>(sizeof raw)) {
       throw std::runtime_error("cannot read /dev/urandom for the console token");
     }
-    ::close(r);
     for (unsigned char b : raw) t.value += fmt::format("{:02x}", b);
     const std::string line = t.value + "\n";
-    const bool ok = ::write(fd, line.data(), line.size()) == static_cast<ssize_t>(line.size()) && ::fsync(fd) == 0;
-    ::close(fd);
+    const bool ok =
+        ::write(fd.get(), line.data(), line.size()) == static_cast<ssize_t>(line.size()) && ::fsync(fd.get()) == 0;
     if (!ok) throw std::runtime_error(fmt::format("{}: cannot write the console token", p.string()));
     t.created = true;
     return t;
   }
-  fd = ::open(p.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+  const UniqueFd fd(::open(p.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC));
   struct stat st {};
-  if (fd < 0 || ::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    if (fd >= 0) ::close(fd);
+  if (!fd || ::fstat(fd.get(), &st) != 0 || !S_ISREG(st.st_mode)) {
     throw std::runtime_error(fmt::format("{}: not a regular file (the console token)", p.string()));
   }
   if ((st.st_mode & 077) != 0) {
-    ::close(fd);
     throw std::runtime_error(fmt::format("{}: readable by others (mode {:o}); chmod 600 it", p.string(), st.st_mode & 0777));
   }
   char buf[128] = {};
-  const ssize_t n = ::read(fd, buf, sizeof buf - 1);
-  ::close(fd);
+  const ssize_t n = ::read(fd.get(), buf, sizeof buf - 1);
   t.value.assign(buf, n > 0 ? static_cast<size_t>(n) : 0);
   while (!t.value.empty() && (t.value.back() == '\n' || t.value.back() == '\r')) t.value.pop_back();
   if (t.value.size() < 32) throw std::runtime_error(fmt::format("{}: too short to be a console token", p.string()));
