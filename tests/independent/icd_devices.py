@@ -509,9 +509,9 @@ class Sensor:
                 return "ERR bad rate"
             if not 1 <= hz <= 200:
                 return "ERR rate out of range 1..200"
-            with self.lock:
+            with self.lock:  # while streaming too: the next frame one new period on
                 if self.streaming:
-                    return "ERR rate locked while streaming"
+                    self.next_us += 1e6 / hz - 1e6 / self.rate_hz
                 self.rate_hz = hz
             return "OK"
         if cmd == "START" and len(words) == 1:
