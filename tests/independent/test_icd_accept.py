@@ -8,6 +8,7 @@ the binary.
 
 import json
 import os
+import select
 import subprocess
 import sys
 import tempfile
@@ -39,7 +40,6 @@ class Devices:
             if time.monotonic() > deadline:
                 self.close()
                 raise RuntimeError("icd_devices.py not ready within %d s" % timeout_s)
-            import select
             select.select([self.proc.stdout], [], [], 0.1)
             line += self.proc.stdout.readline() or ""
         self.info = json.loads(line)
