@@ -20,7 +20,7 @@ __all__ = [
     "transfer_function", "inverse_transfer_function", "calibrate", "diagnose", "design", "dwells",
     "residuals", "compare", "read_samples", "load_coefficients", "save_coefficients",
     "published_names", "load_published", "REQUIRED_COLUMNS",
-    "open_run", "Run", "RunFile", "read_run_file", "Acceptance", "Gap",
+    "open_run", "Run", "RunFile", "read_run_file", "Acceptance", "Gap", "Console", "ConsoleError",
 ]
 
 # A copy of the published coefficient sets installed next to the package (scripts/python) is used
@@ -298,5 +298,6 @@ class Catalogue:
         return f"Catalogue({self.location!r}, backend={self.backend!r})"
 
 
-# Run folders: after the names they use (read_samples, load_coefficients, InputError).
+# Run folders and the console: after the names they use (read_samples, load_coefficients, InputError).
 from .run import Acceptance, Gap, Run, RunFile, open_run, read_run_file  # noqa: E402
+from .console import Console, ConsoleError  # noqa: E402
