@@ -5,12 +5,13 @@ import queue
 import signal
 import subprocess
 import threading
+import time
 
 import pytest
 
 import fpss_stand as fs
 
-# Long enough (300 frames a dwell: about 7 s at --speed 100) that it is still running while the test pauses, resumes and aborts it.
+# Long enough (1000 frames a dwell: about 25 s at --speed 100) that it is still running while the test pauses, resumes and aborts it.
 LONG_GRID = """name: long_grid
 description: a long null-to-offset grid (no fit), for the Python package's console test
 steps:
@@ -20,7 +21,7 @@ steps:
       extent_deg: 0.42
       step_deg: 0.03
       settle_s: 0.5
-      frames: 300
+      frames: 1000
       order: outward
 """
 
@@ -53,9 +54,12 @@ def console(fpss, short_calibration, tmp_path_factory):
         url = banner.split("console at ", 1)[1].split()[0]
         c = fs.Console(url, token_file=runs / "console.token")
         yield c, runs
-        try:  # a test that failed half-way leaves no run behind
+        try:  # a test that failed half-way leaves no run behind: abort it and wait for it to end
             for run_id in c.status()["live_runs"]:
                 c.abort(run_id)
+            deadline = time.monotonic() + 30
+            while c.status()["live_runs"] and time.monotonic() < deadline:
+                time.sleep(0.1)
         except fs.ConsoleError:
             pass
     finally:
