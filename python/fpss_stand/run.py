@@ -36,7 +36,7 @@ def _build(cls, d):
 class Procedure:
     name: str
     sha256: str
-    text: str
+    text: str = field(repr=False)
     file: Optional[str] = None
 
 
@@ -264,7 +264,8 @@ class Run:
     def __init__(self, run_dir):
         self.path = os.path.abspath(os.fspath(run_dir))
         if not os.path.isdir(self.path):
-            raise InputError(f"{self.path}: not a run folder (no such folder)")
+            why = "not a folder" if os.path.exists(self.path) else "no such folder"
+            raise InputError(f"{self.path}: not a run folder ({why})")
         if not os.path.isfile(os.path.join(self.path, "run.json")):
             raise InputError(f"{os.path.join(self.path, 'run.json')}: not a run folder (no run.json)")
         self.run_file = read_run_file(self.path)
