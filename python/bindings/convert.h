@@ -29,5 +29,6 @@ std::string relabel(std::string text, const std::string& path, const std::string
 void bind_samples(py::module_& m);
 void bind_calib(py::module_& m);
 void bind_catalogue(py::module_& m);
+void bind_run_folder(py::module_& m);
 
 }  // namespace fpss::pybind

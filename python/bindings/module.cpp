@@ -7,7 +7,7 @@
 
 PYBIND11_MODULE(_fpss_stand, m) {
   namespace py = pybind11;
-  m.doc() = "fpss-stand's libraries for Python (the calibrator, the diagnosis, the design, the catalogue)";
+  m.doc() = "fpss-stand's libraries for Python (the calibrator, the diagnosis, the design, the catalogue, the run folder)";
   // Bad input: a ValueError whose message names the file, line or key. DataError (the data cannot
   // answer) is one of them. pybind11 tries the translator registered last first: DataError's.
   static py::exception<fpss::InputError> input_error(m, "InputError", PyExc_ValueError);
@@ -27,4 +27,5 @@ PYBIND11_MODULE(_fpss_stand, m) {
   fpss::pybind::bind_samples(m);
   fpss::pybind::bind_calib(m);
   fpss::pybind::bind_catalogue(m);
+  fpss::pybind::bind_run_folder(m);
 }

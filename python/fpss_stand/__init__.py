@@ -1,4 +1,5 @@
-"""fpss_stand: fpss-stand's calibrator, diagnosis, experiment design and catalogue for analysts.
+"""fpss_stand: fpss-stand's calibrator, diagnosis, experiment design, catalogue, run folders and
+web console for analysts.
 
 The numbers come from the same C++ libraries as the ``fpss-stand`` command (the native module
 ``_fpss_stand``); there is no second implementation. Samples may be a samples CSV path, a pandas
@@ -19,6 +20,7 @@ __all__ = [
     "transfer_function", "inverse_transfer_function", "calibrate", "diagnose", "design", "dwells",
     "residuals", "compare", "read_samples", "load_coefficients", "save_coefficients",
     "published_names", "load_published", "REQUIRED_COLUMNS",
+    "open_run", "Run", "RunFile", "read_run_file", "Acceptance", "Gap", "Console", "ConsoleError",
 ]
 
 # A copy of the published coefficient sets installed next to the package (scripts/python) is used
@@ -294,3 +296,8 @@ class Catalogue:
 
     def __repr__(self):
         return f"Catalogue({self.location!r}, backend={self.backend!r})"
+
+
+# Run folders and the console: after the names they use (read_samples, load_coefficients, InputError).
+from .run import Acceptance, Gap, Run, RunFile, open_run, read_run_file  # noqa: E402
+from .console import Console, ConsoleError  # noqa: E402

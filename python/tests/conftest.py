@@ -50,3 +50,37 @@ def cli_calibration(fpss, recording, tmp_path_factory):
     fpss("calibrate", "--data", recording, "--out", out)
     text = out.read_text()
     return text, json.loads(text)
+
+
+SHORT_CALIBRATION = """name: short_calibration
+description: a short null-to-offset grid on both axes, then a fit, for the Python package's tests
+steps:
+  - home
+  - null_offset_grid:
+      axes: [pitch, yaw]
+      extent_deg: 0.42
+      step_deg: 0.06
+      settle_s: 0.2
+      frames: 3
+      order: outward
+  - calibrate:
+      method: differences
+"""
+
+
+@pytest.fixture(scope="session")
+def short_calibration(tmp_path_factory):
+    """A procedure file: a short grid (both axes, +-0.42 deg in 0.06 deg steps, 3 frames) and a fit."""
+    d = tmp_path_factory.mktemp("procedures")
+    path = d / "short_calibration.yaml"
+    path.write_text(SHORT_CALIBRATION)
+    return path
+
+
+@pytest.fixture(scope="session")
+def run_dir(fpss, short_calibration, tmp_path_factory):
+    """A run folder the command made: `fpss-stand run SHORT_CALIBRATION --emulate` (one unit)."""
+    runs = tmp_path_factory.mktemp("run") / "runs"
+    fpss("run", short_calibration, "--emulate", "--speed", 100, "--runs-dir", runs, "--quiet", "--no-progress")
+    (folder,) = [p for p in runs.iterdir() if (p / "run.json").exists()]
+    return folder
