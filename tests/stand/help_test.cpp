@@ -110,6 +110,14 @@ TEST(Help, EverySubCommandsHelpEndsWithExamplesThatRun) {
   const auto dirs = test::run_dirs(runs);
   ASSERT_EQ(dirs.size(), 1u);
   const std::string run_id = dirs.front().filename().string();
+  // A run folder where one of its files is wanted, and one of its files where the folder is.
+  const std::string dir = dirs.front().string();
+  const CommandResult data = test::run_stand({"calibrate", "--data", dir, "--out", (tmp / "c.json").string()}, tmp.path(), "hint1");
+  EXPECT_EQ(data.code, 2);
+  EXPECT_THAT(data.err, HasSubstr("hint: " + dir + " is a run folder; its recording is " + dir + "/samples.csv"));
+  const CommandResult show = test::run_stand({"show", dir + "/samples.csv"}, tmp.path(), "hint2");
+  EXPECT_EQ(show.code, 2);
+  EXPECT_THAT(show.err, HasSubstr("hint: the file is in the run folder " + dir + "; give that folder"));
   int run = 0;
   for (const auto& cmd : commands) {
     SCOPED_TRACE(joined(cmd));
