@@ -30,6 +30,8 @@
 #include "stand/catalogue/catalogue.h"
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_hints.h"
+#include "stand/cli/help.h"
 #include "stand/cli/emulated_bench.h"
 #include "stand/config/stand_config.h"
 #include "stand/report/compare_plot.h"
@@ -72,7 +74,10 @@ NamedSet resolve_calibration(const std::string& arg, const std::string& url) {
   for (const auto& name : published_names()) {
     if (name == arg) return {load_published(name), fmt::format("published {}", name)};
   }
-  throw InputError(fmt::format("{}: no such coefficient file, published set (a-1-fpss1 .. a-7-fpss2) or cal:ID", arg));
+  // A published set's name mistyped (a-6-fpss, a6-fpss1): the closest one.
+  const std::string near = arg.find('/') == std::string::npos ? closest(arg, published_names()) : std::string();
+  throw InputError(fmt::format("{}: no such coefficient file, published set (a-1-fpss1 .. a-7-fpss2) or cal:ID{}", arg,
+                               near.empty() ? "" : "; did you mean " + near + "?"));
 }
 
 // YYYY-MM-DD, optionally followed by THH:MM[:SS][Z]; the date must exist in the calendar.
@@ -108,13 +113,16 @@ void add_compare(CLI::App& app, Runner& run) {
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand(
       "compare", "Difference B - A of two calibrations' transfer functions at equal counts, per axis (the paper's Figures 1-2)");
-  sub->add_option("CAL_A", o->a, "coefficient file, published set (a-6-fpss1) or cal:ID from the catalogue")->required();
-  sub->add_option("CAL_B", o->b, "the same for B")->required();
+  expect_file(sub, sub->add_option("CAL_A", o->a, "coefficient file, published set (a-6-fpss1) or cal:ID from the catalogue")->required(),
+              o->a, FileKind::coefficients);
+  expect_file(sub, sub->add_option("CAL_B", o->b, "the same for B")->required(), o->b, FileKind::coefficients);
   sub->add_option("--range-deg", o->range_deg, "compare over the counts A maps into +-R deg")->capture_default_str();
   sub->add_flag("--json", o->json, "print {\"alpha\": {max_abs_arcsec, rms_arcsec, max_abs_offset_removed_arcsec}, \"beta\": {...}}");
   sub->add_option("--plot", o->plot, "write an SVG plot there (its .dat and .gp next to it)");
   add_catalogue_option(sub, o->db);
   sub->add_option("--runs-dir", o->runs_dir, "runs folder")->capture_default_str();
+  examples(sub, {"fpss-stand compare a-5-fpss1 a-6-fpss1",
+                 "fpss-stand compare calib/data/published/a-4-fpss2.json a-5-fpss2 --range-deg 0.3 --json"});
   sub->callback([o, &run] {
     run = [o] {
       const std::string db = catalogue_url(o->db, o->runs_dir);
@@ -153,7 +161,8 @@ void add_import(CLI::App& app, Runner& run) {
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("import", "Bring a calibration done elsewhere (a coefficient file) into the catalogue");
-  sub->add_option("COEFFS", o->file, "coefficient file (JSON)")->required();
+  expect_file(sub, sub->add_option("COEFFS", o->file, "coefficient file (JSON)")->required(), o->file,
+              FileKind::coefficients);
   sub->add_option("--unit", o->unit, "sensor unit serial")->required();
   sub->add_option("--date", o->date, "when the calibration was made (YYYY-MM-DD or ISO 8601 time)")->required();
   sub->add_option("--label", o->label, "a name for it (default: the file's \"calibration\" key, e.g. VI)");
@@ -162,6 +171,8 @@ void add_import(CLI::App& app, Runner& run) {
   sub->add_option("--limit-arcsec", o->limit_arcsec, "flag a change from the previous calibration beyond this")
       ->capture_default_str();
   sub->add_flag("--json", o->json, "print what was recorded as JSON");
+  examples(sub, {"fpss-stand import calib/data/published/a-6-fpss1.json --unit FPSS1 --date 1980-08-27 --runs-dir runs",
+                 "fpss-stand history FPSS1 --runs-dir runs"});
   sub->callback([o, &run] {
     run = [o] {
       if (o->unit.empty()) throw InputError("--unit: the serial must not be empty");
@@ -475,8 +486,10 @@ void add_accept_command(CLI::App& app, Runner& run) {
   add_bench_choice_options(sub, *a, "Stand file (YAML) of a real bench",
                            "Run on the emulated bench (a child process over the real wire)");
   sub->add_option("--unit", a->unit, "Serial of the unit (required with --stand; with --emulate, the serial it reports)");
-  sub->add_option("--procedure", a->procedure, "Acceptance procedure (default procedures/acceptance.yaml)");
-  sub->add_option("--limits", a->limits, "Acceptance limits (default procedures/acceptance_limits.yaml)");
+  expect_file(sub, sub->add_option("--procedure", a->procedure, "Acceptance procedure (default procedures/acceptance.yaml)"),
+              a->procedure, FileKind::procedure);
+  expect_file(sub, sub->add_option("--limits", a->limits, "Acceptance limits (default procedures/acceptance_limits.yaml)"),
+              a->limits, FileKind::limits);
   sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made")->capture_default_str();
   add_catalogue_option(sub, a->catalogue);
   add_catalogue_wait_option(sub, a->catalogue_wait_s);
@@ -485,6 +498,8 @@ void add_accept_command(CLI::App& app, Runner& run) {
   sub->add_flag("--no-progress", a->no_progress, "No live progress line");
   sub->add_flag("--operator-prompts", a->operator_prompts,
                 "Ask the operator (unit serial, lamp, name) through the run folder's control channel: the web console");
+  examples(sub, {"fpss-stand accept --emulate --unit FPSS1-SN042 --runs-dir runs",
+                 "fpss-stand accept --stand procedures/example_stand.yaml --unit FPSS1-SN042"});
   sub->callback([&run, a] { run = [a] { return accept_command(*a); }; });
 }
 

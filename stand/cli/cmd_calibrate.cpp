@@ -14,6 +14,8 @@
 #include "calib/streaming.h"
 #include "procedures/recorder.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_hints.h"
+#include "stand/cli/help.h"
 #include "stand/cli/file_options.h"
 
 namespace fpss::cli {
@@ -30,16 +32,20 @@ void add_calibrate(CLI::App& app, Runner& run) {
       "calibrate",
       "Fit the pitch (alpha) and yaw (beta) transfer functions to a null-to-offset recording; "
       "prints the Table-1-style summary and writes the coefficient file");
-  o->files.input(sub, "--data", o->data, "samples file (CSV, the stand's recording format)")->required();
+  expect_file(sub, o->files.input(sub, "--data", o->data, "samples file (CSV, the stand's recording format)")->required(),
+              o->data, FileKind::samples);
   o->files.output(sub, "--out", o->out, "coefficient file to write (JSON), with a residuals block")->required();
-  o->files.input(sub, "--init", o->init, "a coefficient file tried as a start besides the global search");
+  expect_file(sub, o->files.input(sub, "--init", o->init, "a coefficient file tried as a start besides the global search"),
+              o->init, FileKind::coefficients);
   sub->add_option("--method", o->method,
                   "differences: C2..C8 on changes null <-> offset, C1 from the null condition (the paper's); "
                   "absolute: C1..C8 on absolute reference angles")
       ->check(CLI::IsMember({"differences", "absolute"}))
       ->capture_default_str();
-  o->files.input(sub, "--truth", o->truth,
-                 "a coefficient file with the known truth (simulations): prints how far the fit is from it");
+  expect_file(sub,
+              o->files.input(sub, "--truth", o->truth,
+                             "a coefficient file with the known truth (simulations): prints how far the fit is from it"),
+              o->truth, FileKind::coefficients);
   sub->add_option("--count-noise-counts", o->count_noise,
                   "expected sensor noise per frame before whole-count rounding, counts (default: the --init "
                   "file's count_noise_counts, else estimated from the within-dwell scatter)")
@@ -47,6 +53,8 @@ void add_calibrate(CLI::App& app, Runner& run) {
   sub->add_option("--unit", o->unit, "unit name written to the coefficient file (default: from --init or --truth)");
   sub->add_flag("--json", o->json,
                 "print {\"file\": OUT, \"calibration\": <the coefficient file's content>} instead of the summary");
+  examples(sub, {"fpss-stand simulate --out rec.csv --truth calib/data/published/a-5-fpss2.json",
+                 "fpss-stand calibrate --data rec.csv --out cal.json --truth calib/data/published/a-5-fpss2.json"});
   sub->callback([o, &run] {
     run = [o] {
       o->files.check();

@@ -18,6 +18,7 @@
 #include "stand/catalogue/rebuild.h"
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/help.h"
 #include "stand/report/run_summary.h"
 
 namespace fpss::cli {
@@ -339,11 +340,14 @@ int copy(const CopyOpts& o) {
 void add_catalogue(CLI::App& app, Runner& run) {
   auto* cat = app.add_subcommand("catalogue", "Maintain the catalogue");
   cat->require_subcommand(1);
+  examples(cat, {"fpss-stand catalogue rebuild --runs-dir runs", "fpss-stand catalogue copy --from runs/stand.db --to copy.db"});
   {
     auto o = std::make_shared<DbOpts>();
     auto* sub = cat->add_subcommand("rebuild", "Re-index every run folder (run.json, calibrations, acceptance) "
                                                "into the catalogue (either backend); idempotent");
     add_db_options(sub, *o, false);
+    examples(sub, {"fpss-stand catalogue rebuild --runs-dir runs",
+                   "fpss-stand catalogue rebuild --runs-dir runs --catalogue postgresql://stand@db.lab/fpss?sslmode=require"});
     sub->callback([o, &run] { run = [o] { return rebuild(*o); }; });
   }
   {
@@ -353,6 +357,8 @@ void add_catalogue(CLI::App& app, Runner& run) {
     sub->add_option("--from", o->from, "source catalogue URL (sqlite:PATH, PATH or postgresql://...)")->required();
     sub->add_option("--to", o->to, "target catalogue URL (created or upgraded when needed)")->required();
     sub->add_flag("--json", o->json, "print the counts as JSON");
+    examples(sub, {"fpss-stand catalogue rebuild --runs-dir runs",
+                   "fpss-stand catalogue copy --from runs/stand.db --to sqlite:copy.db --json"});
     sub->callback([o, &run] { run = [o] { return copy(*o); }; });
   }
   {
@@ -366,6 +372,7 @@ void add_catalogue(CLI::App& app, Runner& run) {
     add_db_options(sub, o->db);
     sub->add_option("--unit", o->unit, "only the runs of this unit (serial)");
     sub->add_option("--limit", o->limit, "at most this many runs (0: all)")->capture_default_str();
+    examples(sub, {"fpss-stand runs --runs-dir runs --limit 10", "fpss-stand runs --runs-dir runs --unit FPSS1-SN042"});
     sub->callback([o, &run] { run = [o] { return list_runs(o->db, o->unit, o->limit); }; });
   }
   {
@@ -381,6 +388,8 @@ void add_catalogue(CLI::App& app, Runner& run) {
     sub->add_option("--limit-arcsec", o->limit_arcsec,
                     "flag a calibration that differs from the previous by more than this (max |B - A|, +-0.35 deg)")
         ->capture_default_str();
+    examples(sub, {"fpss-stand import calib/data/published/a-6-fpss1.json --unit FPSS1 --date 1980-08-27 --runs-dir runs",
+                   "fpss-stand history FPSS1 --runs-dir runs"});
     sub->callback([o, &run] { run = [o] { return show_history(o->db, o->serial, o->limit_arcsec); }; });
   }
 }

@@ -19,6 +19,8 @@
 #include "procedures/procedure.h"
 #include "stand/acceptance/acceptance.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_hints.h"
+#include "stand/cli/help.h"
 #include "stand/config/stand_config.h"
 
 namespace fpss::cli {
@@ -187,9 +189,14 @@ void add_design(CLI::App& app, Runner& run) {
   auto* stand = sub->add_option("--stand", a->stand_file, "stand file: the gimbal's rate and acceleration, frame rate");
   auto* emulate = sub->add_flag("--emulate", a->emulate, "the emulated bench's rates, frame rate, noise and truth");
   stand->excludes(emulate);
-  sub->add_option("--bench", a->bench_file, "with --emulate: the emulator's bench file");
-  sub->add_option("--prior", a->prior_file, "coefficient file near the unit's (default: the bench's truth, or "
-                                             "the published set a-6-fpss1 with --stand)");
+  expect_file(sub, stand, a->stand_file, FileKind::stand);
+  expect_file(sub, sub->add_option("--bench", a->bench_file, "with --emulate: the emulator's bench file"), a->bench_file,
+              FileKind::bench);
+  expect_file(sub,
+              sub->add_option("--prior", a->prior_file,
+                              "coefficient file near the unit's (default: the bench's truth, or "
+                              "the published set a-6-fpss1 with --stand)"),
+              a->prior_file, FileKind::coefficients);
   sub->add_flag("--prior-only", a->prior_only,
                 "design for the prior alone (a unit whose transfer function is well known); by default the sigmas "
                 "hold under every published transfer function too");
@@ -199,6 +206,8 @@ void add_design(CLI::App& app, Runner& run) {
   sub->add_option("--settle-s", a->settle_s, "settle after each move (default 0.5 s)");
   sub->add_option("--out", a->out, "write the procedure file here (when the target is reached)");
   sub->add_flag("--json", a->json, "print the design as JSON");
+  examples(sub, {"fpss-stand design --target-sigma-arcsec 0.5 --emulate --out designed.yaml",
+                 "fpss-stand design --target-sigma-arcsec 1 --stand procedures/example_stand.yaml --prior-only --json"});
   sub->callback([a, &run] { run = [a] { return run_design(*a); }; });
 }
 

@@ -9,7 +9,9 @@
 #include "calib/samples.h"
 #include "stand/blindtest/blindtest.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_hints.h"
 #include "stand/cli/file_options.h"
+#include "stand/cli/help.h"
 #include "stand/report/diagnosis_page.h"
 
 namespace fpss::cli {
@@ -30,8 +32,13 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("diagnose", "Which unmodelled effect explains model(counts) - reference, checked on held-out steps");
   FileOptions& f = o->files;
-  f.input(sub, "--model", o->model, "the sim model: a coefficient file (JSON)")->required();
-  f.input(sub, "--data", o->data, "the real recording: a samples CSV (all phases; temperature_c used when present)")->required();
+  expect_file(sub, f.input(sub, "--model", o->model, "the sim model: a coefficient file (JSON)")->required(), o->model,
+              FileKind::coefficients);
+  expect_file(sub,
+              f.input(sub, "--data", o->data,
+                      "the real recording: a samples CSV (all phases; temperature_c used when present)")
+                  ->required(),
+              o->data, FileKind::samples);
   f.output(sub, "--out", o->out, "GAP.json to write")->required();
   f.output(sub, "--report", o->report, "GAP.html: residuals against every factor before/after, residual map");
   f.output(sub, "--emit-bench", o->emit_bench,
@@ -44,6 +51,8 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   sub->add_option("--max-skew-s", o->d.max_skew_s, "largest sampling-time shift searched (and slew-end margin)")->default_val(0.25);
   sub->add_flag("--partial", o->partial,
                 "accept a recording that cannot reveal every effect (no slews or no offsets): exit 0 instead of 2");
+  examples(sub, {"fpss-stand diagnose --model calib/data/published/a-6-fpss1.json --data RUN_DIR/samples.csv "
+                 "--out gap.json --report gap.html --partial"});
   sub->callback([o, &run] {
     run = [o] {
       o->files.check();
@@ -92,6 +101,7 @@ void add_blindtest_command(CLI::App& app, Runner& run) {
                   "folder for every case's recording, model, truth and GAP.json (to re-run `diagnose` on them)");
   sub->add_flag("--quiet", o->quiet, "no progress lines on stderr");
   sub->add_flag("--pairs", o->b.pairs, "two different effects per case (correct when both are reported)");
+  examples(sub, {"fpss-stand blindtest --cases 2 --seed 3", "fpss-stand blindtest --cases 22 --pairs --json"});
   sub->callback([o, &run] {
     run = [o] {
       if (o->b.cases < 1) throw InputError("--cases must be at least 1");

@@ -15,6 +15,8 @@
 #include "calib/coefficients.h"
 #include "fixtures/emulator.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_hints.h"
+#include "stand/cli/help.h"
 #include "stand/contract/emulator_contract.h"
 
 namespace fpss::cli {
@@ -135,8 +137,10 @@ void add_emulate(CLI::App& app, Runner& run) {
   auto args = std::make_shared<EmulateArgs>();
   auto* sub = app.add_subcommand(
       "emulate", "Emulated bench: the gimbal over Modbus TCP (and RTU) and the sensor on a pty, one simulated bench");
-  sub->add_option("--bench", args->bench_file, "Bench file (YAML): dynamics, noise, truth, effects")
-      ->check(CLI::ExistingFile);
+  expect_file(sub,
+              sub->add_option("--bench", args->bench_file, "Bench file (YAML): dynamics, noise, truth, effects")
+                  ->check(CLI::ExistingFile),
+              args->bench_file, FileKind::bench);
   sub->add_option("--modbus-port", args->modbus_port, "Modbus TCP port (0 picks a free one)")
       ->capture_default_str()
       ->check(CLI::Range(0, 65535));
@@ -156,12 +160,16 @@ void add_emulate(CLI::App& app, Runner& run) {
       ->check(CLI::Range(0.01, 1000.0));
   auto* seed = sub->add_option("--seed", args->seed, "Seed of all bench noise")->capture_default_str();
   sub->add_option("--effect", args->effects, "Injected effect NAME:key=value,... (repeatable)");
-  sub->add_option("--truth", args->truth_file, "Coefficient file: the sensor's true transfer function")
-      ->check(CLI::ExistingFile);
+  expect_file(sub,
+              sub->add_option("--truth", args->truth_file, "Coefficient file: the sensor's true transfer function")
+                  ->check(CLI::ExistingFile),
+              args->truth_file, FileKind::coefficients);
   sub->add_option("--unit-serial", args->unit_serial, "Serial number the sensor reports (ID?)");
   sub->add_option("--fault", args->faults,
                   "Fault NAME[:key=value,...] with optional trigger at_s= or at_request= (repeatable, docs/emulator.md)");
   sub->add_option("--fault-file", args->fault_file, "On SIGUSR1, arm the faults listed in this file (one per line)");
+  examples(sub, {"fpss-stand emulate --modbus-port 5020 --serial-link /tmp/fpss-sensor --speed 10",
+                 "fpss-stand emulate --bench procedures/paper_mount_bench.yaml --effect drift:pitch_arcsec_per_s=0.01"});
   sub->callback([args, seed, &run] {
     run = [args, seed] { return run_emulate(*args, seed->count() > 0); };
   });

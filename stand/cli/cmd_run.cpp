@@ -16,6 +16,8 @@
 #include "stand/catalogue/catalogue.h"
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_hints.h"
+#include "stand/cli/help.h"
 #include "stand/cli/emulated_bench.h"
 #include "stand/config/stand_config.h"
 #include "stand/session/session.h"
@@ -132,18 +134,22 @@ int run_command(const RunArgs& a) {
 void add_run(CLI::App& app, Runner& run) {
   auto a = std::make_shared<RunArgs>();
   auto* sub = app.add_subcommand("run", "Run a calibration procedure on a stand (or the emulated bench) and record it");
-  sub->add_option("procedure", a->procedure, "Procedure file (YAML, docs/procedures.md)");
+  expect_file(sub, sub->add_option("procedure", a->procedure, "Procedure file (YAML, docs/procedures.md)"), a->procedure,
+              FileKind::procedure);
   add_bench_choice_options(sub, *a, "Stand file (YAML): endpoints, unit, limits, axes, timing",
                            "Start the emulated bench as a child process and run on it");
   a->emu.options.push_back(sub->add_option("--unit-serial", a->unit_serial, "Emulator: serial number the sensor reports"));
   sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made (default runs/)");
-  sub->add_option("--resume", a->resume, "Continue an interrupted run from its folder");
+  expect_file(sub, sub->add_option("--resume", a->resume, "Continue an interrupted run from its folder"), a->resume,
+              FileKind::run_folder);
   sub->add_flag("--dry-run", a->dry_run, "Validate, print the expanded steps, points and duration; move nothing");
   add_catalogue_option(sub, a->catalogue);
   add_catalogue_wait_option(sub, a->catalogue_wait_s);
   sub->add_flag("--no-progress", a->no_progress, "No live progress line, even on a terminal");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
   sub->add_option("--operator", a->operator_name, "Who runs it (recorded in run.json)");
+  examples(sub, {"fpss-stand run procedures/discrete_grid.yaml --emulate --runs-dir runs",
+                 "fpss-stand run procedures/discrete_grid.yaml --stand procedures/example_stand.yaml --dry-run"});
   sub->callback([&run, a] { run = [a] { return run_command(*a); }; });
 }
 

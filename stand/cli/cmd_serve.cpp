@@ -14,6 +14,8 @@
 #include "stand/acceptance/acceptance.h"
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_hints.h"
+#include "stand/cli/help.h"
 #include "stand/cli/emulated_bench.h"
 #include "stand/config/stand_config.h"
 #include "stand/console/server.h"
@@ -126,6 +128,8 @@ void add_serve(CLI::App& app, Runner& run) {
   sub->add_option("--procedures", a->procedures, "Folder of procedures the start page offers (default procedures/)");
   sub->add_option("--max-clients", a->max_clients, "Live event streams at once (default 8)");
   add_catalogue_option(sub, a->catalogue);
+  examples(sub, {"fpss-stand serve --emulate --runs-dir runs",
+                 "fpss-stand serve --stand procedures/example_stand.yaml --listen 127.0.0.1:8081"});
   sub->callback([&run, a] { run = [a] { return serve_command(*a); }; });
 }
 

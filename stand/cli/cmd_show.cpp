@@ -14,6 +14,8 @@
 #include "stand/acceptance/acceptance.h"
 #include "stand/catalogue/run_file.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_hints.h"
+#include "stand/cli/help.h"
 #include "stand/report/report.h"
 #include "stand/report/run_summary.h"
 
@@ -46,7 +48,24 @@ fs::path find_run(const ShowArgs& a) {
       }
     }
   }
-  if (fs::is_directory(as_path)) throw InputError(fmt::format("{}: not a run folder (no run.json)", a.run));
+  if (fs::is_directory(as_path)) {
+    // A runs folder given as RUN: its runs are listed by `runs`.
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(as_path, ec)) {
+      if (e.is_directory() && fs::is_regular_file(e.path() / "run.json")) {
+        throw InputError(fmt::format("{}: not a run folder (no run.json)\nhint: it holds run folders; list them with "
+                                     "`fpss-stand runs --runs-dir {}`",
+                                     a.run, a.run));
+      }
+    }
+    throw InputError(fmt::format("{}: not a run folder (no run.json)", a.run));
+  }
+  // A file of a run folder (its samples.csv, report.html): the folder is the run.
+  if (fs::is_regular_file(as_path) && as_path.has_parent_path() && fs::is_regular_file(as_path.parent_path() / "run.json")) {
+    throw InputError(fmt::format("{}: no such run folder, and no run with that id in {}\nhint: the file is in the run "
+                                 "folder {}; give that folder",
+                                 a.run, a.runs_dir, as_path.parent_path().string()));
+  }
   throw InputError(fmt::format("{}: no such run folder, and no run with that id in {}", a.run, a.runs_dir));
 }
 
@@ -77,7 +96,8 @@ int report_command(const ShowArgs& a) {
 }
 
 void add_run_options(CLI::App* sub, ShowArgs& a) {
-  sub->add_option("run", a.run, "RUN: a run folder, or a run id within --runs-dir")->required();
+  expect_file(sub, sub->add_option("run", a.run, "RUN: a run folder, or a run id within --runs-dir")->required(), a.run,
+              FileKind::run_folder);
   sub->add_option("--runs-dir", a.runs_dir, "Where run folders are (for a run id)")->capture_default_str();
 }
 
@@ -88,11 +108,13 @@ void add_show(CLI::App& app, Runner& run) {
   auto* show = app.add_subcommand("show", "A run's summary: outcome, verdict, points, residuals, files");
   add_run_options(show, *a);
   show->add_flag("--json", a->json, "Print the summary as JSON");
+  examples(show, {"fpss-stand show RUN_DIR", "fpss-stand show RUN_ID --runs-dir runs --json"});
   show->callback([&run, a] { run = [a] { return show_command(*a); }; });
 
   auto b = std::make_shared<ShowArgs>();
   auto* report = app.add_subcommand("report", "Draw a run's report.html again (after a re-calibration, ...)");
   add_run_options(report, *b);
+  examples(report, {"fpss-stand report RUN_DIR", "fpss-stand report RUN_ID --runs-dir runs"});
   report->callback([&run, b] { run = [b] { return report_command(*b); }; });
 }
 

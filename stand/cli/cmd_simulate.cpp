@@ -5,6 +5,8 @@
 #include "calib/samples.h"
 #include "fixtures/recording.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_hints.h"
+#include "stand/cli/help.h"
 #include "stand/cli/file_options.h"
 
 namespace fpss::cli {
@@ -19,14 +21,20 @@ void add_simulate(CLI::App& app, Runner& run) {
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("simulate", "Simulate a bench null-to-offset recording (samples CSV) with a known truth");
-  o->files.input(sub, "--truth", o->truth, "coefficient file of the sensor's true transfer function (default: published a-6-fpss1)");
-  o->files.input(sub, "--bench", o->bench, "bench file (YAML)");
+  expect_file(sub,
+              o->files.input(sub, "--truth", o->truth,
+                             "coefficient file of the sensor's true transfer function (default: published a-6-fpss1)"),
+              o->truth, FileKind::coefficients);
+  expect_file(sub, o->files.input(sub, "--bench", o->bench, "bench file (YAML)"), o->bench, FileKind::bench);
   o->files.output(sub, "--out", o->out, "samples CSV to write")->required();
   sub->add_option("--seed", o->seed, "random seed")->capture_default_str();
   sub->add_option("--effect", o->effects, "injected effect NAME:key=value,... (repeatable)");
   sub->add_option("--extent-deg", o->grid.extent_deg, "largest offset, deg")->capture_default_str()->check(CLI::Range(0.0, 0.5));
   sub->add_option("--step-deg", o->grid.step_deg, "offset step, deg")->capture_default_str()->check(CLI::PositiveNumber);
   sub->add_option("--samples-per-dwell", o->grid.samples_per_dwell, "samples per dwell")->capture_default_str()->check(CLI::Range(1, 100000));
+  examples(sub, {"fpss-stand simulate --out rec.csv",
+                 "fpss-stand simulate --out rec.csv --truth calib/data/published/a-2-fpss1.json --seed 7 "
+                 "--bench procedures/paper_mount_bench.yaml"});
   sub->callback([o, &run] {
     run = [o] {
       o->files.check();

@@ -1,4 +1,5 @@
 #include "stand/cli/emulated_bench.h"
+#include "stand/cli/file_hints.h"
 
 #include <fmt/format.h>
 
@@ -18,6 +19,7 @@ void add_emulated_bench_options(CLI::App* sub, EmulatedBenchArgs& a) {
   a.options.push_back(sub->add_option("--speed", a.speed, "Emulator: bench clock speed-up (default 20)"));
   a.options.push_back(sub->add_option("--seed", a.seed, "Emulator: seed of all bench noise (default 1)"));
   a.options.push_back(sub->add_option("--bench", a.bench, "Emulator: bench file (YAML)"));
+  expect_file(sub, a.options.back(), a.bench, FileKind::bench);
   // One value per occurrence (--effect A --effect B), so a positional argument after them stays one.
   a.options.push_back(sub->add_option("--effect", a.effects, "Emulator: injected effect NAME:key=value,... (repeatable)")
                           ->allow_extra_args(false));
@@ -25,13 +27,14 @@ void add_emulated_bench_options(CLI::App* sub, EmulatedBenchArgs& a) {
       sub->add_option("--fault", a.faults, "Emulator: fault NAME[:key=value,...] (repeatable; docs/emulator.md)")
           ->allow_extra_args(false));
   a.options.push_back(sub->add_option("--truth", a.truth, "Emulator: coefficient file of the sensor's truth"));
+  expect_file(sub, a.options.back(), a.truth, FileKind::coefficients);
 }
 
 }  // namespace
 
 void add_bench_choice_options(CLI::App* sub, BenchChoiceArgs& a, const std::string& stand_help,
                               const std::string& emulate_help) {
-  sub->add_option("--stand", a.stand_file, stand_help);
+  expect_file(sub, sub->add_option("--stand", a.stand_file, stand_help), a.stand_file, FileKind::stand);
   sub->add_flag("--emulate", a.emulate, emulate_help);
   add_emulated_bench_options(sub, a.emu);
 }

@@ -7,6 +7,8 @@
 
 #include "base/errors.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/file_hints.h"
+#include "stand/cli/help.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"fpss-stand: test-stand controller for fine pointing sun sensors"};
@@ -24,12 +26,16 @@ int main(int argc, char** argv) {
   fpss::cli::add_serve(app, run);
   fpss::cli::add_design(app, run);
   fpss::cli::add_show(app, run);
+  // After the sub-commands: they would inherit it.
+  fpss::cli::examples(&app, {"fpss-stand run procedures/discrete_grid.yaml --emulate --runs-dir runs",
+                             "fpss-stand calibrate --help"});
   // CLI11 reports a mistyped sub-command as "A subcommand is required": name it instead.
   if (argc > 1 && argv[1][0] != '-') {
     const std::string name = argv[1];
     const auto known = app.get_subcommands([&](const CLI::App* s) { return s->check_name(name); });
     if (known.empty()) {
-      std::fprintf(stderr, "fpss-stand: unknown command '%s'; see --help\n", name.c_str());
+      std::fprintf(stderr, "fpss-stand: unknown command '%s'; see --help%s\n", name.c_str(),
+                   fpss::cli::did_you_mean(app, {name}, false).c_str());
       return 2;
     }
   }
@@ -42,13 +48,26 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    app.exit(e);
+    // An argument not taken (a mistyped option or sub-command) close to a real one: name it after
+    // CLI11's message ("The following argument was not expected: --stnad; --stnad: did you mean --stand?",
+    // "--data is required; --dta: did you mean --data?").
+    const std::string hint = fpss::cli::did_you_mean(*fpss::cli::deepest_parsed(app), app.remaining(true));
+    if (hint.empty()) {
+      app.exit(e);
+    } else {
+      std::fprintf(stderr, "%s%s\nRun with --help for more information.\n", e.what(), hint.c_str());
+    }
     return 2;
   }
   try {
     return run ? run() : 2;
   } catch (const fpss::InputError& e) {
     std::fprintf(stderr, "fpss-stand: error: %s\n", e.what());
+    // A file given to the wrong option: name the one that takes it.
+    const std::string what = e.what();
+    if (what.find("\nhint: ") == std::string::npos) {
+      if (const std::string hint = fpss::cli::file_hint(what); !hint.empty()) std::fprintf(stderr, "%s\n", hint.c_str());
+    }
     return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fpss-stand: failed: %s\n", e.what());
