@@ -258,7 +258,7 @@ int show_history(const DbOpts& o, const std::string& serial, double limit_arcsec
   const auto catp = open_catalogue(o.url(), Catalogue::Mode::read_only);
   const Catalogue& cat = *catp;
   std::vector<HistoryEntry> h;
-  for (auto& c : cat.unit_history(serial)) h.push_back({std::move(c), std::nullopt, false});
+  for (auto& c : cat.unit_history(serial)) h.push_back({std::move(c), std::nullopt, false, std::nullopt});
   if (h.empty()) {
     const std::string why = cat.has_unit(serial)
                                 ? fmt::format("unit {} is in {} ({} runs) but has no calibration yet", serial,
