@@ -91,7 +91,9 @@ TEST(DiagnoseStep, TheShippedSimToRealRunIsDiagnosableWhole) {
   for (const auto& c : gap["causes"]) causes.insert(c["name"].get<std::string>());
   EXPECT_EQ(causes, (std::set<std::string>{"backlash", "time_skew"})) << gap.dump(1);
   for (const auto& c : gap["causes"]) {
-    if (c["name"] == "backlash") EXPECT_NEAR(c["params"]["width_arcsec"].get<double>(), 2.0, 0.1);
+    if (c["name"] == "backlash") {
+      EXPECT_NEAR(c["params"]["width_arcsec"].get<double>(), 2.0, 0.1);
+    }
     if (c["name"] == "time_skew") {
       EXPECT_NEAR(c["params"]["skew_s"].get<double>(), 0.03, 0.0015);
     }
