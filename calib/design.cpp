@@ -21,9 +21,6 @@ using Vec8 = Eigen::Matrix<double, 8, 1>;
 using Mat8 = Eigen::Matrix<double, 8, 8>;
 constexpr int kSigmaAngles = 41;
 
-// d angle(n) / d(u1..u7, level), arcsec per scaled unit: the fit's own Jacobian row (calib/refine.h).
-Vec8 gradient(const AxisCoeffs& c, double n) { return fit::dwell_gradient(c, n); }
-
 // What one axis needs: the counts at its null, and per candidate angle the count and the dwell's
 // information row (gradient over sigma, times its transpose) at a given frames-per-dwell.
 struct AxisModelCache {
@@ -44,7 +41,7 @@ struct AxisModelCache {
       var_counts = 1.0 / 12.0;  // rounding without dither: not averaged away
     }
     const double var = in.ref_noise_arcsec * in.ref_noise_arcsec / m + slope * slope * var_counts;
-    const Vec8 g = gradient(c, n);
+    const Vec8 g = fit::dwell_gradient(c, n);
     return g * g.transpose() / var;
   }
 };
@@ -69,7 +66,7 @@ double max_sigma(const AxisModelCache& a, const Mat8& info) {
   }
   double worst = 0;
   for (double n : a.sigma_counts) {
-    const Vec8 g = gradient(a.c, n);
+    const Vec8 g = fit::dwell_gradient(a.c, n);
     worst = std::max(worst, std::sqrt(std::max(0.0, g.dot(ldlt.solve(g)))));
   }
   return worst;

@@ -56,13 +56,6 @@ Scaled polar_scaled(const Vec7Array& v) {
   return u;
 }
 
-// The polar form's f0 and gradient, for the levels and the covariance at the solution.
-struct Model {
-  Scaled u{};
-  static Model polar(const Scaled& u) { return Model{u}; }
-  double operator()(double n, Vec7& grad) const { return angle_and_gradient(u, n, grad); }
-};
-
 // The dwells' weights, 1 / variance in arcsec^-2, from the start's slope, computed when read (no
 // array per dwell); float, as they were kept.
 struct Weights {
@@ -86,12 +79,12 @@ struct Pass {
   double cost = 0;  // sum w (e - level)^2
 };
 
-Pass level_pass(const GlsData& g, const Weights& w, const Model& f) {
+Pass level_pass(const GlsData& g, const Weights& w, const Scaled& u) {
   Pass p;
   p.lv.assign(g.levels, LevelSums{});
   Vec7 gr;
   for (size_t k = 0; k < g.size(); ++k) {
-    const double e = g.ref_arcsec(k) - f(g.counts[k], gr);
+    const double e = g.ref_arcsec(k) - angle_and_gradient(u, g.counts[k], gr);
     LevelSums& l = p.lv[g.level_of(k)];
     const float wk = w(k);
     l.w += wk;
@@ -107,7 +100,7 @@ Pass level_pass(const GlsData& g, const Weights& w, const Model& f) {
 }
 
 // R (8 x 8) of the QR of [J~ | r], the projected Jacobian and residuals, accumulated in chunks.
-Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const Weights& w, const Model& f,
+Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const Weights& w, const Scaled& u,
                                         const Pass& p) {
   constexpr int kChunk = 256;
   Eigen::Matrix<double, Eigen::Dynamic, 8> stack(kChunk + 8, 8);
@@ -127,7 +120,7 @@ Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const Weights& w, cons
   Vec7 gr;
   for (size_t k = 0; k < g.size(); ++k) {
     const LevelSums& l = p.lv[g.level_of(k)];
-    const double e = g.ref_arcsec(k) - f(g.counts[k], gr);
+    const double e = g.ref_arcsec(k) - angle_and_gradient(u, g.counts[k], gr);
     const double sw = std::sqrt(w(k));
     stack.row(rows).head<7>() = (sw * (gr - l.wg / l.w)).transpose();
     const double res = -sw * (e - l.we / l.w);
@@ -138,17 +131,15 @@ Eigen::Matrix<double, 8, 8> projected_r(const GlsData& g, const Weights& w, cons
   return r;
 }
 
-// Pseudo-inverse of R11^T R11 and the Gauss-Newton step -R11^+ z.
+// Pseudo-inverse of R11^T R11 (the covariance of u[1..7] up to scale).
 struct Solve {
   Mat7 cov = Mat7::Zero();
-  Vec7 step = Vec7::Zero();
   bool deficient = false;
 };
 Solve solve_r(const Eigen::Matrix<double, 8, 8>& r) {
   Solve s;
   const Mat7 r11 = r.topLeftCorner<7, 7>();
-  const Vec7 z = r.topRightCorner<7, 1>();
-  Eigen::JacobiSVD<Mat7> svd(r11, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::JacobiSVD<Mat7> svd(r11, Eigen::ComputeFullV);
   const auto& sv = svd.singularValues();
   const double tol = 1e-10 * sv(0);
   Vec7 inv = Vec7::Zero();
@@ -158,7 +149,6 @@ Solve solve_r(const Eigen::Matrix<double, 8, 8>& r) {
   }
   const Mat7 v = svd.matrixV();
   s.cov = v * inv.cwiseAbs2().asDiagonal() * v.transpose();
-  s.step = -(v * inv.asDiagonal() * svd.matrixU().transpose() * z);
   return s;
 }
 
@@ -263,15 +253,15 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
   Scaled u = to_scaled(c0);
   // Weights from the start's slope (the count noise enters as slope x count error).
   const Weights w{&g, c0};
-  Pass p = level_pass(g, w, Model::polar(u));
+  Pass p = level_pass(g, w, u);
   u = minimise(g, w, u, p, out);
   // Back to the normalised form (positive frequencies, phases in (-pi, pi]) before the covariance.
   AxisCoeffs c = from_scaled(u);
   normalise(c);
   c[0] = 0;
   u = to_scaled(c);
-  p = level_pass(g, w, Model::polar(u));
-  const Solve s = solve_r(projected_r(g, w, Model::polar(u), p));
+  p = level_pass(g, w, u);
+  const Solve s = solve_r(projected_r(g, w, u, p));
 
   // C1 = sum_g share_g level_g, level_g = weighted mean of (ref - f0) over its dwells.
   double c1 = 0, var_c1_noise = 0;
