@@ -37,7 +37,7 @@ struct DesignInputs {
   CoefficientSet prior;  // a transfer function near the unit's (published or last calibration)
   std::vector<CoefficientSet> also_for;  // the target must hold under these too (robust design)
   double target_sigma_arcsec = 0.02;  // largest 1-sigma of the fitted angle over the range, both axes
-  double extent_deg = 0.45;           // offsets within +-extent along pitch and along yaw
+  double extent_deg = 0.42;           // offsets within +-extent along pitch and along yaw (the paper's grid)
   double candidate_step_deg = 0.01;   // candidate offsets every this much
   double rate_deg_s = 0.5;            // gimbal slew rate
   double accel_deg_s2 = 1.0;          // gimbal acceleration

@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "procedures/procedure.h"
+
 namespace fpss {
 namespace {
 
@@ -52,6 +54,57 @@ std::string design_procedure_text(const ExperimentDesign& d, const DesignInputs&
   t += "  # Table 1 of the paper: mean residuals 0.26-0.79 arcsec, max 0.9-2.1 arcsec.\n";
   t += "  - check:\n      mean_abs_arcsec: 0.8\n      max_abs_arcsec: 2.1\n";
   return t;
+}
+
+}  // namespace fpss
+
+namespace fpss {
+namespace {
+
+// The paper's grid as shipped (procedures/discrete_grid.yaml, read and expanded by the procedure
+// language) on the same bench, for comparison.
+nlohmann::ordered_json paper_grid(const DesignInputs& in) {
+  const Procedure grid = load_procedure(shipped_procedures_dir() / "discrete_grid.yaml");
+  std::vector<DesignOffset> offs;
+  int frames = 0;
+  for (const auto& step : grid.steps) {
+    const auto* g = std::get_if<GridStep>(&step.body);
+    if (!g) continue;
+    frames = g->frames.count(in.frame_rate_hz);
+    for (StandAxis axis : g->axes) {
+      for (double o : g->offsets_arcsec(axis)) offs.push_back({axis == StandAxis::pitch, o / 3600});
+    }
+  }
+  nlohmann::ordered_json j;
+  j["bench_time_s"] = design_time_s(in, offs, frames);
+  j["max_sigma_arcsec_pitch"] = predicted_max_sigma_arcsec(in, offs, frames, true);
+  j["max_sigma_arcsec_yaw"] = predicted_max_sigma_arcsec(in, offs, frames, false);
+  return j;
+}
+
+}  // namespace
+
+nlohmann::ordered_json design_report_json(const ExperimentDesign& d, const DesignInputs& in,
+                                          const DesignSources& src) {
+  nlohmann::ordered_json inputs = {
+      {"bench", src.bench},          {"rate_deg_s", in.rate_deg_s},
+      {"accel_deg_s2", in.accel_deg_s2}, {"settle_s", in.settle_s},
+      {"frame_rate_hz", in.frame_rate_hz}, {"count_noise_counts", in.count_noise_counts},
+      {"count_noise_source", src.count_noise}, {"ref_noise_arcsec", in.ref_noise_arcsec},
+      {"prior", src.prior},          {"extent_deg", in.extent_deg}};
+  nlohmann::ordered_json robust = nlohmann::ordered_json::array();
+  for (const auto& set : in.also_for) robust.push_back(set.unit);
+  inputs["robust_over"] = robust;
+  nlohmann::ordered_json offsets = nlohmann::ordered_json::array();
+  for (const auto& o : d.offsets) offsets.push_back({{"axis", o.pitch ? "pitch" : "yaw"}, {"angle_deg", o.angle_deg}});
+  nlohmann::ordered_json j = {{"reached", d.reached}, {"target_sigma_arcsec", in.target_sigma_arcsec},
+                              {"bench_time_s", d.bench_time_s}, {"max_sigma_arcsec_pitch", d.max_sigma_arcsec_pitch},
+                              {"max_sigma_arcsec_yaw", d.max_sigma_arcsec_yaw},
+                              {"limited_by_pitch", d.limited_by_pitch}, {"limited_by_yaw", d.limited_by_yaw},
+                              {"samples_per_dwell", d.samples_per_dwell}, {"offsets", d.offsets.size()},
+                              {"offsets_deg", offsets}, {"inputs", inputs}, {"paper_grid", paper_grid(in)}};
+  if (!d.note.empty()) j["note"] = d.note;
+  return j;
 }
 
 }  // namespace fpss

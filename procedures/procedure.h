@@ -146,6 +146,10 @@ Procedure parse_procedure(std::string_view text, const std::string& origin, Diag
 // Reads a file; throws InputError listing every error.
 Procedure load_procedure(const std::filesystem::path& path);
 
+// The folder of the shipped procedures (discrete_grid.yaml, acceptance.yaml, the limits):
+// $FPSS_PROCEDURES_DIR, else the checkout's procedures/.
+std::filesystem::path shipped_procedures_dir();
+
 // The SHA-256 of a text, lowercase hex (the procedure hash in run.json and the catalogue).
 std::string sha256_hex(std::string_view text);
 

@@ -16,6 +16,7 @@
 #include "calib/coefficients.h"
 #include "calib/compare.h"
 #include "calib/design.h"
+#include "procedures/design_procedure.h"
 #include "calib/diagnosis/diagnosis.h"
 #include "calib/reduction.h"
 #include "calib/report.h"
@@ -197,14 +198,9 @@ py::object design_py(const py::object& prior, const py::list& also_for, const py
   } catch (const std::invalid_argument& e) {
     throw InputError(fmt::format("design: {}", e.what()));
   }
-  nlohmann::ordered_json offsets = nlohmann::ordered_json::array();
-  for (const auto& o : d.offsets) offsets.push_back({{"axis", o.pitch ? "pitch" : "yaw"}, {"angle_deg", o.angle_deg}});
-  nlohmann::ordered_json j = {{"reached", d.reached}, {"target_sigma_arcsec", in.target_sigma_arcsec},
-                              {"bench_time_s", d.bench_time_s}, {"max_sigma_arcsec_pitch", d.max_sigma_arcsec_pitch},
-                              {"max_sigma_arcsec_yaw", d.max_sigma_arcsec_yaw},
-                              {"limited_by_pitch", d.limited_by_pitch}, {"limited_by_yaw", d.limited_by_yaw},
-                              {"samples_per_dwell", d.samples_per_dwell}, {"offsets", offsets}};
-  if (!d.note.empty()) j["note"] = d.note;
+  DesignSources src{"keyword arguments", kw.contains("count_noise_counts") ? "keyword argument" : "default",
+                    in.prior.unit.empty() ? "prior" : in.prior.unit};
+  const nlohmann::ordered_json j = design_report_json(d, in, src);
   return to_python(j);
 }
 

@@ -184,7 +184,9 @@ def design(target_sigma_arcsec, *, prior="a-6-fpss1", also_for="published", **in
     "published" (every trustworthy published set, as ``fpss-stand design`` does), None, or a list.
     Other keyword arguments are DesignInputs' fields: extent_deg, candidate_step_deg, rate_deg_s,
     accel_deg_s2, settle_s, frame_rate_hz, count_noise_counts, ref_noise_arcsec, samples_choices,
-    max_offsets_per_axis. Returns a dict; ``offsets`` in recording order."""
+    max_offsets_per_axis. Returns the dict ``fpss-stand design --json`` prints: ``offsets`` (how
+    many), ``offsets_deg`` (each {axis, angle_deg}, in recording order), ``inputs`` and ``paper_grid``
+    (the shipped grid on the same bench, for comparison)."""
     known = {"extent_deg", "candidate_step_deg", "rate_deg_s", "accel_deg_s2", "settle_s", "frame_rate_hz",
              "count_noise_counts", "ref_noise_arcsec", "samples_choices", "max_offsets_per_axis"}
     unknown = set(inputs) - known

@@ -47,9 +47,12 @@ def test_a_bad_coefficient_dict_names_the_key():
 
 def test_design_reaches_a_loose_target():
     d = fs.design(0.05, also_for=None)
-    assert d["reached"] and d["offsets"] and d["samples_per_dwell"] > 0
+    assert d["reached"] and d["offsets"] == len(d["offsets_deg"]) and d["samples_per_dwell"] > 0
     assert max(d["max_sigma_arcsec_pitch"], d["max_sigma_arcsec_yaw"]) <= 0.05
-    assert {o["axis"] for o in d["offsets"]} == {"pitch", "yaw"}
+    assert {o["axis"] for o in d["offsets_deg"]} == {"pitch", "yaw"}
+    # the command's blocks too, from the one builder: the inputs and the paper's grid on this bench
+    assert d["inputs"]["extent_deg"] == 0.42 and d["inputs"]["robust_over"] == []
+    assert d["paper_grid"]["bench_time_s"] > d["bench_time_s"]
     with pytest.raises(ValueError, match="target_sigma_arcsec"):
         fs.design(-1, also_for=None)
     with pytest.raises(TypeError, match="rate_deg"):

@@ -50,8 +50,6 @@ AcceptanceLimits load_acceptance_limits(const std::filesystem::path& path);
 // ($FPSS_PROCEDURES_DIR overrides the folder, for an installed copy).
 std::filesystem::path default_limits_path();
 std::filesystem::path default_acceptance_procedure_path();
-// The folder of the shipped procedures both come from (discrete_grid.yaml, ...).
-std::filesystem::path shipped_procedures_dir();
 
 // ---- what each point of an acceptance procedure is for ----
 

@@ -1,8 +1,6 @@
 // The acceptance limits file: every limit with its source, read with file:line:column errors.
 #include <fmt/format.h>
 
-#include <cstdlib>
-
 #include "base/errors.h"
 #include "base/text_file.h"
 #include "procedures/yaml_diag.h"
@@ -65,11 +63,6 @@ void read_limit(MapReader& limits, const LimitField& f, bool positive, Acceptanc
 }
 
 }  // namespace
-
-fs::path shipped_procedures_dir() {
-  if (const char* env = std::getenv("FPSS_PROCEDURES_DIR"); env && *env) return env;
-  return fs::path(FPSS_SOURCE_DIR) / "procedures";
-}
 
 fs::path default_limits_path() { return shipped_procedures_dir() / "acceptance_limits.yaml"; }
 fs::path default_acceptance_procedure_path() { return shipped_procedures_dir() / "acceptance.yaml"; }

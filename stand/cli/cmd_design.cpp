@@ -16,8 +16,6 @@
 #include "calib/design.h"
 #include "fixtures/bench.h"
 #include "procedures/design_procedure.h"
-#include "procedures/procedure.h"
-#include "stand/acceptance/acceptance.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
@@ -30,17 +28,12 @@ struct DesignArgs {
   double target_sigma_arcsec = 0;
   std::string stand_file, bench_file, prior_file, out;
   bool emulate = false, json = false, prior_only = false;
-  double extent_deg = 0.42, settle_s = 0.5;
+  double extent_deg = DesignInputs{}.extent_deg, settle_s = DesignInputs{}.settle_s;
   std::optional<double> count_noise_counts, ref_noise_arcsec;
 };
 
-// Where the noise figures came from, for the printout.
-struct Sources {
-  std::string bench, count_noise, prior;
-};
-
 // The bench's rates, frame rate and noise: from the stand file, or from the emulated bench.
-DesignInputs bench_inputs(const DesignArgs& a, Sources& src) {
+DesignInputs bench_inputs(const DesignArgs& a, DesignSources& src) {
   DesignInputs in;
   if (!a.stand_file.empty()) {
     const StandConfig stand = load_stand_file(a.stand_file);
@@ -63,7 +56,7 @@ DesignInputs bench_inputs(const DesignArgs& a, Sources& src) {
   return in;
 }
 
-DesignInputs design_inputs(const DesignArgs& a, Sources& src) {
+DesignInputs design_inputs(const DesignArgs& a, DesignSources& src) {
   DesignInputs in = bench_inputs(a, src);
   in.target_sigma_arcsec = a.target_sigma_arcsec;
   in.extent_deg = a.extent_deg;
@@ -90,47 +83,6 @@ DesignInputs design_inputs(const DesignArgs& a, Sources& src) {
     }
   }
   return in;
-}
-
-// The paper's grid as shipped (procedures/discrete_grid.yaml, read and expanded by the procedure
-// language) on the same bench, for comparison.
-nlohmann::ordered_json paper_grid(const DesignInputs& in) {
-  const Procedure grid = load_procedure(shipped_procedures_dir() / "discrete_grid.yaml");
-  std::vector<DesignOffset> offs;
-  int frames = 0;
-  for (const auto& step : grid.steps) {
-    const auto* g = std::get_if<GridStep>(&step.body);
-    if (!g) continue;
-    frames = g->frames.count(in.frame_rate_hz);
-    for (StandAxis axis : g->axes) {
-      for (double o : g->offsets_arcsec(axis)) offs.push_back({axis == StandAxis::pitch, o / 3600});
-    }
-  }
-  nlohmann::ordered_json j;
-  j["bench_time_s"] = design_time_s(in, offs, frames);
-  j["max_sigma_arcsec_pitch"] = predicted_max_sigma_arcsec(in, offs, frames, true);
-  j["max_sigma_arcsec_yaw"] = predicted_max_sigma_arcsec(in, offs, frames, false);
-  return j;
-}
-
-nlohmann::ordered_json design_json(const ExperimentDesign& d, const DesignInputs& in, const Sources& src) {
-  nlohmann::ordered_json inputs = {
-      {"bench", src.bench},          {"rate_deg_s", in.rate_deg_s},
-      {"accel_deg_s2", in.accel_deg_s2}, {"settle_s", in.settle_s},
-      {"frame_rate_hz", in.frame_rate_hz}, {"count_noise_counts", in.count_noise_counts},
-      {"count_noise_source", src.count_noise}, {"ref_noise_arcsec", in.ref_noise_arcsec},
-      {"prior", src.prior},          {"extent_deg", in.extent_deg}};
-  nlohmann::ordered_json robust = nlohmann::ordered_json::array();
-  for (const auto& set : in.also_for) robust.push_back(set.unit);
-  inputs["robust_over"] = robust;
-  nlohmann::ordered_json j = {{"reached", d.reached}, {"target_sigma_arcsec", in.target_sigma_arcsec},
-                              {"bench_time_s", d.bench_time_s}, {"max_sigma_arcsec_pitch", d.max_sigma_arcsec_pitch},
-                              {"max_sigma_arcsec_yaw", d.max_sigma_arcsec_yaw},
-                              {"limited_by_pitch", d.limited_by_pitch}, {"limited_by_yaw", d.limited_by_yaw},
-                              {"samples_per_dwell", d.samples_per_dwell}, {"offsets", d.offsets.size()},
-                              {"inputs", inputs}, {"paper_grid", paper_grid(in)}};
-  if (!d.note.empty()) j["note"] = d.note;
-  return j;
 }
 
 void print_design(const nlohmann::ordered_json& j, const std::string& out) {
@@ -160,7 +112,7 @@ int run_design(const DesignArgs& a) {
   }
   if (!a.bench_file.empty() && !a.emulate) throw InputError("design: --bench needs --emulate");
   if (!a.out.empty()) check_output_path(a.out);
-  Sources src;
+  DesignSources src;
   const DesignInputs in = design_inputs(a, src);
   ExperimentDesign d;
   try {
@@ -168,7 +120,7 @@ int run_design(const DesignArgs& a) {
   } catch (const std::invalid_argument& e) {
     throw InputError(fmt::format("design: {}", e.what()));
   }
-  const auto j = design_json(d, in, src);
+  const auto j = design_report_json(d, in, src);
   if (d.reached && !a.out.empty()) {
     write_text_atomic(a.out, design_procedure_text(d, in, std::filesystem::path(a.out).stem().string()));
   }
@@ -202,8 +154,8 @@ void add_design(CLI::App& app, Runner& run) {
                 "hold under every published transfer function too");
   sub->add_option("--count-noise-counts", a->count_noise_counts, "count noise per frame before rounding");
   sub->add_option("--ref-noise-arcsec", a->ref_noise_arcsec, "reference noise per frame (arcsec)");
-  sub->add_option("--extent-deg", a->extent_deg, "offsets within +-this along each axis (default 0.42)");
-  sub->add_option("--settle-s", a->settle_s, "settle after each move (default 0.5 s)");
+  sub->add_option("--extent-deg", a->extent_deg, fmt::format("offsets within +-this along each axis (default {})", DesignInputs{}.extent_deg));
+  sub->add_option("--settle-s", a->settle_s, fmt::format("settle after each move (default {} s)", DesignInputs{}.settle_s));
   sub->add_option("--out", a->out, "write the procedure file here (when the target is reached)");
   sub->add_flag("--json", a->json, "print the design as JSON");
   examples(sub, {"fpss-stand design --target-sigma-arcsec 0.5 --emulate --out designed.yaml",
