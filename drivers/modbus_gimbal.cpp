@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "drivers/endpoints.h"
+#include "drivers/host_clock.h"
 
 namespace fpss {
 
@@ -40,7 +41,6 @@ const char* holding_name(int addr) {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double now_s() { return std::chrono::duration<double>(Clock::now().time_since_epoch()).count(); }
 
 constexpr double kMasPerArcsec = 1000.0;
 
@@ -283,7 +283,7 @@ GimbalState ModbusGimbal::read_state() {
   uint16_t r[gimbal_reg::kInputCount];
   transact(Op::read_input, 0, gimbal_reg::kInputCount, r);
   GimbalState s = decode_gimbal_state(r);
-  s.host_time_s = now_s();
+  s.host_time_s = host_now_s();
   return s;
 }
 

@@ -10,12 +10,12 @@
 #include <cmath>
 
 #include "drivers/endpoints.h"
+#include "drivers/host_clock.h"
 
 namespace fpss {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double now_s() { return std::chrono::duration<double>(Clock::now().time_since_epoch()).count(); }
 auto secs(double s) { return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s)); }
 
 constexpr double kReadSlice_s = 0.05;  // how often the reader thread looks at its stop flag
@@ -104,7 +104,7 @@ void SerialSensor::reader_loop() {
       continue;
     }
     if (n == 0) continue;
-    const double t = now_s();  // host receive time of every frame completed by this chunk
+    const double t = host_now_s();  // host receive time of every frame completed by this chunk
     std::lock_guard lk(mu_);
     parser_.feed(buf, n, [&](const frame::Frame& f) { on_frame(f, t); });
   }

@@ -15,7 +15,6 @@
 namespace fpss::diag {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // A step whose reference spans more than this on an axis moved during the step (a slew).
 // Encoder noise is ~0.05 arcsec, grid offsets hundreds of arcsec.
 constexpr double kMotionSpan_arcsec = 5.0;

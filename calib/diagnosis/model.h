@@ -14,6 +14,9 @@
 
 namespace fpss::diag {
 
+// A missing value in the diagnosis's arrays and results.
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
 enum class StepKind : uint8_t { dwell, motion };
 enum class Use : uint8_t { excluded, fit, heldout };
 

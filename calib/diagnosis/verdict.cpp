@@ -14,7 +14,6 @@ namespace {
 
 using ojson = nlohmann::ordered_json;
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 }  // namespace
 

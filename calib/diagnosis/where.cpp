@@ -15,7 +15,6 @@ namespace {
 
 using ojson = nlohmann::ordered_json;
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Each factor explains the residual through a few smooth functions of itself (a cubic in the
 // factor, its own constant for rows where it does not apply), fitted on the fit rows and judged
