@@ -68,6 +68,16 @@ RecordedRow PointMeasurer::make_row(const Action& a, Phase phase, const SensorSa
   return r;
 }
 
+double PointMeasurer::since_arrival_s(const SensorSample& f, const GimbalState& arrived, double arrived_s) const {
+  // One clock for both devices: the frame's own stamp. Else the host's receipts of the frame and
+  // of the in-position reading, at the bench's pace, from that reading's stamp back to the arrival.
+  const double t = b_.clock == ClockSync::shared
+                       ? clock_.sensor_clock_s(f) - arrived_s
+                       : (f.host_time_s - arrived.host_time_s) * b_.time_scale +
+                             (static_cast<double>(arrived.sample_time_us) * 1e-6 - arrived_s);
+  return std::round(t * 1e6) / 1e6;  // whole microseconds, as the devices count
+}
+
 void PointMeasurer::recover(const std::string& reason, bool sensor_side) {
   ++stats_.recoveries;
   sched_.drop_moves_ahead();  // the gimbal is stopped below: a move commanded ahead is void
@@ -271,6 +281,7 @@ PointMeasurer::DwellFrames PointMeasurer::take_dwell(const Action& a, const Gimb
 void PointMeasurer::measure_dwell(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
     const GimbalState arrived = sched_.move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
+    const double arrived_s = sched_.arrived_s();  // the gimbal's clock
     const DwellFrames d = take_dwell(a, arrived);
     // Everything the gimbal had to do here is done: its next move starts now (unless scheduled
     // already), and the checks and the storing below overlap it.
@@ -284,6 +295,7 @@ void PointMeasurer::measure_dwell(const Action& a, int session) {
       const GimbalState& g = d.refs[d.ref_of[i]];
       const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
       rows.push_back(make_row(a, a.phase, d.frames[i], clock_.sensor_clock_s(d.frames[i]), ref, temp, attempt, session));
+      rows.back().time_since_move_s = since_arrival_s(d.frames[i], arrived, arrived_s);
     }
     publish_point(a, std::move(rows), attempt, session, d.invalid);
   });

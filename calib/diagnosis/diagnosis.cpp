@@ -428,7 +428,8 @@ void Diagnoser::describe() {
                  {"time_span_s", {t_lo, t_hi}},
                  {"noise_floor_per_axis_arcsec", {{"pitch", sig[0]}, {"yaw", sig[1]}}},
                  {"temperature_c", r.has_temperature},
-                 {"settle_s", opts_.settle_s}};
+                 {"settle_s", opts_.settle_s},
+                 {"arrival_times", r.has_since_move ? "recorded" : "assumed settle_s"}};
 }
 
 void Diagnoser::warn() {

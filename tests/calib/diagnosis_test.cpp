@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -343,6 +344,27 @@ TEST(Diagnosis, GapJsonCarriesTheContractKeysInTheEmulatorsNames) {
     EXPECT_EQ(keys, want) << name;
   }
   EXPECT_NEAR(j["causes"][0]["params"]["width_arcsec"].get<double>(), 3.0, 0.1);
+  // No time_since_move_s column: GAP.json says the arrivals were assumed, and a warning says from what.
+  EXPECT_EQ(j["recording"]["arrival_times"], "assumed settle_s");
+}
+
+// A recording with its arrival times (time_since_move_s, as `run` records them): GAP.json says
+// they were recorded, and no warning asks for them.
+TEST(Diagnosis, RecordedArrivalTimesAreSaidToBeRecorded) {
+  const SampleTable t = record(bench(103, {"settling:amplitude_arcsec=3,tau_s=0.4"}));
+  DiagnosisColumns c = DiagnosisColumns::of(t);
+  c.time_since_move_s.assign(t.size(), std::numeric_limits<float>::quiet_NaN());
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.phase[i] == Phase::slew || t.phase[i] == Phase::move) continue;
+    size_t first = i;
+    while (first > 0 && t.step[first - 1] == t.step[i]) --first;
+    c.time_since_move_s[i] = static_cast<float>(t.time_s[i] - t.time_s[first] + kSettle + 0.005);
+  }
+  const Diagnosis d = diagnose(std::move(c), default_bench_config().truth, options());
+  const auto j = d.to_json();
+  EXPECT_EQ(j["recording"]["arrival_times"], "recorded");
+  for (const auto& w : d.warnings) EXPECT_EQ(w.find("no time_since_move_s"), std::string::npos) << w;
+  EXPECT_EQ(d.cause, "settling");
 }
 
 // Outlier frames (1.5 % of the frames, a wild count on one axis) are reported and kept out of
