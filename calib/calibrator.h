@@ -51,7 +51,7 @@ struct CalibrationOptions {
   // within-dwell scatter. Used for the quantisation correction and the dwells' weights.
   std::optional<double> count_noise_counts;
   std::string count_noise_source = "caller";  // how the report names a given noise ("stand file", ...)
-  // Frames far from their step's median are left out of the dwell means (calib/outliers.h).
+  // Frames far from the running median of their step are left out of the dwell means (calib/outliers.h).
   bool reject_outliers = true;
   // The differences method fits the changes with their covariance (GLS); false: the plain
   // least squares of the changes (for comparison).
