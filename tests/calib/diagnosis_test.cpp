@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -144,6 +145,20 @@ TEST(Diagnosis, NoiseOnlyGivesNoneWithGapAfterEqualBefore) {
     EXPECT_NEAR(d.noise_floor_arcsec, d.gap_before_arcsec, 0.15 * d.gap_before_arcsec);
     EXPECT_EQ(d.effects.size(), 11u);  // every candidate tried (all observable) and none
   }
+}
+
+// The coefficients candidate has a detection limit like the others: the RMS change of the angle
+// that would have been material on the held-out rows, with its 16 parameters' penalty.
+TEST(Diagnosis, CoefficientsHaveADetectionLimitInArcsec) {
+  const Diagnosis d = diagnose(record(bench(12, {})), default_bench_config().truth, options());
+  const auto it = std::find_if(d.effects.begin(), d.effects.end(), [](const EffectResult& e) { return e.name == "coefficients"; });
+  ASSERT_NE(it, d.effects.end());
+  ASSERT_TRUE(it->detection_limit.contains("angle_rms_arcsec")) << it->detection_limit.dump();
+  const double N = 2.0 * d.split["heldout_rows"].get<double>(), nf = d.noise_floor_arcsec;
+  const double want = nf * std::sqrt(std::max(0.1, std::expm1(16.0 * std::log(N) / N)));
+  EXPECT_NEAR(it->detection_limit["angle_rms_arcsec"].get<double>(), want, 1e-9);
+  EXPECT_GT(it->detection_limit["angle_rms_arcsec"].get<double>(), 0.3 * nf);
+  EXPECT_LT(it->detection_limit["angle_rms_arcsec"].get<double>(), nf);
 }
 
 TEST(Diagnosis, PaperSlewCaseTimeSkewFoundLedBySlewRateWithin2ms) {
