@@ -89,6 +89,7 @@ void PointMeasurer::recover(const std::string& reason, bool sensor_side) {
     } else if (st.has(kMoving) || st.has(kMovePending)) {
       io_.gimbal().stop();
     }
+    io_.note_place(st.pitch_arcsec, st.yaw_arcsec);  // stopped about here: the next move starts there
   } catch (const DeviceError& e) {
     log_.warn("gimbal not answering while recovering: {}", e.what());
   }
@@ -121,6 +122,7 @@ void PointMeasurer::with_remeasure(const Action& a, const std::function<void(int
       cause = e.cause;
       sensor_side = true;
     } catch (const GimbalFailure& e) {
+      if (e.final) throw PointFailure(fmt::format("{}: {}", a.is_point() ? a.describe() : label(a), e.what()), e.cause);
       reason = e.what();
       cause = e.cause;
     } catch (const PointFailure& e) {
@@ -371,6 +373,7 @@ void PointMeasurer::measure_slew(const Action& a, int session) {
         if (st.has(kFault) || st.fault != GimbalFault::none) {
           throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
         }
+        io_.check_commanded_place(st);
         if (in_position_at(st, a.leg_target(leg), tol)) {
           if (leg++ == a.reversals) break;
           Timed t(stats_.device_s);
