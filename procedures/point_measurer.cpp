@@ -370,9 +370,8 @@ void PointMeasurer::measure_slew(const Action& a, int session) {
         io_.check_abort();
         GimbalState st = io_.read_gimbal();
         fix(st);
-        if (st.has(kFault) || st.fault != GimbalFault::none) {
+        if (st.has(kFault) || st.fault != GimbalFault::none)
           throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
-        }
         io_.check_commanded_place(st);
         if (in_position_at(st, a.leg_target(leg), tol)) {
           if (leg++ == a.reversals) break;
