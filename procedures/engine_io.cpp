@@ -76,6 +76,7 @@ void EngineIo::check_commanded_place(const GimbalState& st) const {
   // Three places in a row span every path the gimbal can take on this run's commands: a move
   // (each axis monotonic from one place to the next, so inside their box), the move queued
   // behind it, and a stop part-way, which the place after it continues from.
+  if (places_.empty()) return;
   const double m = b_.in_position_tolerance_arcsec + kForeignMargin_arcsec;
   const double p = st.pitch_arcsec, y = st.yaw_arcsec;
   for (size_t i = 0; i < places_.size(); ++i) {
@@ -87,7 +88,6 @@ void EngineIo::check_commanded_place(const GimbalState& st) const {
     }
     if (p >= p0 - m && p <= p1 + m && y >= y0 - m && y <= y1 + m) return;
   }
-  if (places_.empty()) return;
   throw GimbalFailure(fmt::format("gimbal found at {:.1f}, {:.1f} arcsec, which this run never commanded: another client?", p, y),
                       StopCause::commanded_elsewhere, /*final=*/true);
 }
