@@ -99,6 +99,7 @@ void PointMeasurer::recover(const std::string& reason, bool sensor_side) {
     } else if (st.has(kMoving) || st.has(kMovePending)) {
       io_.gimbal().stop();
     }
+    io_.note_place(st.pitch_arcsec, st.yaw_arcsec);  // stopped about here: the next move starts there
   } catch (const DeviceError& e) {
     log_.warn("gimbal not answering while recovering: {}", e.what());
   }
@@ -131,6 +132,7 @@ void PointMeasurer::with_remeasure(const Action& a, const std::function<void(int
       cause = e.cause;
       sensor_side = true;
     } catch (const GimbalFailure& e) {
+      if (e.final) throw PointFailure(fmt::format("{}: {}", a.is_point() ? a.describe() : label(a), e.what()), e.cause);
       reason = e.what();
       cause = e.cause;
     } catch (const PointFailure& e) {
@@ -380,9 +382,9 @@ void PointMeasurer::measure_slew(const Action& a, int session) {
         io_.check_abort();
         GimbalState st = io_.read_gimbal();
         fix(st);
-        if (st.has(kFault) || st.fault != GimbalFault::none) {
+        if (st.has(kFault) || st.fault != GimbalFault::none)
           throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
-        }
+        io_.check_commanded_place(st);
         if (in_position_at(st, a.leg_target(leg), tol)) {
           if (leg++ == a.reversals) break;
           Timed t(stats_.device_s);

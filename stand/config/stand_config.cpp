@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <tuple>
 
 #include "base/errors.h"
 #include "base/text_file.h"
@@ -90,6 +91,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
     if (auto v = r.integer("command_retries", false, 0, 100)) c.sensor.command_retries = static_cast<int>(*v);
     if (auto v = r.integer("reconnects", false, 0, 100)) c.sensor.reconnects = static_cast<int>(*v);
     if (auto v = r.string("serial")) c.unit_serial = *v;
+    if (auto v = r.range("temperature_range_c")) std::tie(c.sensor.temperature_min_c, c.sensor.temperature_max_c) = *v;
     r.finish();
   }
   // soft limits
@@ -211,7 +213,8 @@ nlohmann::json to_json(const StandConfig& s) {
        {{"endpoint", s.sensor.endpoint},
         {"command_timeout_s", s.sensor.command_timeout_s},
         {"command_retries", s.sensor.command_retries},
-        {"reconnects", s.sensor.reconnects}}},
+        {"reconnects", s.sensor.reconnects},
+        {"temperature_range_c", {s.sensor.temperature_min_c, s.sensor.temperature_max_c}}}},
       {"bench", to_json(s.bench)},
   };
 }
