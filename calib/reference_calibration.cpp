@@ -2,7 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <tuple>
 #include <numbers>
 #include <set>
 
@@ -155,6 +157,26 @@ std::pair<double, double> ReferenceCalibration::u_true_arcsec(double p, double y
 
 nlohmann::json ReferenceCalibration::identity() const {
   return {{"file", file}, {"sha256", sha256}, {"certificate", certificate}, {"date", date}, {"lab", lab}};
+}
+
+void correct_reference_angles(const ReferenceCalibration& r, const AxisMapping& mount, double& ref_pitch_arcsec,
+                              double& ref_yaw_arcsec) {
+  const auto [p, y] = mount.stand_from_sensor(ref_pitch_arcsec, ref_yaw_arcsec);
+  const auto [tp, ty] = r.true_from_reading(p, y);
+  std::tie(ref_pitch_arcsec, ref_yaw_arcsec) = mount.sensor_from_stand(tp, ty);
+}
+
+double reference_u_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis, double angle_arcsec,
+                          double other_extent_arcsec) {
+  double worst = 0;
+  for (double other : {-other_extent_arcsec, 0.0, other_extent_arcsec}) {
+    const double a = sensor_axis == 0 ? angle_arcsec : other, b = sensor_axis == 0 ? other : angle_arcsec;
+    const auto [p, y] = mount.stand_from_sensor(a, b);
+    const auto [up, uy] = r.u_true_arcsec(p, y);
+    // The stand axis this sensor axis sees.
+    worst = std::max(worst, (sensor_axis == 0) == (mount.pitch_axis == AxisMapping::alpha) ? up : uy);
+  }
+  return worst;
 }
 
 ReferenceCalibration parse_reference_calibration(const nlohmann::json& j, const std::string& origin) {

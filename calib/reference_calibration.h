@@ -7,6 +7,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "calib/axis_mapping.h"
+
 namespace fpss {
 
 // One term of a certificate: its value and its standard uncertainty (same unit).
@@ -46,6 +48,15 @@ struct ReferenceCalibration {
   // {file, sha256, certificate, date, lab}: what calibration.json, run.json and the certificate name.
   nlohmann::json identity() const;
 };
+
+// A row's reference angles (sensor frame, the samples contract's ref_pitch/ref_yaw) made true:
+// to the gimbal's axes through `mount`, true_from_reading, and back.
+void correct_reference_angles(const ReferenceCalibration& r, const AxisMapping& mount, double& ref_pitch_arcsec,
+                              double& ref_yaw_arcsec);
+// The reference's u (arcsec) of the sensor-frame angle `sensor_axis` (0 alpha, 1 beta) at `angle`,
+// the other sensor axis anywhere within +-other_extent (the worst of its two ends and zero).
+double reference_u_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis, double angle_arcsec,
+                          double other_extent_arcsec);
 
 // The limits a file's terms must keep (docs/formats.md, Limits).
 inline constexpr double kMaxReferenceScalePpm = 10000;
