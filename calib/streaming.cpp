@@ -12,6 +12,7 @@
 #include "base/errors.h"
 #include "calib/outliers.h"
 #include "calib/quantisation.h"
+#include "calib/reference_fit.h"
 #include "calib/refine.h"
 
 namespace fpss {
@@ -118,7 +119,9 @@ StreamingCalibrator::Estimate StreamingCalibrator::current() const {
 CalibrationReport StreamingCalibrator::finish() {
   close_step();
   if (auto d = builder_.flush()) take_dwell(*d);
-  return fit_so_far(opts_);
+  CalibrationReport rep = fit_so_far(opts_);
+  add_reference_uncertainty(rep, opts_);  // the final fit only: the live one answers for the data
+  return rep;
 }
 
 CalibrationReport StreamingCalibrator::fit_so_far(const CalibrationOptions& opts) const {
@@ -228,7 +231,12 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
   // Pass 3: the dwells, into the streaming calibrator.
   StreamingCalibrator cal(opts, origin);
   DwellBuilder b(origin);
-  const size_t rows = judged([&](const Sample& s, OutlierAxes o) {
+  const size_t rows = judged([&](const Sample& row, OutlierAxes o) {
+    Sample s = row;
+    // A raw recording: the reference's errors come off its angles before they enter a dwell.
+    if (opts.reference && opts.correct_reference) {
+      correct_reference_angles(*opts.reference, opts.mount, s.ref_pitch_arcsec, s.ref_yaw_arcsec);
+    }
     if (auto d = b.add(s, o)) cal.add_dwell(*d);
   });
   if (auto d = b.flush()) cal.add_dwell(*d);

@@ -48,7 +48,11 @@ void PointMeasurer::publish_point(const Action& a, std::vector<RecordedRow> meas
 
 RecordedRow PointMeasurer::make_row(const Action& a, Phase phase, const SensorSample& f, double sensor_time_s,
                                     const GimbalRef& g, double temperature_c, int attempt, int session) {
-  const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(g.pitch_arcsec, g.yaw_arcsec);
+  // The reference angles are the true ones when the reference's calibration is known; the raw
+  // encoder readings stay in the row's provenance.
+  const auto [true_p, true_y] =
+      b_.reference ? b_.reference->true_from_reading(g.pitch_arcsec, g.yaw_arcsec) : std::pair{g.pitch_arcsec, g.yaw_arcsec};
+  const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(true_p, true_y);
   RecordedRow r;
   r.sensor_time_s = sensor_time_s;
   r.sample = Sample{clock_.stand_time(sensor_time_s), phase, a.point + 1, ref_a, ref_b,

@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/sha256.h"  // sha256_hex, for the files a run names
 #include "calib/samples.h"
 #include "procedures/yaml_diag.h"
 
@@ -145,8 +146,5 @@ const std::vector<std::string_view>& step_types();
 Procedure parse_procedure(std::string_view text, const std::string& origin, Diagnostics& d);
 // Reads a file; throws InputError listing every error.
 Procedure load_procedure(const std::filesystem::path& path);
-
-// The SHA-256 of a text, lowercase hex (the procedure hash in run.json and the catalogue).
-std::string sha256_hex(std::string_view text);
 
 }  // namespace fpss

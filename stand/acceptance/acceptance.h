@@ -132,6 +132,7 @@ struct CertificateInfo {
   int64_t points_planned = 0, points_completed = 0;
   std::string date_utc;
   std::string calibration_file;         // "" when there is none
+  nlohmann::json reference;             // the reference calibration file's identity(); null: none
 };
 
 // acceptance.json: {"format": "fpss-stand acceptance/1", "verdict": "pass"|"fail", "passed",

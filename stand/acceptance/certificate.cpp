@@ -18,6 +18,7 @@ nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimi
   c["software"] = {{"name", "fpss-stand"}, {"version", info.software_version}};
   c["procedure"] = {{"name", info.procedure_name}, {"file", info.procedure_file}, {"sha256", info.procedure_sha256}};
   c["limits"] = {{"name", limits.name}, {"file", limits.origin}, {"sha256", limits.sha256}};
+  if (!info.reference.is_null()) c["reference"] = info.reference;  // the gimbal's calibration applied
   c["run"] = {{"id", info.run_id},
               {"dir", info.run_dir},
               {"outcome", info.run_outcome},
@@ -87,6 +88,11 @@ std::string certificate_text(const nlohmann::ordered_json& c) {
                    c["procedure"]["file"].get<std::string>(), c["procedure"]["sha256"].get<std::string>());
   s += fmt::format("Limits:     {} ({}), sha256 {}\n", c["limits"]["name"].get<std::string>(),
                    c["limits"]["file"].get<std::string>(), c["limits"]["sha256"].get<std::string>());
+  if (c.contains("reference")) {
+    s += fmt::format("Reference:  certificate {} of {}, {} ({}), sha256 {}\n", c["reference"]["certificate"].get<std::string>(),
+                     c["reference"]["date"].get<std::string>(), c["reference"]["lab"].get<std::string>(),
+                     c["reference"]["file"].get<std::string>(), c["reference"]["sha256"].get<std::string>());
+  }
   s += fmt::format("Run:        {} ({}, {}/{} points)\n", c["run"]["id"].get<std::string>(),
                    c["run"]["outcome"].get<std::string>(), c["run"]["points_completed"].get<int64_t>(),
                    c["run"]["points_planned"].get<int64_t>());

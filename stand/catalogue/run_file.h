@@ -51,6 +51,12 @@ struct RunFileAcceptance {
   std::optional<Limits> limits;
 };
 
+// `reference`: the reference calibration file the run applied to its reference angles
+// (calib/reference_calibration.h), as named by its identity().
+struct RunFileReference {
+  std::string file, sha256, certificate, date, lab;
+};
+
 struct RunFile {
   std::optional<std::string> format;  // kRunFileFormat
   std::optional<std::string> run_id;  // a UUIDv7; older runs: absent (the folder's name)
@@ -89,6 +95,7 @@ struct RunFile {
     std::optional<std::string> samples, journal, events, event_stream, calibration, gap;
   } files;
   std::optional<RunFileAcceptance> acceptance;
+  std::optional<RunFileReference> reference;  // absent: the readings were taken as true
   nlohmann::json extra = nlohmann::json::object();  // keys this version does not know, kept as read
 
   // The run id, or the folder's name for runs made before ids were UUIDs.

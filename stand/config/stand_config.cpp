@@ -49,6 +49,19 @@ void read_endpoint(MapReader& r, std::string& out, bool gimbal) {
 
 }  // namespace
 
+// reference: the gimbal's calibration file (docs/formats.md), relative to the stand file.
+static void read_reference(MapReader& top, const std::string& origin, EngineSettings& b, Diagnostics& d) {
+  const auto s = top.string("reference");
+  if (!s) return;
+  std::filesystem::path p = *s;
+  if (p.is_relative() && !origin.empty()) p = std::filesystem::path(origin).parent_path() / p;
+  try {
+    b.reference = load_reference_calibration(p);
+  } catch (const InputError& e) {
+    d.error(top.node("reference"), fmt::format("reference: {}", e.what()));
+  }
+}
+
 StandConfig parse_stand(std::string_view text, const std::string& origin, Diagnostics& d) {
   StandConfig c;
   c.origin = origin;
@@ -158,6 +171,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
     if (auto v = r.integer("max_remeasure", false, 0, 100)) b.max_remeasure = static_cast<int>(*v);
     r.finish();
   }
+  read_reference(top, origin, b, d);
   top.finish();
   return c;
 }
