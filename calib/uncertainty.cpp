@@ -75,7 +75,8 @@ Combined combine(const std::vector<BudgetEntry>& budget) {
   }
   c.u = std::sqrt(var);
   c.dof_eff = ws > 0 ? var * var / ws : kInf;
-  const double nu = std::isfinite(c.dof_eff) ? std::max(1.0, std::floor(c.dof_eff)) : kInf;
+  // The integer below, forgiving the rounding of u^4 / (u^4 / nu) for a single entry.
+  const double nu = std::isfinite(c.dof_eff) ? std::max(1.0, std::floor(c.dof_eff * (1 + 1e-12))) : kInf;
   c.k = student_t_quantile(0.975, nu);
   c.U = c.k * c.u;
   return c;

@@ -46,6 +46,10 @@ TEST(Combine, RootSumOfSquaresAndWelchSatterthwaite) {
   EXPECT_DOUBLE_EQ(c.U, c.k * 5);
   c = combine({{"a", 'A', 1, 1, 9}, {"b", 'A', 1, 1, 9}});
   EXPECT_NEAR(c.dof_eff, 18, 1e-12);
+  // One entry: its own degrees of freedom, and k at them (not at the integer below a rounding).
+  c = combine({{"a", 'A', 1, 0.0123, 48}});
+  EXPECT_NEAR(c.dof_eff, 48, 1e-9);
+  EXPECT_DOUBLE_EQ(c.k, student_t_quantile(0.975, 48));
   c = combine({{"b", 'B', 1, 2, kInf}});
   EXPECT_TRUE(std::isinf(c.dof_eff));
   EXPECT_NEAR(c.k, 1.95996, 1e-5);
