@@ -23,19 +23,22 @@ nlohmann::ordered_json rule_json(const DecisionRule& r) {
   return j;
 }
 
+// A guard multiple as the rule's sentence writes it (1.0, 1.5).
+std::string multiple_text(double m) { return m == std::floor(m) ? fmt::format("{:.1f}", m) : fmt::format("{}", m); }
+
 // Why the rule decided otherwise than simple acceptance would ("" when it did not): only a
 // value within its limit can differ, passing under simple and conditional under the others.
 std::string outcome_reason(const Criterion& k, const DecisionRule& r) {
   if (!k.measured || k.decision.outcome == k.simple_outcome) return "";
   const double v = *k.measured, a = k.decision.acceptance_limit;
   if (r.kind == DecisionRuleKind::guarded) {
-    return fmt::format("{:.4g} {} is within the limit {} {:.4g} but beyond the acceptance limit {:.4g}: the limit less "
+    return fmt::format("the value {:.4g} ({}) is within the limit {} {:.4g} but beyond the acceptance limit {:.4g}: the limit less "
                        "the guard band w = {} x U = {:.4g}; the true value may lie beyond the limit (U = {:.4g}, "
                        "95 %), so the outcome is {} where simple acceptance would pass it",
-                       v, k.unit, k.relation, k.limit, a, r.guard_multiple, std::fabs(k.limit - a), k.combined.U,
+                       v, k.unit, k.relation, k.limit, a, multiple_text(r.guard_multiple), std::fabs(k.limit - a), k.combined.U,
                        to_string(k.decision.outcome));
   }
-  return fmt::format("{:.4g} {} is within the limit {} {:.4g} but beyond the acceptance limit {:.4g}: the probability "
+  return fmt::format("the value {:.4g} ({}) is within the limit {} {:.4g} but beyond the acceptance limit {:.4g}: the probability "
                      "that the true value lies beyond the limit is {:.3f}, more than the {} allowed, so the outcome is "
                      "{} where simple acceptance would pass it",
                      v, k.unit, k.relation, k.limit, a, k.decision.false_accept, r.max_false_accept,
