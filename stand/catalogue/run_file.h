@@ -43,7 +43,7 @@ struct RunFileAdaptiveStop {
 // `acceptance`, written by `fpss-stand accept`.
 struct RunFileAcceptance {
   std::optional<std::string> file, certificate;
-  std::string verdict;  // pass | fail
+  std::string verdict;  // pass | conditional | fail
   std::optional<std::vector<std::string>> failed;
   struct Limits {
     std::string file, sha256;
