@@ -10,6 +10,7 @@
 #include "base/errors.h"
 #include "calib/outliers.h"
 #include "calib/quantisation.h"
+#include "calib/reference_fit.h"
 #include "calib/refine.h"
 #include "calib/units.h"
 
@@ -498,6 +499,7 @@ CalibrationReport calibrate_dwells(const std::vector<Dwell>& dwells, const Calib
   rep.pitch = fit_one(a, fit::Axis::alpha);
   rep.yaw = fit_one(b, fit::Axis::beta);
   if (rep.unit.empty() && opts.init) rep.unit = opts.init->unit;
+  add_reference_uncertainty(rep, opts);
   return rep;
 }
 
@@ -509,6 +511,10 @@ CalibrationReport calibrate(const Reduction& reduced, const CalibrationOptions& 
 }
 
 CalibrationReport calibrate(const SampleTable& samples, const CalibrationOptions& opts) {
+  if (opts.reference && opts.correct_reference) {
+    const SampleTable corrected = with_reference_applied(samples, opts);
+    return calibrate(reduce(corrected, opts.reduction()), opts, samples.origin, samples.size());
+  }
   return calibrate(reduce(samples, opts.reduction()), opts, samples.origin, samples.size());
 }
 

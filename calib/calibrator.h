@@ -13,6 +13,7 @@
 #include "calib/coefficients.h"
 #include "calib/dwells.h"
 #include "calib/reduction.h"
+#include "calib/reference_calibration.h"
 #include "calib/residuals.h"
 #include "calib/samples.h"
 #include "calib/varpro.h"
@@ -51,7 +52,7 @@ struct CalibrationOptions {
   // within-dwell scatter. Used for the quantisation correction and the dwells' weights.
   std::optional<double> count_noise_counts;
   std::string count_noise_source = "caller";  // how the report names a given noise ("stand file", ...)
-  // Frames far from their step's median are left out of the dwell means (calib/outliers.h).
+  // Frames far from the running median of their step are left out of the dwell means (calib/outliers.h).
   bool reject_outliers = true;
   // The differences method fits the changes with their covariance (GLS); false: the plain
   // least squares of the changes (for comparison).
@@ -68,6 +69,15 @@ struct CalibrationOptions {
   // axis; unset: the range the data cover. A streaming fit asks over the range a run will cover,
   // so that a sigma from the points so far is not small only because their range is.
   std::optional<std::array<double, 2>> sigma_range_pitch_arcsec, sigma_range_yaw_arcsec;
+
+  // The reference's own calibration (calib/reference_calibration.h): its u is added to the angle
+  // sigmas of the final fit (calib/reference_fit.h) and calibration.json names it. With
+  // `correct_reference`, every row's reference angles are corrected by it first (a raw recording);
+  // without, they already were (a run whose stand file named it). `mount` takes the rows'
+  // sensor-frame reference angles to the gimbal's axes the file describes.
+  std::optional<ReferenceCalibration> reference;
+  bool correct_reference = false;
+  AxisMapping mount;
 
   // The reduction's options these imply (the outlier rule and its noise).
   ReductionOptions reduction() const { return {reject_outliers, count_noise_counts, count_noise_source}; }
@@ -132,6 +142,9 @@ struct AxisFit {
   bool model_remainder = false;  // reduced chi2 materially > 1: sigmas scaled up by sigma_scale
   double sigma_scale = 1.0;
   size_t dwells_fitted = 0, levels = 0;
+  // The reference calibration's u at the worst listed angle (arcsec), already in the angle sigmas;
+  // NaN without a reference file.
+  double reference_u_max_arcsec = std::numeric_limits<double>::quiet_NaN();
 
   // The largest listed angle sigma; infinite when none is listed or an angle is not reached (the
   // fit cannot yet speak for the whole range).
@@ -145,6 +158,9 @@ struct CalibrationReport {
   size_t samples = 0, null_dwells = 0, offset_dwells = 0, pairs = 0;
   OutlierSummary outliers;  // frames the reduction left out of the dwell means, per axis, and its rule
   AxisFit pitch, yaw;  // pitch from counts_alpha (alpha), yaw from counts_beta (beta)
+  // The reference calibration file used: its identity() and `corrected_by` ("calibrate": the rows
+  // were corrected by this fit; "run": the recording was); absent without one.
+  std::optional<nlohmann::json> reference;
 
   // The fitted set in the coefficient-file format, with residuals, uncertainties, method,
   // solver summary and source as extra keys.

@@ -53,14 +53,98 @@ double StepValues::median() const {
   return m;
 }
 
-double StepOutlierScreen::pool_step(const StepValues& step) {
-  if (step.frames < static_cast<uint64_t>(std::max(0, rule_.min_step_frames)) || step.frames == 0) return NAN;
-  const double m = step.median();
-  for (const auto& [v, n] : step.values) {
-    deviations_.values[std::fabs(v - m)] += n;
-    deviations_.frames += n;
+std::vector<FrameCentre> step_centres(const std::vector<double>& v, const OutlierRule& rule, std::vector<double>* pooled) {
+  std::vector<FrameCentre> c(v.size());
+  if (v.empty() || static_cast<int>(v.size()) < rule.min_step_frames) return c;
+  std::vector<double> tmp;
+  if (rule.local_half_window <= 0) {
+    tmp = v;
+    const double m = median_of(tmp);
+    for (size_t q = 0; q < v.size(); ++q) {
+      c[q].centre = m;
+      if (pooled) pooled->push_back(std::fabs(v[q] - m));
+    }
+    return c;
   }
-  return m;
+  // The median of the frame and its neighbours, as many on each side (up to k) as the step has:
+  // it keeps a step change and anything monotonic (a settling decay) exactly, while a spike never
+  // is the median. The deviation of a noise-only frame from such a median is smaller than from the
+  // step's median, by a factor that depends on the window (Gaussian: 0.462, 0.732, 0.817 of sigma
+  // for 3, 5, 7 frames): the robust sigma is taken from deviations divided by it. A frame is judged
+  // by its own deviation (in the tail the median hardly depends on the frame, so the deviation is
+  // as wide as the noise).
+  // A NaN frame is absent (a frame judged again without its flagged neighbours): it keeps its
+  // place, so the window still spans the same time, and is left out of the median.
+  const size_t k = static_cast<size_t>(rule.local_half_window), n = v.size();
+  for (size_t q = 1; q + 1 < n; ++q) {
+    const size_t h = std::min({k, q, n - 1 - q});
+    tmp.clear();
+    for (size_t w = q - h; w <= q + h; ++w)
+      if (std::isfinite(v[w])) tmp.push_back(v[w]);
+    if (tmp.empty()) continue;
+    const double m = median_of(tmp);
+    const double f = h == 1 ? 0.462 : h == 2 ? 0.732 : h == 3 ? 0.817 : 1.0 - 0.183 * 3.0 / static_cast<double>(h);
+    c[q].centre = m;
+    if (pooled && std::isfinite(v[q])) pooled->push_back(std::fabs(v[q] - m) / f);
+  }
+  // A step's first and last frames (not pooled): the line through the running medians of their
+  // two nearest neighbours, extrapolated to them (the median of 3 and of 5 frames, which a spike
+  // never is, the judged frame's own included), against a limit widened by the extrapolation's own
+  // scatter (x1.5); with three frames, the middle one's median. A line through the raw neighbours
+  // (Theil-Sen of three) was pulled by a spike among them and flagged clean edge frames.
+  if (n >= 3) {
+    c[0] = {n >= 4 ? 2 * c[1].centre - c[2].centre : c[1].centre, true};
+    c[n - 1] = {n >= 4 ? 2 * c[n - 2].centre - c[n - 3].centre : c[n - 2].centre, true};
+  }
+  return c;
+}
+
+std::vector<bool> judge_step(const std::vector<double>& v, const OutlierRule& rule, double sigma) {
+  std::vector<bool> out(v.size(), false);
+  if (!(sigma > 0)) return out;
+  const double limit = rule.threshold_sigma * sigma;
+  // How far a frame lies beyond its limit (> 1: an outlier).
+  auto excess = [&](double x, const FrameCentre& c) {
+    if (!std::isfinite(x) || std::isnan(c.centre)) return 0.0;
+    return std::fabs(x - c.centre) / ((c.edge ? 1.5 : 1.0) * limit);
+  };
+  if (rule.local_half_window <= 0) {
+    const std::vector<FrameCentre> c = step_centres(v, rule);
+    for (size_t q = 0; q < v.size(); ++q) out[q] = excess(v[q], c[q]) > 1.0;
+    return out;
+  }
+  // A spike in a steep decay moves its neighbours' running median by one frame's decay, which
+  // may exceed the limit: the worst frame is taken first and replaced by the line between its
+  // nearest frames not taken (the windows keep their span in time), then the step is judged again.
+  std::vector<double> w(v);
+  for (size_t round = 0; round < v.size(); ++round) {
+    const std::vector<FrameCentre> c = step_centres(w, rule);
+    size_t worst = v.size();
+    double most = 1.0;
+    for (size_t q = 0; q < w.size(); ++q) {
+      if (out[q]) continue;
+      const double e = excess(w[q], c[q]);
+      if (e > most) { most = e; worst = q; }
+    }
+    if (worst == v.size()) break;
+    out[worst] = true;
+    size_t lo = worst, hi = worst;
+    while (lo > 0 && out[lo]) --lo;
+    while (hi + 1 < w.size() && out[hi]) ++hi;
+    const bool has_lo = !out[lo], has_hi = !out[hi];
+    if (!has_lo && !has_hi) break;  // every frame taken
+    for (size_t q = has_lo ? lo + 1 : 0; q < (has_hi ? hi : w.size()); ++q) {
+      w[q] = !has_lo ? w[hi] : !has_hi ? w[lo]
+                     : w[lo] + (w[hi] - w[lo]) * static_cast<double>(q - lo) / static_cast<double>(hi - lo);
+    }
+  }
+  return out;
+}
+
+void StepOutlierScreen::pool_step(const std::vector<double>& frames) {
+  std::vector<double> dev;
+  step_centres(frames, rule_, &dev);
+  for (const double d : dev) deviations_.add(d);
 }
 
 double StepOutlierScreen::robust_sigma() const {
@@ -82,69 +166,30 @@ OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vecto
 
   // With reading ids the sigma comes from differences between readings (below), not from these.
   const bool pooled = shared_reading.empty();
-  std::vector<double> centre(residual.size(), NAN), deviations, tmp;
-  std::vector<bool> edge(residual.size(), false);
-  if (pooled) deviations.reserve(residual.size());
-  for (const auto& [id, rows] : rows_of) {
-    if (static_cast<int>(rows.size()) < rule.min_step_frames) continue;
-    if (rule.local_half_window > 0) {
-      // The median of the frame and its neighbours, as many on each side (up to k) as the step
-      // has: it keeps a step change and anything monotonic exactly, while a spike never is the
-      // median. The deviation of a noise-only frame from such a median is smaller than from the
-      // step's median, by a factor that depends on the window (Gaussian: 0.462, 0.732, 0.817 of
-      // sigma for 3, 5, 7 frames): the robust sigma is taken from deviations divided by it. A frame
-      // is judged by its own deviation (in the tail the median hardly depends on the frame, so the
-      // deviation is as wide as the noise). First and last frames are not judged.
-      const size_t k = static_cast<size_t>(rule.local_half_window);
-      for (size_t q = 0; q < rows.size(); ++q) {
-        const size_t h = std::min({k, q, rows.size() - 1 - q});
-        if (h == 0) {
-          // A step's first or last frame: the line through its k nearest neighbours (Theil-Sen:
-          // the median of their pairwise slopes), extrapolated to it, judged against a limit
-          // widened by the extrapolation's own scatter (x1.5).
-          const size_t m = std::min(k, rows.size() - 1);
-          if (m < 2) continue;
-          std::vector<double> xs, ys, slopes;
-          for (size_t j = 1; j <= m; ++j) {
-            const size_t w = q == 0 ? j : q - j;
-            xs.push_back(q == 0 ? static_cast<double>(j) : -static_cast<double>(j));
-            ys.push_back(residual[rows[w]]);
-          }
-          for (size_t u = 0; u < xs.size(); ++u)
-            for (size_t v = u + 1; v < xs.size(); ++v) slopes.push_back((ys[v] - ys[u]) / (xs[v] - xs[u]));
-          const double slope = median_of(slopes);
-          for (size_t u = 0; u < xs.size(); ++u) ys[u] -= slope * xs[u];
-          centre[rows[q]] = median_of(ys);
-          edge[rows[q]] = true;
-          continue;
-        }
-        tmp.clear();
-        for (size_t w = q - h; w <= q + h; ++w) tmp.push_back(residual[rows[w]]);
-        const double m = median_of(tmp);
-        const double f = h == 1 ? 0.462 : h == 2 ? 0.732 : h == 3 ? 0.817 : 1.0 - 0.183 * 3.0 / static_cast<double>(h);
-        centre[rows[q]] = m;
-        if (pooled) deviations.push_back(std::fabs(residual[rows[q]] - m) / f);
-      }
-      continue;
+  std::vector<double> deviations, vals;
+  if (pooled) {
+    deviations.reserve(residual.size());
+    for (const auto& [id, rows] : rows_of) {
+      vals.clear();
+      for (size_t i : rows) vals.push_back(residual[i]);
+      step_centres(vals, rule, &deviations);
     }
-    tmp.clear();
-    for (size_t i : rows) tmp.push_back(residual[i]);
-    const double m = median_of(tmp);
-    for (size_t i : rows) {
-      centre[i] = m;
-      if (pooled) deviations.push_back(std::fabs(residual[i] - m));
-    }
+  } else {
+    deviations = reading_differences(residual, rows_of, rule, shared_reading);
   }
-  if (!pooled) deviations = reading_differences(residual, rows_of, rule, shared_reading);
   if (deviations.empty()) return out;
   out.robust_sigma = std::max(1.4826 * median_of(deviations), rule.min_sigma);
   if (!(out.robust_sigma > 0)) return out;
-  const double limit = rule.threshold_sigma * out.robust_sigma;
-  for (size_t i = 0; i < residual.size(); ++i) {
-    if (std::isnan(centre[i]) || std::fabs(residual[i] - centre[i]) <= (edge[i] ? 1.5 : 1.0) * limit) continue;
-    out.outlier[i] = true;
-    ++out.count;
-    if (out.steps.empty() || out.steps.back() != step[i]) out.steps.push_back(step[i]);
+  for (const auto& [id, rows] : rows_of) {
+    vals.clear();
+    for (size_t i : rows) vals.push_back(residual[i]);
+    const std::vector<bool> f = judge_step(vals, rule, out.robust_sigma);
+    for (size_t q = 0; q < rows.size(); ++q) {
+      if (!f[q]) continue;
+      out.outlier[rows[q]] = true;
+      ++out.count;
+      if (out.steps.empty() || out.steps.back() != id) out.steps.push_back(id);
+    }
   }
   std::sort(out.steps.begin(), out.steps.end());
   out.steps.erase(std::unique(out.steps.begin(), out.steps.end()), out.steps.end());

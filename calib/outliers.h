@@ -32,8 +32,28 @@ struct OutlierRule {
   // frame and its neighbours within the same step (in frame order), up to k on each side and as
   // many on both sides: it follows a step change, a settling decay or a slew's changing residual,
   // while an isolated spike is never the median. A step's first and last frames are judged against
-  // the line through their nearest neighbours, with a limit 1.5x as wide.
+  // the line through their two nearest neighbours' running medians, with a limit 1.5x as wide.
   int local_half_window = 0;
+};
+
+// The rule for a sensor's counts in a dwell (the one reduction, the live screen, calibrate_csv):
+// each frame against the running median of 7 frames of its step (local_half_window 3), so that a
+// settling decay inside a dwell is followed while an isolated spike is not; `floor_counts` under
+// the robust sigma (count_outlier_floor).
+inline constexpr int kCountLocalHalfWindow = 3;
+inline OutlierRule count_outlier_rule(double floor_counts) {
+  OutlierRule r;
+  r.min_sigma = floor_counts;
+  r.local_half_window = kCountLocalHalfWindow;
+  return r;
+}
+
+// What one frame of a step is judged against: the centre (NaN: not judged; a step too short for
+// the rule) and whether it is a step's first or last frame under the local rule (judged against
+// the line of its neighbours, 1.5x the limit).
+struct FrameCentre {
+  double centre = NAN;
+  bool edge = false;
 };
 
 struct OutlierFlags {
@@ -55,6 +75,19 @@ struct OutlierFlags {
 OutlierFlags flag_outliers(const std::vector<double>& residual, const std::vector<int64_t>& step,
                            const OutlierRule& rule = {}, const std::vector<bool>& shared_reading = {});
 
+// One step's frames (finite values, in frame order) under `rule`: each frame's centre, and the
+// deviations the rule pools for its robust sigma (appended to `pooled`: |frame - step median|, or
+// |frame - local median| / the window's Gaussian factor for interior frames under the local rule).
+// flag_outliers and StepOutlierScreen both judge a step through this, so they are one rule.
+std::vector<FrameCentre> step_centres(const std::vector<double>& frames, const OutlierRule& rule,
+                                      std::vector<double>* pooled = nullptr);
+
+// One step's frames judged by `rule` at the robust sigma: the frames farther than the limit from
+// their centre. Under the local rule the worst is taken first and replaced by the line between its
+// neighbours before the step is judged again, so that a spike's displacement of its neighbours'
+// running median (one frame's decay in a settling dwell) does not make them outliers too.
+std::vector<bool> judge_step(const std::vector<double>& frames, const OutlierRule& rule, double robust_sigma);
+
 // One step's values as a multiset (value -> frames): the step's median without holding its frames
 // (a handful of distinct values for whole counts, whatever the frames per step).
 struct StepValues {
@@ -70,21 +103,19 @@ struct StepValues {
   double median() const;
 };
 
-// The same rule over a recording read step by step, in memory that does not grow with the frames:
-// pass 1 pools every step's deviations from its median (pool_step, which returns the median, NaN
-// for a step too short to have one); after it, a frame is an outlier when it lies more than
-// threshold x robust_sigma() from its step's median. Gives flag_outliers' flags exactly.
+// The same rule over a recording read step by step, in memory that does not grow with the frames
+// (pooled deviations as a multiset: a handful of distinct values for whole counts): pass 1 pools
+// every step's deviations (pool_step); after it, judge() gives a step's outlier frames at the
+// pooled sigma, as flag_outliers judges them. Gives flag_outliers' flags exactly.
 class StepOutlierScreen {
  public:
   explicit StepOutlierScreen(OutlierRule rule = {}) : rule_(rule) {}
-  double pool_step(const StepValues& step);
+  // `frames`: one step's values in frame order.
+  void pool_step(const std::vector<double>& frames);
   // max(1.4826 x the pooled median absolute deviation, rule.min_sigma); 0 with nothing pooled.
   double robust_sigma() const;
-  bool is_outlier(double value, double step_median) const {
-    const double s = robust_sigma();
-    return std::isfinite(value) && std::isfinite(step_median) && s > 0 &&
-           std::fabs(value - step_median) > rule_.threshold_sigma * s;
-  }
+  // The step's outlier frames at the sigma pooled so far (judge_step).
+  std::vector<bool> judge(const std::vector<double>& frames) const { return judge_step(frames, rule_, robust_sigma()); }
   void set_min_sigma(double s) { rule_.min_sigma = s; }
 
  private:

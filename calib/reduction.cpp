@@ -89,8 +89,7 @@ bool count_scatters(const Dwell& d, CountScatter out[2]) {
 
 std::vector<OutlierAxes> flag_count_outliers(const FrameColumns& t, double floor_counts) {
   std::vector<OutlierAxes> out(t.size());
-  OutlierRule rule;
-  rule.min_sigma = floor_counts;
+  const OutlierRule rule = count_outlier_rule(floor_counts);
   std::vector<double> v(t.size());
   for (const bool alpha : {true, false}) {
     const auto& col = alpha ? t.counts_alpha : t.counts_beta;

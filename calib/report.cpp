@@ -52,6 +52,7 @@ nlohmann::json uncertainties_json(const CalibrationReport& r) {
     ax["count_noise_source"] = a->noise.count_noise_source;
     ax["ref_noise_arcsec"] = number_or_null(a->noise.ref_noise_arcsec);
     ax["quantisation_corrected"] = a->noise.quantisation_corrected;
+    if (std::isfinite(a->reference_u_max_arcsec)) ax["reference_u_max_arcsec"] = a->reference_u_max_arcsec;
     ax["pseudo_inverse"] = a->covariance_pseudo_inverse;
     ax["covariance"] = a->covariance_note;
     j[a->axis] = ax;
@@ -93,6 +94,7 @@ CoefficientSet CalibrationReport::coefficients() const {
   s.extra["residuals"] = residuals_json(*this);
   s.extra["uncertainties"] = uncertainties_json(*this);
   s.extra["solver"] = solver_json(*this);
+  if (reference) s.extra["reference"] = *reference;
   return s;
 }
 
@@ -120,6 +122,15 @@ std::string summary_text(const CalibrationReport& r) {
     o += fmt::format("{}: 1-sigma of the fitted angle over counts [{:.0f}, {:.0f}]: at most {:.3f} arcsec{}\n",
                      a->axis, a->counts_range[0], a->counts_range[1], a->angle_sigma_max_arcsec,
                      a->covariance_pseudo_inverse ? " (pseudo-inverse: J^T J rank deficient)" : "");
+  }
+  if (r.reference) {
+    o += fmt::format("reference {} (certificate {}, {}, {}; sha256 {}), {}: its u included, at most {:.3f} "
+                     "(pitch) and {:.3f} (yaw) arcsec\n",
+                     r.reference->value("file", ""), r.reference->value("certificate", ""), r.reference->value("date", ""),
+                     r.reference->value("lab", ""), r.reference->value("sha256", ""),
+                     r.reference->value("corrected_by", "") == "calibrate" ? "applied to the reference angles"
+                                                                            : "applied by the run",
+                     r.pitch.reference_u_max_arcsec, r.yaw.reference_u_max_arcsec);
   }
   for (const AxisFit* a : {&r.pitch, &r.yaw}) {
     if (a->fit_form != FitForm::gls) continue;

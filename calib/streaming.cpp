@@ -12,6 +12,7 @@
 #include "base/errors.h"
 #include "calib/outliers.h"
 #include "calib/quantisation.h"
+#include "calib/reference_fit.h"
 #include "calib/refine.h"
 
 namespace fpss {
@@ -26,7 +27,7 @@ StreamingCalibrator::StreamingCalibrator(CalibrationOptions opts, std::string so
     throw std::invalid_argument("the streaming calibrator fits changes (method differences) only");
   }
   pitch_.differences = yaw_.differences = true;
-  for (auto& sc : screen_) sc.set_min_sigma(count_outlier_floor(opts_.count_noise_counts));
+  for (auto& sc : screen_) sc = StepOutlierScreen(count_outlier_rule(count_outlier_floor(opts_.count_noise_counts)));
 }
 
 void StreamingCalibrator::add_sample(const Sample& s) {
@@ -38,16 +39,18 @@ void StreamingCalibrator::add_sample(const Sample& s) {
 
 void StreamingCalibrator::close_step() {
   if (step_rows_.empty()) return;
-  StepValues v[2];
+  std::vector<double> v[2];
   for (const Sample& r : step_rows_) {
-    v[0].add(r.counts_alpha);
-    v[1].add(r.counts_beta);
+    v[0].push_back(r.counts_alpha);
+    v[1].push_back(r.counts_beta);
   }
-  const double med[2] = {screen_[0].pool_step(v[0]), screen_[1].pool_step(v[1])};
-  for (const Sample& r : step_rows_) {
+  screen_[0].pool_step(v[0]);
+  screen_[1].pool_step(v[1]);
+  const std::vector<bool> f[2] = {screen_[0].judge(v[0]), screen_[1].judge(v[1])};
+  for (size_t q = 0; q < step_rows_.size(); ++q) {
     OutlierAxes o;
-    if (opts_.reject_outliers) o = {screen_[0].is_outlier(r.counts_alpha, med[0]), screen_[1].is_outlier(r.counts_beta, med[1])};
-    if (auto d = builder_.add(r, o)) take_dwell(*d);
+    if (opts_.reject_outliers) o = {f[0][q], f[1][q]};
+    if (auto d = builder_.add(step_rows_[q], o)) take_dwell(*d);
   }
   step_rows_.clear();
   if (auto d = builder_.flush()) take_dwell(*d);
@@ -116,7 +119,9 @@ StreamingCalibrator::Estimate StreamingCalibrator::current() const {
 CalibrationReport StreamingCalibrator::finish() {
   close_step();
   if (auto d = builder_.flush()) take_dwell(*d);
-  return fit_so_far(opts_);
+  CalibrationReport rep = fit_so_far(opts_);
+  add_reference_uncertainty(rep, opts_);  // the final fit only: the live one answers for the data
+  return rep;
 }
 
 CalibrationReport StreamingCalibrator::fit_so_far(const CalibrationOptions& opts) const {
@@ -145,48 +150,28 @@ AxisFit StreamingCalibrator::fit_so_far(fit::Axis axis, const CalibrationOptions
 
 namespace {
 
-// Every step's median count per axis in 8 bytes: a median of whole counts is a whole or half count,
-// exact as a float; a median that is not (averaged data) is kept exactly on the side.
-class StepMedians {
- public:
-  void push_back(const std::array<double, 2>& m) {
-    const size_t k = low_.size();
-    low_.push_back({static_cast<float>(m[0]), static_cast<float>(m[1])});
-    if (!same(m[0], low_.back()[0]) || !same(m[1], low_.back()[1])) exact_[k] = m;
-  }
-  std::array<double, 2> operator[](size_t k) const {
-    if (!exact_.empty()) {
-      if (auto it = exact_.find(k); it != exact_.end()) return it->second;
-    }
-    return {low_[k][0], low_[k][1]};
-  }
-  void release() {
-    std::deque<std::array<float, 2>>().swap(low_);
-    std::unordered_map<size_t, std::array<double, 2>>().swap(exact_);
-  }
-
- private:
-  static bool same(double v, float f) { return v == static_cast<double>(f) || (std::isnan(v) && std::isnan(f)); }
-  std::deque<std::array<float, 2>> low_;  // chunked: no doubling peak while growing
-  std::unordered_map<size_t, std::array<double, 2>> exact_;
-};
-
 bool is_dwell_row(const Sample& s) { return s.phase == Phase::null || s.phase == Phase::offset; }
 
-// The null/offset rows of a file, step by step: on_row(row, index of its step among the steps).
-size_t each_dwell_row(const std::filesystem::path& path, const std::function<void(const Sample&, size_t)>& on_row) {
-  size_t steps = 0;
-  bool open = false;
-  int64_t step = 0;
-  return for_each_sample_csv(path, [&](const Sample& s) {
-    if (!is_dwell_row(s)) return;
-    if (!open || s.step != step) {
-      if (open) ++steps;
-      open = true;
-      step = s.step;
+// The null/offset rows of a file, a step at a time (its rows in order; a step is short, so only
+// one is held): on_step(rows). Returns the rows of the file.
+size_t each_dwell_step(const std::filesystem::path& path, const std::function<void(const std::vector<Sample>&)>& on_step) {
+  std::vector<Sample> rows;
+  const size_t n = for_each_sample_csv(path, [&](const Sample& s) {
+    if (!rows.empty() && (!is_dwell_row(s) || s.step != rows.back().step)) {
+      on_step(rows);
+      rows.clear();
     }
-    on_row(s, steps);
+    if (is_dwell_row(s)) rows.push_back(s);
   });
+  if (!rows.empty()) on_step(rows);
+  return n;
+}
+
+std::vector<double> counts_of(const std::vector<Sample>& rows, bool alpha) {
+  std::vector<double> v;
+  v.reserve(rows.size());
+  for (const Sample& s : rows) v.push_back(alpha ? s.counts_alpha : s.counts_beta);
+  return v;
 }
 
 }  // namespace
@@ -194,33 +179,28 @@ size_t each_dwell_row(const std::filesystem::path& path, const std::function<voi
 CalibrationReport calibrate_csv(const std::filesystem::path& path, const CalibrationOptions& opts) {
   if (opts.method != Method::differences) return calibrate(read_samples_csv(path), opts);
   const std::string origin = path.string();
-  // Pass 1: every step's median count per axis, and the pooled deviations (calib/outliers.h).
-  OutlierRule rule;
-  rule.min_sigma = count_outlier_floor(std::nullopt);  // until the noise is known (pass 2)
-  StepOutlierScreen screen[2] = {StepOutlierScreen(rule), StepOutlierScreen(rule)};
-  StepMedians medians;  // per step: alpha, beta
+  // Pass 1: the pooled deviations of every step's frames from their centres (calib/outliers.h).
+  StepOutlierScreen screen[2] = {StepOutlierScreen(count_outlier_rule(count_outlier_floor(std::nullopt))),
+                                 StepOutlierScreen(count_outlier_rule(count_outlier_floor(std::nullopt)))};
   if (opts.reject_outliers) {
-    StepValues cur[2];
-    size_t cur_step = 0;
-    bool any = false;
-    auto close = [&] {
-      medians.push_back({screen[0].pool_step(cur[0]), screen[1].pool_step(cur[1])});
-      cur[0] = StepValues{};
-      cur[1] = StepValues{};
-    };
-    each_dwell_row(path, [&](const Sample& s, size_t k) {
-      if (any && k != cur_step) close();
-      any = true;
-      cur_step = k;
-      cur[0].add(s.counts_alpha);
-      cur[1].add(s.counts_beta);
+    each_dwell_step(path, [&](const std::vector<Sample>& rows) {
+      screen[0].pool_step(counts_of(rows, true));
+      screen[1].pool_step(counts_of(rows, false));
     });
-    if (any) close();
   }
-  auto outlier = [&](const Sample& s, size_t k) {
-    if (!opts.reject_outliers) return OutlierAxes{};
-    const auto m = medians[k];
-    return OutlierAxes{screen[0].is_outlier(s.counts_alpha, m[0]), screen[1].is_outlier(s.counts_beta, m[1])};
+  // A later pass: a step's frames judged by the rule at the pooled sigma (a step's frames are all
+  // it takes), each row with its flags.
+  auto judged = [&](const std::function<void(const Sample&, OutlierAxes)>& on_row) {
+    return each_dwell_step(path, [&](const std::vector<Sample>& rows) {
+      std::vector<bool> f[2];
+      if (opts.reject_outliers) {
+        f[0] = screen[0].judge(counts_of(rows, true));
+        f[1] = screen[1].judge(counts_of(rows, false));
+      }
+      for (size_t q = 0; q < rows.size(); ++q) {
+        on_row(rows[q], opts.reject_outliers ? OutlierAxes{f[0][q], f[1][q]} : OutlierAxes{});
+      }
+    });
   };
   std::optional<double> rule_noise = opts.count_noise_counts;
   std::string rule_noise_source = opts.count_noise_source;
@@ -236,8 +216,8 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
         est.add(two[0]);
         est.add(two[1]);
       };
-      each_dwell_row(path, [&](const Sample& s, size_t k) {
-        if (auto d = b.add(s, outlier(s, k))) take(*d);
+      judged([&](const Sample& s, OutlierAxes o) {
+        if (auto d = b.add(s, o)) take(*d);
       });
       if (auto d = b.flush()) take(*d);
       noise = est.estimate();
@@ -251,11 +231,15 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
   // Pass 3: the dwells, into the streaming calibrator.
   StreamingCalibrator cal(opts, origin);
   DwellBuilder b(origin);
-  const size_t rows = each_dwell_row(path, [&](const Sample& s, size_t k) {
-    if (auto d = b.add(s, outlier(s, k))) cal.add_dwell(*d);
+  const size_t rows = judged([&](const Sample& row, OutlierAxes o) {
+    Sample s = row;
+    // A raw recording: the reference's errors come off its angles before they enter a dwell.
+    if (opts.reference && opts.correct_reference) {
+      correct_reference_angles(*opts.reference, opts.mount, s.ref_pitch_arcsec, s.ref_yaw_arcsec);
+    }
+    if (auto d = b.add(s, o)) cal.add_dwell(*d);
   });
   if (auto d = b.flush()) cal.add_dwell(*d);
-  medians.release();  // not needed by the fit: freed before it
   cal.set_samples(rows);
   // Nothing to pair (no nulls, no offsets, no dwells): the batch calibrator says what is missing.
   if (cal.pairs() == 0) return calibrate(read_samples_csv(path), opts);

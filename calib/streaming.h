@@ -24,8 +24,8 @@ class StreamingCalibrator {
 
   // Rows as they are recorded; a dwell enters when the next step starts (or at finish()). With
   // opts.reject_outliers, a step's frames are judged when it ends by the one outlier rule
-  // (calib/outliers.h): against the step's median, with the robust sigma pooled over the steps so
-  // far (floor: the rounded count noise when known, else the rounding's), so a glitch frame stays
+  // (calib/outliers.h): against the running median of 7 frames of the step (a settling decay is
+  // followed, a spike is not), with the robust sigma pooled over the steps so far (floor: the rounded count noise when known, else the rounding's), so a glitch frame stays
   // out of the live estimate as it stays out of the batch fit.
   void add_sample(const Sample& s);
   // A whole dwell: an offset pairs with the last null, a null with the offsets since the last null.
@@ -78,9 +78,9 @@ class StreamingCalibrator {
 };
 
 // calibrate() of a samples file without holding it: the file is read row by row (three passes when
-// outliers are screened and the count noise is not given: the steps' medians and the pooled robust
-// sigma, the noise from the within-dwell scatter for the outlier floor, then the dwells), only
-// per-step medians and dwell sums are kept, and the dwells go to the StreamingCalibrator. The same
+// outliers are screened and the count noise is not given: the pooled robust sigma, the noise from
+// the within-dwell scatter for the outlier floor, then the dwells), one step's rows, the pooled
+// deviations and dwell sums are kept, and the dwells go to the StreamingCalibrator. The same
 // outlier rule, dwells and fit as calibrate(read_samples_csv(path)). The absolute method has no
 // streaming form: it reads the file whole.
 CalibrationReport calibrate_csv(const std::filesystem::path& path, const CalibrationOptions& opts = {});

@@ -33,6 +33,9 @@ struct SensorOptions {
   double connect_timeout_s = 2.0;    // opening a tcp: endpoint
   // Samples nobody has read yet; beyond this the oldest are dropped (SensorStats::samples_dropped).
   std::size_t max_queued_samples = 1u << 16;
+  // A TEMP reply outside [min, max] degC is an invalid reading, never a value (docs/icd.md, TEMP).
+  double temperature_min_c = -60.0;
+  double temperature_max_c = 100.0;
 };
 
 }  // namespace fpss

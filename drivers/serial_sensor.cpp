@@ -8,6 +8,7 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <regex>
 
 #include "drivers/endpoints.h"
 #include "drivers/host_clock.h"
@@ -271,11 +272,17 @@ void SerialSensor::stop() { exchange("STOP", accept_ok); }
 double SerialSensor::temperature_c() {
   std::string r = exchange("TEMP?", accept_temp);
   std::string_view v = std::string_view(r).substr(5);
+  // Plain decimal notation only (docs/icd.md): an optional minus, digits, an optional fraction.
+  static const std::regex kDecimal(R"(-?[0-9]+(\.[0-9]+)?)");
   double c = 0;
   auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), c);
-  if (ec != std::errc() || p != v.data() + v.size() || !std::isfinite(c))
+  if (!std::regex_match(v.begin(), v.end(), kDecimal) || ec != std::errc() || p != v.data() + v.size() ||
+      !std::isfinite(c))
     throw DeviceError(fmt::format("sensor {}: reply to 'TEMP?' is '{}', expected 'TEMP <celsius>'",
                                   options_.endpoint, r));
+  if (c < options_.temperature_min_c || c > options_.temperature_max_c)
+    throw DeviceError(fmt::format("sensor {}: sensor temperature {} °C outside the plausible range {}..{} °C",
+                                  options_.endpoint, v, options_.temperature_min_c, options_.temperature_max_c));
   return c;
 }
 

@@ -48,9 +48,10 @@ struct StorageFailure : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 struct GimbalFailure : std::runtime_error {
-  explicit GimbalFailure(const std::string& what, StopCause c = StopCause::gimbal_fault)
-      : std::runtime_error(what), cause(c) {}
+  explicit GimbalFailure(const std::string& what, StopCause c = StopCause::gimbal_fault, bool is_final = false)
+      : std::runtime_error(what), cause(c), final(is_final) {}
   StopCause cause;
+  bool final;  // no attempt more: the run stops (another client moving the gimbal)
 };
 // A failure no other device can explain (a step's check, a fit, a move that cannot be put back).
 struct PointFailure : std::runtime_error {

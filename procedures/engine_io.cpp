@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -20,6 +21,7 @@ GimbalState EngineIo::read_gimbal() {
   }
   last_pitch_arcsec_ = st.pitch_arcsec;
   last_yaw_arcsec_ = st.yaw_arcsec;
+  if (places_.empty()) note_place(st.pitch_arcsec, st.yaw_arcsec);  // where this run found it
   clock_.note_gimbal(static_cast<double>(st.sample_time_us) * 1e-6,
                      st.host_time_s > 0 ? st.host_time_s : clock_.host_now_s());
   return st;
@@ -30,7 +32,8 @@ double EngineIo::read_temperature_c(const Action& a) {
     Timed t(stats_.device_s);
     return s_.temperature_c();
   } catch (const DeviceError& e) {
-    log_.warn("point {}: no temperature ({})", a.point + 1, e.what());
+    // No reply, a malformed one or an implausible value: the rows carry none (never the value).
+    warn(&a, fmt::format("point {}: no temperature ({})", a.point + 1, e.what()));
     return std::numeric_limits<double>::quiet_NaN();
   }
 }
@@ -49,6 +52,7 @@ void EngineIo::command_home() {
   g_.home();
   commanded_.target_pitch_arcsec = commanded_.target_yaw_arcsec = 0;
   target_known_ = false;
+  note_place(0, 0);
 }
 
 void EngineIo::command_watchdog(double s) {
@@ -60,6 +64,32 @@ void EngineIo::targets_written(double pitch_arcsec, double yaw_arcsec) {
   commanded_.target_pitch_arcsec = pitch_arcsec;
   commanded_.target_yaw_arcsec = yaw_arcsec;
   target_known_ = true;
+  note_place(pitch_arcsec, yaw_arcsec);
+}
+
+void EngineIo::note_place(double pitch_arcsec, double yaw_arcsec) {
+  if (!places_.empty() && places_.back() == std::pair{pitch_arcsec, yaw_arcsec}) return;
+  places_.emplace_back(pitch_arcsec, yaw_arcsec);
+}
+
+void EngineIo::check_commanded_place(const GimbalState& st) const {
+  // Three places in a row span every path the gimbal can take on this run's commands: a move
+  // (each axis monotonic from one place to the next, so inside their box), the move queued
+  // behind it, and a stop part-way, which the place after it continues from.
+  if (places_.empty()) return;
+  const double m = b_.in_position_tolerance_arcsec + kForeignMargin_arcsec;
+  const double p = st.pitch_arcsec, y = st.yaw_arcsec;
+  for (size_t i = 0; i < places_.size(); ++i) {
+    const size_t lo = i == 0 ? 0 : i - 1, hi = std::min(i + 1, places_.size() - 1);
+    double p0 = places_[i].first, p1 = p0, y0 = places_[i].second, y1 = y0;
+    for (size_t k = lo; k <= hi; ++k) {
+      p0 = std::min(p0, places_[k].first), p1 = std::max(p1, places_[k].first);
+      y0 = std::min(y0, places_[k].second), y1 = std::max(y1, places_[k].second);
+    }
+    if (p >= p0 - m && p <= p1 + m && y >= y0 - m && y <= y1 + m) return;
+  }
+  throw GimbalFailure(fmt::format("gimbal found at {:.1f}, {:.1f} arcsec, which this run never commanded: another client?", p, y),
+                      StopCause::commanded_elsewhere, /*final=*/true);
 }
 
 double EngineIo::move_rate_arcsec_s() const {
@@ -99,7 +129,8 @@ void EngineIo::check_still(const Action& a, const GimbalState& st, const char* w
   }
   const double tol = b_.in_position_tolerance_arcsec;
   if (st.has(kMoving) || std::fabs(st.pitch_arcsec - a.pitch_arcsec) > tol || std::fabs(st.yaw_arcsec - a.yaw_arcsec) > tol) {
-    verify_command();  // another client's move explains it: say so
+    check_commanded_place(st);  // another client's move explains it: say so
+    verify_command();
     throw GimbalFailure(fmt::format("gimbal left the point {} sampling (pitch {}, yaw {}, status 0x{:02x})", when,
                                     deg(st.pitch_arcsec), deg(st.yaw_arcsec), st.status));
   }

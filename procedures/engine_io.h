@@ -1,6 +1,8 @@
 // The engine's hold on its devices and its operator: every command and reading goes through here, so each part knows what the gimbal should hold.
 #pragma once
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <spdlog/logger.h>
 
@@ -51,6 +53,14 @@ class EngineIo {
   // Reads the gimbal's commanded state back; GimbalFailure (commanded_elsewhere) when another
   // client changed a target, the rate, the watchdog, or put it in rate mode.
   void verify_command();
+  // A place the gimbal may be found at on this run's commands: each target written, a home's 0, 0,
+  // where the run found it and where a stop of its own left it.
+  void note_place(double pitch_arcsec, double yaw_arcsec);
+  // GimbalFailure (commanded_elsewhere, final: the run stops) when `st` lies farther than the
+  // tolerance and kForeignMargin_arcsec from every place and every path between them.
+  void check_commanded_place(const GimbalState& st) const;
+  // Beyond the in-position tolerance: overshoot, a stop's braking and encoder noise stay inside.
+  static constexpr double kForeignMargin_arcsec = 36.0;  // 0.01 deg
   // GimbalFailure unless the gimbal is still at `a`'s point, unfaulted and not moving.
   void check_still(const Action& a, const GimbalState& st, const char* when);
 
@@ -76,6 +86,7 @@ class EngineIo {
   bool moved_ = false;
   bool stopping_ = false;
   double last_pitch_arcsec_ = 0, last_yaw_arcsec_ = 0;  // the latest encoder reading
+  std::vector<std::pair<double, double>> places_;        // note_place, in order
 };
 
 }  // namespace fpss

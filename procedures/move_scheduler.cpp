@@ -129,6 +129,7 @@ GimbalState MoveScheduler::move_and_wait(double pitch, double yaw, double timeou
     }
     const bool there = homing ? st.has(kHomed)
                               : std::fabs(st.pitch_arcsec - pitch) <= tol && std::fabs(st.yaw_arcsec - yaw) <= tol;
+    if (!there) io_.check_commanded_place(st);  // not on its way from this run's commands: stop
     if (there && st.has(kInPosition) && !st.has(kMoving)) {
       // A settle counts from the arrival, not from when the host came to look (a late look, by a
       // frame, a round trip or a busy host, would lengthen every settle): the profile's arrival
@@ -176,6 +177,8 @@ void MoveScheduler::call_off_moves_ahead() {
   try {
     Timed t(stats_.device_s);
     io_.gimbal().stop();
+    const GimbalState st = io_.read_gimbal();
+    io_.note_place(st.pitch_arcsec, st.yaw_arcsec);  // a move begun stops about here
   } catch (const DeviceError& e) {
     io_.log().warn("the moves scheduled ahead could not be called off: {}", e.what());
   }

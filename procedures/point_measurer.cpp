@@ -48,7 +48,11 @@ void PointMeasurer::publish_point(const Action& a, std::vector<RecordedRow> meas
 
 RecordedRow PointMeasurer::make_row(const Action& a, Phase phase, const SensorSample& f, double sensor_time_s,
                                     const GimbalRef& g, double temperature_c, int attempt, int session) {
-  const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(g.pitch_arcsec, g.yaw_arcsec);
+  // The reference angles are the true ones when the reference's calibration is known; the raw
+  // encoder readings stay in the row's provenance.
+  const auto [true_p, true_y] =
+      b_.reference ? b_.reference->true_from_reading(g.pitch_arcsec, g.yaw_arcsec) : std::pair{g.pitch_arcsec, g.yaw_arcsec};
+  const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(true_p, true_y);
   RecordedRow r;
   r.sensor_time_s = sensor_time_s;
   r.sample = Sample{clock_.stand_time(sensor_time_s), phase, a.point + 1, ref_a, ref_b,
@@ -66,6 +70,16 @@ RecordedRow PointMeasurer::make_row(const Action& a, Phase phase, const SensorSa
   r.attempt = attempt;
   r.session = session;
   return r;
+}
+
+double PointMeasurer::since_arrival_s(const SensorSample& f, const GimbalState& arrived, double arrived_s) const {
+  // One clock for both devices: the frame's own stamp. Else the host's receipts of the frame and
+  // of the in-position reading, at the bench's pace, from that reading's stamp back to the arrival.
+  const double t = b_.clock == ClockSync::shared
+                       ? clock_.sensor_clock_s(f) - arrived_s
+                       : (f.host_time_s - arrived.host_time_s) * b_.time_scale +
+                             (static_cast<double>(arrived.sample_time_us) * 1e-6 - arrived_s);
+  return std::round(t * 1e6) / 1e6;  // whole microseconds, as the devices count
 }
 
 void PointMeasurer::recover(const std::string& reason, bool sensor_side) {
@@ -89,6 +103,7 @@ void PointMeasurer::recover(const std::string& reason, bool sensor_side) {
     } else if (st.has(kMoving) || st.has(kMovePending)) {
       io_.gimbal().stop();
     }
+    io_.note_place(st.pitch_arcsec, st.yaw_arcsec);  // stopped about here: the next move starts there
   } catch (const DeviceError& e) {
     log_.warn("gimbal not answering while recovering: {}", e.what());
   }
@@ -121,6 +136,7 @@ void PointMeasurer::with_remeasure(const Action& a, const std::function<void(int
       cause = e.cause;
       sensor_side = true;
     } catch (const GimbalFailure& e) {
+      if (e.final) throw PointFailure(fmt::format("{}: {}", a.is_point() ? a.describe() : label(a), e.what()), e.cause);
       reason = e.what();
       cause = e.cause;
     } catch (const PointFailure& e) {
@@ -271,6 +287,7 @@ PointMeasurer::DwellFrames PointMeasurer::take_dwell(const Action& a, const Gimb
 void PointMeasurer::measure_dwell(const Action& a, int session) {
   with_remeasure(a, [&](int attempt) {
     const GimbalState arrived = sched_.move_and_wait(a.pitch_arcsec, a.yaw_arcsec, b_.move_timeout_s);
+    const double arrived_s = sched_.arrived_s();  // the gimbal's clock
     const DwellFrames d = take_dwell(a, arrived);
     // Everything the gimbal had to do here is done: its next move starts now (unless scheduled
     // already), and the checks and the storing below overlap it.
@@ -284,6 +301,7 @@ void PointMeasurer::measure_dwell(const Action& a, int session) {
       const GimbalState& g = d.refs[d.ref_of[i]];
       const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
       rows.push_back(make_row(a, a.phase, d.frames[i], clock_.sensor_clock_s(d.frames[i]), ref, temp, attempt, session));
+      rows.back().time_since_move_s = since_arrival_s(d.frames[i], arrived, arrived_s);
     }
     publish_point(a, std::move(rows), attempt, session, d.invalid);
   });
@@ -368,9 +386,9 @@ void PointMeasurer::measure_slew(const Action& a, int session) {
         io_.check_abort();
         GimbalState st = io_.read_gimbal();
         fix(st);
-        if (st.has(kFault) || st.fault != GimbalFault::none) {
+        if (st.has(kFault) || st.fault != GimbalFault::none)
           throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
-        }
+        io_.check_commanded_place(st);
         if (in_position_at(st, a.leg_target(leg), tol)) {
           if (leg++ == a.reversals) break;
           Timed t(stats_.device_s);

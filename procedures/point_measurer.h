@@ -52,6 +52,9 @@ class PointMeasurer {
   // Each slew frame's time on the sensor's clock and the same instant on the gimbal's clock.
   void slew_times(const std::vector<SensorSample>& frames, const std::vector<GimbalFix>& fixes,
                   std::vector<double>& s_times, std::vector<double>& g_times) const;
+  // A dwell frame's time since the gimbal's arrival (`arrived`, the reading that found it in
+  // position; arrived_s, the arrival on the gimbal's clock that the settle counts from).
+  double since_arrival_s(const SensorSample& f, const GimbalState& arrived, double arrived_s) const;
   void recover(const std::string& reason, bool sensor_side);
   // Publishes the rows (the recorder makes them durable), then PointDone.
   void publish_point(const Action& a, std::vector<RecordedRow> rows, int attempt, int session, int invalid);

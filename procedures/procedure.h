@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/sha256.h"  // sha256_hex, for the files a run names
 #include "calib/samples.h"
 #include "procedures/yaml_diag.h"
 
@@ -149,8 +150,5 @@ Procedure load_procedure(const std::filesystem::path& path);
 // The folder of the shipped procedures (discrete_grid.yaml, acceptance.yaml, the limits):
 // $FPSS_PROCEDURES_DIR, else the checkout's procedures/.
 std::filesystem::path shipped_procedures_dir();
-
-// The SHA-256 of a text, lowercase hex (the procedure hash in run.json and the catalogue).
-std::string sha256_hex(std::string_view text);
 
 }  // namespace fpss

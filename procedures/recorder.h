@@ -2,6 +2,7 @@
 #pragma once
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,9 @@ struct RecordedRow {
   double temperature_c = 0;   // NaN when the sensor did not answer
   int attempt = 1;            // measurement attempt of the point that was kept
   int session = 1;            // 1 + number of resumes before this row
+  // Dwells: the row's time less the gimbal's arrival (the arrival the settle counts from, on the
+  // gimbal's clock); NaN (empty) in slews, which are moving.
+  double time_since_move_s = std::numeric_limits<double>::quiet_NaN();
   // The recorder's columns as numbers (temperature NaN when not answered), in their order.
   std::vector<double> provenance() const;
   // The same as samples.csv writes them ("" for NaN).

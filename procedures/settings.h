@@ -1,11 +1,13 @@
 // What the engine needs to know about a stand: limits, axis mapping, timing and recovery policy.
 #pragma once
+#include <optional>
 #include <string>
 #include <utility>
 
 #include <nlohmann/json.hpp>
 
 #include "calib/axis_mapping.h"
+#include "calib/reference_calibration.h"
 #include "drivers/gimbal.h"
 
 namespace fpss {
@@ -40,6 +42,10 @@ struct EngineSettings {
   // The gimbal starts moves at a set time of its clock (docs/icd.md, the scheduled move): what the
   // dry run's estimate assumes. The engine itself asks the connected gimbal (Gimbal::timed_moves).
   bool timed_moves = false;
+  // The reference's own calibration (the stand file's `reference:`): the engine forms each row's
+  // reference angles from true_from_reading of the encoders; the rows keep the raw readings as
+  // gimbal_pitch/yaw_arcsec. Unset: the readings are taken as true.
+  std::optional<ReferenceCalibration> reference;
 
   // Physical seconds -> wall seconds to wait.
   double wall(double physical_s) const { return physical_s / time_scale; }

@@ -124,6 +124,7 @@ NumberRange number_range(std::string_view key) {
   if (ends("_arcsec")) return {-648000, 648000};         // half a turn
   if (ends("_deg")) return {-180, 180};
   if (ends("_hz")) return {-10000, 10000};
+  if (ends("_c")) return {-273.15, 1000};                // degrees Celsius: absolute zero up
   if (ends("_s")) return {-86400, 86400};                // a day: durations, settling, timeouts, offsets
   if (key == "time_scale") return {-10000, 10000};
   return {-1e9, 1e9};
@@ -268,20 +269,27 @@ std::optional<double> MapReader::rate_arcsec_s(const std::string& base, bool req
 std::optional<std::pair<double, double>> MapReader::angle_range_arcsec(const std::string& base, bool required) {
   auto k = pick_unit(base, {{"_deg", 3600.0}, {"_arcsec", 1.0}}, required);
   if (!k) return std::nullopt;
-  YAML::Node n = node(k->first);
-  const std::string what = fmt::format("{}: field {}", where_, k->first);
+  auto r = range(k->first);
+  if (!r) return std::nullopt;
+  return std::pair{r->first * k->second, r->second * k->second};
+}
+
+std::optional<std::pair<double, double>> MapReader::range(const std::string& key, bool required) {
+  YAML::Node n = field(key, required);
+  if (!n.IsDefined()) return std::nullopt;
+  const std::string what = fmt::format("{}: field {}", where_, key);
   if (!n.IsSequence() || n.size() != 2) {
     d_.error(n, fmt::format("{}: expected [min, max], got {}", what, describe_node(n)));
     return std::nullopt;
   }
-  auto lo = as_number(n[0], what, d_, k->first);
-  auto hi = as_number(n[1], what, d_, k->first);
+  auto lo = as_number(n[0], what, d_, key);
+  auto hi = as_number(n[1], what, d_, key);
   if (!lo || !hi) return std::nullopt;
   if (!(*lo < *hi)) {
     d_.error(n, fmt::format("{}: expected min < max, got [{}, {}]", what, *lo, *hi));
     return std::nullopt;
   }
-  return std::pair{*lo * k->second, *hi * k->second};
+  return std::pair{*lo, *hi};
 }
 
 void MapReader::finish() {

@@ -98,6 +98,8 @@ class MapReader {
   std::optional<double> rate_arcsec_s(const std::string& base, bool required = false);
   // A [min, max] pair of angles as <base>_deg or <base>_arcsec, in arcsec.
   std::optional<std::pair<double, double>> angle_range_arcsec(const std::string& base, bool required = false);
+  // A [min, max] pair of plain numbers, each within number_range(key), min < max.
+  std::optional<std::pair<double, double>> range(const std::string& key, bool required = false);
 
   void finish();  // unknown fields -> errors
 

@@ -62,7 +62,8 @@ struct EffectResult {
   nlohmann::ordered_json notes = nlohmann::ordered_json::object();
   std::string degenerate;         // why the fit is ill-conditioned/implausible; never the cause then
   // The smallest magnitude of each parameter this recording would have made material (its own
-  // units); empty when not computed (none, coefficients).
+  // units; coefficients: angle_rms_arcsec, the RMS change of the angle over the calibrated range);
+  // empty for none.
   nlohmann::ordered_json detection_limit = nlohmann::ordered_json::object();
 };
 

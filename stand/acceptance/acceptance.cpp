@@ -78,8 +78,14 @@ struct DwellStats {
   double mean[2] = {0, 0};    // calibrated angle, arcsec
   double sd[2] = {0, 0};      // SD over frames
   double sd_detrended[2] = {0, 0};
-  // Standard error of the mean angle: the frames' scatter over sqrt(k), and the count
-  // quantisation (one count, uniform), which averaging over a still dwell does not remove.
+  // Standard error of the mean error (angle - reference): the frames' scatter over sqrt(k), the
+  // count quantisation (one count, uniform), which averaging over a still dwell does not remove,
+  // and the reference's own scatter over its readings. Each is a budget entry (budget()).
+  double slope[2] = {0, 0};     // |d angle / d count|, arcsec per count
+  double noise[2] = {0, 0};     // slope x sd(counts) / sqrt(k)
+  double quant[2] = {0, 0};     // slope / sqrt(12)
+  double ref_noise[2] = {0, 0}; // sd(reference readings) / sqrt(their worth in independent readings)
+  size_t ref_readings = 0;
   double se[2] = {0, 0};
 };
 
@@ -109,12 +115,31 @@ std::vector<DwellStats> dwell_stats(const Reduction& reduced, const AcceptanceDa
       d.mean[ax] = m.angle_arcsec(counts);
       d.sd[ax] = slope * (ax == 0 ? w.sd_counts_alpha : w.sd_counts_beta);
       d.sd_detrended[ax] = slope * (ax == 0 ? w.sd_detrended_counts_alpha : w.sd_detrended_counts_beta);
-      const double q = slope / std::sqrt(12.0);
-      d.se[ax] = std::sqrt(sq(d.sd[ax]) / static_cast<double>(d.frames) + q * q);
+      d.slope[ax] = slope;
+      d.noise[ax] = d.sd[ax] / std::sqrt(static_cast<double>(d.frames));
+      d.quant[ax] = slope / std::sqrt(12.0);
+      const double sd_ref = ax == 0 ? w.sd_ref_pitch_arcsec : w.sd_ref_yaw_arcsec;
+      d.ref_noise[ax] = w.ref_readings_eff > 0 ? sd_ref / std::sqrt(w.ref_readings_eff) : 0.0;
+      d.ref_readings = w.ref_readings;
+      d.se[ax] = std::sqrt(sq(d.noise[ax]) + sq(d.quant[ax]) + sq(d.ref_noise[ax]));
     }
     out.push_back(d);
   }
   return out;
+}
+
+constexpr double kInfDof = std::numeric_limits<double>::infinity();
+
+// n - 1 degrees of freedom of a figure estimated from n values (at least 1).
+double dof_of(size_t n) { return n > 1 ? static_cast<double>(n - 1) : 1.0; }
+
+// The error budget of one dwell's mean error: sensor noise (A), quantisation (B), reference noise (A).
+std::vector<BudgetEntry> dwell_budget(const DwellStats& d, int ax) {
+  std::vector<BudgetEntry> b{
+      {"sensor noise (mean of the dwell's frames)", 'A', d.slope[ax], d.noise[ax], dof_of(d.frames)},
+      {"quantisation (one count, LSB / sqrt(12))", 'B', d.slope[ax], d.quant[ax], kInfDof}};
+  if (d.ref_noise[ax] > 0) b.push_back({"reference noise (mean of the encoder readings)", 'A', -1.0, d.ref_noise[ax], dof_of(d.ref_readings)});
+  return b;
 }
 
 const char* axis_name(int ax) { return ax == 0 ? "pitch" : "yaw"; }
@@ -141,17 +166,29 @@ Criterion make_for_axis(int ax, const std::string& id, const std::string& title,
               relation, unit);
 }
 
-void settle(Criterion& c, std::optional<double> measured, double u, std::string detail) {
+// The measured value and its budget; decide() judges it once every criterion is settled.
+void settle(Criterion& c, std::optional<double> measured, std::vector<BudgetEntry> budget, std::string detail) {
   c.measured = measured;
-  c.uncertainty = u;
+  c.budget = std::move(budget);
+  c.combined = combine(c.budget);
+  c.uncertainty = c.combined.u;
   c.detail = std::move(detail);
-  if (!measured || !std::isfinite(*measured)) {
-    c.measured.reset();
-    c.passed = false;
-    return;
+  if (!measured || !std::isfinite(*measured)) c.measured.reset();
+}
+
+// One criterion under the rule (and under the simple rule, for the certificate's why). A value
+// exactly at the limit passes the simple rule: the limits are the largest (smallest) acceptable values.
+void decide_criterion(Criterion& c, const DecisionRule& rule) {
+  if (!c.measured) {
+    c.decision = Decision{Outcome::fail, c.limit, 1.0};
+    c.simple_outcome = Outcome::fail;
+  } else {
+    const bool upper = c.relation == "<=";
+    const Combined& k = c.combined;
+    c.decision = decide(rule, *c.measured, c.limit, upper, k.u, k.dof_eff, k.U);
+    c.simple_outcome = decide(DecisionRule{}, *c.measured, c.limit, upper, k.u, k.dof_eff, k.U).outcome;
   }
-  // A value exactly at the limit passes: the limits are the largest (smallest) acceptable values.
-  c.passed = c.relation == "<=" ? *measured <= c.limit : *measured >= c.limit;
+  c.passed = c.decision.outcome == Outcome::pass;
 }
 
 std::string where_text(const DwellStats& d) {
@@ -197,7 +234,15 @@ WorstDwell worst_dwell(const std::vector<const DwellStats*>& dwells, Size size) 
 std::vector<std::string> Judgement::failed() const {
   std::vector<std::string> f;
   for (const auto& c : criteria) {
-    if (!c.passed) f.push_back(c.id);
+    if (c.decision.outcome == Outcome::fail) f.push_back(c.id);
+  }
+  return f;
+}
+
+std::vector<std::string> Judgement::conditional() const {
+  std::vector<std::string> f;
+  for (const auto& c : criteria) {
+    if (c.decision.outcome == Outcome::conditional) f.push_back(c.id);
   }
   return f;
 }
@@ -254,15 +299,15 @@ void Judging::outlier_criterion() {
   const OutlierSummary& o = reduced.outliers;
   J.outliers = o;
   if (o.frames == 0) {
-    settle(c, std::nullopt, 0, "not measured: the run recorded no dwell frames");
+    settle(c, std::nullopt, {}, "not measured: the run recorded no dwell frames");
   } else if (!o.applied) {
-    settle(c, std::nullopt, 0, "not measured: the outlier rule was off for this calibration");
+    settle(c, std::nullopt, {}, "not measured: the outlier rule was off for this calibration");
   } else {
     const double share = o.worst_share();
     // Binomial 1-sigma of the share (at least one frame's worth when none was seen).
     const double n = static_cast<double>(o.frames);
     const double u = std::sqrt(std::max(share, 1.0 / n) * (1 - share) / n);
-    settle(c, share, u,
+    settle(c, share, {{"binomial count of the outlier frames", 'A', 1.0, u, dof_of(o.frames)}},
            fmt::format("{} of {} dwell frames lie more than {} robust sigmas from their dwell: pitch {} ({:.2f} %), "
                        "yaw {} ({:.2f} %); left out of every dwell mean, accuracy and jitter",
                        o.any.outlier_frames, o.frames, OutlierRule{}.threshold_sigma, o.alpha.outlier_frames,
@@ -280,8 +325,8 @@ void Judging::residual_criteria() {
     Criterion max = make_for_axis(ax, "residual_max", "Calibration residuals, max |r|", L.residual_max_abs_arcsec,
                                   "residual_max_abs_arcsec", "<=", "arcsec");
     if (!residuals.is_object() || !residuals.contains(a)) {
-      settle(mean, std::nullopt, 0, cal ? "not measured: calibration.json has no residuals for " + a : no_cal);
-      settle(max, std::nullopt, 0, cal ? "not measured: calibration.json has no residuals for " + a : no_cal);
+      settle(mean, std::nullopt, {}, cal ? "not measured: calibration.json has no residuals for " + a : no_cal);
+      settle(max, std::nullopt, {}, cal ? "not measured: calibration.json has no residuals for " + a : no_cal);
     } else {
       const auto& r = residuals[a];
       // A double default: NAN is a float, and value() returns its default's type (the figures
@@ -289,14 +334,27 @@ void Judging::residual_criteria() {
       const double nan = std::numeric_limits<double>::quiet_NaN();
       const double m = r.value("mean_abs_arcsec", nan), sdv = r.value("sd_arcsec", 0.0), mx = r.value("max_abs_arcsec", nan);
       const double n = r.value("points", 0.0);
-      // One change's noise: two dwell means, each with its standard error.
-      std::vector<double> se;
+      // One change's noise: two dwell means, each with its standard error (the median dwell's parts).
+      std::vector<double> noise, quant, ref, frames;
       for (const auto* d : calib) {
-        se.push_back(d->se[ax]);
+        noise.push_back(d->noise[ax]);
+        quant.push_back(d->quant[ax]);
+        ref.push_back(d->ref_noise[ax]);
+        frames.push_back(static_cast<double>(d->frames));
       }
-      settle(mean, m, n > 0 ? sdv / std::sqrt(n) : 0.0,
+      std::vector<BudgetEntry> change{
+          {"sensor noise (two dwell means, median dwell)", 'A', std::sqrt(2.0), std::sqrt(2.0) * median(noise),
+           dof_of(static_cast<size_t>(median(frames)))},
+          {"quantisation (one count, LSB / sqrt(12), two dwell means)", 'B', std::sqrt(2.0), std::sqrt(2.0) * median(quant), kInfDof}};
+      if (median(ref) > 0) {
+        change.push_back({"reference noise (two dwell means, median dwell)", 'A', std::sqrt(2.0), std::sqrt(2.0) * median(ref),
+                          dof_of(static_cast<size_t>(median(frames)))});
+      }
+      std::vector<BudgetEntry> scatter;
+      if (n > 0) scatter.push_back({"scatter of the calibration's changes (sd / sqrt(n))", 'A', 1.0 / std::sqrt(n), sdv / std::sqrt(n), dof_of(static_cast<size_t>(n))});
+      settle(mean, m, scatter,
              fmt::format("{} changes null <-> offset (Table 1: mean |r| +- sd = {:.3f} +- {:.3f})", n, m, sdv));
-      settle(max, mx, std::sqrt(2.0) * median(se),
+      settle(max, mx, change,
              fmt::format("largest of {} changes; uncertainty = noise of one change (two dwell means)", n));
     }
     J.criteria.push_back(mean);
@@ -315,31 +373,32 @@ void Judging::accuracy_criteria() {
     Criterion centre = make_for_axis(ax, "accuracy_centre", "Accuracy at the centre (null dwells)",
                                      L.accuracy_centre_arcsec, "accuracy_centre_arcsec", "<=", "arcsec");
     if (!cal) {
-      settle(rms3, std::nullopt, 0, no_cal);
-      settle(worst, std::nullopt, 0, no_cal);
-      settle(centre, std::nullopt, 0, no_cal);
+      settle(rms3, std::nullopt, {}, no_cal);
+      settle(worst, std::nullopt, {}, no_cal);
+      settle(centre, std::nullopt, {}, no_cal);
     } else {
       if (ver_in.empty()) {
-        settle(rms3, std::nullopt, 0, "not measured: no verification point within the radius");
-        settle(worst, std::nullopt, 0, "not measured: no verification point within the radius");
+        settle(rms3, std::nullopt, {}, "not measured: no verification point within the radius");
+        settle(worst, std::nullopt, {}, "not measured: no verification point within the radius");
       } else {
         double ss = 0;
         for (const auto* d : ver_in) ss += sq(d->mean[ax] - d->ref[ax]);
         const auto [at, w] = worst_dwell(ver_in, error_size);
         const double n = static_cast<double>(ver_in.size());
         const double v3 = 3.0 * std::sqrt(ss / n);
-        settle(rms3, v3, v3 / std::sqrt(2.0 * n),
+        // An RMS about zero (the reference), not about its own mean: n degrees of freedom.
+        settle(rms3, v3, {{"scatter of the verification errors (RMS / sqrt(2n))", 'A', 3.0, v3 / std::sqrt(2.0 * n), n}},
                fmt::format("{} verification points within {} arcmin; error = calibrated angle - reference, "
                            "mean over each dwell's frames{}",
                            ver_in.size(), L.accuracy_radius_arcmin.value, left_out(ver_in)));
-        settle(worst, w, at->se[ax],
+        settle(worst, w, dwell_budget(*at, ax),
                fmt::format("{:+.3f} arcsec at {}{}", at->mean[ax] - at->ref[ax], where_text(*at), left_out({at})));
       }
       if (ver_null.empty()) {
-        settle(centre, std::nullopt, 0, "not measured: no verification null dwell");
+        settle(centre, std::nullopt, {}, "not measured: no verification null dwell");
       } else {
         const auto [at, w] = worst_dwell(ver_null, error_size);
-        settle(centre, w, at->se[ax],
+        settle(centre, w, dwell_budget(*at, ax),
                fmt::format("{} null dwells after the calibration; worst {:+.3f} arcsec at step {}{}", ver_null.size(),
                            at->mean[ax] - at->ref[ax], at->step, left_out(ver_null)));
       }
@@ -356,14 +415,15 @@ void Judging::jitter_criteria() {
     Criterion jit = make_for_axis(ax, "jitter_3sigma", "Jitter at rest, 3 sigma", L.jitter_3sigma_arcsec,
                                   "jitter_3sigma_arcsec", "<=", "arcsec");
     if (!cal) {
-      settle(jit, std::nullopt, 0, no_cal);
+      settle(jit, std::nullopt, {}, no_cal);
     } else if (rest.empty()) {
-      settle(jit, std::nullopt, 0, "not measured: no rest dwell was recorded");
+      settle(jit, std::nullopt, {}, "not measured: no rest dwell was recorded");
     } else {
       const auto [at, w] = worst_dwell(rest, [ax](const DwellStats& d) { return 3.0 * d.sd_detrended[ax]; });
       // A detrended sd has frames - 2 degrees of freedom.
-      const double u = at->frames > 2 ? w / std::sqrt(2.0 * static_cast<double>(at->frames - 2)) : w;
-      settle(jit, w, u,
+      const double nu = at->frames > 2 ? static_cast<double>(at->frames - 2) : 1.0;
+      const double u = at->frames > 2 ? w / std::sqrt(2.0 * nu) : w;
+      settle(jit, w, {{"sensor noise (sampling of the SD, frames - 2 dof)", 'A', 3.0, u, nu}},
              fmt::format("worst of {} rest dwells: {} ({} frames, linear trend removed){}", rest.size(),
                          where_text(*at), at->frames, left_out(rest)));
     }
@@ -379,10 +439,10 @@ void Judging::coverage_criteria() {
                                     "calibrated_range_deg", ">=", "deg");
     if (!residuals.is_object() || !residuals.contains(a) || !residuals[a].contains("range_deg") ||
         !residuals[a]["range_deg"].is_array() || residuals[a]["range_deg"].size() != 2) {
-      settle(range, std::nullopt, 0, cal ? "not measured: calibration.json has no range_deg for " + a : no_cal);
+      settle(range, std::nullopt, {}, cal ? "not measured: calibration.json has no range_deg for " + a : no_cal);
     } else {
       const double lo = residuals[a]["range_deg"][0].get<double>(), hi = residuals[a]["range_deg"][1].get<double>();
-      settle(range, std::min(-lo, hi), 0.0,
+      settle(range, std::min(-lo, hi), {},
              fmt::format("reference angles of the calibration dwells span {:+.4f} .. {:+.4f} deg (the smaller side)", lo, hi));
     }
     J.criteria.push_back(range);
@@ -390,14 +450,14 @@ void Judging::coverage_criteria() {
     Criterion ext = make_for_axis(ax, "verified_extent", "Verified extent", L.verified_extent_deg,
                                   "verified_extent_deg", ">=", "deg");
     if (ver_in.empty()) {
-      settle(ext, std::nullopt, 0, "not measured: no verification point within the radius");
+      settle(ext, std::nullopt, {}, "not measured: no verification point within the radius");
     } else {
       double lo = 0, hi = 0;
       for (const auto* d : ver_in) {
         lo = std::min(lo, d->ref[ax]);
         hi = std::max(hi, d->ref[ax]);
       }
-      settle(ext, std::min(-lo, hi) / kArcsecPerDeg, 0.0,
+      settle(ext, std::min(-lo, hi) / kArcsecPerDeg, {},
              fmt::format("verification points span {:+.4f} .. {:+.4f} deg (the smaller side)", lo / kArcsecPerDeg,
                          hi / kArcsecPerDeg));
     }
@@ -406,7 +466,7 @@ void Judging::coverage_criteria() {
   {
     Criterion n = make("verification_points", "Verification points within the radius", "", L.verification_points_min,
                        "verification_points_min", ">=", "points");
-    settle(n, static_cast<double>(ver_in.size()), 0.0,
+    settle(n, static_cast<double>(ver_in.size()), {},
            fmt::format("{} offset points within {} arcmin of the centre ({} verification offset points in all)",
                        ver_in.size(), L.accuracy_radius_arcmin.value, ver_off.size()));
     J.criteria.push_back(n);
@@ -435,7 +495,7 @@ void Judging::sun_criterion() {
                                      data.points_planned);
     if (bad_frames) detail += fmt::format("; {} recorded frames not valid", bad_frames);
     if (!data.run_completed) detail += fmt::format("; the run stopped: {}", data.run_reason);
-    settle(sun, std::min(frac, 1.0), 0.0, detail);
+    settle(sun, std::min(frac, 1.0), {}, detail);
     J.criteria.push_back(sun);
   }
 }
@@ -446,25 +506,29 @@ void Judging::consistency_criterion() {
     Criterion con = make("consistency", "Change since the unit's last accepted or imported calibration (max |B - A|, +-0.35 deg)", "",
                          L.consistency_arcsec, "consistency_arcsec", "<=", "arcsec");
     if (!cal) {
-      settle(con, std::nullopt, 0, no_cal);
+      settle(con, std::nullopt, {}, no_cal);
     } else {
       try {
         const DriftCheck d = check_drift(*data.previous, *cal, L.consistency_arcsec.value);
-        double u = 0;
+        std::vector<BudgetEntry> fit;
         if (cal->extra.contains("uncertainties")) {
           const auto& un = cal->extra["uncertainties"];
           const int worst_ax = d.worst_axis == "alpha" ? 0 : 1;
           const char* key = axis_name(worst_ax);
-          if (un.contains(key) && un[key].contains("angle_sigma_max_arcsec")) {
-            u = un[key]["angle_sigma_max_arcsec"].get<double>();
+          if (un.contains(key) && un[key].contains("angle_sigma_max_arcsec") && un[key]["angle_sigma_max_arcsec"].is_number()) {
+            // The fit's chi^2 degrees of freedom, when calibration.json gives them.
+            const double dof = un.contains("chi2_dof") && un["chi2_dof"].is_number() && un["chi2_dof"].get<double>() > 0
+                                   ? un["chi2_dof"].get<double>() : kInfDof;
+            fit.push_back({"model and fit (this calibration's angle sigma, worst axis)", 'A', 1.0,
+                           un[key]["angle_sigma_max_arcsec"].get<double>(), dof});
           }
         }
-        settle(con, d.worst_arcsec, u,
+        settle(con, d.worst_arcsec, fit,
                fmt::format("against {}: alpha max {:.3f}, beta max {:.3f} arcsec ({:.3f} with the null shift removed)",
                            data.previous_name, d.comparison.alpha.max_abs_arcsec, d.comparison.beta.max_abs_arcsec,
                            d.worst_shape_arcsec));
       } catch (const InputError& e) {
-        settle(con, std::nullopt, 0, std::string("not measured: ") + e.what());
+        settle(con, std::nullopt, {}, std::string("not measured: ") + e.what());
       }
     }
     J.criteria.push_back(con);
@@ -507,7 +571,14 @@ Judgement judge(const AcceptanceData& data, const AcceptanceLimits& L) {
   g.sun_criterion();
   g.consistency_criterion();
   g.judged_points();
-  g.J.passed = std::all_of(g.J.criteria.begin(), g.J.criteria.end(), [](const Criterion& c) { return c.passed; });
+  g.J.rule = L.decision_rule;
+  g.J.outcome = Outcome::pass;
+  for (auto& c : g.J.criteria) {
+    decide_criterion(c, L.decision_rule);
+    if (c.decision.outcome == Outcome::fail) g.J.outcome = Outcome::fail;
+    if (c.decision.outcome == Outcome::conditional && g.J.outcome == Outcome::pass) g.J.outcome = Outcome::conditional;
+  }
+  g.J.passed = g.J.outcome == Outcome::pass;
   return g.J;
 }
 

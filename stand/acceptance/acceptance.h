@@ -12,6 +12,7 @@
 #include "calib/coefficients.h"
 #include "calib/reduction.h"
 #include "calib/samples.h"
+#include "calib/uncertainty.h"
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
 
@@ -40,6 +41,7 @@ struct AcceptanceLimits {
   Limit sun_present_fraction;         // planned points measured with every frame valid (sun present)
   Limit consistency_arcsec;           // max |B - A| against the unit's last accepted or imported calibration, if any
   Limit outlier_frames_fraction;      // share of dwell frames the reduction may reject, per axis (stand policy)
+  DecisionRule decision_rule;         // decision_rule: how U enters the verdict (default simple)
 };
 
 // Parses a limits file; every error (missing limit, missing source, wrong type, unknown key) at
@@ -83,11 +85,15 @@ struct Criterion {
   std::string title;
   std::string axis;      // pitch (alpha), yaw (beta) or "" for both
   std::optional<double> measured;  // absent: could not be measured (fails)
-  double uncertainty = 0;          // 1 sigma of the measured value, same unit
+  double uncertainty = 0;          // 1 sigma of the measured value, same unit: budget's combined u
+  std::vector<BudgetEntry> budget; // its contributions (empty when the value is exact: counts, encoder ranges)
+  Combined combined;               // u, dof_eff, k, U of the budget
   double limit = 0;
   std::string relation;  // "<=" or ">="
   std::string unit;      // arcsec, deg, points, fraction
-  bool passed = false;
+  Decision decision;             // under the limits file's rule
+  Outcome simple_outcome = Outcome::fail;  // what the simple rule would say (the certificate says why they differ)
+  bool passed = false;           // decision.outcome == pass
   std::string limit_key; // the limits file's key
   std::string source;    // where the limit comes from
   std::string detail;    // how it was measured, where the worst value is
@@ -110,8 +116,11 @@ struct Judgement {
   OutlierSummary outliers;  // the reduction's rejected frames over the whole recording
   std::vector<Criterion> criteria;
   std::vector<JudgedPoint> points;  // verification and rest dwells
-  bool passed = false;
-  std::vector<std::string> failed() const;  // ids of the failed criteria
+  DecisionRule rule;
+  Outcome outcome = Outcome::fail;  // fail if any criterion fails, else conditional if any is, else pass
+  bool passed = false;              // outcome == pass
+  std::vector<std::string> failed() const;       // ids of the failed criteria
+  std::vector<std::string> conditional() const;  // ids of the conditional ones
 };
 
 // Pure: the criteria from the data and the limits (no files, no clock).
@@ -130,12 +139,14 @@ struct CertificateInfo {
   int64_t points_planned = 0, points_completed = 0;
   std::string date_utc;
   std::string calibration_file;         // "" when there is none
+  nlohmann::json reference;             // the reference calibration file's identity(); null: none
 };
 
-// acceptance.json: {"format": "fpss-stand acceptance/1", "verdict": "pass"|"fail", "passed",
-// "unit", "stand", "software", "procedure", "limits", "run", "date_utc", "calibration",
-// "criteria": [{id, title, axis, measured, uncertainty, limit, relation, unit, passed, limit_key,
-// source, detail}], "failed": [...], "points": [...]}.
+// acceptance.json: {"format": "fpss-stand acceptance/1", "verdict": "pass"|"conditional"|"fail",
+// "passed", "unit", "stand", "software", "procedure", "limits", "decision_rule", "run", "date_utc",
+// "calibration", "criteria": [{id, title, axis, measured, uncertainty, expanded_uncertainty,
+// coverage_factor, dof_eff, budget, limit, acceptance_limit, relation, unit, outcome, passed,
+// limit_key, source, detail}], "failed": [...], "conditional": [...], "points": [...]} (docs/acceptance.md).
 nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimits& limits, const CertificateInfo& info);
 // The certificate as plain text (certificate.txt) and as a report.html section (trusted markup).
 std::string certificate_text(const nlohmann::ordered_json& cert);

@@ -1,6 +1,7 @@
 // The acceptance certificate: acceptance.json's content, its plain-text and HTML forms.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "stand/acceptance/acceptance.h"
@@ -8,16 +9,65 @@
 
 namespace fpss {
 
+namespace {
+
+nlohmann::ordered_json number_or_null(double v) {
+  return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr);
+}
+
+nlohmann::ordered_json rule_json(const DecisionRule& r) {
+  nlohmann::ordered_json j{{"rule", to_string(r.kind)}};
+  if (r.kind == DecisionRuleKind::guarded) j["guard_multiple"] = r.guard_multiple;
+  if (r.kind == DecisionRuleKind::risk) j["max_false_accept"] = r.max_false_accept;
+  j["statement"] = "Decision rule: " + rule_sentence(r) + ".";
+  return j;
+}
+
+// A guard multiple as the rule's sentence writes it (1.0, 1.5).
+std::string multiple_text(double m) { return m == std::floor(m) ? fmt::format("{:.1f}", m) : fmt::format("{}", m); }
+
+// Why the rule decided otherwise than simple acceptance would ("" when it did not): only a
+// value within its limit can differ, passing under simple and conditional under the others.
+std::string outcome_reason(const Criterion& k, const DecisionRule& r) {
+  if (!k.measured || k.decision.outcome == k.simple_outcome) return "";
+  const double v = *k.measured, a = k.decision.acceptance_limit;
+  if (r.kind == DecisionRuleKind::guarded) {
+    return fmt::format("the value {:.4g} ({}) is within the limit {} {:.4g} but beyond the acceptance limit {:.4g}: the limit less "
+                       "the guard band w = {} x U = {:.4g}; the true value may lie beyond the limit (U = {:.4g}, "
+                       "95 %), so the outcome is {} where simple acceptance would pass it",
+                       v, k.unit, k.relation, k.limit, a, multiple_text(r.guard_multiple), std::fabs(k.limit - a), k.combined.U,
+                       to_string(k.decision.outcome));
+  }
+  return fmt::format("the value {:.4g} ({}) is within the limit {} {:.4g} but beyond the acceptance limit {:.4g}: the probability "
+                     "that the true value lies beyond the limit is {:.3f}, more than the {} allowed, so the outcome is "
+                     "{} where simple acceptance would pass it",
+                     v, k.unit, k.relation, k.limit, a, k.decision.false_accept, r.max_false_accept,
+                     to_string(k.decision.outcome));
+}
+
+nlohmann::ordered_json budget_json(const std::vector<BudgetEntry>& b) {
+  nlohmann::ordered_json out = nlohmann::ordered_json::array();
+  for (const auto& e : b) {
+    out.push_back({{"source", e.source}, {"type", std::string(1, e.type)}, {"sensitivity", e.sensitivity},
+                   {"u", e.u}, {"dof", number_or_null(e.dof)}});
+  }
+  return out;
+}
+
+}  // namespace
+
 nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimits& limits, const CertificateInfo& info) {
   nlohmann::ordered_json c;
   c["format"] = "fpss-stand acceptance/1";
-  c["verdict"] = j.passed ? "pass" : "fail";
+  c["verdict"] = to_string(j.outcome);
   c["passed"] = j.passed;
   c["unit"] = info.unit;
   c["stand"] = {{"identity", info.stand}, {"detail", info.stand_detail}};
   c["software"] = {{"name", "fpss-stand"}, {"version", info.software_version}};
   c["procedure"] = {{"name", info.procedure_name}, {"file", info.procedure_file}, {"sha256", info.procedure_sha256}};
   c["limits"] = {{"name", limits.name}, {"file", limits.origin}, {"sha256", limits.sha256}};
+  if (!info.reference.is_null()) c["reference"] = info.reference;  // the gimbal's calibration applied
+  c["decision_rule"] = rule_json(j.rule);
   c["run"] = {{"id", info.run_id},
               {"dir", info.run_dir},
               {"outcome", info.run_outcome},
@@ -33,11 +83,15 @@ nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimi
     crit.push_back(nlohmann::ordered_json{
         {"id", k.id}, {"title", k.title}, {"axis", k.axis},
         {"measured", measured}, {"uncertainty", k.uncertainty},
-        {"limit", k.limit}, {"relation", k.relation}, {"unit", k.unit}, {"passed", k.passed},
-        {"limit_key", k.limit_key}, {"source", k.source}, {"detail", k.detail}});
+        {"expanded_uncertainty", k.combined.U}, {"coverage_factor", k.combined.k},
+        {"dof_eff", number_or_null(k.combined.dof_eff)}, {"budget", budget_json(k.budget)},
+        {"limit", k.limit}, {"acceptance_limit", k.decision.acceptance_limit}, {"relation", k.relation},
+        {"unit", k.unit}, {"outcome", to_string(k.decision.outcome)}, {"outcome_reason", outcome_reason(k, j.rule)},
+        {"passed", k.passed}, {"limit_key", k.limit_key}, {"source", k.source}, {"detail", k.detail}});
   }
   c["criteria"] = crit;
   c["failed"] = j.failed();
+  c["conditional"] = j.conditional();
   c["outliers"] = j.outliers.to_json();
   nlohmann::ordered_json pts = nlohmann::ordered_json::array();
   for (const auto& p : j.points) {
@@ -68,6 +122,40 @@ std::string value_text(const nlohmann::ordered_json& k) {
   return fmt::format("{:.{}f}", v, dec);
 }
 
+int value_decimals(const nlohmann::ordered_json& k) {
+  const std::string unit = k["unit"].get<std::string>();
+  return unit == "points" ? 0 : unit == "deg" || unit == "fraction" ? 4 : 3;
+}
+
+// The expanded uncertainty U (95 %), "-" when the value is exact or absent.
+std::string expanded_text(const nlohmann::ordered_json& k) {
+  const double U = k["expanded_uncertainty"].get<double>();
+  if (k["measured"].is_null() || !(U > 0)) return "-";
+  return fmt::format("{:.{}f}", U, value_decimals(k));
+}
+
+std::string acceptance_limit_text(const nlohmann::ordered_json& k) {
+  return fmt::format("{:.{}f}", k["acceptance_limit"].get<double>(), std::max(value_decimals(k), 1));
+}
+
+std::string outcome_word(const std::string& o) { return o == "pass" ? "pass" : o == "fail" ? "FAIL" : "CONDITIONAL"; }
+
+std::string upper_word(const std::string& o) { return o == "pass" ? "PASS" : o == "fail" ? "FAIL" : "CONDITIONAL"; }
+
+// A budget in one line: each contribution, then u, nu_eff, k and U.
+std::string budget_text(const nlohmann::ordered_json& k) {
+  if (k["budget"].empty()) return "";
+  std::string s;
+  for (const auto& e : k["budget"]) {
+    s += fmt::format("{} (type {}, c = {:.4g}, u = {:.3g}, nu = {}); ", e["source"].get<std::string>(),
+                     e["type"].get<std::string>(), e["sensitivity"].get<double>(), e["u"].get<double>(),
+                     e["dof"].is_null() ? std::string("inf") : fmt::format("{:.0f}", e["dof"].get<double>()));
+  }
+  return s + fmt::format("combined u = {:.3g}, nu_eff = {}, k = {:.3f}, U = {:.3g}", k["uncertainty"].get<double>(),
+                         k["dof_eff"].is_null() ? std::string("inf") : fmt::format("{:.1f}", k["dof_eff"].get<double>()),
+                         k["coverage_factor"].get<double>(), k["expanded_uncertainty"].get<double>());
+}
+
 std::string limit_text(const nlohmann::ordered_json& k) {
   const std::string unit = k["unit"].get<std::string>();
   const int dec = unit == "points" ? 0 : unit == "deg" ? 2 : unit == "fraction" ? 4 : 1;
@@ -79,7 +167,7 @@ std::string limit_text(const nlohmann::ordered_json& k) {
 std::string certificate_text(const nlohmann::ordered_json& c) {
   std::string s;
   s += "FPSS UNIT ACCEPTANCE CERTIFICATE\n\n";
-  s += fmt::format("Verdict:    {}\n", c["passed"].get<bool>() ? "PASS" : "FAIL");
+  s += fmt::format("Verdict:    {}\n", upper_word(c["verdict"].get<std::string>()));
   s += fmt::format("Unit:       {}\n", c["unit"].get<std::string>());
   s += fmt::format("Stand:      {}\n", c["stand"]["identity"].get<std::string>());
   s += fmt::format("Software:   fpss-stand {}\n", c["software"]["version"].get<std::string>());
@@ -87,6 +175,11 @@ std::string certificate_text(const nlohmann::ordered_json& c) {
                    c["procedure"]["file"].get<std::string>(), c["procedure"]["sha256"].get<std::string>());
   s += fmt::format("Limits:     {} ({}), sha256 {}\n", c["limits"]["name"].get<std::string>(),
                    c["limits"]["file"].get<std::string>(), c["limits"]["sha256"].get<std::string>());
+  if (c.contains("reference")) {
+    s += fmt::format("Reference:  certificate {} of {}, {} ({}), sha256 {}\n", c["reference"]["certificate"].get<std::string>(),
+                     c["reference"]["date"].get<std::string>(), c["reference"]["lab"].get<std::string>(),
+                     c["reference"]["file"].get<std::string>(), c["reference"]["sha256"].get<std::string>());
+  }
   s += fmt::format("Run:        {} ({}, {}/{} points)\n", c["run"]["id"].get<std::string>(),
                    c["run"]["outcome"].get<std::string>(), c["run"]["points_completed"].get<int64_t>(),
                    c["run"]["points_planned"].get<int64_t>());
@@ -98,24 +191,36 @@ std::string certificate_text(const nlohmann::ordered_json& c) {
                      c.value("signed_off_utc", std::string()));
   }
   s += fmt::format("Date (UTC): {}\n\n", c["date_utc"].get<std::string>());
-  s += fmt::format("{:<28} {:>22} {:>10} {:<8} {}\n", "criterion", "measured (+- 1 sigma)", "limit", "unit", "result");
+  s += fmt::format("{:<28} {:>22} {:>9} {:>10} {:>10} {:<8} {}\n", "criterion", "measured (+- 1 sigma)", "U (95 %)",
+                   "limit", "accept at", "unit", "result");
   for (const auto& k : c["criteria"]) {
-    s += fmt::format("{:<28} {:>22} {:>10} {:<8} {}\n", k["id"].get<std::string>(), value_text(k), limit_text(k),
-                     k["unit"].get<std::string>(), k["passed"].get<bool>() ? "pass" : "FAIL");
+    s += fmt::format("{:<28} {:>22} {:>9} {:>10} {:>10} {:<8} {}\n", k["id"].get<std::string>(), value_text(k),
+                     expanded_text(k), limit_text(k), acceptance_limit_text(k), k["unit"].get<std::string>(),
+                     outcome_word(k["outcome"].get<std::string>()));
   }
+  s += fmt::format("\n{}\n", c["decision_rule"]["statement"].get<std::string>());
+  std::string why;
+  for (const auto& k : c["criteria"]) {
+    if (!k["outcome_reason"].get<std::string>().empty()) {
+      why += fmt::format("- {}: {}\n", k["id"].get<std::string>(), k["outcome_reason"].get<std::string>());
+    }
+  }
+  if (!why.empty()) s += fmt::format("Where this rule decides otherwise than simple acceptance:\n{}", why);
   s += "\nHow each was measured and where its limit comes from:\n";
   for (const auto& k : c["criteria"]) {
-    s += fmt::format("- {}: {}\n    limit: {}\n", k["id"].get<std::string>(), k["detail"].get<std::string>(),
-                     k["source"].get<std::string>());
+    s += fmt::format("- {}: {}\n", k["id"].get<std::string>(), k["detail"].get<std::string>());
+    if (const std::string b = budget_text(k); !b.empty()) s += fmt::format("    uncertainty: {}\n", b);
+    s += fmt::format("    limit: {}\n", k["source"].get<std::string>());
   }
   return s;
 }
 
 std::string certificate_html(const nlohmann::ordered_json& c) {
-  const bool pass = c["passed"].get<bool>();
+  const std::string verdict = c["verdict"].get<std::string>();
+  const auto colour = [](const std::string& o) { return o == "pass" ? "#1a7f37" : o == "fail" ? "#b42318" : "#8a6d00"; };
   std::string h;
   h += fmt::format("<p class=\"verdict\" style=\"font-size:1.3em;font-weight:bold;color:{}\">Acceptance: {}</p>\n",
-                   pass ? "#1a7f37" : "#b42318", pass ? "PASS" : "FAIL");
+                   colour(verdict), upper_word(verdict));
   h += "<table>\n";
   auto row = [&](const char* k, const std::string& v) {
     h += fmt::format("<tr><th style=\"text-align:left\">{}</th><td>{}</td></tr>\n", k, html_escape(v));
@@ -137,18 +242,22 @@ std::string certificate_html(const nlohmann::ordered_json& c) {
                          c["run"]["reason"].get<std::string>().empty() ? "" : ": " + c["run"]["reason"].get<std::string>()));
   row("Date (UTC)", c["date_utc"].get<std::string>());
   h += "</table>\n<h3>Criteria</h3>\n<table class=\"criteria\">\n";
-  h += "<tr><th>criterion</th><th>measured (&plusmn; 1&sigma;)</th><th>limit</th><th>unit</th><th>result</th>"
-       "<th>how measured</th><th>source of the limit</th></tr>\n";
+  h += "<tr><th>criterion</th><th>measured (&plusmn; 1&sigma;)</th><th>U (95 %)</th><th>limit</th><th>acceptance limit</th>"
+       "<th>unit</th><th>result</th><th>how measured</th><th>uncertainty budget</th><th>source of the limit</th></tr>\n";
   for (const auto& k : c["criteria"]) {
-    const bool ok = k["passed"].get<bool>();
+    const std::string o = k["outcome"].get<std::string>();
+    std::string how = k["detail"].get<std::string>();
+    if (!k["outcome_reason"].get<std::string>().empty()) how += "; " + k["outcome_reason"].get<std::string>();
     h += fmt::format(
-        "<tr><td title=\"{}\">{}</td><td>{}</td><td>{}</td><td>{}</td><td style=\"font-weight:bold;color:{}\">{}</td>"
-        "<td>{}</td><td>{}</td></tr>\n",
+        "<tr><td title=\"{}\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>"
+        "<td style=\"font-weight:bold;color:{}\">{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
         html_escape(k["title"].get<std::string>()), html_escape(k["id"].get<std::string>()), html_escape(value_text(k)),
-        html_escape(limit_text(k)), html_escape(k["unit"].get<std::string>()), ok ? "#1a7f37" : "#b42318",
-        ok ? "pass" : "FAIL", html_escape(k["detail"].get<std::string>()), html_escape(k["source"].get<std::string>()));
+        html_escape(expanded_text(k)), html_escape(limit_text(k)), html_escape(acceptance_limit_text(k)),
+        html_escape(k["unit"].get<std::string>()), colour(o), outcome_word(o), html_escape(how),
+        html_escape(budget_text(k)), html_escape(k["source"].get<std::string>()));
   }
-  h += "</table>\n<h3>Verification and rest points</h3>\n<table class=\"points\">\n";
+  h += "</table>\n<p class=\"decision-rule\">" + html_escape(c["decision_rule"]["statement"].get<std::string>()) + "</p>\n";
+  h += "<h3>Verification and rest points</h3>\n<table class=\"points\">\n";
   h += "<tr><th>step</th><th>role</th><th>pitch (deg)</th><th>yaw (deg)</th><th>frames</th>"
        "<th>error pitch (arcsec)</th><th>error yaw (arcsec)</th><th>jitter 3&sigma; pitch</th><th>jitter 3&sigma; yaw</th></tr>\n";
   for (const auto& p : c["points"]) {

@@ -62,6 +62,35 @@ void read_limit(MapReader& limits, const LimitField& f, bool positive, Acceptanc
   if (src) (out.*f.member).source = *src;
 }
 
+// decision_rule: {rule: simple} | {rule: guarded[, guard_multiple: m]} | {rule: risk, max_false_accept: p}.
+// A field that belongs to another rule is an error, so a file says one thing.
+DecisionRule read_decision_rule(const YAML::Node& n, Diagnostics& d) {
+  DecisionRule r;
+  MapReader m(n, "decision_rule", d);
+  if (!m.ok()) return r;
+  const auto rule = m.choice("rule", {"simple", "guarded", "risk"}, true);
+  if (rule == "guarded") r.kind = DecisionRuleKind::guarded;
+  if (rule == "risk") r.kind = DecisionRuleKind::risk;
+  const YAML::Node gm = n["guard_multiple"], fa = n["max_false_accept"];
+  if (const auto g = m.positive("guard_multiple")) {
+    if (*g > 10) d.error(gm, "decision_rule: field guard_multiple: at most 10 (a guard band of 10 U accepts nothing)");
+    r.guard_multiple = *g;
+  }
+  const auto p = m.positive("max_false_accept", r.kind == DecisionRuleKind::risk);
+  if (p) {
+    if (*p >= 0.5) d.error(fa, "decision_rule: field max_false_accept: a probability below 0.5 (0.5 is the simple rule)");
+    r.max_false_accept = *p;
+  }
+  if (rule && r.kind != DecisionRuleKind::guarded && gm.IsDefined()) {
+    d.error(gm, fmt::format("decision_rule: field guard_multiple belongs to rule guarded, not {}", *rule));
+  }
+  if (rule && r.kind != DecisionRuleKind::risk && fa.IsDefined()) {
+    d.error(fa, fmt::format("decision_rule: field max_false_accept belongs to rule risk, not {}", *rule));
+  }
+  m.finish();
+  return r;
+}
+
 }  // namespace
 
 fs::path default_limits_path() { return shipped_procedures_dir() / "acceptance_limits.yaml"; }
@@ -78,6 +107,7 @@ AcceptanceLimits parse_acceptance_limits(const std::string& text, const std::str
   if (!top.ok()) d.throw_if_any();
   out.name = top.string("name").value_or("");
   out.description = top.string("description").value_or("");
+  if (const YAML::Node rule = top.node("decision_rule"); rule.IsDefined()) out.decision_rule = read_decision_rule(rule, d);
   const YAML::Node limits = top.node("limits");
   if (!limits.IsDefined() || limits.IsNull()) {
     d.error(root, "limits file: missing field \"limits\" (a map of limit name -> {value, source})");

@@ -154,7 +154,9 @@ RunFileAcceptance acceptance_of(const Obj& o) {
   a.file = o.opt_text("file");
   a.certificate = o.opt_text("certificate");
   a.verdict = o.text("verdict");
-  if (a.verdict != "pass" && a.verdict != "fail") o.bad("verdict", "expected pass or fail, got \"" + a.verdict + "\"");
+  if (a.verdict != "pass" && a.verdict != "fail" && a.verdict != "conditional") {
+    o.bad("verdict", "expected pass, conditional or fail, got \"" + a.verdict + "\"");
+  }
   if (o.has("failed")) {
     const json& f = o.array("failed");
     a.failed.emplace();
@@ -183,7 +185,7 @@ json acceptance_json(const RunFileAcceptance& a) {
 const char* const kKnown[] = {"format",         "run_id",  "software", "procedure",  "stand",     "unit",
                               "sensor_id",      "emulated", "emulator", "started_utc", "ended_utc", "outcome",
                               "reason",         "stop_cause", "points", "adaptive_stops", "safe_state", "operator",
-                              "signed_off_utc", "sessions", "files",   "acceptance"};
+                              "signed_off_utc", "sessions", "files",   "acceptance", "reference"};
 
 void read_top(RunFile& r, const Obj& o) {
   r.format = o.opt_text("format");
@@ -259,6 +261,11 @@ RunFile run_file_from_json(const nlohmann::json& j, const std::string& origin) {
   r.files = {f.opt_text("samples"),     f.opt_text("journal"),     f.opt_text("events"),
              f.opt_text("event_stream"), f.opt_text("calibration"), f.opt_text("gap")};
   if (o.has("acceptance")) r.acceptance = acceptance_of(o.obj("acceptance"));
+  if (o.has("reference")) {
+    const Obj ref = o.obj("reference");
+    r.reference = RunFileReference{ref.text("file"), ref.text("sha256"), ref.text("certificate"), ref.text("date"),
+                                   ref.text("lab")};
+  }
   for (auto it = j.begin(); it != j.end(); ++it) {
     bool known = false;
     for (const char* k : kKnown) known |= it.key() == k;
@@ -304,6 +311,10 @@ nlohmann::json to_json(const RunFile& r) {
   put(files, "gap", r.files.gap);
   j["files"] = files;
   if (r.acceptance) j["acceptance"] = acceptance_json(*r.acceptance);
+  if (r.reference) {
+    j["reference"] = {{"file", r.reference->file}, {"sha256", r.reference->sha256}, {"certificate", r.reference->certificate},
+                      {"date", r.reference->date}, {"lab", r.reference->lab}};
+  }
   return j;
 }
 

@@ -43,12 +43,18 @@ struct RunFileAdaptiveStop {
 // `acceptance`, written by `fpss-stand accept`.
 struct RunFileAcceptance {
   std::optional<std::string> file, certificate;
-  std::string verdict;  // pass | fail
+  std::string verdict;  // pass | conditional | fail
   std::optional<std::vector<std::string>> failed;
   struct Limits {
     std::string file, sha256;
   };
   std::optional<Limits> limits;
+};
+
+// `reference`: the reference calibration file the run applied to its reference angles
+// (calib/reference_calibration.h), as named by its identity().
+struct RunFileReference {
+  std::string file, sha256, certificate, date, lab;
 };
 
 struct RunFile {
@@ -89,6 +95,7 @@ struct RunFile {
     std::optional<std::string> samples, journal, events, event_stream, calibration, gap;
   } files;
   std::optional<RunFileAcceptance> acceptance;
+  std::optional<RunFileReference> reference;  // absent: the readings were taken as true
   nlohmann::json extra = nlohmann::json::object();  // keys this version does not know, kept as read
 
   // The run id, or the folder's name for runs made before ids were UUIDs.

@@ -358,6 +358,7 @@ CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r
   info.points_completed = r.points_done;
   info.date_utc = utc_now_iso();
   info.calibration_file = r.calibration ? r.calibration->filename().string() : "";
+  if (const auto& ref = req.stand.bench.reference) info.reference = ref->identity();
   return info;
 }
 
@@ -373,7 +374,7 @@ std::string write_acceptance_files(const fs::path& run_dir, const nlohmann::orde
   RunFileAcceptance acc;
   acc.file = "acceptance.json";
   acc.certificate = "certificate.txt";
-  acc.verdict = j.passed ? "pass" : "fail";
+  acc.verdict = to_string(j.outcome);
   acc.failed = j.failed();
   acc.limits = RunFileAcceptance::Limits{limits.origin, limits.sha256};
   run.acceptance = acc;
@@ -460,7 +461,7 @@ int accept_command(const AcceptArgs& a) {
     } catch (const std::exception&) {
     }
     std::fprintf(stderr, "fpss-stand accept: verdict %s written to %s, but the catalogue %s could not record it: %s\n",
-                 j.passed ? "pass" : "fail", (run_dir / "acceptance.json").c_str(), url_for_messages(cat_url).c_str(),
+                 to_string(j.outcome), (run_dir / "acceptance.json").c_str(), url_for_messages(cat_url).c_str(),
                  e.what());
     return 1;
   }
@@ -470,12 +471,13 @@ int accept_command(const AcceptArgs& a) {
   } else {
     std::printf("%s\n", text.c_str());
     std::printf("acceptance %s: %s\ncertificate: %s\nreport: %s\ncatalogue: %s (acceptance %lld)\n",
-                j.passed ? "PASSED" : "FAILED", (run_dir / "acceptance.json").c_str(),
+                j.passed ? "PASSED" : j.outcome == Outcome::fail ? "FAILED" : "CONDITIONAL", (run_dir / "acceptance.json").c_str(),
                 (run_dir / "certificate.txt").c_str(), (run_dir / "report.html").c_str(), url_for_messages(cat_url).c_str(),
                 static_cast<long long>(acc_id));
   }
   std::fflush(stdout);
-  return j.passed ? 0 : 3;
+  // Conditional is no acceptance (exit 4, catalogue passed = false), nor a failure (exit 3).
+  return j.passed ? 0 : j.outcome == Outcome::fail ? 3 : 4;
 }
 
 void add_accept_command(CLI::App& app, Runner& run) {

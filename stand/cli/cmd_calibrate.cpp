@@ -6,13 +6,16 @@
 #include <optional>
 
 #include "base/clock.h"
+#include "base/errors.h"
 #include "base/text_file.h"
 #include "calib/calibrator.h"
 #include "calib/coefficients.h"
+#include "calib/reference_calibration.h"
 #include "calib/report.h"
 #include "calib/samples.h"
 #include "calib/streaming.h"
 #include "procedures/recorder.h"
+#include "stand/catalogue/run_file.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
@@ -20,9 +23,41 @@
 
 namespace fpss::cli {
 
+namespace {
+
+// --reference: the file, and what the recording's run.json (beside it, when there is one) says:
+// the mount that takes its sensor-frame angles to the gimbal's axes, and whether the run already
+// applied a reference (then only its u is added, and only for the same file).
+void use_reference(CalibrationOptions& opts, const std::string& file, const std::string& data) {
+  opts.reference = load_reference_calibration(file);
+  opts.correct_reference = true;
+  const auto dir = std::filesystem::path(data).parent_path();
+  if (!std::filesystem::exists(dir / "run.json")) return;
+  const RunFile run = read_run_file(dir);
+  if (run.stand && run.stand->settings.is_object() && run.stand->settings.contains("axes")) {
+    const auto& axes = run.stand->settings["axes"];
+    auto axis = [&](const char* key, AxisMapping::SensorAxis& a, double& sign) {
+      const std::string v = axes.value(key, "");
+      sign = v.starts_with("-") ? -1.0 : 1.0;
+      a = v.ends_with("beta") ? AxisMapping::beta : AxisMapping::alpha;
+    };
+    axis("pitch", opts.mount.pitch_axis, opts.mount.pitch_sign);
+    axis("yaw", opts.mount.yaw_axis, opts.mount.yaw_sign);
+  }
+  if (!run.reference) return;
+  if (run.reference->sha256 != opts.reference->sha256) {
+    throw InputError(fmt::format("--reference {}: the run in {} already corrected its reference angles with {} "
+                                 "(sha256 {}); give that file, or none",
+                                 file, dir.string(), run.reference->file, run.reference->sha256));
+  }
+  opts.correct_reference = false;  // corrected by the run: its u only
+}
+
+}  // namespace
+
 void add_calibrate(CLI::App& app, Runner& run) {
   struct Opts {
-    std::string data, out, init, method = "differences", truth, unit;
+    std::string data, out, init, method = "differences", truth, unit, reference;
     std::optional<double> count_noise;
     bool json = false;
     FileOptions files;
@@ -50,6 +85,9 @@ void add_calibrate(CLI::App& app, Runner& run) {
                   "expected sensor noise per frame before whole-count rounding, counts (default: the --init "
                   "file's count_noise_counts, else estimated from the within-dwell scatter)")
       ->check(CLI::NonNegativeNumber);
+  o->files.input(sub, "--reference", o->reference,
+                 "the reference's calibration (JSON, docs/formats.md): corrects a raw recording's reference "
+                 "angles and adds its uncertainty to the calibration's");
   sub->add_option("--unit", o->unit, "unit name written to the coefficient file (default: from --init or --truth)");
   sub->add_flag("--json", o->json,
                 "print {\"file\": OUT, \"calibration\": <the coefficient file's content>} instead of the summary");
@@ -71,6 +109,7 @@ void add_calibrate(CLI::App& app, Runner& run) {
         opts.count_noise_counts = *o->count_noise;
         opts.count_noise_source = "command line";
       }
+      if (!o->reference.empty()) use_reference(opts, o->reference, o->data);
       // Row by row: only the dwells' sums are kept, whatever the recording's length.
       const CalibrationReport rep = calibrate_csv(o->data, opts);
 

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <tuple>
 
 #include "base/errors.h"
 #include "base/text_file.h"
@@ -48,6 +49,19 @@ void read_endpoint(MapReader& r, std::string& out, bool gimbal) {
 
 }  // namespace
 
+// reference: the gimbal's calibration file (docs/formats.md), relative to the stand file.
+static void read_reference(MapReader& top, const std::string& origin, EngineSettings& b, Diagnostics& d) {
+  const auto s = top.string("reference");
+  if (!s) return;
+  std::filesystem::path p = *s;
+  if (p.is_relative() && !origin.empty()) p = std::filesystem::path(origin).parent_path() / p;
+  try {
+    b.reference = load_reference_calibration(p);
+  } catch (const InputError& e) {
+    d.error(top.node("reference"), fmt::format("reference: {}", e.what()));
+  }
+}
+
 StandConfig parse_stand(std::string_view text, const std::string& origin, Diagnostics& d) {
   StandConfig c;
   c.origin = origin;
@@ -90,6 +104,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
     if (auto v = r.integer("command_retries", false, 0, 100)) c.sensor.command_retries = static_cast<int>(*v);
     if (auto v = r.integer("reconnects", false, 0, 100)) c.sensor.reconnects = static_cast<int>(*v);
     if (auto v = r.string("serial")) c.unit_serial = *v;
+    if (auto v = r.range("temperature_range_c")) std::tie(c.sensor.temperature_min_c, c.sensor.temperature_max_c) = *v;
     r.finish();
   }
   // soft limits
@@ -156,6 +171,7 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
     if (auto v = r.integer("max_remeasure", false, 0, 100)) b.max_remeasure = static_cast<int>(*v);
     r.finish();
   }
+  read_reference(top, origin, b, d);
   top.finish();
   return c;
 }
@@ -211,7 +227,8 @@ nlohmann::json to_json(const StandConfig& s) {
        {{"endpoint", s.sensor.endpoint},
         {"command_timeout_s", s.sensor.command_timeout_s},
         {"command_retries", s.sensor.command_retries},
-        {"reconnects", s.sensor.reconnects}}},
+        {"reconnects", s.sensor.reconnects},
+        {"temperature_range_c", {s.sensor.temperature_min_c, s.sensor.temperature_max_c}}}},
       {"bench", to_json(s.bench)},
   };
 }

@@ -39,6 +39,11 @@ RunVerdict run_verdict(const RunFile& run) {
     if (acc.verdict == "pass") return {"pass", "acceptance passed: every criterion within its limit"};
     std::string failed;
     for (const auto& f : acc.failed.value_or(std::vector<std::string>{})) failed += (failed.empty() ? "" : ", ") + f;
+    // Conditional: nothing failed, but a value lies within its guard band (acceptance.json says which).
+    if (acc.verdict == "conditional") {
+      return {"conditional", "acceptance conditional: no criterion beyond its limit, but one or more within the guard "
+                             "band of the decision rule (the certificate says which and why)"};
+    }
     return {"fail", failed.empty() ? "acceptance failed" : "acceptance failed: " + failed};
   }
   if (outcome == "running") return {"running", "the run is in progress"};

@@ -20,7 +20,7 @@ namespace fpss {
 // the run's own: "pass" when it completed (every check step held), "fail" when a check or the
 // calibration failed, "running" while it runs, "incomplete" when it stopped before a verdict.
 struct RunVerdict {
-  std::string verdict;  // pass | fail | running | incomplete
+  std::string verdict;  // pass | conditional | fail | running | incomplete
   std::string why;      // one sentence for people (the stop reason, the failed limits)
 };
 RunVerdict run_verdict(const RunFile& run);

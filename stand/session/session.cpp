@@ -193,6 +193,9 @@ void Session::write_start_record() {
     run_.started_utc = now_utc;
     run_.points = {static_cast<int64_t>(plan_.points), 0, std::nullopt};
     run_.files.samples = "samples.csv";
+    if (const auto& ref = stand_.bench.reference) {
+      run_.reference = RunFileReference{ref->file, ref->sha256, ref->certificate, ref->date, ref->lab};
+    }
     run_.files.journal = "points.jsonl";
     run_.files.events = "events.log";
     run_.files.event_stream = "events.jsonl";
@@ -349,6 +352,9 @@ void Session::on_calibrate(const Action& a) {
   if (a.calibrate->refine_nodes) o.refine_nodes = static_cast<size_t>(*a.calibrate->refine_nodes);
   if (a.calibrate->threads) o.threads = *a.calibrate->threads;
   o.unit = unit_;
+  // The engine already corrected the rows' reference angles: the fit carries the file's u.
+  o.reference = stand_.bench.reference;
+  o.mount = stand_.bench.axes;
   const auto t0 = std::chrono::steady_clock::now();
   CalibrationReport rep = calibrate(rows, o);
   ++calibrations_;

@@ -5,10 +5,12 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -143,6 +145,20 @@ TEST(Diagnosis, NoiseOnlyGivesNoneWithGapAfterEqualBefore) {
     EXPECT_NEAR(d.noise_floor_arcsec, d.gap_before_arcsec, 0.15 * d.gap_before_arcsec);
     EXPECT_EQ(d.effects.size(), 11u);  // every candidate tried (all observable) and none
   }
+}
+
+// The coefficients candidate has a detection limit like the others: the RMS change of the angle
+// that would have been material on the held-out rows, with its 16 parameters' penalty.
+TEST(Diagnosis, CoefficientsHaveADetectionLimitInArcsec) {
+  const Diagnosis d = diagnose(record(bench(12, {})), default_bench_config().truth, options());
+  const auto it = std::find_if(d.effects.begin(), d.effects.end(), [](const EffectResult& e) { return e.name == "coefficients"; });
+  ASSERT_NE(it, d.effects.end());
+  ASSERT_TRUE(it->detection_limit.contains("angle_rms_arcsec")) << it->detection_limit.dump();
+  const double N = 2.0 * d.split["heldout_rows"].get<double>(), nf = d.noise_floor_arcsec;
+  const double want = nf * std::sqrt(std::max(0.1, std::expm1(16.0 * std::log(N) / N)));
+  EXPECT_NEAR(it->detection_limit["angle_rms_arcsec"].get<double>(), want, 1e-9);
+  EXPECT_GT(it->detection_limit["angle_rms_arcsec"].get<double>(), 0.3 * nf);
+  EXPECT_LT(it->detection_limit["angle_rms_arcsec"].get<double>(), nf);
 }
 
 TEST(Diagnosis, PaperSlewCaseTimeSkewFoundLedBySlewRateWithin2ms) {
@@ -343,6 +359,27 @@ TEST(Diagnosis, GapJsonCarriesTheContractKeysInTheEmulatorsNames) {
     EXPECT_EQ(keys, want) << name;
   }
   EXPECT_NEAR(j["causes"][0]["params"]["width_arcsec"].get<double>(), 3.0, 0.1);
+  // No time_since_move_s column: GAP.json says the arrivals were assumed, and a warning says from what.
+  EXPECT_EQ(j["recording"]["arrival_times"], "assumed settle_s");
+}
+
+// A recording with its arrival times (time_since_move_s, as `run` records them): GAP.json says
+// they were recorded, and no warning asks for them.
+TEST(Diagnosis, RecordedArrivalTimesAreSaidToBeRecorded) {
+  const SampleTable t = record(bench(103, {"settling:amplitude_arcsec=3,tau_s=0.4"}));
+  DiagnosisColumns c = DiagnosisColumns::of(t);
+  c.time_since_move_s.assign(t.size(), std::numeric_limits<float>::quiet_NaN());
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.phase[i] == Phase::slew || t.phase[i] == Phase::move) continue;
+    size_t first = i;
+    while (first > 0 && t.step[first - 1] == t.step[i]) --first;
+    c.time_since_move_s[i] = static_cast<float>(t.time_s[i] - t.time_s[first] + kSettle + 0.005);
+  }
+  const Diagnosis d = diagnose(std::move(c), default_bench_config().truth, options());
+  const auto j = d.to_json();
+  EXPECT_EQ(j["recording"]["arrival_times"], "recorded");
+  for (const auto& w : d.warnings) EXPECT_EQ(w.find("no time_since_move_s"), std::string::npos) << w;
+  EXPECT_EQ(d.cause, "settling");
 }
 
 // Outlier frames (1.5 % of the frames, a wild count on one axis) are reported and kept out of

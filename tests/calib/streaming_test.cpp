@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "base/errors.h"
+#include "calib/reduction.h"
 #include "fixtures/recording.h"
 #include "tests/support/test_support.h"
 
@@ -160,6 +161,51 @@ TEST(Streaming, AFileCalibratedRowByRowEqualsTheBatchCalibration) {
   write_samples_csv(dir / "nulls.csv", nulls);
   const std::string m = test::error_of<DataError>([&] { calibrate_csv(dir / "nulls.csv", one_thread()); });
   EXPECT_NE(m.find("no offset dwells"), std::string::npos) << m;
+}
+
+// Settling inside every fourth dwell (counts decaying from 40 counts with a time constant of 6 frames, the
+// fastest the catalogue draws: tau 0.3 s at 20 Hz; both axes), at the count noise the stand knows: the one
+// rule judges a frame against the running median of its step, which follows the decay, so the
+// batch reduction, the live screen and the file path all flag the injected spikes and nothing
+// else. Against the whole step's median (the rule before) the decay's early frames were outliers.
+TEST(Streaming, ASettlingDecayIsNoOutlierInAnyPath) {
+  const auto truth = load_published("a-6-fpss1");
+  GridPlan g;
+  g.samples_per_dwell = 25;
+  BenchConfig cfg = default_bench_config();
+  cfg.truth = truth;
+  cfg.seed = 31;
+  SampleTable t = simulate_null_offset(cfg, g);
+  size_t spikes = 0;
+  for (size_t i = 0, j = 0; i < t.size(); ++i) {
+    j = (i > 0 && t.step[i] == t.step[i - 1]) ? j + 1 : 0;
+    const double decay = t.step[i] % 4 == 0 ? std::round(40.0 * std::exp(-static_cast<double>(j) / 6.0)) : 0.0;
+    t.counts_alpha[i] += decay;
+    t.counts_beta[i] -= decay;
+    if (i % 53 == 17) {
+      (spikes % 2 ? t.counts_beta : t.counts_alpha)[i] += 300;
+      ++spikes;
+    }
+  }
+  ASSERT_GT(spikes, 5u);
+  // The rule before (the step's median) took the decay's early frames for outliers: the test can
+  // tell the two apart.
+  OutlierRule step_median;
+  step_median.min_sigma = count_outlier_floor(0.3);
+  EXPECT_GT(flag_outliers(t.counts_alpha, t.step, step_median).count, static_cast<int64_t>(spikes));
+  ReductionOptions ro;
+  ro.count_noise_counts = 0.3;
+  const Reduction r = reduce(t, ro);
+  EXPECT_EQ(r.outliers.any.outlier_frames, spikes);
+  CalibrationOptions o = one_thread();
+  o.count_noise_counts = 0.3;
+  StreamingCalibrator live(o);
+  for (size_t i = 0; i < t.size(); ++i) live.add_sample(t.row(i));
+  EXPECT_EQ(live.finish().outliers.any.outlier_frames, spikes);
+  test::TempDir dir("streaming-settling");
+  write_samples_csv(dir / "rec.csv", t);
+  EXPECT_EQ(calibrate_csv(dir / "rec.csv", o).outliers.any.outlier_frames, spikes);
+  EXPECT_EQ(calibrate(t, o).outliers.any.outlier_frames, spikes);
 }
 
 TEST(Streaming, OnlyTheDifferencesMethod) {

@@ -183,8 +183,10 @@ class GimbalModel:
         """Apply what happens by bench time t: the watchdog, a pending move's start."""
         cur = self.segments[-1]
         wd = self.holding[12]
-        if wd and cur.moving(t) and t - self.last_request_us > wd * 1000:
-            at = max(cur.t0, self.last_request_us + wd * 1000)
+        # In motion when the watchdog ran out (a move that began after that: at its start), even
+        # if it would have arrived by now (docs/icd.md, the watchdog).
+        at = max(cur.t0, self.last_request_us + wd * 1000)
+        if wd and t > at and cur.moving(at):
             self._start(Segment(at, cur.position(at)[0], "still"))
             self.fault = 4
             self.pending = None

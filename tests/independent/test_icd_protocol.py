@@ -1,6 +1,7 @@
 """icd_devices.py against docs/icd.md's own examples and rules, without the stand's binary."""
 
 import os
+import re
 import select
 import struct
 import sys
@@ -70,8 +71,43 @@ def test_register_example_and_the_sensor_commands():
         os.close(fd)
         assert replies[0] == "FPSS,SN=FPSS1-IND,FW=ind-1.0"
         assert replies[1:4] == ["OK", "OK", "OK"]  # RATE while streaming is taken
-        assert replies[4].startswith("TEMP ") and float(replies[4][5:])
+        assert re.fullmatch(r"TEMP -?[0-9]+(\.[0-9]+)?", replies[4])  # the ICD's TEMP format
         assert replies[5].startswith("ERR ")
         assert replies[6] == "OK"
+    finally:
+        dev.close()
+
+
+def test_power_on_values_and_a_refused_request_changing_nothing():
+    dev = Devices("--seed", "3")
+    try:
+        import socket
+        s = socket.create_connection(("127.0.0.1", dev.info["modbus_port"]), timeout=5)
+
+        def req(pdu, tid=[0]):
+            tid[0] += 1
+            s.sendall(struct.pack(">HHHB", tid[0], 0, len(pdu) + 1, 1) + pdu)
+            head = s.recv(7, socket.MSG_WAITALL)
+            return s.recv(struct.unpack(">HHHB", head)[2] - 1, socket.MSG_WAITALL)
+
+        def holding(addr, n):
+            r = req(struct.pack(">BHH", 3, addr, n))
+            assert r[0] == 3
+            return struct.unpack(">%dH" % n, r[2:])
+
+        # At power-on: a profile speed, a window (never written by the host), the watchdog off.
+        h = holding(0, 13)
+        assert (h[8] << 16 | h[9]) > 0 and h[10] > 0 and h[12] == 0
+        # Faulted (its watchdog: 1 ms, a move, silence), a move refused takes nothing of its request.
+        assert req(struct.pack(">BHH", 6, 12, 1)) == struct.pack(">BHH", 6, 12, 1)
+        assert req(struct.pack(">BHHB", 16, 0, 4, 8) + struct.pack(">ii", 360_000, 0))[0] == 16
+        assert req(struct.pack(">BHH", 6, 11, 1))[0] == 6
+        time.sleep(0.2)
+        r = req(struct.pack(">BHH", 4, 0, 15))
+        assert struct.unpack(">15H", r[2:])[9] == 4  # fault 4, watchdog
+        with_move = struct.pack(">ii", -5000, 6000) + struct.pack(">8H", *([0] * 4 + list(h[8:11]) + [1]))
+        assert len(with_move) == 24  # holding 0..11: targets, rate commands, max rate, window, command 1
+        assert req(struct.pack(">BHHB", 16, 0, 12, 24) + with_move) == bytes([0x90, 3])
+        assert struct.unpack(">ii", struct.pack(">4H", *holding(0, 4))) == (360_000, 0)
     finally:
         dev.close()

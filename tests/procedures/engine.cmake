@@ -5,3 +5,6 @@ fpss_add_test(procedures/design_procedure LIBS fpss_procedures LABELS procedures
 fpss_add_test(procedures/engine LIBS fpss_procedures fpss_test_fakes LABELS procedures TIMEOUT 300)
 fpss_add_test(procedures/adaptive_stop LIBS fpss_procedures fpss_test_fakes LABELS procedures)
 fpss_add_test(procedures/events LIBS fpss_procedures fpss_test_fakes LABELS procedures)
+# The engine with the real drivers against the emulated bench over the real wire.
+fpss_add_test(procedures/engine_on_emulator LIBS fpss_procedures fpss_fixtures fpss_drivers PkgConfig::MODBUS
+              LABELS procedures emulated TIMEOUT 300)

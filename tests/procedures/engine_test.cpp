@@ -465,6 +465,41 @@ TEST(Engine, ASettleCountsFromTheArrivalNotFromALateLook) {
   EXPECT_EQ(dwells, static_cast<int>(plan.points) - 1);
 }
 
+// Every dwell row carries its time since the gimbal's arrival (time_since_move_s), on the gimbal's
+// clock: the row's sensor time less the arrival the settle counts from, never before the bench's
+// true arrival and late by no more than the profile's model error (as above); the first row is a
+// settle after it. Slew rows carry none.
+TEST(Engine, DwellRowsCarryTheirTimeSinceTheGimbalsArrival) {
+  TempDir tmp("engine-since-move");
+  EngineSettings b = virtual_clock_settings();
+  VirtualBench v(2000, tmp / "run");
+  const Plan plan = plan_of(grid(), b);
+  const double settle_s = 0.2, model_error_s = 0.025;
+  int dwells = 0;
+  std::pair<double, double> at{0, 0};
+  v.bus.subscribe([&](const Event& e) {
+    const auto* p = std::get_if<PointDone>(&e);
+    if (!p || p->rows->empty()) return;
+    const std::pair<double, double> target{p->point.target_pitch_arcsec, p->point.target_yaw_arcsec};
+    if (std::exchange(at, target) == target) return;
+    const double arrival_s = v.fake.bench().last_arrival_s();
+    EXPECT_GE(p->rows->front().time_since_move_s, settle_s - 1e-9) << "point " << p->point.index + 1;
+    for (const RecordedRow& row : *p->rows) {
+      ASSERT_TRUE(std::isfinite(row.time_since_move_s)) << "point " << p->point.index + 1;
+      const double true_since_s = row.sensor_time_s - arrival_s;
+      EXPECT_GE(true_since_s - row.time_since_move_s, -1e-6) << "point " << p->point.index + 1;
+      EXPECT_LE(true_since_s - row.time_since_move_s, model_error_s) << "point " << p->point.index + 1;
+    }
+    ++dwells;
+  });
+  Engine engine = v.engine(b, plan);
+  const EngineResult r = engine.run();
+  ASSERT_EQ(r.outcome, RunOutcome::completed) << r.reason;
+  EXPECT_EQ(dwells, static_cast<int>(plan.points) - 1);
+  const SampleTable t = read_samples_csv(tmp / "run" / "samples.csv");
+  ASSERT_TRUE(t.has_column("time_since_move_s"));
+}
+
 // Waiting for the predicted arrival, the settle and the frames sends nothing to the gimbal: with
 // its watchdog on (0.3 bench seconds here, shorter than the grid's moves and settles), readings
 // cut the long waits and it never trips.

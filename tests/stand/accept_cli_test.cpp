@@ -319,6 +319,68 @@ TEST_F(AcceptCli, TwoAcceptancesAtOnceAndAKilledOneLeaveASoundCatalogue) {
   EXPECT_EQ(after.integrity_check(), "ok");
 }
 
+// A decision near the limit, end to end. A good unit sends no outlier frame in its ~2,440 dwell
+// frames: the share 0 has a binomial u of one frame's worth, 1/n, and U of about 0.0008. A stand
+// policy of at most 1 in 2,500 (0.0004) lies within U of it: the simple rule passes the unit, the
+// guarded rule cannot (the acceptance limit 0.0004 - U is below zero) and calls it conditional
+// (exit 4, not accepted in the catalogue), and the certificate says why. Nothing here depends on
+// the run's noise: the share is 0 and U follows from the count of frames.
+TEST_F(AcceptCli, AValueWithinUOfItsLimitPassesSimpleAndIsConditionalGuarded) {
+  std::string text = read_file(default_limits_path());
+  const std::string from = "  outlier_frames_fraction:\n    value: 0.001";
+  ASSERT_NE(text.find(from), std::string::npos);
+  text.replace(text.find(from), from.size(), "  outlier_frames_fraction:\n    value: 0.0004");
+  const fs::path simple = write("near_simple.yaml", text);
+  const std::string rule = "decision_rule:\n  rule: simple\n";
+  ASSERT_NE(text.find(rule), std::string::npos);
+  text.replace(text.find(rule), rule.size(), "decision_rule:\n  rule: guarded\n  guard_multiple: 1.0\n");
+  const fs::path guarded = write("near_guarded.yaml", text);
+
+  const CommandResult s = accept("--seed 3 --unit NEAR-1 --limits '" + simple.string() + "'");
+  ASSERT_EQ(s.code, 0) << s.err << s.out;
+  const auto c1 = nlohmann::json::parse(s.out);
+  EXPECT_EQ(c1["verdict"], "pass");
+  EXPECT_EQ(c1["decision_rule"]["rule"], "simple");
+  for (const auto& c : c1["criteria"]) {
+    EXPECT_EQ(c["outcome"], "pass") << c.dump();
+    EXPECT_EQ(c["acceptance_limit"], c["limit"]);  // simple: no guard band
+    if (c["id"] == "outlier_frames") {
+      EXPECT_EQ(c["measured"].get<double>(), 0.0);
+      EXPECT_GT(c["expanded_uncertainty"].get<double>(), 0.0004) << c.dump();
+      EXPECT_EQ(c["budget"].size(), 1u);
+    }
+  }
+
+  const CommandResult g = accept("--seed 3 --unit NEAR-2 --limits '" + guarded.string() + "'");
+  ASSERT_EQ(g.code, 4) << g.err << g.out;
+  const auto c2 = nlohmann::json::parse(g.out);
+  EXPECT_EQ(c2["verdict"], "conditional");
+  EXPECT_FALSE(c2["passed"].get<bool>());
+  EXPECT_TRUE(c2["failed"].empty());
+  EXPECT_EQ(c2["conditional"], nlohmann::json::array({"outlier_frames"})) << g.out;
+  for (const auto& c : c2["criteria"]) {
+    if (c["id"] != "outlier_frames") continue;
+    EXPECT_EQ(c["outcome"], "conditional");
+    EXPECT_NEAR(c["acceptance_limit"].get<double>(), 0.0004 - c["expanded_uncertainty"].get<double>(), 1e-15);
+    EXPECT_NE(c["outcome_reason"].get<std::string>().find("where simple acceptance would pass it"), std::string::npos);
+  }
+  const fs::path dir = c2["run"]["dir"].get<std::string>();
+  const std::string cert = read_file(dir / "certificate.txt");
+  EXPECT_NE(cert.find("Verdict:    CONDITIONAL"), std::string::npos) << cert;
+  EXPECT_NE(cert.find("Decision rule: guarded acceptance, guard band w = 1.0 x U (ILAC-G8)"), std::string::npos) << cert;
+  EXPECT_NE(cert.find("Where this rule decides otherwise than simple acceptance:\n- outlier_frames: the value 0 (fraction) is within"),
+            std::string::npos) << cert;
+  EXPECT_EQ(nlohmann::json::parse(read_file(dir / "run.json"))["acceptance"]["verdict"], "conditional");
+  const std::string page = read_file(dir / "report.html");
+  EXPECT_NE(page.find("Acceptance: CONDITIONAL"), std::string::npos);
+  EXPECT_NE(page.find("class=\"verdict conditional\""), std::string::npos);
+  SqliteCatalogue cat(Catalogue::default_path(runs()), Catalogue::Mode::read_only);
+  const auto acc = cat.unit_acceptances("NEAR-2");
+  ASSERT_EQ(acc.size(), 1u);
+  EXPECT_FALSE(acc[0].passed);
+  EXPECT_EQ(acc[0].certificate["verdict"], "conditional");
+}
+
 TEST_F(AcceptCli, BadInputExitsTwoBeforeAnythingMoves) {
   std::string text = read_file(default_limits_path());
   text.replace(text.find("value: 3.0"), 10, "value: -3");

@@ -248,6 +248,77 @@ TEST(AcceptanceJudge, GoodUnitPassesEveryCriterion) {
   EXPECT_THROW(criterion(j, "consistency"), std::runtime_error);
 }
 
+// Each criterion's budget: the entries, their combination, k from the effective degrees of freedom.
+TEST(AcceptanceJudge, EachCriterionCarriesItsBudgetAndExpandedUncertainty) {
+  const Judgement j = judge(record_unit(default_bench_config()), limits());
+  const Criterion& rms = criterion(j, "accuracy_3sigma_pitch");
+  ASSERT_EQ(rms.budget.size(), 1u);
+  EXPECT_EQ(rms.budget[0].type, 'A');
+  EXPECT_NEAR(rms.combined.dof_eff, 48.0, 1e-9);  // an RMS about the reference over 48 points
+  EXPECT_NEAR(rms.combined.k, 2.0106, 1e-4);
+  EXPECT_DOUBLE_EQ(rms.combined.U, rms.combined.k * rms.uncertainty);
+  // A point's error: sensor noise (A, 10 frames), quantisation (B), reference noise (A); the
+  // combined u is the point's standard error in acceptance.json's points (one number).
+  const Criterion& worst = criterion(j, "accuracy_worst_point_yaw");
+  ASSERT_GE(worst.budget.size(), 2u);
+  EXPECT_EQ(worst.budget[0].type, 'A');
+  EXPECT_EQ(worst.budget[1].type, 'B');
+  EXPECT_TRUE(std::isinf(worst.budget[1].dof));
+  EXPECT_NEAR(worst.budget[1].u, worst.budget[1].sensitivity / std::sqrt(12.0), 1e-12);
+  bool found = false;
+  for (const auto& p : j.points) found = found || std::fabs(p.se_yaw_arcsec - worst.uncertainty) < 1e-12;
+  EXPECT_TRUE(found);
+  EXPECT_GT(worst.combined.dof_eff, 9.0);
+  // Exact values (a count of points, an encoder range) have no budget and no guard band.
+  EXPECT_TRUE(criterion(j, "verification_points").budget.empty());
+  EXPECT_EQ(criterion(j, "verification_points").combined.U, 0.0);
+}
+
+// The demonstration: a value within U of its limit passes the simple rule, is conditional under
+// the guarded and the risk rules, and the certificate says why.
+TEST(AcceptanceJudge, AValueWithinUOfItsLimitPassesSimpleAndIsConditionalGuarded) {
+  const AcceptanceData data = record_unit(default_bench_config());
+  const Judgement first = judge(data, limits());
+  const Criterion& p = criterion(first, "accuracy_3sigma_pitch");
+  const Criterion& y = criterion(first, "accuracy_3sigma_yaw");
+  const Criterion& top = *p.measured >= *y.measured ? p : y;
+  AcceptanceLimits L = limits();
+  L.accuracy_3sigma_arcsec.value = *top.measured + 0.5 * top.combined.U;
+  const Judgement simple = judge(data, L);
+  EXPECT_EQ(simple.outcome, Outcome::pass) << describe(simple);
+  L.decision_rule = {DecisionRuleKind::guarded, 1.0, 0.025};
+  const Judgement guarded = judge(data, L);
+  EXPECT_EQ(guarded.outcome, Outcome::conditional) << describe(guarded);
+  EXPECT_FALSE(guarded.passed);
+  EXPECT_TRUE(guarded.failed().empty());
+  const auto cond = guarded.conditional();
+  EXPECT_NE(std::find(cond.begin(), cond.end(), top.id), cond.end());
+  const Criterion& g = criterion(guarded, top.id);
+  EXPECT_DOUBLE_EQ(g.decision.acceptance_limit, L.accuracy_3sigma_arcsec.value - g.combined.U);
+  EXPECT_EQ(g.simple_outcome, Outcome::pass);
+  CertificateInfo info;
+  info.unit = "EMU-0001";
+  const auto cert = certificate_json(guarded, L, info);
+  EXPECT_EQ(cert["verdict"], "conditional");
+  EXPECT_EQ(cert["decision_rule"]["rule"], "guarded");
+  const std::string text = certificate_text(cert);
+  EXPECT_NE(text.find("Verdict:    CONDITIONAL"), std::string::npos) << text;
+  EXPECT_NE(text.find("Decision rule: guarded acceptance, guard band w = 1.0 x U (ILAC-G8)"), std::string::npos) << text;
+  EXPECT_NE(text.find("- " + top.id + ": "), std::string::npos);
+  EXPECT_NE(text.find("where simple acceptance would pass it"), std::string::npos) << text;
+  // Risk: P(true > L) at half a U inside the limit is about 16 %, far above 2.5 %.
+  L.decision_rule = {DecisionRuleKind::risk, 1.0, 0.025};
+  const Judgement risk = judge(data, L);
+  EXPECT_EQ(criterion(risk, top.id).decision.outcome, Outcome::conditional);
+  EXPECT_NEAR(criterion(risk, top.id).decision.false_accept, 0.16, 0.02);
+  // Beyond the limit every rule fails it.
+  L.accuracy_3sigma_arcsec.value = *top.measured - 0.01 * top.combined.U;
+  for (DecisionRuleKind k : {DecisionRuleKind::simple, DecisionRuleKind::guarded, DecisionRuleKind::risk}) {
+    L.decision_rule.kind = k;
+    EXPECT_EQ(criterion(judge(data, L), top.id).decision.outcome, Outcome::fail) << to_string(k);
+  }
+}
+
 // Glitch frames (one axis 400 counts off, valid otherwise) in the verification and rest dwells:
 // the unit fails on outlier_frames alone; accuracy and jitter are as the good unit's, and say
 // what they left out.

@@ -31,6 +31,8 @@ TEST(StandConfig, ExampleStandFile) {
   EXPECT_DOUBLE_EQ(c.bench.limits.yaw_max_arcsec, 2700);
   EXPECT_DOUBLE_EQ(c.gimbal.limits.pitch_max_arcsec, 2700);  // the driver enforces the same limits
   EXPECT_DOUBLE_EQ(c.bench.sample_rate_hz, 50);
+  EXPECT_DOUBLE_EQ(c.sensor.temperature_min_c, -60);
+  EXPECT_DOUBLE_EQ(c.sensor.temperature_max_c, 100);
   EXPECT_DOUBLE_EQ(c.bench.watchdog_s, 2);
   EXPECT_EQ(c.bench.clock, ClockSync::host);
   EXPECT_EQ(c.bench.max_remeasure, 3);
@@ -63,6 +65,20 @@ TEST(StandConfig, NumbersOutsideTheirRangeNamePlaceAndField) {
 
 // The missing devices are reported at the document's start, once each.
 TEST(StandConfig, MissingDevicesAndBadMapping) { EXPECT_TRUE(errors_as_marked("missing_devices.yaml")); }
+
+TEST(StandConfig, TemperatureRangeDefaultsAndIsTakenFromTheSensorBlock) {
+  Diagnostics d("t.yaml");
+  const std::string head = "gimbal: {endpoint: 'modbus-tcp:h:1'}\n";
+  StandConfig c = parse_stand(head + "sensor: {endpoint: 'tcp:h:2'}\n", "t.yaml", d);
+  ASSERT_TRUE(d.empty()) << d.text();
+  EXPECT_DOUBLE_EQ(c.sensor.temperature_min_c, -60);
+  EXPECT_DOUBLE_EQ(c.sensor.temperature_max_c, 100);
+  c = parse_stand(head + "sensor: {endpoint: 'tcp:h:2', temperature_range_c: [-20.5, 45]}\n", "t.yaml", d);
+  ASSERT_TRUE(d.empty()) << d.text();
+  EXPECT_DOUBLE_EQ(c.sensor.temperature_min_c, -20.5);
+  EXPECT_DOUBLE_EQ(c.sensor.temperature_max_c, 45);
+  EXPECT_EQ(to_json(c)["sensor"]["temperature_range_c"], nlohmann::json::array({-20.5, 45}));
+}
 
 TEST(StandConfig, ProfileRateAboveTheLimit) {
   Diagnostics d("s.yaml");
