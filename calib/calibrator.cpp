@@ -253,32 +253,66 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
   if (g.levels == 1) std::vector<uint32_t>().swap(g.level);  // the usual one level: no list (memory)
   g.counts.resize(m);
   g.var_counts2.resize(m);
+  g.var_sensor_counts2.resize(m);
   for (size_t k = 0; k < m; ++k) {
     const auto& r = d.dwells[k];
     const double n = static_cast<double>(std::max<uint32_t>(1, r.samples()));
-    double c = r.counts, vc = 0;
+    // vc is the count estimate's variance; vs its sensor-noise part, the rest being the rounding's
+    // (the uncertainty budget's split, to first order).
+    double c = r.counts, vc = 0, vs = 0;
     if (ni.quantisation_corrected) {
       c = counts_from_rounded_mean(r.counts, *s);
       const double h = expected_rounded_slope(c, *s);
       vc = rounded_counts_variance(c, *s) / (n * h * h);
+      vs = *s * *s / (n * h * h);
     } else if (s && whole && *s < kMinQuantisationNoise) {
       vc = 1.0 / 12.0;  // rounding without dither: an error of the dwell, not averaged away
     } else if (s && whole) {
       vc = rounded_counts_variance(r.counts, *s) / n;  // the raw mean's own scatter (no correction)
+      vs = *s * *s / n;
     } else if (s) {
-      vc = *s * *s / n;
+      vc = vs = *s * *s / n;
     }
     g.counts[k] = c;
     g.var_counts2[k] = static_cast<float>(vc);
+    g.var_sensor_counts2[k] = static_cast<float>(std::min(vc, vs));
   }
   g.level_share.resize(g.levels);
   for (size_t l = 0; l < g.levels; ++l) g.level_share[l] = total_nulls > 0 ? nulls[l] / total_nulls : 0.0;
   return p;
 }
 
+// The budget of the fitted angle at `counts`: the noise model's sources, each the sigma its share
+// of the covariance gives, and the model-and-fit remainder (what sigma_scale adds); without a
+// noise model the whole sigma is the residuals' scatter (model and fit).
+std::vector<BudgetEntry> fit_budget(const AxisFit& out, const Uncertainty& u, const AxisData& d, double counts) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const auto dof_or_inf = [](double dof) { return dof > 0 ? dof : kInf; };
+  const double fit_dof = out.fit_form == FitForm::gls ? static_cast<double>(out.chi2_dof)
+                                                       : static_cast<double>(d.rows()) - static_cast<double>(d.parameters());
+  if (!u.sources_known) {
+    return {{"model and fit", 'A', 1.0, angle_sigma_arcsec(u, out.coeffs, counts), dof_or_inf(fit_dof)}};
+  }
+  const auto part = [&](NoiseSource s) {
+    return angle_sigma_arcsec(u.source_covariance_scaled[static_cast<size_t>(s)], out.coeffs, counts);
+  };
+  const bool sensor_from_data = out.noise.count_noise_source == "within-dwell scatter";
+  std::vector<BudgetEntry> b{
+      {"sensor noise", sensor_from_data ? 'A' : 'B', 1.0, part(NoiseSource::sensor),
+       sensor_from_data ? dof_or_inf(d.scatter_dof) : kInf},
+      {"quantisation", 'B', 1.0, part(NoiseSource::quantisation), kInf},
+      {"reference noise", 'A', 1.0, part(NoiseSource::reference), dof_or_inf(d.ref_scatter_dof)},
+  };
+  const double stat = std::sqrt(b[0].u * b[0].u + b[1].u * b[1].u + b[2].u * b[2].u);
+  b.push_back({"model and fit", 'A', 1.0, stat * std::sqrt(std::max(0.0, out.sigma_scale * out.sigma_scale - 1.0)),
+               dof_or_inf(fit_dof)});
+  return b;
+}
+
 void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, int count,
                        const std::optional<std::array<double, 2>>& range_arcsec) {
   out.angle_sigma_arcsec.clear();
+  out.angle_budget.clear();
   if (count < 2) return;
   const AxisModel model(out.coeffs);
   const double lo = range_arcsec ? (*range_arcsec)[0] : d.ref_lo_arcsec;
@@ -290,13 +324,16 @@ void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, in
   for (int i = 0; i < count; ++i) {
     const double a = lo + (hi - lo) * i / (count - 1);
     double sig = std::numeric_limits<double>::quiet_NaN();
+    std::vector<BudgetEntry> budget;
     try {
       const double n = model.counts_for_angle_unchecked(arcsec_to_rad(a), d.counts_lo - margin, d.counts_hi + margin);
       sig = angle_sigma_arcsec(u, out.coeffs, n);
+      budget = fit_budget(out, u, d, n);
     } catch (const std::exception&) {
       // not reached within the range: listed as null
     }
     out.angle_sigma_arcsec.push_back({a, sig});
+    out.angle_budget.push_back(std::move(budget));
   }
 }
 

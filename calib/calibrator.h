@@ -16,6 +16,7 @@
 #include "calib/reference_calibration.h"
 #include "calib/residuals.h"
 #include "calib/samples.h"
+#include "calib/uncertainty.h"
 #include "calib/varpro.h"
 
 namespace fpss {
@@ -137,6 +138,10 @@ struct AxisFit {
   // [angle_arcsec, sigma_arcsec]: 1-sigma of (fitted - true angle) at evenly spaced angles over the
   // calibrated reference range, C1 (the null condition) included.
   std::vector<std::array<double, 2>> angle_sigma_arcsec;
+  // Per listed angle, its uncertainty budget (GUM): the sources whose root sum of squares is that
+  // angle's sigma (sensor noise, quantisation, reference noise, model and fit, then each term of
+  // the reference's calibration); empty where the angle is not reached.
+  std::vector<std::vector<BudgetEntry>> angle_budget;
   double reduced_chi2 = std::numeric_limits<double>::quiet_NaN();  // of the standardised dwell residuals
   size_t chi2_dof = 0;
   bool model_remainder = false;  // reduced chi2 materially > 1: sigmas scaled up by sigma_scale

@@ -4,8 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <tuple>
+#include <limits>
 #include <numbers>
+#include <tuple>
 #include <set>
 
 #include "base/errors.h"
@@ -37,19 +38,38 @@ AxisError axis_error(const ReferenceAxis& a, double own_arcsec, double other_arc
   return e;
 }
 
-// The standard uncertainty of one axis's error at these true angles (each term's u times its
-// sensitivity, in quadrature).
-double axis_u(const ReferenceAxis& a, double own_arcsec, double other_arcsec) {
+// Each term's contribution to the standard uncertainty of one axis's error at these true angles:
+// its u times its sensitivity, named for a budget ("<axis> scale factor", ...).
+std::vector<BudgetEntry> axis_terms(const ReferenceAxis& a, const std::string& axis, double own_arcsec,
+                                    double other_arcsec) {
   const double n_rad = arcsec_to_rad(a.nonorthogonality_arcsec.value);
-  double v = std::pow(a.zero_arcsec.u, 2) + std::pow(1e-6 * a.scale_factor_ppm.u * own_arcsec, 2) +
-             std::pow(std::cos(n_rad) * arcsec_to_rad(a.nonorthogonality_arcsec.u) * other_arcsec, 2);
+  const auto term = [&](const std::string& what, double sensitivity, double u) {
+    return BudgetEntry{"reference calibration: " + axis + " " + what, 'B', sensitivity, std::abs(sensitivity) * u,
+                       std::numeric_limits<double>::infinity()};
+  };
+  std::vector<BudgetEntry> out{
+      term("scale factor", 1e-6 * own_arcsec, a.scale_factor_ppm.u),
+      term("non-orthogonality", std::cos(n_rad) * other_arcsec, arcsec_to_rad(a.nonorthogonality_arcsec.u)),
+      term("zero", 1.0, a.zero_arcsec.u),
+  };
   const double theta = arcsec_to_rad(own_arcsec);
   for (const CyclicTerm& c : a.cyclic) {
     const double arg = c.harmonic * theta + c.phase_rad.value;
-    v += std::pow(c.amplitude_arcsec.u * std::sin(arg), 2) +
-         std::pow(c.amplitude_arcsec.value * std::cos(arg) * c.phase_rad.u, 2);
+    out.push_back(term(fmt::format("cyclic harmonic {} amplitude", c.harmonic), std::sin(arg), c.amplitude_arcsec.u));
+    out.push_back(term(fmt::format("cyclic harmonic {} phase", c.harmonic), c.amplitude_arcsec.value * std::cos(arg),
+                       c.phase_rad.u));
   }
+  return out;
+}
+
+double root_sum_square(const std::vector<BudgetEntry>& b) {
+  double v = 0;
+  for (const BudgetEntry& e : b) v += e.u * e.u;
   return std::sqrt(v);
+}
+
+double axis_u(const ReferenceAxis& a, double own_arcsec, double other_arcsec) {
+  return root_sum_square(axis_terms(a, "", own_arcsec, other_arcsec));
 }
 
 // Reads one JSON object's keys strictly: each key taken once, anything left over is an error.
@@ -166,17 +186,27 @@ void correct_reference_angles(const ReferenceCalibration& r, const AxisMapping& 
   std::tie(ref_pitch_arcsec, ref_yaw_arcsec) = mount.sensor_from_stand(tp, ty);
 }
 
-double reference_u_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis, double angle_arcsec,
-                          double other_extent_arcsec) {
-  double worst = 0;
+std::vector<BudgetEntry> reference_budget(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
+                                          double angle_arcsec, double other_extent_arcsec) {
+  std::vector<BudgetEntry> worst;
+  double worst_u = -1;
   for (double other : {-other_extent_arcsec, 0.0, other_extent_arcsec}) {
     const double a = sensor_axis == 0 ? angle_arcsec : other, b = sensor_axis == 0 ? other : angle_arcsec;
     const auto [p, y] = mount.stand_from_sensor(a, b);
-    const auto [up, uy] = r.u_true_arcsec(p, y);
     // The stand axis this sensor axis sees.
-    worst = std::max(worst, (sensor_axis == 0) == (mount.pitch_axis == AxisMapping::alpha) ? up : uy);
+    const bool pitch = (sensor_axis == 0) == (mount.pitch_axis == AxisMapping::alpha);
+    std::vector<BudgetEntry> terms = pitch ? axis_terms(r.pitch, "pitch", p, y) : axis_terms(r.yaw, "yaw", y, p);
+    if (const double u = root_sum_square(terms); u > worst_u) {
+      worst_u = u;
+      worst = std::move(terms);
+    }
   }
   return worst;
+}
+
+double reference_u_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis, double angle_arcsec,
+                          double other_extent_arcsec) {
+  return root_sum_square(reference_budget(r, mount, sensor_axis, angle_arcsec, other_extent_arcsec));
 }
 
 ReferenceCalibration parse_reference_calibration(const nlohmann::json& j, const std::string& origin) {

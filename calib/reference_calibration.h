@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "calib/axis_mapping.h"
+#include "calib/uncertainty.h"
 
 namespace fpss {
 
@@ -53,8 +54,12 @@ struct ReferenceCalibration {
 // to the gimbal's axes through `mount`, true_from_reading, and back.
 void correct_reference_angles(const ReferenceCalibration& r, const AxisMapping& mount, double& ref_pitch_arcsec,
                               double& ref_yaw_arcsec);
-// The reference's u (arcsec) of the sensor-frame angle `sensor_axis` (0 alpha, 1 beta) at `angle`,
-// the other sensor axis anywhere within +-other_extent (the worst of its two ends and zero).
+// The reference's terms' contributions (type B, arcsec) to the sensor-frame angle `sensor_axis`
+// (0 alpha, 1 beta) at `angle`, the other sensor axis where their sum is worst within
+// +-other_extent (its two ends and zero): one entry per term, "reference calibration: pitch zero".
+std::vector<BudgetEntry> reference_budget(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
+                                          double angle_arcsec, double other_extent_arcsec);
+// Their root sum of squares: the reference's u (arcsec) of that angle.
 double reference_u_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis, double angle_arcsec,
                           double other_extent_arcsec);
 

@@ -16,10 +16,15 @@ double extent_arcsec(const AxisFit& a) {
 void grow(AxisFit& a, const CalibrationOptions& opts, int sensor_axis, double other_extent_arcsec) {
   const ReferenceCalibration& ref = *opts.reference;
   double worst = 0;
-  for (auto& [angle, sigma] : a.angle_sigma_arcsec) {
-    const double u = reference_u_arcsec(ref, opts.mount, sensor_axis, angle, other_extent_arcsec);
+  for (size_t i = 0; i < a.angle_sigma_arcsec.size(); ++i) {
+    auto& [angle, sigma] = a.angle_sigma_arcsec[i];
+    const std::vector<BudgetEntry> terms = reference_budget(ref, opts.mount, sensor_axis, angle, other_extent_arcsec);
+    const double u = combine(terms).u;
     sigma = std::hypot(sigma, u);  // infinite stays infinite: the fit cannot speak there either
     worst = std::max(worst, u);
+    if (i < a.angle_budget.size() && !a.angle_budget[i].empty()) {
+      a.angle_budget[i].insert(a.angle_budget[i].end(), terms.begin(), terms.end());
+    }
   }
   if (a.angle_sigma_arcsec.empty()) {
     // No list: the worst over the calibrated range's ends.

@@ -292,9 +292,13 @@ Eigen::Matrix<double, 8, 1> dwell_gradient(const AxisCoeffs& c, double counts) {
   return a.v;
 }
 
-double angle_sigma_arcsec(const Uncertainty& u, const AxisCoeffs& fit, double counts) {
+double angle_sigma_arcsec(const Eigen::Matrix<double, 8, 8>& covariance_scaled, const AxisCoeffs& fit, double counts) {
   const Eigen::Matrix<double, 8, 1> g = angle_gradient(to_scaled(fit), false, counts);
-  return std::sqrt(std::max(0.0, g.dot(u.covariance_scaled * g)));
+  return std::sqrt(std::max(0.0, g.dot(covariance_scaled * g)));
+}
+
+double angle_sigma_arcsec(const Uncertainty& u, const AxisCoeffs& fit, double counts) {
+  return angle_sigma_arcsec(u.covariance_scaled, fit, counts);
 }
 
 }  // namespace fpss::fit

@@ -41,7 +41,18 @@ struct Uncertainty {
   // Of the scaled coefficients u[0..7] (u[0] = C1 in arcsec, residuals.h), what the angle sigma
   // at any count is computed from (angle_sigma_arcsec).
   Eigen::Matrix<double, 8, 8> covariance_scaled = Eigen::Matrix<double, 8, 8>::Zero();
+  // The noise model's share of covariance_scaled by its source (NoiseSource), before any
+  // sigma_scale: they sum to covariance_scaled / sigma_scale^2. Known only for the GLS with a
+  // noise model (sources_known); the uncertainty budget (calibration.json) is built from them.
+  std::array<Eigen::Matrix<double, 8, 8>, 3> source_covariance_scaled{};
+  bool sources_known = false;
 };
+
+// The sources a dwell mean's variance is made of, in the order of source_covariance_scaled.
+enum class NoiseSource { sensor, quantisation, reference };
+
+// 1-sigma of the fitted angle at `counts`, arcsec, from one scaled covariance.
+double angle_sigma_arcsec(const Eigen::Matrix<double, 8, 8>& covariance_scaled, const AxisCoeffs& fit, double counts);
 
 // d angle(counts) / d(u[1..7], level), arcsec per scaled unit: one dwell's row of the GLS's
 // Jacobian (DwellLevelResidual, the fit's own functor, with C1 as the level). The design predicts
@@ -59,6 +70,8 @@ struct GlsData {
   const std::deque<AxisData::DwellRow>* dwells = nullptr;  // the dwells: reference angle, frames
   std::vector<double> counts;           // the dwell's count (quantisation-corrected when known)
   std::vector<float> var_counts2;       // variance of the count estimate, counts^2
+  // The sensor noise's part of var_counts2 (what is left is quantisation's); empty: all of it.
+  std::vector<float> var_sensor_counts2;
   std::vector<uint32_t> level;          // which reference level, 0 .. levels - 1 (empty: all in level 0)
   std::vector<double> level_share;      // C1 = sum share_g level_g: the null condition over null dwells
   size_t levels = 0;

@@ -63,8 +63,15 @@ struct Weights {
   AxisCoeffs c0;
   float operator()(size_t k) const {
     if (!g->noise_known) return 1.0f;
+    const auto v = parts(k);
+    return static_cast<float>(1.0 / std::max(1e-30, v[0] + v[1] + v[2]));
+  }
+  // The dwell's variance by source (NoiseSource order), arcsec^2.
+  std::array<double, 3> parts(size_t k) const {
     const double slope = rad_to_arcsec(transfer_slope(c0.data(), g->counts[k]));
-    return static_cast<float>(1.0 / std::max(1e-30, g->var_ref_arcsec2(k) + slope * slope * g->var_counts2[k]));
+    const double counts2 = g->var_counts2[k];
+    const double sensor2 = g->var_sensor_counts2.empty() ? counts2 : std::min<double>(counts2, g->var_sensor_counts2[k]);
+    return {slope * slope * sensor2, slope * slope * (counts2 - sensor2), g->var_ref_arcsec2(k)};
   }
 };
 
@@ -242,6 +249,32 @@ Scaled minimise(const GlsData& g, const Weights& w, const Scaled& u, const Pass&
   return summary.IsSolutionUsable() ? polar_scaled(v) : u;
 }
 
+// The covariance of the scaled coefficients split by the dwells' noise sources. To first order the
+// fit is linear in the dwells' errors eps_k: du = cov sum_k w_k gt_k eps_k (gt_k the gradient less
+// its level's weighted mean) and dC1 = sum_k a_l w_k / W_l eps_k - gbar . du, so with A_k that
+// 8-vector of weights, source c contributes sum_k A_k A_k^T var_c,k; the sources sum to the
+// whole covariance (var_k = 1 / w_k).
+std::array<Eigen::Matrix<double, 8, 8>, 3> source_covariances(const GlsData& g, const Weights& w, const Scaled& u,
+                                                              const Pass& p, const Mat7& cov, const Vec7& gbar) {
+  std::array<Eigen::Matrix<double, 8, 8>, 3> out;
+  for (auto& m : out) m.setZero();
+  Vec7 gr;
+  for (size_t k = 0; k < g.size(); ++k) {
+    const uint32_t l = g.level_of(k);
+    const LevelSums& ls = p.lv[l];
+    if (!(ls.w > 0)) continue;
+    angle_and_gradient(u, g.counts[k], gr);
+    const double wk = w(k);
+    const Vec7 du = cov * (gr - ls.wg / ls.w) * wk;
+    Eigen::Matrix<double, 8, 1> a;
+    a(0) = g.level_share[l] * wk / ls.w - gbar.dot(du);
+    a.tail<7>() = du;
+    const auto v = w.parts(k);
+    for (size_t c = 0; c < 3; ++c) out[c] += v[c] * a * a.transpose();
+  }
+  return out;
+}
+
 }  // namespace
 
 GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, double counts_hi,
@@ -305,6 +338,10 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
     for (int j = 0; j < 8; ++j) un.covariance(i, j) = un.covariance_scaled(i, j) * kScaleFactor[i] * kScaleFactor[j];
   }
   for (int i = 0; i < 8; ++i) un.sigma[i] = std::sqrt(std::max(0.0, un.covariance(i, i)));
+  if (g.noise_known) {
+    un.source_covariance_scaled = source_covariances(g, w, u, p, s.cov, gbar);
+    un.sources_known = true;
+  }
   un.note = g.noise_known
                 ? (out.model_remainder
                        ? "GLS of the changes (dwells with one level per joined set), noise model; chi2/dof "

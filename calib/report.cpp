@@ -21,6 +21,36 @@ nlohmann::ordered_json axis_residuals(const AxisFit& a) {
   return j;
 }
 
+// The GUM's figures of the listed angles: U = k u per angle, k from each angle's
+// Welch-Satterthwaite degrees of freedom; the axis's coverage_factor and budget are those of the
+// angle with the largest U (docs/calibration.md, "Uncertainty budget").
+void add_expanded_uncertainty(nlohmann::ordered_json& ax, const AxisFit& a) {
+  nlohmann::json list = nlohmann::json::array();
+  const std::vector<BudgetEntry>* worst = nullptr;
+  Combined worst_c;
+  double worst_angle = 0;
+  for (size_t i = 0; i < a.angle_sigma_arcsec.size(); ++i) {
+    const double angle = a.angle_sigma_arcsec[i][0];
+    if (i >= a.angle_budget.size() || a.angle_budget[i].empty()) {
+      list.push_back({angle, nullptr});
+      continue;
+    }
+    const Combined c = combine(a.angle_budget[i]);
+    list.push_back({angle, number_or_null(c.U)});
+    if (!worst || c.U > worst_c.U) {
+      worst = &a.angle_budget[i];
+      worst_c = c;
+      worst_angle = angle;
+    }
+  }
+  ax["coverage_factor"] = worst ? number_or_null(worst_c.k) : nlohmann::json(nullptr);
+  ax["angle_expanded_uncertainty_arcsec"] = list;
+  ax["budget"] = worst ? budget_json(*worst, "u_arcsec") : nlohmann::ordered_json::array();
+  ax["budget_angle_arcsec"] = worst ? nlohmann::json(worst_angle) : nlohmann::json(nullptr);
+  ax["dof_eff"] = worst ? number_or_null(worst_c.dof_eff) : nlohmann::json(nullptr);
+  ax["expanded_uncertainty_max_arcsec"] = worst ? number_or_null(worst_c.U) : nlohmann::json(nullptr);
+}
+
 }  // namespace
 
 nlohmann::json residuals_json(const CalibrationReport& r) {
@@ -43,6 +73,7 @@ nlohmann::json uncertainties_json(const CalibrationReport& r) {
     nlohmann::json list = nlohmann::json::array();
     for (const auto& [angle, sigma] : a->angle_sigma_arcsec) list.push_back({angle, number_or_null(sigma)});
     ax["angle_sigma_arcsec"] = list;
+    add_expanded_uncertainty(ax, *a);
     ax["fit"] = a->fit_form;
     ax["reduced_chi2"] = number_or_null(a->reduced_chi2);
     ax["chi2_dof"] = a->chi2_dof;

@@ -38,6 +38,17 @@ double beta_fraction(double a, double b, double x) {
 
 }  // namespace
 
+nlohmann::ordered_json budget_json(const std::vector<BudgetEntry>& budget, const char* u_key) {
+  nlohmann::ordered_json out = nlohmann::ordered_json::array();
+  for (const BudgetEntry& e : budget) {
+    nlohmann::ordered_json j{{"source", e.source}, {"type", std::string(1, e.type)}, {"sensitivity", e.sensitivity}};
+    j[u_key] = e.u;
+    j["dof"] = std::isfinite(e.dof) ? nlohmann::json(e.dof) : nlohmann::json(nullptr);
+    out.push_back(std::move(j));
+  }
+  return out;
+}
+
 double incomplete_beta(double a, double b, double x) {
   if (!(a > 0) || !(b > 0) || !(x >= 0) || !(x <= 1)) throw std::domain_error("incomplete_beta: a, b > 0 and 0 <= x <= 1");
   if (x == 0 || x == 1) return x;

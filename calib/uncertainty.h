@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 namespace fpss {
 
 // One contribution to a measured value's uncertainty, already in the value's unit: u = |sensitivity| x
@@ -25,6 +27,10 @@ struct Combined {
   double k = 0;  // Student's t 97.5 % quantile at floor(dof_eff): 95 % two-sided coverage
   double U = 0;  // k x u
 };
+
+// A budget as JSON: [{source, type ("A"|"B"), sensitivity, <u_key>, dof (null: infinite)}], u_key
+// "u" in acceptance.json, "u_arcsec" in calibration.json.
+nlohmann::ordered_json budget_json(const std::vector<BudgetEntry>& budget, const char* u_key);
 
 // Root sum of squares of the entries' u; Welch-Satterthwaite for dof_eff (GUM G.4.1:
 // u^4 / sum(u_i^4 / nu_i), infinite entries dropping out, infinite when all are); k at the

@@ -45,15 +45,6 @@ std::string outcome_reason(const Criterion& k, const DecisionRule& r) {
                      to_string(k.decision.outcome));
 }
 
-nlohmann::ordered_json budget_json(const std::vector<BudgetEntry>& b) {
-  nlohmann::ordered_json out = nlohmann::ordered_json::array();
-  for (const auto& e : b) {
-    out.push_back({{"source", e.source}, {"type", std::string(1, e.type)}, {"sensitivity", e.sensitivity},
-                   {"u", e.u}, {"dof", number_or_null(e.dof)}});
-  }
-  return out;
-}
-
 }  // namespace
 
 nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimits& limits, const CertificateInfo& info) {
@@ -84,7 +75,7 @@ nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimi
         {"id", k.id}, {"title", k.title}, {"axis", k.axis},
         {"measured", measured}, {"uncertainty", k.uncertainty},
         {"expanded_uncertainty", k.combined.U}, {"coverage_factor", k.combined.k},
-        {"dof_eff", number_or_null(k.combined.dof_eff)}, {"budget", budget_json(k.budget)},
+        {"dof_eff", number_or_null(k.combined.dof_eff)}, {"budget", budget_json(k.budget, "u")},
         {"limit", k.limit}, {"acceptance_limit", k.decision.acceptance_limit}, {"relation", k.relation},
         {"unit", k.unit}, {"outcome", to_string(k.decision.outcome)}, {"outcome_reason", outcome_reason(k, j.rule)},
         {"passed", k.passed}, {"limit_key", k.limit_key}, {"source", k.source}, {"detail", k.detail}});

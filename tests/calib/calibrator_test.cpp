@@ -107,6 +107,86 @@ TEST(Calibrator, CoefficientSetCarriesTheResidualsBlock) {
   EXPECT_NE(text.find("0.42 to -0.42"), std::string::npos) << text;
 }
 
+// Each listed angle's budget: its sources' root sum of squares is that angle's sigma (the noise
+// model's covariance split by source must add up to the whole), the sources are the GUM's, and
+// the JSON carries U = k u per angle with the worst angle's budget.
+void expect_budget_adds_up(const AxisFit& a) {
+  ASSERT_EQ(a.angle_budget.size(), a.angle_sigma_arcsec.size());
+  for (size_t i = 0; i < a.angle_budget.size(); ++i) {
+    const double sigma = a.angle_sigma_arcsec[i][1];
+    ASSERT_FALSE(a.angle_budget[i].empty()) << i;
+    EXPECT_NEAR(combine(a.angle_budget[i]).u, sigma, 1e-6 * sigma) << a.axis << " angle " << a.angle_sigma_arcsec[i][0];
+  }
+}
+
+TEST(Calibrator, EveryListedAngleHasABudgetThatAddsUpToItsSigma) {
+  const CalibrationReport r = calibrate(recording("a-6-fpss1"), one_thread());
+  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+    expect_budget_adds_up(*a);
+    const std::vector<BudgetEntry>& b = a->angle_budget.back();
+    ASSERT_EQ(b.size(), 4u);
+    EXPECT_EQ(b[0].source, "sensor noise");
+    EXPECT_EQ(b[0].type, 'A');  // the count noise came from the within-dwell scatter
+    EXPECT_TRUE(std::isfinite(b[0].dof));
+    EXPECT_EQ(b[1].source, "quantisation");
+    EXPECT_EQ(b[1].type, 'B');
+    EXPECT_EQ(b[2].source, "reference noise");
+    EXPECT_EQ(b[3].source, "model and fit");
+    // The bench's count noise (0.3 counts) is near one LSB: rounding adds as much as the noise.
+    EXPECT_GT(b[0].u, 0.0);
+    EXPECT_GT(b[1].u, 0.0);
+    if (!a->model_remainder) {
+      EXPECT_EQ(b[3].u, 0.0);
+    }
+  }
+  const nlohmann::json u = r.coefficients().extra.at("uncertainties").at("pitch");
+  const double k = u.at("coverage_factor").get<double>();
+  EXPECT_GE(k, 1.96);
+  EXPECT_LT(k, 2.1);  // many degrees of freedom
+  const auto& list = u.at("angle_expanded_uncertainty_arcsec");
+  ASSERT_EQ(list.size(), r.pitch.angle_sigma_arcsec.size());
+  double worst = 0;
+  for (size_t i = 0; i < list.size(); ++i) {
+    EXPECT_EQ(list[i][0].get<double>(), r.pitch.angle_sigma_arcsec[i][0]);
+    const double big_u = list[i][1].get<double>();
+    EXPECT_GE(big_u, 1.96 * r.pitch.angle_sigma_arcsec[i][1] * (1 - 1e-9));
+    worst = std::max(worst, big_u);
+  }
+  EXPECT_EQ(u.at("expanded_uncertainty_max_arcsec").get<double>(), worst);
+  ASSERT_EQ(u.at("budget").size(), 4u);
+  for (const auto& e : u.at("budget")) {
+    for (const char* key : {"source", "type", "u_arcsec"}) EXPECT_TRUE(e.contains(key)) << e.dump();
+  }
+}
+
+TEST(Calibrator, AGivenCountNoiseIsTypeBAndTheReferencesTermsJoinTheBudget) {
+  CalibrationOptions o = one_thread();
+  o.count_noise_counts = 0.5;
+  o.count_noise_source = "caller";
+  nlohmann::json term = {{"value", 0.0}, {"u", 1.0}};
+  nlohmann::json axis = {{"scale_factor_ppm", {{"value", 0.0}, {"u", 50.0}}},
+                         {"nonorthogonality_arcsec", term},
+                         {"zero_arcsec", {{"value", 0.0}, {"u", 0.01}}},
+                         {"cyclic", nlohmann::json::array({{{"harmonic", 2},
+                                                            {"amplitude_arcsec", {{"value", 0.1}, {"u", 0.02}}},
+                                                            {"phase_rad", {{"value", 0.3}, {"u", 0.1}}}}})}};
+  o.reference = parse_reference_calibration(
+      {{"certificate", "C-1"}, {"date", "2026-01-01"}, {"lab", "lab"}, {"pitch", axis}, {"yaw", axis}}, "ref.json");
+  const CalibrationReport r = calibrate(recording("a-6-fpss1"), o);
+  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+    expect_budget_adds_up(*a);
+    const std::vector<BudgetEntry>& b = a->angle_budget.back();
+    ASSERT_EQ(b.size(), 4u + 5u);  // the fit's four, then scale, non-orthogonality, zero, amplitude, phase
+    EXPECT_EQ(b[0].type, 'B');
+    EXPECT_FALSE(std::isfinite(b[0].dof));
+    EXPECT_EQ(b[4].source, "reference calibration: " + a->axis + " scale factor");
+    EXPECT_EQ(b[8].source, "reference calibration: " + a->axis + " cyclic harmonic 2 phase");
+    // 50 ppm of the largest angle (0.42 deg = 1512 arcsec) is 0.0756 arcsec.
+    EXPECT_NEAR(b[4].u, 50e-6 * std::abs(a->angle_sigma_arcsec.back()[0]), 1e-9);
+    for (size_t i = 4; i < b.size(); ++i) EXPECT_EQ(b[i].type, 'B');
+  }
+}
+
 TEST(Calibrator, AbsoluteMethodFitsC1ToC8AndNeedsNoNulls) {
   const auto truth = load_published("a-2-fpss1");
   const SampleTable t = recording("a-2-fpss1");
