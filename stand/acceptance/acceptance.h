@@ -140,7 +140,13 @@ struct CertificateInfo {
   std::string date_utc;
   std::string calibration_file;         // "" when there is none
   nlohmann::json reference;             // the reference calibration file's identity(); null: none
+  // The calibrated angle's GUM figures, per axis, as calibration.json has them (calibration_uncertainty()).
+  nlohmann::json calibration_uncertainty;
 };
+
+// Of calibration.json's `uncertainties`: per axis {expanded_uncertainty_max_arcsec, coverage_factor,
+// dof_eff, budget_angle_arcsec, budget}; null when it has none (an older file, or no listed angles).
+nlohmann::json calibration_uncertainty(const nlohmann::json& uncertainties);
 
 // acceptance.json: {"format": "fpss-stand acceptance/1", "verdict": "pass"|"conditional"|"fail",
 // "passed", "unit", "stand", "software", "procedure", "limits", "decision_rule", "run", "date_utc",

@@ -45,7 +45,41 @@ std::string outcome_reason(const Criterion& k, const DecisionRule& r) {
                      to_string(k.decision.outcome));
 }
 
+// The calibrated angle's expanded uncertainty per axis, then its budget in one line.
+std::string calibration_uncertainty_text(const nlohmann::ordered_json& cu) {
+  std::string s = "\nCalibrated angle (calibration.json; fitted minus true, the worst listed angle):\n";
+  for (const auto& [axis, a] : cu.items()) {
+    const auto num = [](const nlohmann::ordered_json& v) { return v.is_number() ? fmt::format("{:.0f}", v.get<double>()) : "inf"; };
+    std::string parts;
+    for (const auto& e : a["budget"]) {
+      if (!e.is_object() || !e.contains("u_arcsec") || !e["u_arcsec"].is_number()) continue;
+      parts += fmt::format("{}{} ({}) {:.4f}", parts.empty() ? "" : ", ", e.value("source", std::string()),
+                           e.value("type", std::string()), e["u_arcsec"].get<double>());
+    }
+    s += fmt::format("  {:<5} U = {:.4f} arcsec (k = {:.3f}, 95 %, nu_eff {}) at {:.1f} arcsec; budget: {}\n", axis,
+                     a["expanded_uncertainty_max_arcsec"].get<double>(),
+                     a["coverage_factor"].is_number() ? a["coverage_factor"].get<double>() : 0.0, num(a["dof_eff"]),
+                     a["budget_angle_arcsec"].is_number() ? a["budget_angle_arcsec"].get<double>() : 0.0, parts);
+  }
+  return s;
+}
+
 }  // namespace
+
+nlohmann::json calibration_uncertainty(const nlohmann::json& uncertainties) {
+  nlohmann::json out = nlohmann::json::object();
+  for (const char* axis : {"pitch", "yaw"}) {
+    if (!uncertainties.is_object() || !uncertainties.contains(axis) || !uncertainties[axis].is_object()) continue;
+    const nlohmann::json& a = uncertainties[axis];
+    if (!a.contains("expanded_uncertainty_max_arcsec") || !a["expanded_uncertainty_max_arcsec"].is_number()) continue;
+    nlohmann::json one = nlohmann::json::object();
+    for (const char* k : {"expanded_uncertainty_max_arcsec", "coverage_factor", "dof_eff", "budget_angle_arcsec", "budget"}) {
+      one[k] = a.value(k, nlohmann::json());
+    }
+    out[axis] = std::move(one);
+  }
+  return out.empty() ? nlohmann::json() : out;
+}
 
 nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimits& limits, const CertificateInfo& info) {
   nlohmann::ordered_json c;
@@ -68,6 +102,7 @@ nlohmann::ordered_json certificate_json(const Judgement& j, const AcceptanceLimi
   c["date_utc"] = info.date_utc;
   c["calibration"] = info.calibration_file.empty() ? nlohmann::ordered_json(nullptr)
                                                    : nlohmann::ordered_json(info.calibration_file);
+  if (!info.calibration_uncertainty.is_null()) c["calibration_uncertainty"] = info.calibration_uncertainty;
   nlohmann::ordered_json crit = nlohmann::ordered_json::array();
   for (const auto& k : j.criteria) {
     const nlohmann::ordered_json measured = k.measured ? nlohmann::ordered_json(*k.measured) : nlohmann::ordered_json();
@@ -189,6 +224,7 @@ std::string certificate_text(const nlohmann::ordered_json& c) {
                      expanded_text(k), limit_text(k), acceptance_limit_text(k), k["unit"].get<std::string>(),
                      outcome_word(k["outcome"].get<std::string>()));
   }
+  if (c.contains("calibration_uncertainty")) s += calibration_uncertainty_text(c["calibration_uncertainty"]);
   s += fmt::format("\n{}\n", c["decision_rule"]["statement"].get<std::string>());
   std::string why;
   for (const auto& k : c["criteria"]) {

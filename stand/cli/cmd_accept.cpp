@@ -358,6 +358,7 @@ CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r
   info.points_completed = r.points_done;
   info.date_utc = utc_now_iso();
   info.calibration_file = r.calibration ? r.calibration->filename().string() : "";
+  if (r.calibration) info.calibration_uncertainty = calibration_uncertainty(read_json_file(*r.calibration).value("uncertainties", nlohmann::json()));
   if (const auto& ref = req.stand.bench.reference) info.reference = ref->identity();
   return info;
 }

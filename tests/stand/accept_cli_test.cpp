@@ -71,6 +71,20 @@ TEST_F(AcceptCli, GoodUnitPassesIsCertifiedAndRecordedThenAMovedNullFailsAgainst
   const fs::path dir = cert["run"]["dir"].get<std::string>();
   EXPECT_EQ(nlohmann::json::parse(read_file(dir / "acceptance.json")), cert);
   EXPECT_NE(read_file(dir / "certificate.txt").find("Verdict:    PASS"), std::string::npos);
+  {
+    // The calibrated angle's U and budget are calibration.json's, copied, and the certificate shows them.
+    const auto cal = nlohmann::json::parse(read_file(dir / "calibration.json"))["uncertainties"];
+    for (const char* axis : {"pitch", "yaw"}) {
+      const auto& mine = cert["calibration_uncertainty"][axis];
+      EXPECT_EQ(mine["expanded_uncertainty_max_arcsec"], cal[axis]["expanded_uncertainty_max_arcsec"]);
+      EXPECT_EQ(mine["budget"], cal[axis]["budget"]);
+      EXPECT_NE(read_file(dir / "certificate.txt")
+                    .find(fmt::format("U = {:.4f} arcsec (k = {:.3f}, 95 %", mine["expanded_uncertainty_max_arcsec"].get<double>(),
+                                      mine["coverage_factor"].get<double>())),
+                std::string::npos)
+          << axis;
+    }
+  }
   const std::string page = read_file(dir / "report.html");
   EXPECT_NE(page.find("id=\"acceptance\""), std::string::npos);
   EXPECT_NE(page.find("Acceptance: PASS"), std::string::npos);

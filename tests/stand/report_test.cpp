@@ -206,6 +206,29 @@ TEST(Report, FiguresEqualTheCalibratorsResidualsBlock) {
             std::string::npos);
 }
 
+TEST(Report, TheUncertaintyBudgetIsCalibrationJsons) {
+  TempDir dir;
+  write_recording(dir.path() / "samples.csv", truth(), 0.3, 42);
+  const CalibrationReport rep = calibrate(read_samples_csv(dir.path() / "samples.csv"), {});
+  save_coefficients(dir.path() / "calibration.json", rep.coefficients());
+  const std::string html = render_report(load_report_input(dir.path()), {});
+  ASSERT_NE(html.find("<section id=\"budget\">"), std::string::npos);
+  const nlohmann::json u = rep.coefficients().extra.at("uncertainties");
+  for (const char* axis : {"pitch", "yaw"}) {
+    const auto& a = u.at(axis);
+    EXPECT_NE(html.find(fmt::format("expanded U (k = {:.3f}, 95 %)</th><td></td><td>{:.4f}", a.at("coverage_factor").get<double>(),
+                                    a.at("expanded_uncertainty_max_arcsec").get<double>())),
+              std::string::npos)
+        << axis;
+    for (const auto& e : a.at("budget")) {
+      EXPECT_NE(html.find(fmt::format("<td class=\"l\">{}</td><td>{}</td><td>{:.4f}</td>", e.at("source").get<std::string>(),
+                                      e.at("type").get<std::string>(), e.at("u_arcsec").get<double>())),
+                std::string::npos)
+          << e.dump();
+    }
+  }
+}
+
 TEST(Report, PageHasTheSummaryAndInlineSvgPlots) {
   TempDir dir;
   const fs::path run = dir.path() / "20240501T120000Z-FPSS1-discrete_grid";
