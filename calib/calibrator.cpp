@@ -282,30 +282,32 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
   return p;
 }
 
-// The budget of the fitted angle at `counts`: the noise model's sources, each the sigma its share
-// of the covariance gives, and the model-and-fit remainder (what sigma_scale adds); without a
-// noise model the whole sigma is the residuals' scatter (model and fit).
-std::vector<BudgetEntry> fit_budget(const AxisFit& out, const Uncertainty& u, const AxisData& d, double counts) {
+// The fit's covariance split by source: the noise model's sources, and the model-and-fit
+// remainder (what sigma_scale adds to them); without a noise model the whole covariance is the
+// residuals' scatter (model and fit).
+std::vector<AxisFit::CovarianceSource> covariance_sources(const AxisFit& out, const Uncertainty& u, const AxisData& d) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const auto dof_or_inf = [](double dof) { return dof > 0 ? dof : kInf; };
   const double fit_dof = out.fit_form == FitForm::gls ? static_cast<double>(out.chi2_dof)
                                                        : static_cast<double>(d.rows()) - static_cast<double>(d.parameters());
-  if (!u.sources_known) {
-    return {{"model and fit", 'A', 1.0, angle_sigma_arcsec(u, out.coeffs, counts), dof_or_inf(fit_dof)}};
-  }
-  const auto part = [&](NoiseSource s) {
-    return angle_sigma_arcsec(u.source_covariance_scaled[static_cast<size_t>(s)], out.coeffs, counts);
-  };
+  if (!u.sources_known) return {{"model and fit", 'A', dof_or_inf(fit_dof), u.covariance_scaled}};
+  const auto& c = u.source_covariance_scaled;
   const bool sensor_from_data = out.noise.count_noise_source == "within-dwell scatter";
-  std::vector<BudgetEntry> b{
-      {"sensor noise", sensor_from_data ? 'A' : 'B', 1.0, part(NoiseSource::sensor),
-       sensor_from_data ? dof_or_inf(d.scatter_dof) : kInf},
-      {"quantisation", 'B', 1.0, part(NoiseSource::quantisation), kInf},
-      {"reference noise", 'A', 1.0, part(NoiseSource::reference), dof_or_inf(d.ref_scatter_dof)},
+  return {
+      {"sensor noise", sensor_from_data ? 'A' : 'B', sensor_from_data ? dof_or_inf(d.scatter_dof) : kInf,
+       c[static_cast<size_t>(NoiseSource::sensor)]},
+      {"quantisation", 'B', kInf, c[static_cast<size_t>(NoiseSource::quantisation)]},
+      {"reference noise", 'A', dof_or_inf(d.ref_scatter_dof), c[static_cast<size_t>(NoiseSource::reference)]},
+      {"model and fit", 'A', dof_or_inf(fit_dof),
+       (c[0] + c[1] + c[2]) * std::max(0.0, out.sigma_scale * out.sigma_scale - 1.0)},
   };
-  const double stat = std::sqrt(b[0].u * b[0].u + b[1].u * b[1].u + b[2].u * b[2].u);
-  b.push_back({"model and fit", 'A', 1.0, stat * std::sqrt(std::max(0.0, out.sigma_scale * out.sigma_scale - 1.0)),
-               dof_or_inf(fit_dof)});
+}
+
+std::vector<BudgetEntry> fit_budget(const AxisFit& out, double counts) {
+  std::vector<BudgetEntry> b;
+  for (const auto& s : out.covariance_sources) {
+    b.push_back({s.source, s.type, 1.0, angle_sigma_arcsec(s.covariance_scaled, out.coeffs, counts), s.dof});
+  }
   return b;
 }
 
@@ -328,7 +330,7 @@ void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, in
     try {
       const double n = model.counts_for_angle_unchecked(arcsec_to_rad(a), d.counts_lo - margin, d.counts_hi + margin);
       sig = angle_sigma_arcsec(u, out.coeffs, n);
-      budget = fit_budget(out, u, d, n);
+      budget = fit_budget(out, n);
     } catch (const std::exception&) {
       // not reached within the range: listed as null
     }
@@ -440,6 +442,7 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
     out.solver.initial_cost = 0.5 * start;
     out.solver.final_cost = 0.5 * out.residuals.rms_arcsec * out.residuals.rms_arcsec * static_cast<double>(out.residuals.points);
   }
+  out.covariance_sources = covariance_sources(out, u, d);
   list_angle_sigmas(out, u, d, opts.sigma_angles,
                     axis == Axis::alpha ? opts.sigma_range_pitch_arcsec : opts.sigma_range_yaw_arcsec);
   return out;
@@ -553,6 +556,19 @@ CalibrationReport calibrate(const SampleTable& samples, const CalibrationOptions
     return calibrate(reduce(corrected, opts.reduction()), opts, samples.origin, samples.size());
   }
   return calibrate(reduce(samples, opts.reduction()), opts, samples.origin, samples.size());
+}
+
+std::optional<size_t> AxisFit::worst_budget_angle() const {
+  std::optional<size_t> worst;
+  double worst_u = -1;
+  for (size_t i = 0; i < angle_budget.size(); ++i) {
+    if (angle_budget[i].empty()) continue;
+    if (const double big_u = combine(angle_budget[i]).U; big_u > worst_u) {
+      worst_u = big_u;
+      worst = i;
+    }
+  }
+  return worst;
 }
 
 double AxisFit::listed_sigma_max_arcsec() const {

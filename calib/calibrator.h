@@ -142,6 +142,15 @@ struct AxisFit {
   // angle's sigma (sensor noise, quantisation, reference noise, model and fit, then each term of
   // the reference's calibration); empty where the angle is not reached.
   std::vector<std::vector<BudgetEntry>> angle_budget;
+  // The fit's covariance of the scaled coefficients (residuals.h, C1 first) split by source: each
+  // one's angle sigma is its entry in angle_budget, and the Monte Carlo check draws from them.
+  struct CovarianceSource {
+    std::string source;
+    char type = 'A';
+    double dof = std::numeric_limits<double>::infinity();
+    Eigen::Matrix<double, 8, 8> covariance_scaled = Eigen::Matrix<double, 8, 8>::Zero();
+  };
+  std::vector<CovarianceSource> covariance_sources;
   double reduced_chi2 = std::numeric_limits<double>::quiet_NaN();  // of the standardised dwell residuals
   size_t chi2_dof = 0;
   bool model_remainder = false;  // reduced chi2 materially > 1: sigmas scaled up by sigma_scale
@@ -154,6 +163,10 @@ struct AxisFit {
   // The largest listed angle sigma; infinite when none is listed or an angle is not reached (the
   // fit cannot yet speak for the whole range).
   double listed_sigma_max_arcsec() const;
+  // The listed angle whose budget has the largest expanded uncertainty U (GUM: k from its own
+  // degrees of freedom): where calibration.json's coverage_factor and budget are given. None
+  // without budgets.
+  std::optional<size_t> worst_budget_angle() const;
 };
 
 struct CalibrationReport {

@@ -186,22 +186,48 @@ void correct_reference_angles(const ReferenceCalibration& r, const AxisMapping& 
   std::tie(ref_pitch_arcsec, ref_yaw_arcsec) = mount.sensor_from_stand(tp, ty);
 }
 
-std::vector<BudgetEntry> reference_budget(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
-                                          double angle_arcsec, double other_extent_arcsec) {
-  std::vector<BudgetEntry> worst;
-  double worst_u = -1;
+namespace {
+
+bool sees_pitch(const AxisMapping& mount, int sensor_axis) {
+  return (sensor_axis == 0) == (mount.pitch_axis == AxisMapping::alpha);
+}
+
+std::pair<double, double> stand_angles(const AxisMapping& mount, int sensor_axis, double angle_arcsec, double other_arcsec) {
+  return sensor_axis == 0 ? mount.stand_from_sensor(angle_arcsec, other_arcsec)
+                          : mount.stand_from_sensor(other_arcsec, angle_arcsec);
+}
+
+std::vector<BudgetEntry> reference_terms_at(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
+                                            double angle_arcsec, double other_arcsec) {
+  const auto [p, y] = stand_angles(mount, sensor_axis, angle_arcsec, other_arcsec);
+  return sees_pitch(mount, sensor_axis) ? axis_terms(r.pitch, "pitch", p, y) : axis_terms(r.yaw, "yaw", y, p);
+}
+
+}  // namespace
+
+double reference_worst_other_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
+                                    double angle_arcsec, double other_extent_arcsec) {
+  double worst_other = 0, worst_u = -1;
   for (double other : {-other_extent_arcsec, 0.0, other_extent_arcsec}) {
-    const double a = sensor_axis == 0 ? angle_arcsec : other, b = sensor_axis == 0 ? other : angle_arcsec;
-    const auto [p, y] = mount.stand_from_sensor(a, b);
-    // The stand axis this sensor axis sees.
-    const bool pitch = (sensor_axis == 0) == (mount.pitch_axis == AxisMapping::alpha);
-    std::vector<BudgetEntry> terms = pitch ? axis_terms(r.pitch, "pitch", p, y) : axis_terms(r.yaw, "yaw", y, p);
-    if (const double u = root_sum_square(terms); u > worst_u) {
+    if (const double u = root_sum_square(reference_terms_at(r, mount, sensor_axis, angle_arcsec, other)); u > worst_u) {
       worst_u = u;
-      worst = std::move(terms);
+      worst_other = other;
     }
   }
-  return worst;
+  return worst_other;
+}
+
+std::vector<BudgetEntry> reference_budget(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
+                                          double angle_arcsec, double other_extent_arcsec) {
+  return reference_terms_at(r, mount, sensor_axis, angle_arcsec,
+                            reference_worst_other_arcsec(r, mount, sensor_axis, angle_arcsec, other_extent_arcsec));
+}
+
+double reference_error_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
+                              double angle_arcsec, double other_arcsec) {
+  const auto [p, y] = stand_angles(mount, sensor_axis, angle_arcsec, other_arcsec);
+  const auto [rp, ry] = r.reading_from_true(p, y);
+  return sees_pitch(mount, sensor_axis) ? rp - p : ry - y;
 }
 
 double reference_u_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis, double angle_arcsec,

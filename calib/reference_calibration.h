@@ -59,6 +59,13 @@ void correct_reference_angles(const ReferenceCalibration& r, const AxisMapping& 
 // +-other_extent (its two ends and zero): one entry per term, "reference calibration: pitch zero".
 std::vector<BudgetEntry> reference_budget(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
                                           double angle_arcsec, double other_extent_arcsec);
+// That worst position of the other sensor axis (arcsec).
+double reference_worst_other_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
+                                    double angle_arcsec, double other_extent_arcsec);
+// The reading minus the true angle (arcsec) of the gimbal axis that sensor axis `sensor_axis` sees,
+// at the sensor-frame angles (angle on that axis, other on the other).
+double reference_error_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
+                              double angle_arcsec, double other_arcsec);
 // Their root sum of squares: the reference's u (arcsec) of that angle.
 double reference_u_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis, double angle_arcsec,
                           double other_extent_arcsec);

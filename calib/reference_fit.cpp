@@ -38,11 +38,14 @@ void grow(AxisFit& a, const CalibrationOptions& opts, int sensor_axis, double ot
 
 }  // namespace
 
+double other_axis_extent_arcsec(const CalibrationReport& rep, int sensor_axis) {
+  return extent_arcsec(sensor_axis == 0 ? rep.yaw : rep.pitch);
+}
+
 void add_reference_uncertainty(CalibrationReport& rep, const CalibrationOptions& opts) {
   if (!opts.reference) return;
-  const double pitch_extent = extent_arcsec(rep.pitch), yaw_extent = extent_arcsec(rep.yaw);
-  grow(rep.pitch, opts, 0, yaw_extent);
-  grow(rep.yaw, opts, 1, pitch_extent);
+  grow(rep.pitch, opts, 0, other_axis_extent_arcsec(rep, 0));
+  grow(rep.yaw, opts, 1, other_axis_extent_arcsec(rep, 1));
   nlohmann::json block = opts.reference->identity();
   block["corrected_by"] = opts.correct_reference ? "calibrate" : "run";
   rep.reference = block;

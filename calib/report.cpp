@@ -26,29 +26,19 @@ nlohmann::ordered_json axis_residuals(const AxisFit& a) {
 // angle with the largest U (docs/calibration.md, "Uncertainty budget").
 void add_expanded_uncertainty(nlohmann::ordered_json& ax, const AxisFit& a) {
   nlohmann::json list = nlohmann::json::array();
-  const std::vector<BudgetEntry>* worst = nullptr;
-  Combined worst_c;
-  double worst_angle = 0;
   for (size_t i = 0; i < a.angle_sigma_arcsec.size(); ++i) {
     const double angle = a.angle_sigma_arcsec[i][0];
-    if (i >= a.angle_budget.size() || a.angle_budget[i].empty()) {
-      list.push_back({angle, nullptr});
-      continue;
-    }
-    const Combined c = combine(a.angle_budget[i]);
-    list.push_back({angle, number_or_null(c.U)});
-    if (!worst || c.U > worst_c.U) {
-      worst = &a.angle_budget[i];
-      worst_c = c;
-      worst_angle = angle;
-    }
+    const bool has = i < a.angle_budget.size() && !a.angle_budget[i].empty();
+    list.push_back({angle, has ? number_or_null(combine(a.angle_budget[i]).U) : nlohmann::json(nullptr)});
   }
-  ax["coverage_factor"] = worst ? number_or_null(worst_c.k) : nlohmann::json(nullptr);
+  const std::optional<size_t> w = a.worst_budget_angle();
+  const Combined c = w ? combine(a.angle_budget[*w]) : Combined{};
+  ax["coverage_factor"] = w ? number_or_null(c.k) : nlohmann::json(nullptr);
   ax["angle_expanded_uncertainty_arcsec"] = list;
-  ax["budget"] = worst ? budget_json(*worst, "u_arcsec") : nlohmann::ordered_json::array();
-  ax["budget_angle_arcsec"] = worst ? nlohmann::json(worst_angle) : nlohmann::json(nullptr);
-  ax["dof_eff"] = worst ? number_or_null(worst_c.dof_eff) : nlohmann::json(nullptr);
-  ax["expanded_uncertainty_max_arcsec"] = worst ? number_or_null(worst_c.U) : nlohmann::json(nullptr);
+  ax["budget"] = w ? budget_json(a.angle_budget[*w], "u_arcsec") : nlohmann::ordered_json::array();
+  ax["budget_angle_arcsec"] = w ? nlohmann::json(a.angle_sigma_arcsec[*w][0]) : nlohmann::json(nullptr);
+  ax["dof_eff"] = w ? number_or_null(c.dof_eff) : nlohmann::json(nullptr);
+  ax["expanded_uncertainty_max_arcsec"] = w ? number_or_null(c.U) : nlohmann::json(nullptr);
 }
 
 }  // namespace

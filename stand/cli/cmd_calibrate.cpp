@@ -10,6 +10,7 @@
 #include "base/text_file.h"
 #include "calib/calibrator.h"
 #include "calib/coefficients.h"
+#include "calib/monte_carlo.h"
 #include "calib/reference_calibration.h"
 #include "calib/report.h"
 #include "calib/samples.h"
@@ -59,6 +60,8 @@ void add_calibrate(CLI::App& app, Runner& run) {
   struct Opts {
     std::string data, out, init, method = "differences", truth, unit, reference;
     std::optional<double> count_noise;
+    std::optional<size_t> monte_carlo;
+    uint64_t monte_carlo_seed = 1;
     bool json = false;
     FileOptions files;
   };
@@ -88,11 +91,18 @@ void add_calibrate(CLI::App& app, Runner& run) {
   o->files.input(sub, "--reference", o->reference,
                  "the reference's calibration (JSON, docs/formats.md): corrects a raw recording's reference "
                  "angles and adds its uncertainty to the calibration's");
+  sub->add_option("--monte-carlo", o->monte_carlo,
+                  "check the uncertainty budget by N Monte Carlo trials (JCGM 101): the calibrated angle's 95 % "
+                  "interval at the budget's angle against the GUM's U, in calibration.json monte_carlo")
+      ->check(CLI::Range(size_t{100}, size_t{10'000'000}));
+  sub->add_option("--monte-carlo-seed", o->monte_carlo_seed, "the Monte Carlo draws' seed")->capture_default_str();
   sub->add_option("--unit", o->unit, "unit name written to the coefficient file (default: from --init or --truth)");
   sub->add_flag("--json", o->json,
                 "print {\"file\": OUT, \"calibration\": <the coefficient file's content>} instead of the summary");
   examples(sub, {"fpss-stand simulate --out rec.csv --truth calib/data/published/a-5-fpss2.json",
-                 "fpss-stand calibrate --data rec.csv --out cal.json --truth calib/data/published/a-5-fpss2.json"});
+                 "fpss-stand calibrate --data rec.csv --out cal.json --truth calib/data/published/a-5-fpss2.json",
+                 "fpss-stand calibrate --data rec.csv --out cal.json --reference procedures/reference_example.json "
+                 "--monte-carlo 100000"});
   sub->callback([o, &run] {
     run = [o] {
       o->files.check();
@@ -124,6 +134,11 @@ void add_calibrate(CLI::App& app, Runner& run) {
             {"pitch", {{"max_abs_arcsec", cmp->pitch.max_abs_arcsec}, {"rms_arcsec", cmp->pitch.rms_arcsec}}},
             {"yaw", {{"max_abs_arcsec", cmp->yaw.max_abs_arcsec}, {"rms_arcsec", cmp->yaw.rms_arcsec}}}};
       }
+      std::optional<MonteCarloCheck> mc;
+      if (o->monte_carlo) {
+        mc = monte_carlo_check(rep, opts, *o->monte_carlo, o->monte_carlo_seed);
+        set.extra["monte_carlo"] = mc->to_json();
+      }
       save_coefficients(o->out, set);
 
       if (o->json) {
@@ -133,6 +148,7 @@ void add_calibrate(CLI::App& app, Runner& run) {
       }
       std::string text = summary_text(rep);
       if (cmp) text += truth_text(*cmp, o->truth);
+      if (mc) text += monte_carlo_text(*mc);
       text += fmt::format("\nwrote {}\n", o->out);
       std::fputs(text.c_str(), stdout);
       return 0;

@@ -13,6 +13,7 @@
 
 #include "calib/calibrator.h"
 #include "calib/coefficients.h"
+#include "calib/monte_carlo.h"
 #include "calib/streaming.h"
 
 namespace fpss {
@@ -136,6 +137,21 @@ void BM_CalibrateFile(benchmark::State& state) {
 }
 
 BENCHMARK(BM_CalibrateFile)->Arg(2000)->Arg(200000)->Arg(2000000)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// The JCGM 101 check of the budget (calibrate --monte-carlo N) on a 20,000-sample calibration with
+// the example reference calibration: N trials per axis, the reference's error model per trial.
+void BM_MonteCarloCheck(benchmark::State& state) {
+  CalibrationOptions o;
+  o.threads = 1;
+  o.reference = load_reference_calibration(std::string(FPSS_SOURCE_DIR) + "/procedures/reference_example.json");
+  const CalibrationReport rep = calibrate(make_recording(20000, 3), o);
+  for (auto _ : state) {
+    const MonteCarloCheck mc = monte_carlo_check(rep, o, static_cast<size_t>(state.range(0)), 1);
+    benchmark::DoNotOptimize(mc.axes.data());
+  }
+  state.SetItemsProcessed(state.iterations() * state.range(0));
+}
+BENCHMARK(BM_MonteCarloCheck)->Arg(100000)->Arg(1000000)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace fpss

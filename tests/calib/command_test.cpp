@@ -54,6 +54,27 @@ TEST_F(Command, WritesTheCoefficientFileWithResidualsAndPrintsTableOne) {
   EXPECT_EQ(s.extra.at("method"), "differences");
 }
 
+TEST_F(Command, MonteCarloChecksTheBudgetIntoTheCoefficientFile) {
+  const std::string data = recording("rec.csv");
+  const std::string ref = std::string(FPSS_SOURCE_DIR) + "/procedures/reference_example.json";
+  const Result r = run("--data " + data + " --out " + path("cal.json") + " --reference " + ref + " --monte-carlo 20000");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("Monte Carlo check of the budget (JCGM 101, 20000 trials, seed 1)"), std::string::npos) << r.out;
+  const CoefficientSet s = load_coefficients(path("cal.json"));
+  const auto& mc = s.extra.at("monte_carlo");
+  EXPECT_EQ(mc.at("trials"), 20000);
+  for (const char* axis : {"pitch", "yaw"}) {
+    const auto& a = mc.at(axis);
+    // The check is of the budget calibration.json states: the same U, at the same angle.
+    EXPECT_EQ(a.at("gum_expanded_uncertainty_arcsec"), s.extra.at("uncertainties").at(axis).at("expanded_uncertainty_max_arcsec"));
+    EXPECT_EQ(a.at("angle_arcsec"), s.extra.at("uncertainties").at(axis).at("budget_angle_arcsec"));
+    EXPECT_NEAR(a.at("u_arcsec").get<double>(), a.at("gum_u_arcsec").get<double>(), 0.03 * a.at("gum_u_arcsec").get<double>());
+  }
+  const Result bad = run("--data " + data + " --out " + path("cal2.json") + " --monte-carlo 10");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("--monte-carlo"), std::string::npos) << bad.err;
+}
+
 TEST_F(Command, AbsoluteMethodStartSetAndUnit) {
   const std::string data = recording("rec.csv");
   const Result r = run("--data " + data + " --out " + path("cal.json") + " --method absolute --init " + kTruth +
