@@ -100,8 +100,7 @@ void add_calibrate(CLI::App& app, Runner& run) {
   sub->add_flag("--json", o->json,
                 "print {\"file\": OUT, \"calibration\": <the coefficient file's content>} instead of the summary");
   examples(sub, {"fpss-stand simulate --out rec.csv --truth calib/data/published/a-5-fpss2.json",
-                 "fpss-stand calibrate --data rec.csv --out cal.json --truth calib/data/published/a-5-fpss2.json",
-                 "fpss-stand calibrate --data rec.csv --out cal.json --reference procedures/reference_example.json "
+                 "fpss-stand calibrate --data rec.csv --out cal.json --truth calib/data/published/a-5-fpss2.json "
                  "--monte-carlo 100000"});
   sub->callback([o, &run] {
     run = [o] {

@@ -22,5 +22,6 @@ void add_accept(CLI::App& app, Runner& run);    // accept, compare, import
 void add_design(CLI::App& app, Runner& run);
 void add_show(CLI::App& app, Runner& run);      // show, report
 void add_serve(CLI::App& app, Runner& run);     // serve (the web console)
+void add_msa(CLI::App& app, Runner& run);       // msa (measurement-system analysis)
 
 }  // namespace fpss::cli

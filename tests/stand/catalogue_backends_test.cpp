@@ -13,11 +13,13 @@
 
 #include <atomic>
 #include <functional>
+#include <random>
 #include <set>
 
 #include "base/errors.h"
 #include "base/unique_fd.h"
 #include "calib/coefficients.h"
+#include "calib/msa.h"
 #include "stand/catalogue/copy.h"
 #include "stand/catalogue/postgres_catalogue.h"
 #include "stand/catalogue/schema.h"
@@ -354,6 +356,66 @@ TEST_P(Backends, CommandsTakeTheCatalogueUrlTheAliasAndTheEnvironment) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(r.out)["calibrations_added"], 1);
   EXPECT_EQ(open_catalogue(copy, Catalogue::Mode::read_only)->unit_history("SN-7").at(0).label, "V");
+}
+
+TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
+  // Three units x two stands x three repeats, plus one older calibration the --since leaves out.
+  // The null angle C1 = 2 arcsec per unit + 0.3 per stand + 0.1 arcsec noise (seeded).
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  GaugeStudy expected;
+  {
+    auto cat = open();
+    expected.y.assign(3, std::vector<std::vector<double>>(2));
+    for (int u = 0; u < 3; ++u) {
+      const std::string unit = fmt::format("SN-{}", u);
+      cat->add_unit(unit);
+      for (int st = 0; st < 2; ++st) {
+        for (int k = -1; k < 3; ++k) {
+          const double c1_arcsec = 2.0 * u + 0.3 * st + noise(rng);
+          auto j = calibration_json(unit, 0.3 + 0.01 * noise(rng));
+          j["alpha"][0] = c1_arcsec / 206264.80624709636;
+          auto cal = CalibrationRecord::from_calibration_json(j, "msa");
+          cal.unit = unit;
+          cal.source = "import";
+          cal.source_ref = fmt::format("msa-{}-{}-{}.json", u, st, k);
+          cal.stand = st == 0 ? "stand-A" : "stand-B";
+          cal.date_utc = k < 0 ? "2025-06-01T00:00:00Z" : fmt::format("2026-02-0{}T00:00:00Z", k + 1);
+          cat->record_calibration(cal);
+          if (k >= 0) expected.y[u][st].push_back(c1_arcsec);
+        }
+      }
+    }
+  }
+  const fs::path out = dir_.path() / "msa.json", page = dir_.path() / "msa.html";
+  auto r = test::run_stand({"msa", "--catalogue", url_, "--since", "2026-01-01", "--out", out.string(), "--report",
+                            page.string()},
+                           dir_.path(), "msa");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto m = nlohmann::json::parse(test::read_file(out));
+  EXPECT_EQ(m["format"], "fpss-stand msa/1");
+  EXPECT_EQ(m["units"], nlohmann::json({"SN-0", "SN-1", "SN-2"}));
+  EXPECT_EQ(m["stands"], nlohmann::json({"stand-A", "stand-B"}));
+  EXPECT_EQ(m["repeats"], 3);
+  EXPECT_EQ(m["records_used"], 18);
+  EXPECT_EQ(m["records_left_out"], 6);
+  const auto& q = m["quantities"]["null_angle_pitch_arcsec"];
+  const GaugeRr want = gauge_rr(expected, 10.0);  // tolerance: the 5 arcsec accuracy limit either side
+  EXPECT_NEAR(q["sd"]["ev"].get<double>(), want.ev, 1e-6);
+  EXPECT_NEAR(q["sd"]["av"].get<double>(), want.av, 1e-6);
+  EXPECT_NEAR(q["grr_percent_tolerance"].get<double>(), *want.grr_percent_tolerance, 1e-4);
+  EXPECT_EQ(q["ndc"], want.ndc);
+  EXPECT_GT(want.av, 0.05);  // the 0.3 arcsec between stands shows as reproducibility
+  EXPECT_EQ(q["tolerance"], 10.0);
+  EXPECT_TRUE(m["quantities"].contains("angle_yaw_at_+0.4deg_arcsec"));
+  EXPECT_TRUE(m["skipped"].contains("accuracy_3sigma_pitch_arcsec"));  // no acceptances recorded
+  const std::string html = test::read_file(page);
+  EXPECT_NE(html.find("<table id=\"msa\">"), std::string::npos);
+  EXPECT_NE(html.find("null_angle_pitch_arcsec"), std::string::npos);
+  // One stand is no crossed study: exit 2, saying why.
+  r = test::run_stand({"msa", "--catalogue", url_, "--stands", "stand-A", "--out", out.string()}, dir_.path(), "one");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("at least two units and two stands"), std::string::npos) << r.err;
 }
 
 INSTANTIATE_TEST_SUITE_P(Catalogue, Backends, ::testing::Values(Backend::sqlite, Backend::postgresql),

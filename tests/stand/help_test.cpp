@@ -80,10 +80,11 @@ std::string joined(const std::vector<std::string>& v) {
 }
 
 // What an example needs that this test does not give it: a server that runs until stopped, a
-// database server, or much time (an acceptance, a second run of the grid, a long blind test).
+// database server, much time (an acceptance, a second run of the grid, a long blind test), or a
+// fleet's catalogue (msa: several units calibrated on several stands; tests/stand/catalogue_backends_test.cpp).
 bool not_run_here(const std::string& example) {
   for (const char* what : {"postgresql://", "fpss-stand emulate", "fpss-stand serve", "fpss-stand accept",
-                           "fpss-stand blindtest --cases 22"}) {
+                           "fpss-stand blindtest --cases 22", "fpss-stand msa "}) {
     if (example.find(what) != std::string::npos) return true;
   }
   // A full run of the grid takes the bench's time (the dry run is checked).

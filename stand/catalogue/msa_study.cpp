@@ -1,0 +1,238 @@
+#include "stand/catalogue/msa_study.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "base/errors.h"
+#include "calib/residuals.h"
+#include "calib/transfer_function.h"
+#include "calib/units.h"
+
+namespace fpss {
+
+namespace {
+
+// One measurement of every quantity it has, from one record.
+struct Observation {
+  std::string unit, stand, date;
+  std::map<std::string, double> values;
+};
+
+std::string stand_name(const std::string& s) { return s.empty() ? "emulated" : s; }
+
+constexpr double kSetPointsDeg[] = {-0.4, -0.2, 0.2, 0.4};
+
+std::string set_point_name(const char* axis, double deg) { return fmt::format("angle_{}_at_{:+.1f}deg_arcsec", axis, deg); }
+
+void add_number(Observation& o, const std::string& name, const nlohmann::json& v) {
+  if (v.is_number() && std::isfinite(v.get<double>())) o.values[name] = v.get<double>();
+}
+
+Observation from_calibration(const CalibrationRecord& c) {
+  Observation o{c.unit, stand_name(c.stand), c.date_utc, {}};
+  const nlohmann::json& j = c.coefficients;
+  for (const auto& [axis, key] : {std::pair{"pitch", "alpha"}, std::pair{"yaw", "beta"}}) {
+    if (j.contains("residuals") && j["residuals"].contains(axis)) {
+      add_number(o, fmt::format("residual_mean_{}_arcsec", axis), j["residuals"][axis].value("mean_abs_arcsec", nlohmann::json()));
+    }
+    if (!j.contains(key) || !j[key].is_array() || j[key].size() != 8) continue;
+    AxisCoeffs cf{};
+    bool ok = true;
+    for (size_t i = 0; i < 8; ++i) {
+      ok = ok && j[key][i].is_number();
+      if (ok) cf[i] = j[key][i].get<double>();
+    }
+    if (!ok) continue;
+    o.values[fmt::format("null_angle_{}_arcsec", axis)] = rad_to_arcsec(cf[0]);
+    for (double deg : kSetPointsDeg) {
+      const double counts = deg * kArcsecPerDeg / (fit::kNominalC2 * kArcsecPerRad);
+      const double a = rad_to_arcsec(transfer_angle(cf.data(), counts));
+      if (std::isfinite(a)) o.values[set_point_name(axis, deg)] = a;
+    }
+  }
+  return o;
+}
+
+Observation from_acceptance(const AcceptanceRecord& a) {
+  Observation o{a.unit, stand_name(a.stand), a.date_utc, {}};
+  if (!a.certificate.contains("criteria") || !a.certificate["criteria"].is_array()) return o;
+  for (const auto& k : a.certificate["criteria"]) {
+    for (const char* axis : {"pitch", "yaw"}) {
+      if (k.value("id", std::string()) == fmt::format("accuracy_3sigma_{}", axis)) {
+        add_number(o, fmt::format("accuracy_3sigma_{}_arcsec", axis), k.value("measured", nlohmann::json()));
+      }
+    }
+  }
+  return o;
+}
+
+bool selected(const std::vector<std::string>& list, const std::string& v) {
+  return list.empty() || std::find(list.begin(), list.end(), v) != list.end();
+}
+
+// The cells' observations, latest last; the study's units and stands.
+struct Cells {
+  std::vector<std::string> units, stands;
+  std::map<std::pair<std::string, std::string>, std::vector<Observation>> cell;
+};
+
+Cells sort_into_cells(std::vector<Observation> obs, const MsaSelection& sel, size_t& left_out) {
+  Cells c;
+  std::set<std::string> units, stands;
+  for (Observation& o : obs) {
+    if (!selected(sel.units, o.unit) || !selected(sel.stands, o.stand) || (!sel.since.empty() && o.date < sel.since)) {
+      ++left_out;
+      continue;
+    }
+    units.insert(o.unit);
+    stands.insert(o.stand);
+    c.cell[{o.unit, o.stand}].push_back(std::move(o));
+  }
+  c.units.assign(units.begin(), units.end());
+  c.stands.assign(stands.begin(), stands.end());
+  for (auto& [k, v] : c.cell) {
+    std::stable_sort(v.begin(), v.end(), [](const Observation& a, const Observation& b) { return a.date < b.date; });
+  }
+  return c;
+}
+
+// The study of one quantity over the latest `repeats` records of each cell that have it.
+std::optional<GaugeStudy> study_of(const Cells& c, const std::string& q, size_t repeats, std::string& why) {
+  GaugeStudy s;
+  for (const std::string& u : c.units) {
+    s.y.emplace_back();
+    for (const std::string& st : c.stands) {
+      std::vector<double> ys;
+      const auto it = c.cell.find({u, st});
+      if (it != c.cell.end()) {
+        for (const Observation& o : it->second) {
+          if (const auto v = o.values.find(q); v != o.values.end()) ys.push_back(v->second);
+        }
+      }
+      if (ys.size() < repeats) {
+        why = fmt::format("unit {} on stand {}: {} record(s) with it, {} needed", u, st, ys.size(), repeats);
+        return std::nullopt;
+      }
+      s.y.back().emplace_back(ys.end() - static_cast<std::ptrdiff_t>(repeats), ys.end());
+    }
+  }
+  return s;
+}
+
+}  // namespace
+
+MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const std::map<std::string, MsaTolerance>& tolerances) {
+  std::vector<Observation> cal_obs, acc_obs;
+  for (const std::string& u : cat.units()) {
+    if (!selected(sel.units, u)) continue;
+    for (const CalibrationRecord& r : cat.unit_history(u)) cal_obs.push_back(from_calibration(r));
+    for (const AcceptanceRecord& r : cat.unit_acceptances(u)) acc_obs.push_back(from_acceptance(r));
+  }
+  for (const std::string& u : sel.units) {
+    if (!cat.has_unit(u)) throw InputError(fmt::format("--units: unit {} is not in the catalogue", u));
+  }
+  MsaStudy out;
+  const Cells cals = sort_into_cells(std::move(cal_obs), sel, out.records_left_out);
+  const Cells accs = sort_into_cells(std::move(acc_obs), sel, out.records_left_out);
+  out.units = cals.units;
+  out.stands = cals.stands;
+  if (out.units.size() < 2 || out.stands.size() < 2) {
+    throw InputError(fmt::format("msa: a crossed study needs at least two units and two stands; the selection has "
+                                 "{} unit(s) ({}) and {} stand(s) ({})",
+                                 out.units.size(), fmt::join(out.units, ", "), out.stands.size(), fmt::join(out.stands, ", ")));
+  }
+  // Repeats: as many as every cell has (balanced, the latest of each), at least two.
+  size_t repeats = SIZE_MAX;
+  std::vector<std::string> thin;
+  for (const std::string& u : out.units) {
+    for (const std::string& st : out.stands) {
+      const auto it = cals.cell.find({u, st});
+      const size_t n = it == cals.cell.end() ? 0 : it->second.size();
+      repeats = std::min(repeats, n);
+      if (n < 2) thin.push_back(fmt::format("{} on {} ({})", u, st, n));
+    }
+  }
+  if (!thin.empty()) {
+    throw InputError(fmt::format("msa: every unit needs at least two calibrations on every stand (repeatability is "
+                                 "their scatter); short: {}",
+                                 fmt::join(thin, "; ")));
+  }
+  out.repeats = repeats;
+  for (const auto& [k, v] : cals.cell) out.records_used += std::min(v.size(), repeats);
+  std::vector<std::string> names;
+  for (const char* axis : {"pitch", "yaw"}) {
+    names.push_back(fmt::format("residual_mean_{}_arcsec", axis));
+    names.push_back(fmt::format("null_angle_{}_arcsec", axis));
+    for (double deg : kSetPointsDeg) names.push_back(set_point_name(axis, deg));
+  }
+  for (const std::string& q : names) {
+    std::string why;
+    const auto s = study_of(cals, q, repeats, why);
+    if (!s) {
+      out.skipped[q] = why;
+      continue;
+    }
+    MsaQuantity m{q, "arcsec", std::nullopt, {}};
+    if (const auto t = tolerances.find(q); t != tolerances.end()) m.tolerance = t->second;
+    m.result = gauge_rr(*s, m.tolerance ? std::optional<double>(m.tolerance->value) : std::nullopt);
+    out.quantities.push_back(std::move(m));
+  }
+  // Accuracy comes from acceptances: a study of its own cells, when they are crossed too.
+  for (const char* axis : {"pitch", "yaw"}) {
+    const std::string q = fmt::format("accuracy_3sigma_{}_arcsec", axis);
+    Cells c = accs;
+    c.units = out.units;
+    c.stands = out.stands;
+    std::string why;
+    const auto s = study_of(c, q, 2, why);
+    if (!s) {
+      out.skipped[q] = "acceptances: " + why;
+      continue;
+    }
+    MsaQuantity m{q, "arcsec", std::nullopt, {}};
+    if (const auto t = tolerances.find(q); t != tolerances.end()) m.tolerance = t->second;
+    m.result = gauge_rr(*s, m.tolerance ? std::optional<double>(m.tolerance->value) : std::nullopt);
+    out.quantities.push_back(std::move(m));
+  }
+  return out;
+}
+
+std::string msa_verdict(const GaugeRr& r) {
+  const double pct = r.grr_percent_tolerance.value_or(r.grr_percent_tv);
+  const char* of = r.grr_percent_tolerance ? "of the tolerance" : "of the total variation";
+  const char* word = pct < 10 ? "acceptable" : pct <= 30 ? "marginal" : "unacceptable";
+  return fmt::format("{} (%GRR {:.1f} % {}; ndc {}{})", word, pct, of, r.ndc, r.ndc >= 5 ? "" : ", below 5");
+}
+
+nlohmann::ordered_json MsaStudy::to_json(const std::string& catalogue, const MsaSelection& sel) const {
+  nlohmann::ordered_json j;
+  j["format"] = "fpss-stand msa/1";
+  j["method"] = "AIAG MSA 4th edition, ANOVA method (crossed, the interaction kept)";
+  j["catalogue"] = catalogue;
+  j["selection"] = {{"units", sel.units}, {"stands", sel.stands}, {"since", sel.since.empty() ? nlohmann::json() : nlohmann::json(sel.since)}};
+  j["units"] = units;
+  j["stands"] = stands;
+  j["repeats"] = repeats;
+  j["records_used"] = records_used;
+  j["records_left_out"] = records_left_out;
+  nlohmann::ordered_json qs = nlohmann::ordered_json::object();
+  for (const MsaQuantity& q : quantities) {
+    nlohmann::ordered_json e;
+    e["unit"] = q.unit;
+    e["tolerance"] = q.tolerance ? nlohmann::ordered_json(q.tolerance->value) : nlohmann::ordered_json();
+    e["tolerance_source"] = q.tolerance ? nlohmann::ordered_json(q.tolerance->source) : nlohmann::ordered_json();
+    const nlohmann::ordered_json r = q.result.to_json();
+    for (const auto& [k, v] : r.items()) e[k] = v;
+    e["verdict"] = msa_verdict(q.result);
+    qs[q.name] = std::move(e);
+  }
+  j["quantities"] = qs;
+  j["skipped"] = skipped;
+  return j;
+}
+
+}  // namespace fpss

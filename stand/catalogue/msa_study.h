@@ -1,0 +1,55 @@
+// The fleet's measurement-system analysis: crossed studies (units x stands x repeats) taken from the catalogue, per quantity.
+#pragma once
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "calib/msa.h"
+#include "stand/catalogue/catalogue.h"
+
+namespace fpss {
+
+struct MsaSelection {
+  std::vector<std::string> units;   // empty: every unit with records
+  std::vector<std::string> stands;  // empty: every stand with records ("" is named "emulated")
+  std::string since;                // ISO 8601 date or time; records before it are left out ("": all)
+};
+
+// Each quantity's tolerance (the width the acceptance limits allow: a one-sided limit with a
+// natural zero is its value, a two-sided one twice it) and where it comes from.
+struct MsaTolerance {
+  double value = 0;
+  std::string source;
+};
+
+// One quantity's study: y[unit][stand][repeat], the latest `repeats` records of each cell.
+struct MsaQuantity {
+  std::string name, unit;  // "residual_mean_pitch_arcsec", "arcsec"
+  std::optional<MsaTolerance> tolerance;
+  GaugeRr result;
+};
+
+struct MsaStudy {
+  std::vector<std::string> units, stands;
+  size_t repeats = 0, records_used = 0, records_left_out = 0;
+  std::vector<MsaQuantity> quantities;
+  std::map<std::string, std::string> skipped;  // quantity -> why it could not be studied
+  nlohmann::ordered_json to_json(const std::string& catalogue, const MsaSelection& sel) const;
+};
+
+// The quantities read of each calibration record (calibration.json): residual_mean_<axis>_arcsec,
+// null_angle_<axis>_arcsec (C1), angle_<axis>_at_<+-0.2|0.4>deg_arcsec (the calibrated angle at
+// the counts the nominal scale factor puts there); of each acceptance record:
+// accuracy_3sigma_<axis>_arcsec. InputError (exit 2) when the selection cannot make a crossed study:
+// fewer than two units or stands, a unit x stand cell without two records (naming the cells).
+MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel,
+                   const std::map<std::string, MsaTolerance>& tolerances);
+
+// AIAG's reading of %GRR (of the tolerance, else of the total variation): under 10 % acceptable,
+// 10 to 30 % marginal, above unacceptable; and ndc of at least 5.
+std::string msa_verdict(const GaugeRr& r);
+
+}  // namespace fpss

@@ -1,0 +1,94 @@
+// fpss-stand msa: the fleet's measurement-system analysis (AIAG MSA, ANOVA) from the catalogue's calibrations and acceptances.
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <memory>
+
+#include "base/errors.h"
+#include "base/text_file.h"
+#include "stand/acceptance/acceptance.h"
+#include "stand/catalogue/catalogue.h"
+#include "stand/catalogue/msa_study.h"
+#include "stand/cli/catalogue_option.h"
+#include "stand/cli/commands.h"
+#include "stand/cli/file_options.h"
+#include "stand/cli/help.h"
+#include "stand/report/msa_page.h"
+
+namespace fpss::cli {
+
+namespace {
+
+// The tolerance of each quantity from the acceptance limits: the mean residual's limit is
+// one-sided with a natural zero (the tolerance is the limit), the calibrated angle's and the null
+// angle's are the accuracy limit either side (twice it), accuracy's its own limit.
+std::map<std::string, MsaTolerance> tolerances_from(const AcceptanceLimits& l) {
+  std::map<std::string, MsaTolerance> t;
+  const std::string file = l.origin;
+  for (const char* axis : {"pitch", "yaw"}) {
+    t[fmt::format("residual_mean_{}_arcsec", axis)] = {
+        l.residual_mean_abs_arcsec.value, fmt::format("{}: residual_mean_abs_arcsec, one-sided from 0", file)};
+    t[fmt::format("accuracy_3sigma_{}_arcsec", axis)] = {
+        l.accuracy_3sigma_arcsec.value, fmt::format("{}: accuracy_3sigma_arcsec, one-sided from 0", file)};
+    const MsaTolerance two_sided{2 * l.accuracy_3sigma_arcsec.value,
+                                 fmt::format("{}: accuracy_3sigma_arcsec either side (twice it)", file)};
+    t[fmt::format("null_angle_{}_arcsec", axis)] = two_sided;
+    for (const char* deg : {"-0.4", "-0.2", "+0.2", "+0.4"}) t[fmt::format("angle_{}_at_{}deg_arcsec", axis, deg)] = two_sided;
+  }
+  return t;
+}
+
+std::vector<std::string> split_list(const std::string& s, const char* option) {
+  std::vector<std::string> out;
+  size_t b = 0;
+  while (b <= s.size() && !s.empty()) {
+    const size_t e = std::min(s.find(',', b), s.size());
+    if (e == b) throw InputError(fmt::format("{} {}: an empty name in the list", option, s));
+    out.push_back(s.substr(b, e - b));
+    b = e + 1;
+  }
+  return out;
+}
+
+}  // namespace
+
+void add_msa(CLI::App& app, Runner& run) {
+  struct Opts {
+    std::string db, runs_dir = "runs", units, stands, since, limits, out, report;
+    FileOptions files;
+  };
+  auto o = std::make_shared<Opts>();
+  auto* sub = app.add_subcommand(
+      "msa", "Measurement-system analysis across the fleet: units x stands x repeats from the catalogue, per "
+             "quantity (AIAG MSA, ANOVA): EV, AV, interaction, GRR, PV, %GRR of the tolerance and of TV, ndc");
+  add_catalogue_option(sub, o->db);
+  sub->add_option("--runs-dir", o->runs_dir, "runs folder; the default catalogue is its stand.db")->capture_default_str();
+  sub->add_option("--units", o->units, "the units (parts), comma-separated (default: every unit)");
+  sub->add_option("--stands", o->stands, "the stands (appraisers), comma-separated (default: every stand; "
+                                         "'emulated' for runs without a stand file)");
+  sub->add_option("--since", o->since, "only records from this ISO 8601 date or time on");
+  o->files.input(sub, "--limits", o->limits, "acceptance limits file: the tolerances (default: the shipped limits)");
+  o->files.output(sub, "--out", o->out, "the study as JSON (MSA.json)")->required();
+  o->files.output(sub, "--report", o->report, "the study as a page (MSA.html)");
+  examples(sub, {"fpss-stand msa --catalogue postgresql://fleet@db/fpss --out msa.json --report msa.html",
+                 "fpss-stand msa --runs-dir runs --units SN1,SN2,SN3 --stands S1,S2 --since 2026-01-01 --out msa.json"});
+  sub->callback([o, &run] {
+    run = [o] {
+      o->files.check();
+      MsaSelection sel{split_list(o->units, "--units"), split_list(o->stands, "--stands"), o->since};
+      const AcceptanceLimits limits = load_acceptance_limits(o->limits.empty() ? default_limits_path() : std::filesystem::path(o->limits));
+      const std::string url = catalogue_url(o->db, o->runs_dir);
+      const auto cat = open_catalogue(url, Catalogue::Mode::read_only);
+      const MsaStudy s = msa_study(*cat, sel, tolerances_from(limits));
+      write_text_atomic(o->out, s.to_json(url, sel).dump(1) + "\n");
+      if (!o->report.empty()) write_text_atomic(o->report, msa_html(s, url));
+      std::printf("%zu units x %zu stands x %zu repeats\n", s.units.size(), s.stands.size(), s.repeats);
+      for (const MsaQuantity& q : s.quantities) std::printf("%-34s %s\n", q.name.c_str(), msa_verdict(q.result).c_str());
+      for (const auto& [q, why] : s.skipped) std::printf("%-34s not studied: %s\n", q.c_str(), why.c_str());
+      std::printf("wrote %s\n", o->out.c_str());
+      return 0;
+    };
+  });
+}
+
+}  // namespace fpss::cli
