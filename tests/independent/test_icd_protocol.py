@@ -3,6 +3,7 @@
 import os
 import re
 import select
+import socket
 import struct
 import sys
 import time
@@ -12,6 +13,20 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import icd_devices as d  # noqa: E402
 from test_icd_accept import Devices  # noqa: E402
+
+
+def modbus_requester(dev):
+    """A Modbus TCP client of the device as one function: a request PDU in, the response PDU out."""
+    s = socket.create_connection(("127.0.0.1", dev.info["modbus_port"]), timeout=5)
+    tid = [0]
+
+    def req(pdu):
+        tid[0] += 1
+        s.sendall(struct.pack(">HHHB", tid[0], 0, len(pdu) + 1, 1) + pdu)
+        head = s.recv(7, socket.MSG_WAITALL)
+        return s.recv(struct.unpack(">HHHB", head)[2] - 1, socket.MSG_WAITALL)
+
+    return req
 
 
 def test_crc_check_value_and_the_example_sample():
@@ -24,14 +39,7 @@ def test_crc_check_value_and_the_example_sample():
 def test_register_example_and_the_sensor_commands():
     dev = Devices("--seed", "2")
     try:
-        import socket
-        s = socket.create_connection(("127.0.0.1", dev.info["modbus_port"]), timeout=5)
-
-        def req(pdu, tid=[0]):
-            tid[0] += 1
-            s.sendall(struct.pack(">HHHB", tid[0], 0, len(pdu) + 1, 1) + pdu)
-            head = s.recv(7, socket.MSG_WAITALL)
-            return s.recv(struct.unpack(">HHHB", head)[2] - 1, socket.MSG_WAITALL)
+        req = modbus_requester(dev)
 
         regs = struct.pack(">ii", -1234567, 0)
         assert regs[:4] == bytes.fromhex("FFED2979")  # the ICD's example
@@ -81,14 +89,7 @@ def test_register_example_and_the_sensor_commands():
 def test_power_on_values_and_a_refused_request_changing_nothing():
     dev = Devices("--seed", "3")
     try:
-        import socket
-        s = socket.create_connection(("127.0.0.1", dev.info["modbus_port"]), timeout=5)
-
-        def req(pdu, tid=[0]):
-            tid[0] += 1
-            s.sendall(struct.pack(">HHHB", tid[0], 0, len(pdu) + 1, 1) + pdu)
-            head = s.recv(7, socket.MSG_WAITALL)
-            return s.recv(struct.unpack(">HHHB", head)[2] - 1, socket.MSG_WAITALL)
+        req = modbus_requester(dev)
 
         def holding(addr, n):
             r = req(struct.pack(">BHH", 3, addr, n))

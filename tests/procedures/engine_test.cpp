@@ -4,9 +4,9 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-
 #include <cstdio>
 #include <functional>
+#include <memory>
 #include <thread>
 #include <utility>
 
@@ -25,6 +25,19 @@ using test::grid;
 using test::plan_of;
 using test::quiet_log;
 namespace fs = std::filesystem;
+
+// Calls f with each point that ends a move: the first point at a new target, with rows.
+template <typename F>
+void on_dwells_after_moves(EventBus& bus, F f) {
+  auto at = std::make_shared<std::pair<double, double>>(0.0, 0.0);
+  bus.subscribe([at, f](const Event& e) {
+    const auto* p = std::get_if<PointDone>(&e);
+    if (!p || p->rows->empty()) return;
+    const std::pair<double, double> target{p->point.target_pitch_arcsec, p->point.target_yaw_arcsec};
+    if (std::exchange(*at, target) == target) return;
+    f(p);
+  });
+}
 
 TEST(Engine, RunsAPlanAndRecordsEveryPoint) {
   TempDir tmp("engine-run");
@@ -446,12 +459,7 @@ TEST(Engine, ASettleCountsFromTheArrivalNotFromALateLook) {
   const Plan plan = plan_of(grid(), b);
   const double settle_s = 0.2, period_s = 1.0 / b.sample_rate_hz, model_error_s = 0.025;
   int dwells = 0;
-  std::pair<double, double> at{0, 0};
-  v.bus.subscribe([&](const Event& e) {
-    const auto* p = std::get_if<PointDone>(&e);
-    if (!p || p->rows->empty()) return;
-    const std::pair<double, double> target{p->point.target_pitch_arcsec, p->point.target_yaw_arcsec};
-    if (std::exchange(at, target) == target) return;
+  on_dwells_after_moves(v.bus, [&](const PointDone* p) {
     // The next move may have been commanded, but bench time has not reached its arrival yet.
     const double arrival_s = v.fake.bench().last_arrival_s();
     const double late_s = p->rows->front().sensor_time_s - arrival_s - settle_s;
@@ -476,12 +484,7 @@ TEST(Engine, DwellRowsCarryTheirTimeSinceTheGimbalsArrival) {
   const Plan plan = plan_of(grid(), b);
   const double settle_s = 0.2, model_error_s = 0.025;
   int dwells = 0;
-  std::pair<double, double> at{0, 0};
-  v.bus.subscribe([&](const Event& e) {
-    const auto* p = std::get_if<PointDone>(&e);
-    if (!p || p->rows->empty()) return;
-    const std::pair<double, double> target{p->point.target_pitch_arcsec, p->point.target_yaw_arcsec};
-    if (std::exchange(at, target) == target) return;
+  on_dwells_after_moves(v.bus, [&](const PointDone* p) {
     const double arrival_s = v.fake.bench().last_arrival_s();
     EXPECT_GE(p->rows->front().time_since_move_s, settle_s - 1e-9) << "point " << p->point.index + 1;
     for (const RecordedRow& row : *p->rows) {
