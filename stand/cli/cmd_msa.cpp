@@ -1,8 +1,10 @@
 // fpss-stand msa: the fleet's measurement-system analysis (AIAG MSA, ANOVA) from the catalogue's calibrations and acceptances.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
+#include <random>
 
 #include "base/errors.h"
 #include "base/text_file.h"
@@ -50,6 +52,70 @@ std::vector<std::string> split_list(const std::string& s, const char* option) {
   return out;
 }
 
+// The study's runs, per stand: every unit once per round, `repeats` rounds, each round's order
+// drawn anew (seeded) so that a drift of the stand over the day does not follow the units (AIAG:
+// randomise the order of measurement). Each job is a body of the console's POST /api/jobs, the
+// list one of POST /api/jobs/batch.
+nlohmann::ordered_json msa_plan(const std::vector<std::string>& units, const std::vector<std::string>& stands,
+                                int repeats, const std::string& procedure, uint64_t seed) {
+  if (units.size() < 2 || stands.size() < 2) {
+    throw InputError("msa plan: --units and --stands need at least two names each (a crossed study)");
+  }
+  if (repeats < 2 || repeats > 10) throw InputError(fmt::format("--repeats {}: expected 2 to 10", repeats));
+  if (units.size() * static_cast<size_t>(repeats) > 100) {
+    throw InputError(fmt::format("msa plan: {} units x {} repeats is more than the 100 jobs a console queues",
+                                 units.size(), repeats));
+  }
+  std::mt19937_64 rng(seed);
+  nlohmann::ordered_json per_stand = nlohmann::ordered_json::array();
+  for (const std::string& st : stands) {
+    nlohmann::ordered_json jobs = nlohmann::ordered_json::array();
+    for (int k = 1; k <= repeats; ++k) {
+      std::vector<std::string> order = units;
+      std::shuffle(order.begin(), order.end(), rng);
+      for (const std::string& u : order) {
+        jobs.push_back({{"kind", "run"}, {"procedure", procedure}, {"unit", u},
+                        {"operator", fmt::format("msa plan: round {} of {} on {}", k, repeats, st)}});
+      }
+    }
+    per_stand.push_back({{"stand", st}, {"jobs", jobs}});
+  }
+  return {{"format", "fpss-stand msa-plan/1"}, {"units", units}, {"stands", stands}, {"repeats", repeats},
+          {"procedure", procedure}, {"seed", seed}, {"runs", units.size() * stands.size() * static_cast<size_t>(repeats)},
+          {"stands_jobs", per_stand}};
+}
+
+void add_msa_plan(CLI::App* msa, Runner& run) {
+  struct Opts {
+    std::string units, stands, procedure = "discrete_grid.yaml", out;
+    int repeats = 3;
+    uint64_t seed = 1;
+    FileOptions files;
+  };
+  auto o = std::make_shared<Opts>();
+  auto* sub = msa->add_subcommand("plan", "Write a crossed study's runs (units x stands x repeats) as console jobs, "
+                                          "per stand, in a randomised order per round");
+  sub->add_option("--units", o->units, "the units, comma-separated")->required();
+  sub->add_option("--stands", o->stands, "the stands, comma-separated")->required();
+  sub->add_option("--repeats", o->repeats, "calibrations of each unit on each stand (2 to 10)")->capture_default_str();
+  sub->add_option("--procedure", o->procedure, "the procedure each run does (a file of the console's procedures folder)")
+      ->capture_default_str();
+  sub->add_option("--seed", o->seed, "the order's seed")->capture_default_str();
+  o->files.output(sub, "--out", o->out, "the plan (JSON): per stand, the jobs for POST /api/jobs/batch")->required();
+  examples(sub, {"fpss-stand msa plan --units SN1,SN2,SN3 --stands S1,S2 --repeats 3 --out plan.json"});
+  sub->callback([o, &run] {
+    run = [o] {
+      o->files.check();
+      const auto plan = msa_plan(split_list(o->units, "--units"), split_list(o->stands, "--stands"), o->repeats,
+                                 o->procedure, o->seed);
+      write_text_atomic(o->out, plan.dump(1) + "\n");
+      std::printf("%zu runs: %zu per stand; queue a stand's list with POST /api/jobs/batch (docs/console.md)\nwrote %s\n",
+                  plan["runs"].get<size_t>(), plan["runs"].get<size_t>() / plan["stands"].size(), o->out.c_str());
+      return 0;
+    };
+  });
+}
+
 }  // namespace
 
 void add_msa(CLI::App& app, Runner& run) {
@@ -68,12 +134,15 @@ void add_msa(CLI::App& app, Runner& run) {
                                          "'emulated' for runs without a stand file)");
   sub->add_option("--since", o->since, "only records from this ISO 8601 date or time on");
   o->files.input(sub, "--limits", o->limits, "acceptance limits file: the tolerances (default: the shipped limits)");
-  o->files.output(sub, "--out", o->out, "the study as JSON (MSA.json)")->required();
+  o->files.output(sub, "--out", o->out, "the study as JSON (MSA.json; required)");
   o->files.output(sub, "--report", o->report, "the study as a page (MSA.html)");
   examples(sub, {"fpss-stand msa --catalogue postgresql://fleet@db/fpss --out msa.json --report msa.html",
                  "fpss-stand msa --runs-dir runs --units SN1,SN2,SN3 --stands S1,S2 --since 2026-01-01 --out msa.json"});
-  sub->callback([o, &run] {
+  add_msa_plan(sub, run);
+  sub->callback([o, sub, &run] {
+    if (sub->get_subcommands().size() > 0) return;  // msa plan set the runner
     run = [o] {
+      if (o->out.empty()) throw InputError("msa: --out MSA.json is required");
       o->files.check();
       MsaSelection sel{split_list(o->units, "--units"), split_list(o->stands, "--stands"), o->since};
       const AcceptanceLimits limits = load_acceptance_limits(o->limits.empty() ? default_limits_path() : std::filesystem::path(o->limits));

@@ -121,6 +121,15 @@ json procedures(const Context& c) {
   return out;
 }
 
+Job job_of(const json& b) {
+  Job j;
+  j.kind = b.contains("kind") ? str(b, "kind") : "run";
+  j.procedure = str(b, "procedure");
+  j.unit = str(b, "unit");
+  j.operator_name = str(b, "operator");
+  return j;
+}
+
 void add_job_routes(httplib::Server& s, Context& c) {
   s.Get("/api/jobs", [&c](const httplib::Request&, httplib::Response& res) {
     json a = json::array();
@@ -134,13 +143,29 @@ void add_job_routes(httplib::Server& s, Context& c) {
   s.Post("/api/jobs", [&c](const httplib::Request& req, httplib::Response& res) {
     const auto b = body_object(req, res);
     if (!b) return;
-    Job j;
-    j.kind = b->contains("kind") ? str(*b, "kind") : "run";
-    j.procedure = str(*b, "procedure");
-    j.unit = str(*b, "unit");
-    j.operator_name = str(*b, "operator");
     try {
-      reply(res, c.jobs->add(j).to_json(), 201);
+      reply(res, c.jobs->add(job_of(*b)).to_json(), 201);
+    } catch (const std::invalid_argument& e) {
+      fail(res, 400, e.what());
+    }
+  });
+  // A plan's jobs at once, every one or none: {"jobs": [job, ...]} (what `msa plan` writes per stand).
+  s.Post("/api/jobs/batch", [&c](const httplib::Request& req, httplib::Response& res) {
+    const auto b = body_object(req, res);
+    if (!b) return;
+    if (!b->contains("jobs") || !(*b)["jobs"].is_array() || (*b)["jobs"].empty()) {
+      return fail(res, 400, "jobs: a non-empty list of jobs");
+    }
+    std::vector<Job> jobs;
+    for (size_t i = 0; i < (*b)["jobs"].size(); ++i) {
+      const json& j = (*b)["jobs"][i];
+      if (!j.is_object()) return fail(res, 400, fmt::format("jobs[{}]: expected an object", i));
+      jobs.push_back(job_of(j));
+    }
+    try {
+      json a = json::array();
+      for (const Job& j : c.jobs->add_all(std::move(jobs))) a.push_back(j.to_json());
+      reply(res, {{"jobs", a}}, 201);
     } catch (const std::invalid_argument& e) {
       fail(res, 400, e.what());
     }

@@ -91,7 +91,7 @@ JobQueue::~JobQueue() {
   if (thread_.joinable()) thread_.join();
 }
 
-Job JobQueue::add(Job j) {
+void JobQueue::check(const Job& j) const {
   if (j.kind != "run" && j.kind != "accept") throw std::invalid_argument("kind: \"run\" or \"accept\"");
   if (j.kind == "run" || !j.procedure.empty()) {
     if (!safe_name(j.procedure) || !fs::is_regular_file(o_.procedures_dir / j.procedure)) {
@@ -101,16 +101,39 @@ Job JobQueue::add(Job j) {
   if (!j.unit.empty() && !safe_name(j.unit)) throw std::invalid_argument("unit: 1-64 of A-Z a-z 0-9 . _ -");
   if (j.operator_name.size() > 100) throw std::invalid_argument("operator: at most 100 characters");
   if (!o_.emulate && j.unit.empty()) throw std::invalid_argument("unit: needed on a real stand");
+}
+
+Job JobQueue::add(Job j) {
+  check(j);
+  return add_all({std::move(j)}).front();
+}
+
+std::vector<Job> JobQueue::add_all(std::vector<Job> jobs) {
+  if (jobs.size() > 1) {
+    for (size_t i = 0; i < jobs.size(); ++i) {
+      try {
+        check(jobs[i]);
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(fmt::format("jobs[{}]: {}", i, e.what()));
+      }
+    }
+  }
   std::lock_guard<std::mutex> g(m_);
   const auto queued = std::count_if(jobs_.begin(), jobs_.end(), [](const Job& x) { return x.state == "queued"; });
-  if (static_cast<size_t>(queued) >= o_.max_queue) throw std::invalid_argument("the queue is full");
-  j.id = next_id_++;
-  j.state = "queued";
-  j.created_utc = utc_now_iso();
-  jobs_.push_back(j);
+  if (static_cast<size_t>(queued) + jobs.size() > o_.max_queue) {
+    throw std::invalid_argument(jobs.size() > 1 ? fmt::format("the queue holds {} of {}: no room for {} jobs", queued,
+                                                              o_.max_queue, jobs.size())
+                                                : std::string("the queue is full"));
+  }
+  for (Job& j : jobs) {
+    j.id = next_id_++;
+    j.state = "queued";
+    j.created_utc = utc_now_iso();
+    jobs_.push_back(j);
+  }
   save();
   cv_.notify_all();
-  return j;
+  return jobs;
 }
 
 bool JobQueue::remove(int64_t id) {

@@ -55,6 +55,9 @@ class JobQueue {
 
   // Throws std::invalid_argument (HTTP 400) for an unknown procedure, a bad serial or a full queue.
   Job add(Job j);
+  // Every job or none (a plan's, e.g. `msa plan`): the first bad one is named "jobs[i]: ...", and
+  // the queue must hold them all.
+  std::vector<Job> add_all(std::vector<Job> jobs);
   bool remove(int64_t id);          // only a queued job
   bool move(int64_t id, size_t to);  // reorder among queued jobs
   std::vector<Job> list() const;
@@ -68,6 +71,7 @@ class JobQueue {
   void save() const;  // under m_
   void load();
   void start(Job& j);
+  void check(const Job& j) const;  // std::invalid_argument naming the field
   ConsoleOptions o_;
   mutable std::mutex m_;
   std::vector<Job> jobs_;

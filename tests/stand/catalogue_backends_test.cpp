@@ -412,6 +412,23 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
   const std::string html = test::read_file(page);
   EXPECT_NE(html.find("<table id=\"msa\">"), std::string::npos);
   EXPECT_NE(html.find("null_angle_pitch_arcsec"), std::string::npos);
+  // The plan of such a study: per stand every unit once per round, in a seeded random order.
+  const fs::path plan = dir_.path() / "plan.json";
+  r = test::run_stand({"msa", "plan", "--units", "SN-0,SN-1,SN-2", "--stands", "stand-A,stand-B", "--repeats", "3",
+                       "--out", plan.string()},
+                      dir_.path(), "plan");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto p = nlohmann::json::parse(test::read_file(plan));
+  EXPECT_EQ(p["runs"], 18);
+  ASSERT_EQ(p["stands_jobs"].size(), 2u);
+  for (const auto& st : p["stands_jobs"]) {
+    ASSERT_EQ(st["jobs"].size(), 9u);
+    for (size_t round = 0; round < 3; ++round) {
+      std::set<std::string> seen;
+      for (size_t k = 0; k < 3; ++k) seen.insert(st["jobs"][round * 3 + k]["unit"].get<std::string>());
+      EXPECT_EQ(seen.size(), 3u) << "round " << round;
+    }
+  }
   // One stand is no crossed study: exit 2, saying why.
   r = test::run_stand({"msa", "--catalogue", url_, "--stands", "stand-A", "--out", out.string()}, dir_.path(), "one");
   EXPECT_EQ(r.code, 2);

@@ -119,9 +119,22 @@ TEST(Console, ControlNeedsTheTokenAndRequestsAreBounded) {
   r = c.Get("/runs/x/..%2f..%2fconsole.token");
   EXPECT_EQ(r->status, 404);
 
+  // A plan's jobs at once (POST /api/jobs/batch): one bad job refuses them all, naming it.
+  r = c.Post("/api/jobs/batch", auth, R"({"jobs":[)" + job + R"(,{"procedure":"nope.yaml","unit":"X"}]})", "application/json");
+  ASSERT_EQ(r->status, 400) << r->body;
+  EXPECT_NE(r->body.find("jobs[1]: procedure"), std::string::npos) << r->body;
+  EXPECT_EQ(json::parse(c.Get("/api/jobs")->body).size(), 0u) << "nothing was queued";
+  EXPECT_EQ(c.Post("/api/jobs/batch", R"({"jobs":[]})", "application/json")->status, 401);
   // The live-client cap (1 here): a second event stream is refused while the first is open.
-  r = c.Post("/api/jobs", auth, job, "application/json");
+  r = c.Post("/api/jobs/batch", auth, R"({"stand":"S1","jobs":[)" + job + R"(,{"procedure":"discrete_grid.yaml","unit":"FPSS-S2"}]})",
+             "application/json");
   ASSERT_EQ(r->status, 201) << r->body;
+  const json queued = json::parse(r->body)["jobs"];
+  ASSERT_EQ(queued.size(), 2u);
+  EXPECT_EQ(queued[0]["id"], 1);
+  EXPECT_EQ(queued[1]["unit"], "FPSS-S2");
+  // The second waits for the first: remove it so the test ends with the first run.
+  EXPECT_EQ(c.Delete("/api/jobs/2", auth)->status, 200);
   const std::string run_id = run_of_job(c, 1);
   ASSERT_FALSE(run_id.empty());
   std::atomic<bool> got{false};

@@ -84,7 +84,7 @@ std::string joined(const std::vector<std::string>& v) {
 // fleet's catalogue (msa: several units calibrated on several stands; tests/stand/catalogue_backends_test.cpp).
 bool not_run_here(const std::string& example) {
   for (const char* what : {"postgresql://", "fpss-stand emulate", "fpss-stand serve", "fpss-stand accept",
-                           "fpss-stand blindtest --cases 22", "fpss-stand msa "}) {
+                           "fpss-stand blindtest --cases 22", "fpss-stand msa --"}) {
     if (example.find(what) != std::string::npos) return true;
   }
   // A full run of the grid takes the bench's time (the dry run is checked).
