@@ -24,7 +24,7 @@ struct Observation {
 
 std::string stand_name(const std::string& s) { return s.empty() ? "emulated" : s; }
 
-constexpr double kSetPointsDeg[] = {-0.4, -0.2, 0.2, 0.4};
+constexpr double kSetPointsDeg[] = {-0.4, -0.2, 0.0, 0.2, 0.4};
 
 std::string set_point_name(const char* axis, double deg) { return fmt::format("angle_{}_at_{:+.1f}deg_arcsec", axis, deg); }
 
@@ -47,7 +47,6 @@ Observation from_calibration(const CalibrationRecord& c) {
       if (ok) cf[i] = j[key][i].get<double>();
     }
     if (!ok) continue;
-    o.values[fmt::format("null_angle_{}_arcsec", axis)] = rad_to_arcsec(cf[0]);
     for (double deg : kSetPointsDeg) {
       const double counts = deg * kArcsecPerDeg / (fit::kNominalC2 * kArcsecPerRad);
       const double a = rad_to_arcsec(transfer_angle(cf.data(), counts));
@@ -166,7 +165,6 @@ MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const std::map
   std::vector<std::string> names;
   for (const char* axis : {"pitch", "yaw"}) {
     names.push_back(fmt::format("residual_mean_{}_arcsec", axis));
-    names.push_back(fmt::format("null_angle_{}_arcsec", axis));
     for (double deg : kSetPointsDeg) names.push_back(set_point_name(axis, deg));
   }
   for (const std::string& q : names) {
@@ -176,9 +174,9 @@ MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const std::map
       out.skipped[q] = why;
       continue;
     }
-    MsaQuantity m{q, "arcsec", std::nullopt, {}};
+    MsaQuantity m{q, "arcsec", std::nullopt, *s, {}};
     if (const auto t = tolerances.find(q); t != tolerances.end()) m.tolerance = t->second;
-    m.result = gauge_rr(*s, m.tolerance ? std::optional<double>(m.tolerance->value) : std::nullopt);
+    m.result = gauge_rr(m.study, m.tolerance ? std::optional<double>(m.tolerance->value) : std::nullopt);
     out.quantities.push_back(std::move(m));
   }
   // Accuracy comes from acceptances: a study of its own cells, when they are crossed too.
@@ -193,9 +191,9 @@ MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const std::map
       out.skipped[q] = "acceptances: " + why;
       continue;
     }
-    MsaQuantity m{q, "arcsec", std::nullopt, {}};
+    MsaQuantity m{q, "arcsec", std::nullopt, *s, {}};
     if (const auto t = tolerances.find(q); t != tolerances.end()) m.tolerance = t->second;
-    m.result = gauge_rr(*s, m.tolerance ? std::optional<double>(m.tolerance->value) : std::nullopt);
+    m.result = gauge_rr(m.study, m.tolerance ? std::optional<double>(m.tolerance->value) : std::nullopt);
     out.quantities.push_back(std::move(m));
   }
   return out;
@@ -228,6 +226,7 @@ nlohmann::ordered_json MsaStudy::to_json(const std::string& catalogue, const Msa
     const nlohmann::ordered_json r = q.result.to_json();
     for (const auto& [k, v] : r.items()) e[k] = v;
     e["verdict"] = msa_verdict(q.result);
+    e["values"] = q.study.y;  // [unit][stand][repeat], in the order of `units` and `stands`
     qs[q.name] = std::move(e);
   }
   j["quantities"] = qs;

@@ -29,6 +29,7 @@ struct MsaTolerance {
 struct MsaQuantity {
   std::string name, unit;  // "residual_mean_pitch_arcsec", "arcsec"
   std::optional<MsaTolerance> tolerance;
+  GaugeStudy study;  // the values studied (MSA.json `values`), for a check by other tools
   GaugeRr result;
 };
 
@@ -41,8 +42,9 @@ struct MsaStudy {
 };
 
 // The quantities read of each calibration record (calibration.json): residual_mean_<axis>_arcsec,
-// null_angle_<axis>_arcsec (C1), angle_<axis>_at_<+-0.2|0.4>deg_arcsec (the calibrated angle at
-// the counts the nominal scale factor puts there); of each acceptance record:
+// angle_<axis>_at_<-0.4|-0.2|+0.0|+0.2|+0.4>deg_arcsec (the calibrated angle at the counts the
+// nominal scale factor puts there; +0.0: at zero counts, the whole transfer function, not C1,
+// which trades with the sinusoids' phases); of each acceptance record:
 // accuracy_3sigma_<axis>_arcsec. InputError (exit 2) when the selection cannot make a crossed study:
 // fewer than two units or stands, a unit x stand cell without two records (naming the cells).
 MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel,

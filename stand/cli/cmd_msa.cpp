@@ -22,8 +22,8 @@ namespace fpss::cli {
 namespace {
 
 // The tolerance of each quantity from the acceptance limits: the mean residual's limit is
-// one-sided with a natural zero (the tolerance is the limit), the calibrated angle's and the null
-// angle's are the accuracy limit either side (twice it), accuracy's its own limit.
+// one-sided with a natural zero (the tolerance is the limit), the calibrated angle's at the set
+// points is the accuracy limit either side (twice it), accuracy's its own limit.
 std::map<std::string, MsaTolerance> tolerances_from(const AcceptanceLimits& l) {
   std::map<std::string, MsaTolerance> t;
   const std::string file = l.origin;
@@ -34,8 +34,7 @@ std::map<std::string, MsaTolerance> tolerances_from(const AcceptanceLimits& l) {
         l.accuracy_3sigma_arcsec.value, fmt::format("{}: accuracy_3sigma_arcsec, one-sided from 0", file)};
     const MsaTolerance two_sided{2 * l.accuracy_3sigma_arcsec.value,
                                  fmt::format("{}: accuracy_3sigma_arcsec either side (twice it)", file)};
-    t[fmt::format("null_angle_{}_arcsec", axis)] = two_sided;
-    for (const char* deg : {"-0.4", "-0.2", "+0.2", "+0.4"}) t[fmt::format("angle_{}_at_{}deg_arcsec", axis, deg)] = two_sided;
+    for (const char* deg : {"-0.4", "-0.2", "+0.0", "+0.2", "+0.4"}) t[fmt::format("angle_{}_at_{}deg_arcsec", axis, deg)] = two_sided;
   }
   return t;
 }

@@ -360,7 +360,7 @@ TEST_P(Backends, CommandsTakeTheCatalogueUrlTheAliasAndTheEnvironment) {
 
 TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
   // Three units x two stands x three repeats, plus one older calibration the --since leaves out.
-  // The null angle C1 = 2 arcsec per unit + 0.3 per stand + 0.1 arcsec noise (seeded).
+  // C1 = 2 arcsec per unit + 0.3 per stand + 0.1 arcsec noise (seeded): the angle at zero counts moves with it.
   std::mt19937 rng(5);
   std::normal_distribution<double> noise(0.0, 0.1);
   GaugeStudy expected;
@@ -399,7 +399,7 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
   EXPECT_EQ(m["repeats"], 3);
   EXPECT_EQ(m["records_used"], 18);
   EXPECT_EQ(m["records_left_out"], 6);
-  const auto& q = m["quantities"]["null_angle_pitch_arcsec"];
+  const auto& q = m["quantities"]["angle_pitch_at_+0.0deg_arcsec"];
   const GaugeRr want = gauge_rr(expected, 10.0);  // tolerance: the 5 arcsec accuracy limit either side
   EXPECT_NEAR(q["sd"]["ev"].get<double>(), want.ev, 1e-6);
   EXPECT_NEAR(q["sd"]["av"].get<double>(), want.av, 1e-6);
@@ -411,7 +411,7 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
   EXPECT_TRUE(m["skipped"].contains("accuracy_3sigma_pitch_arcsec"));  // no acceptances recorded
   const std::string html = test::read_file(page);
   EXPECT_NE(html.find("<table id=\"msa\">"), std::string::npos);
-  EXPECT_NE(html.find("null_angle_pitch_arcsec"), std::string::npos);
+  EXPECT_NE(html.find("angle_pitch_at_+0.0deg_arcsec"), std::string::npos);
   // The plan of such a study: per stand every unit once per round, in a seeded random order.
   const fs::path plan = dir_.path() / "plan.json";
   r = test::run_stand({"msa", "plan", "--units", "SN-0,SN-1,SN-2", "--stands", "stand-A,stand-B", "--repeats", "3",
