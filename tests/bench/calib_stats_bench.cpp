@@ -11,7 +11,9 @@
 #include <chrono>
 #include <cstdlib>
 
+#include "calib/reference_calibration.h"
 #include "calib/report.h"
+#include "calib/uncertainty.h"
 #include "tests/support/calib_mc.h"
 
 namespace fpss {
@@ -123,6 +125,61 @@ void BM_CalibrationStatistics(benchmark::State& state, const std::string& truth_
 BENCHMARK_CAPTURE(BM_CalibrationStatistics, a6_fpss1, std::string("a-6-fpss1"))->Iterations(1)->Unit(benchmark::kSecond);
 BENCHMARK_CAPTURE(BM_CalibrationStatistics, a2_fpss2, std::string("a-2-fpss2"))->Iterations(1)->Unit(benchmark::kSecond);
 BENCHMARK_CAPTURE(BM_CalibrationStatistics, a5_fpss2, std::string("a-5-fpss2"))->Iterations(1)->Unit(benchmark::kSecond);
+
+// The expanded uncertainty U (k for 95 %) against the true error, per listed angle, over
+// FPSS_MC_RECORDINGS recordings of the independent generator: with the gimbal's errors drawn per
+// recording from procedures/reference_example.json's u (and that file given to the calibrator,
+// whose values are zero, so it adds its u only), and without any. Target: 95 +- 2 %.
+void BM_ExpandedUncertaintyCoverage(benchmark::State& state, bool with_reference) {
+  const int recordings = env_int("FPSS_MC_RECORDINGS", 200);
+  const std::string truth_name = "a-6-fpss1";
+  const CoefficientSet truth = load_published(truth_name);
+  test::mc::Design design;
+  const std::filesystem::path ref = test::source_dir() / "procedures" / "reference_example.json";
+  if (with_reference) design.gimbal_errors = ref;
+  for (auto _ : state) {
+    test::TempDir dir("calib-coverage");
+    const auto files = test::mc::generate(published_dir() / (truth_name + ".json"), dir / "rec", recordings,
+                                          with_reference ? 4242 : 2424, design);
+    CalibrationOptions o;
+    o.threads = 1;
+    if (with_reference) {
+      o.reference = load_reference_calibration(ref);
+      o.correct_reference = true;
+    }
+    size_t covered[2] = {0, 0}, angles[2] = {0, 0};
+    double sum_k = 0;
+    for (const auto& f : files) {
+      const CalibrationReport r = calibrate(read_samples_csv(f), o);
+      int axis = 0;
+      for (const auto& [fit, t] : {std::pair{&r.pitch, &truth.alpha}, std::pair{&r.yaw, &truth.beta}}) {
+        const AxisModel true_model(*t);
+        for (size_t i = 0; i < fit->angle_sigma_arcsec.size(); ++i) {
+          if (fit->angle_budget[i].empty()) continue;
+          const Combined c = combine(fit->angle_budget[i]);
+          const double angle = fit->angle_sigma_arcsec[i][0];
+          const double n = true_model.counts_for_angle(arcsec_to_rad(angle));
+          const double e = rad_to_arcsec(transfer_angle(fit->coeffs.data(), n)) - angle;
+          covered[axis] += std::abs(e) <= c.U;
+          ++angles[axis];
+          sum_k += c.k;
+        }
+        ++axis;
+      }
+    }
+    const double cp = static_cast<double>(covered[0]) / static_cast<double>(angles[0]);
+    const double cy = static_cast<double>(covered[1]) / static_cast<double>(angles[1]);
+    fmt::print("\nU coverage ({}, {} recordings of the independent generator, {} listed angles per axis each): "
+               "pitch {:.1f} %, yaw {:.1f} % (target 95 +- 2 %); mean k {:.3f}\n",
+               with_reference ? "gimbal errors drawn from reference_example.json's u" : "no reference errors",
+               files.size(), angles[0] / std::max<size_t>(1, files.size()), 100 * cp, 100 * cy,
+               sum_k / static_cast<double>(angles[0] + angles[1]));
+    state.counters["coverage_pitch"] = cp;
+    state.counters["coverage_yaw"] = cy;
+  }
+}
+BENCHMARK_CAPTURE(BM_ExpandedUncertaintyCoverage, reference_errors, true)->Iterations(1)->Unit(benchmark::kSecond);
+BENCHMARK_CAPTURE(BM_ExpandedUncertaintyCoverage, no_reference, false)->Iterations(1)->Unit(benchmark::kSecond);
 
 }  // namespace
 }  // namespace fpss

@@ -16,9 +16,16 @@ Usage:
   /usr/bin/python3 tests/gen/grid_gen.py --truth FILE --out-dir DIR --recordings K --seed S
       [--samples-per-dwell M] [--count-noise-counts 0.3] [--ref-noise-arcsec 0.05]
       [--extent-deg 0.45] [--step-deg 0.03] [--outlier-rate 0] [--frames-per-reading 1]
+      [--gimbal-errors REF.json]
 Writes DIR/rec-0000.csv ... and prints one line per file.
+
+--gimbal-errors: a reference calibration file (docs/formats.md, "Reference calibration file"); for
+each recording every term is drawn from N(value, u) and the encoders read the true angle plus
+the errors: zero + scale_factor_ppm 1e-6 x own angle + sin(nonorthogonality) x the other axis's
+angle + sum of amplitude sin(harmonic x own angle in radians + phase). Written from that text.
 """
 import argparse
+import json
 import math
 import os
 import sys
@@ -50,7 +57,27 @@ def plan(extent, step):
     return dwells
 
 
-def recording(alpha, beta, dwells, m, count_noise, ref_noise, outlier_rate, rng, per_reading=1):
+def draw_errors(spec, rng):
+    """One gimbal's true errors, every term drawn from N(value, u)."""
+    draw = lambda t: t["value"] + t["u"] * rng.normal()  # noqa: E731
+    out = {}
+    for axis in ("pitch", "yaw"):
+        a = spec[axis]
+        out[axis] = {"ppm": draw(a["scale_factor_ppm"]), "nonorth": draw(a["nonorthogonality_arcsec"]),
+                     "zero": draw(a["zero_arcsec"]),
+                     "cyclic": [(c["harmonic"], draw(c["amplitude_arcsec"]), draw(c["phase_rad"])) for c in a["cyclic"]]}
+    return out
+
+
+def encoder_error(e, own, other):
+    """Reading minus true angle of one axis (arcsec) at its own and the other axis's true angles."""
+    err = e["zero"] + 1e-6 * e["ppm"] * own + math.sin(e["nonorth"] / phys.ARCSEC_PER_RAD) * other
+    for h, amp, phase in e["cyclic"]:
+        err += amp * np.sin(h * own / phys.ARCSEC_PER_RAD + phase)
+    return err
+
+
+def recording(alpha, beta, dwells, m, count_noise, ref_noise, outlier_rate, rng, per_reading=1, errors=None):
     rows = []
     t = 0.0
     n_dw = len(dwells)
@@ -65,8 +92,12 @@ def recording(alpha, beta, dwells, m, count_noise, ref_noise, outlier_rate, rng,
         # Isolated spikes: a frame's count off by 20..200 counts (a bit error, a glint).
         hit = rng.random(shape) < outlier_rate
         ca = np.where(hit, ca + rng.choice([-1, 1], shape) * rng.integers(20, 200, shape), ca)
-    rp = pitch[:, None] + rng.normal(0.0, ref_noise, shape)
-    ry = yaw[:, None] + rng.normal(0.0, ref_noise, shape)
+    rp_true, ry_true = pitch, yaw
+    if errors is not None:
+        rp_true = pitch + encoder_error(errors["pitch"], pitch, yaw)
+        ry_true = yaw + encoder_error(errors["yaw"], yaw, pitch)
+    rp = rp_true[:, None] + rng.normal(0.0, ref_noise, shape)
+    ry = ry_true[:, None] + rng.normal(0.0, ref_noise, shape)
     if per_reading > 1:
         first = (np.arange(m) // per_reading) * per_reading  # each frame's reading: the block's first
         rp, ry = rp[:, first], ry[:, first]
@@ -90,14 +121,17 @@ def main():
     ap.add_argument("--step-deg", type=float, default=0.03)
     ap.add_argument("--outlier-rate", type=float, default=0.0)
     ap.add_argument("--frames-per-reading", type=int, default=1)
+    ap.add_argument("--gimbal-errors", default="")
     a = ap.parse_args()
+    spec = json.load(open(a.gimbal_errors)) if a.gimbal_errors else None
     alpha, beta = phys.load_coefficients(a.truth)
     dwells = plan(a.extent_deg, a.step_deg)
     rng = np.random.default_rng(a.seed)
     os.makedirs(a.out_dir, exist_ok=True)
     for r in range(a.recordings):
+        errors = draw_errors(spec, rng) if spec else None
         text = recording(alpha, beta, dwells, a.samples_per_dwell, a.count_noise_counts, a.ref_noise_arcsec,
-                         a.outlier_rate, rng, a.frames_per_reading)
+                         a.outlier_rate, rng, a.frames_per_reading, errors)
         path = os.path.join(a.out_dir, "rec-%04d.csv" % r)
         with open(path, "w") as f:
             f.write(text)

@@ -25,6 +25,7 @@ struct Design {
   double count_noise_counts = 0.3, ref_noise_arcsec = 0.05;
   double outlier_rate = 0;  // fraction of frames whose alpha count is off by 20..200 counts
   int frames_per_reading = 1;  // consecutive frames that share one encoder reading
+  fs::path gimbal_errors;      // a reference calibration file whose terms are drawn per recording ("": none)
 
   // The angle (arcsec) of every dwell along one axis, in recording order (the other axis's offsets
   // are dwells at 0 along this one).
@@ -53,7 +54,8 @@ inline std::vector<fs::path> generate(const fs::path& truth, const fs::path& dir
        "--samples-per-dwell", std::to_string(d.samples_per_dwell), "--count-noise-counts",
        std::to_string(d.count_noise_counts), "--ref-noise-arcsec", std::to_string(d.ref_noise_arcsec),
        "--extent-deg", std::to_string(d.extent_deg), "--step-deg", std::to_string(d.step_deg), "--outlier-rate",
-       std::to_string(d.outlier_rate), "--frames-per-reading", std::to_string(d.frames_per_reading)},
+       std::to_string(d.outlier_rate), "--frames-per-reading", std::to_string(d.frames_per_reading),
+       "--gimbal-errors", d.gimbal_errors.string()},
       dir, "grid_gen");
   if (r.code != 0) throw std::runtime_error("grid_gen.py failed: " + r.err);
   std::vector<fs::path> files;
