@@ -18,6 +18,7 @@
 #include "calib/compare.h"
 #include "procedures/events.h"
 #include "stand/catalogue/catalogue.h"
+#include "stand/console/fleet.h"
 #include "stand/console/run_files.h"
 #include "stand/console/server.h"
 #include "stand/session/control_channel.h"
@@ -313,6 +314,13 @@ void add_unit_routes(httplib::Server& s, Context& c) {
       return fail(res, 404, e.what());
     }
     reply(res, {{"unit", std::string(req.matches[1])}, {"calibrations", cals}, {"acceptances", accs}});
+  });
+  s.Get("/api/fleet", [&c](const httplib::Request&, httplib::Response& res) {
+    try {
+      reply(res, fleet_json(c.opt.runs_dir, c.opt.catalogue));
+    } catch (const std::exception& e) {
+      fail(res, 503, e.what());
+    }
   });
   s.Get("/api/units", [&c](const httplib::Request&, httplib::Response& res) {
     try {

@@ -271,6 +271,28 @@ def acceptance(b):
     wait_for("the difference B - A", lambda: "alpha: max" in b.text("cmp-summary"))
     assert len(b.driver.find_elements(By.CSS_SELECTOR, "#chart-compare canvas")) == 2
     b.shot("9-unit-history")
+    return run
+
+
+def fleet(b, acceptance_run):
+    """Step 9: the fleet page: each stand's last run, each unit's latest verdict, the last MSA.
+
+    The MSA file is written here (a crossed study needs several stands: tests/stand/msa_fleet_test.cpp
+    makes a real one); the page must show what the newest file of RUNS_DIR/msa/ says."""
+    os.makedirs(os.path.join(b.runs, "msa"), exist_ok=True)
+    with open(os.path.join(b.runs, "msa", "fleet-2026-11.json"), "w") as f:
+        json.dump({"format": "fpss-stand msa/1", "units": ["SN-1", "SN-2"], "stands": ["stand-A", "stand-B"], "repeats": 2,
+                   "quantities": {"angle_pitch_at_+0.4deg_arcsec": {"grr_percent_tolerance": 9.63, "grr_percent_tv": 0.41,
+                                                                     "ndc": 300, "verdict": "acceptable"}}}, f)
+    b.go("index.html#fleet")
+    wait_for("the stand's last run", lambda: acceptance_run in b.text("fleet-stands"))
+    assert "emulator" in b.text("fleet-stands")  # an emulated run without a stand file
+    wait_for("the unit's verdict", lambda: "FPSS-B1 pass" in b.text("fleet-units"))
+    wait_for("the last MSA", lambda: "angle_pitch_at_+0.4deg_arcsec 9.6 0.4 300 acceptable" in b.text("fleet-msa"))
+    assert "2 units x 2 stands (stand-A, stand-B) x 2 repeats" in b.text("fleet-msa-note")
+    api = b.fetch("/api/fleet")
+    assert api["msa"]["file"] == "fleet-2026-11.json", api
+    b.shot("10-fleet")
 
 
 def stop_runs(runs):
@@ -300,7 +322,8 @@ def main():
         run1, lat = first_run(b)
         aborted_run(b)
         open_report(b, run1)
-        acceptance(b)
+        acc_run = acceptance(b)
+        fleet(b, acc_run)
         b.check_console()
     except BaseException:
         b.driver.save_screenshot(os.path.join(OUT, "failure.png"))

@@ -47,6 +47,7 @@ function show() {
   if (page === 'live') every(1000, livePoll);
   if (page === 'runs') runsPage();
   if (page === 'units') unitsPage();
+  if (page === 'fleet') every(2000, fleetPage);
 }
 
 // ---- stand ----
@@ -343,6 +344,24 @@ $('cmp-go').onclick = async () => {
       axes: [{ label: 'angle under A (arcsec)' }, { label: 'B - A (arcsec)' }] }, [c[ax].angle_a_arcsec, c[ax].diff_arcsec], $('chart-compare'));
   }
 };
+
+// ---- fleet ----
+async function fleetPage() {
+  const f = await api('GET', '/api/fleet').catch(() => null);
+  if (!f) return;
+  $('fleet-stands').innerHTML = '<tr><th>stand</th><th>last run</th><th>unit</th><th>procedure</th><th>started</th><th>state</th></tr>' +
+    f.stands.map((r) => '<tr><td>' + esc(r.stand) + '</td><td>' + esc(r.run_id) + '</td><td>' + esc(r.unit) + '</td><td>' + esc(r.procedure) +
+      '</td><td>' + esc(r.started_utc) + '</td><td class="' + (r.live ? 'live' : '') + '">' + (r.live ? 'live' : esc(r.outcome)) + '</td></tr>').join('');
+  $('fleet-units').innerHTML = '<tr><th>unit</th><th>latest verdict</th><th>date</th><th>stand</th></tr>' +
+    f.units.map((u) => '<tr><td>' + esc(u.unit) + '</td><td>' + (u.verdict ? esc(u.verdict) : 'not accepted yet') + '</td><td>' + esc(u.date_utc) +
+      '</td><td>' + esc(u.stand) + '</td></tr>').join('');
+  const m = f.msa;
+  $('fleet-msa-note').textContent = m ? m.file + ': ' + m.units.length + ' units x ' + m.stands.length + ' stands (' + m.stands.join(', ') + ') x ' + m.repeats + ' repeats'
+    : 'none yet: fpss-stand msa --out RUNS_DIR/msa/NAME.json (docs/fleet.md)';
+  $('fleet-msa').innerHTML = m ? '<tr><th>quantity</th><th>%GRR of tolerance</th><th>%GRR of TV</th><th>ndc</th><th>reading</th></tr>' +
+    m.quantities.map((q) => '<tr><td>' + esc(q.name) + '</td><td>' + fmt(q.grr_percent_tolerance, 1) + '</td><td>' + fmt(q.grr_percent_tv, 1) +
+      '</td><td>' + esc(q.ndc) + '</td><td>' + esc(q.verdict) + '</td></tr>').join('') : '';
+}
 
 window.addEventListener('hashchange', show);
 loadToken();
