@@ -119,6 +119,18 @@ class Calibration:
     residuals = property(lambda self: self.json.get("residuals"))
     uncertainties = property(lambda self: self.json.get("uncertainties"))
 
+    def expanded_uncertainty(self, axis):
+        """[(angle_arcsec, U_arcsec)] of one axis ("pitch" or "yaw"): U = k u at 95 %, per listed angle
+        (None where the angle is not reached); empty for a set without budgets."""
+        u = (self.json.get("uncertainties") or {}).get(axis) or {}
+        return [tuple(p) for p in u.get("angle_expanded_uncertainty_arcsec", [])]
+
+    def budget(self, axis):
+        """The uncertainty budget of one axis at its largest U: [{source, type, u_arcsec, ...}]
+        (docs/calibration.md), with coverage_factor and the angle in ``uncertainties``."""
+        u = (self.json.get("uncertainties") or {}).get(axis) or {}
+        return list(u.get("budget", []))
+
     def pitch_arcsec(self, counts_alpha):
         """Pitch angle (arcsec) from counts_alpha."""
         return transfer_function(self.alpha, counts_alpha)

@@ -133,9 +133,16 @@ class Criterion:
     axis: Optional[str] = None
     measured: Optional[float] = None
     uncertainty: Optional[float] = None
+    expanded_uncertainty: Optional[float] = None
+    coverage_factor: Optional[float] = None
+    dof_eff: Optional[float] = None
+    budget: tuple = ()
     limit: Optional[float] = None
+    acceptance_limit: Optional[float] = None
     relation: str = "<="
     unit: str = ""
+    outcome: Optional[str] = None
+    outcome_reason: str = ""
     passed: bool = False
     limit_key: Optional[str] = None
     source: Optional[str] = None
@@ -160,6 +167,10 @@ class Acceptance:
     run: Optional[dict] = None
     date_utc: Optional[str] = None
     calibration: Optional[str] = None
+    calibration_uncertainty: Optional[dict] = None
+    decision_rule: Optional[dict] = None
+    reference: Optional[dict] = None
+    conditional: tuple = ()
     operator: Optional[str] = None
     signed_off_utc: Optional[str] = None
     outliers: Optional[dict] = None
@@ -171,8 +182,10 @@ class Acceptance:
     def from_json(cls, content, origin):
         try:
             d = dict(content)
-            d["criteria"] = tuple(_build(Criterion, c) for c in content.get("criteria", []))
+            d["criteria"] = tuple(_build(Criterion, dict(c, budget=tuple(c.get("budget", ()))))
+                                  for c in content.get("criteria", []))
             d["failed"] = tuple(content.get("failed", []))
+            d["conditional"] = tuple(content.get("conditional", []))
             d["points"] = tuple(content.get("points", []))
             a = _build(cls, d)
         except (TypeError, AttributeError, ValueError) as e:

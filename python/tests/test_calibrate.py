@@ -27,6 +27,20 @@ def test_path_equals_the_command_to_the_last_digit(recording, cli_calibration, t
     assert "Table 1" in cal.summary or "pitch" in cal.summary
 
 
+def test_the_budget_and_expanded_uncertainty_are_calibration_jsons(recording, cli_calibration):
+    _, cli = cli_calibration
+    cal = fs.calibrate(recording)
+    for axis in ("pitch", "yaw"):
+        u = cli["uncertainties"][axis]
+        assert cal.expanded_uncertainty(axis) == [tuple(p) for p in u["angle_expanded_uncertainty_arcsec"]]
+        assert cal.budget(axis) == u["budget"]
+        assert [e["source"] for e in cal.budget(axis)][:4] == ["sensor noise", "quantisation", "reference noise",
+                                                              "model and fit"]
+        # U = k u at the budget's angle: the root sum of squares of the budget, times k.
+        rss = sum(e["u_arcsec"] ** 2 for e in cal.budget(axis)) ** 0.5
+        assert abs(u["coverage_factor"] * rss - u["expanded_uncertainty_max_arcsec"]) < 1e-12
+
+
 def test_dataframe_equals_the_path(recording, cli_calibration):
     _, cli = cli_calibration
     df = fs.read_samples(recording)

@@ -78,15 +78,24 @@ def test_acceptance_and_gap_are_typed(run_dir, tmp_path):
     (d / "acceptance.json").write_text(json.dumps({
         "format": "fpss-stand acceptance/1", "verdict": "fail", "passed": False, "unit": "EMU-0001",
         "criteria": [{"id": "residual_max_pitch", "title": "max |residual| pitch", "axis": "pitch", "measured": 2.5,
-                      "uncertainty": 0.1, "limit": 2.1, "relation": "<=", "unit": "arcsec", "passed": False,
+                      "uncertainty": 0.1, "expanded_uncertainty": 0.2, "coverage_factor": 2.0, "dof_eff": None,
+                      "budget": [{"source": "sensor noise", "type": "A", "sensitivity": 1.0, "u": 0.1, "dof": 9}],
+                      "limit": 2.1, "acceptance_limit": 2.1, "relation": "<=", "unit": "arcsec", "outcome": "fail",
+                      "outcome_reason": "", "passed": False,
                       "limit_key": "residual_max_arcsec", "source": "paper", "detail": ""}],
-        "failed": ["residual_max_pitch"], "points": [], "new_key": 1}))
+        "failed": ["residual_max_pitch"], "conditional": [], "decision_rule": {"rule": "simple"},
+        "calibration_uncertainty": {"pitch": {"expanded_uncertainty_max_arcsec": 0.04}},
+        "points": [], "new_key": 1}))
     (d / "GAP.json").write_text(json.dumps({"verdict": "explained", "verdict_sentence": "Explained.",
                                             "cause": "time_skew", "gap_before_arcsec": 9.7, "warnings": ["w"]}))
     r = fs.open_run(d)
     a = r.acceptance
     assert a.verdict == "fail" and not a.passed and a.failed == ("residual_max_pitch",)
     assert a.criteria[0].measured == 2.5 and a.criteria[0].limit == 2.1 and a.extra == {"new_key": 1}
+    c = a.criteria[0]
+    assert c.expanded_uncertainty == 0.2 and c.coverage_factor == 2.0 and c.outcome == "fail" and c.extra == {}
+    assert c.budget[0]["source"] == "sensor noise" and a.decision_rule == {"rule": "simple"} and a.conditional == ()
+    assert a.calibration_uncertainty["pitch"]["expanded_uncertainty_max_arcsec"] == 0.04
     g = r.gap
     assert g.verdict == "explained" and g.cause == "time_skew" and g.gap_before_arcsec == 9.7 and g.warnings == ("w",)
     (d / "GAP.json").write_text('{"verdict": "explained", "verdict": "x"}')

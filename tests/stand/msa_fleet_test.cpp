@@ -93,9 +93,15 @@ TEST(MsaFleet, TheErringStandShowsAsReproducibilityAndAnIndependentAnovaAgrees) 
     EXPECT_NEAR(std::abs(mean), d_arcsec, std::max(0.03, 4 * se)) << q << " (se " << se << ")";
     const auto& g = m["quantities"][q];
     // Stand means (0, 0, d): their SD is d / sqrt(3) = 0.166 arcsec, which AV must find (three
-    // stands: two degrees of freedom, so loosely), well above the repeats' scatter (EV).
+    // stands: two degrees of freedom, so loosely). EV is not bounded here: the runs share two
+    // cores with the rest of ctest, and a loaded machine makes the emulated frames scatter more
+    // (measured EV 0.064 arcsec alone, 0.097 under ctest -j2), which AV must not follow.
     EXPECT_GT(g["sd"]["av"].get<double>(), 0.5 * d_arcsec / std::sqrt(3.0)) << q;
-    EXPECT_GT(g["sd"]["av"].get<double>(), 2 * g["sd"]["ev"].get<double>()) << q << ": reproducibility dominates";
+    EXPECT_LT(g["sd"]["av"].get<double>(), 2.0 * d_arcsec / std::sqrt(3.0)) << q;
+  }
+  // Where the scale error cannot act (zero counts), AV is a fraction of that.
+  for (const char* q : {"angle_pitch_at_+0.0deg_arcsec", "angle_yaw_at_+0.0deg_arcsec"}) {
+    EXPECT_LT(m["quantities"][q]["sd"]["av"].get<double>(), 0.25 * d_arcsec / std::sqrt(3.0)) << q;
   }
   // At zero counts (near the null) the encoders' scale error does not act: no stand effect beyond the noise.
   const auto [null_mean, null_se] = c_minus_a("angle_pitch_at_+0.0deg_arcsec");
