@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <random>
 #include <stdexcept>
 
@@ -14,23 +15,20 @@ namespace fpss {
 
 namespace {
 
-double draw_term(const CertifiedValue& v, std::mt19937_64& rng, std::normal_distribution<double>& z) {
-  return v.value + v.u * z(rng);
-}
-
-ReferenceCalibration drawn_reference(const ReferenceCalibration& r, std::mt19937_64& rng,
-                                     std::normal_distribution<double>& z) {
-  ReferenceCalibration d = r;
-  for (ReferenceAxis* a : {&d.pitch, &d.yaw}) {
-    for (CertifiedValue* v : {&a->scale_factor_ppm, &a->nonorthogonality_arcsec, &a->zero_arcsec}) {
-      v->value = draw_term(*v, rng, z);
-    }
-    for (CyclicTerm& c : a->cyclic) {
-      c.amplitude_arcsec.value = draw_term(c.amplitude_arcsec, rng, z);
-      c.phase_rad.value = draw_term(c.phase_rad, rng, z);
+// Every term of `nominal` drawn from N(value, u) into `drawn` (a copy of it made once: the trials
+// reuse it, so none copies the file's names and texts again).
+void redraw(const ReferenceCalibration& nominal, ReferenceCalibration& drawn, std::mt19937_64& rng,
+            std::normal_distribution<double>& z) {
+  const auto draw = [&](const CertifiedValue& from, CertifiedValue& to) { to.value = from.value + from.u * z(rng); };
+  for (auto [from, to] : {std::pair{&nominal.pitch, &drawn.pitch}, std::pair{&nominal.yaw, &drawn.yaw}}) {
+    draw(from->scale_factor_ppm, to->scale_factor_ppm);
+    draw(from->nonorthogonality_arcsec, to->nonorthogonality_arcsec);
+    draw(from->zero_arcsec, to->zero_arcsec);
+    for (size_t c = 0; c < from->cyclic.size(); ++c) {
+      draw(from->cyclic[c].amplitude_arcsec, to->cyclic[c].amplitude_arcsec);
+      draw(from->cyclic[c].phase_rad, to->cyclic[c].phase_rad);
     }
   }
-  return d;
 }
 
 // The value at probability p of sorted draws (linear between order statistics).
@@ -60,30 +58,39 @@ MonteCarloAxis check_axis(const AxisFit& a, int sensor_axis, const CalibrationRe
   // The fit's sources to first order: the coefficients' covariance is a linearisation, and drawing
   // the coefficients themselves leaves the region where it holds (a slow sinusoid trades with the
   // slope along a curved valley: measured, a 66 arcsec spread on a fit whose angle sigma is 0.03).
+  // Student's t for finite degrees of freedom (JCGM 101 6.4.9): the normal over sqrt(chi2 / dof).
   struct Source {
     double u, dof;
+    std::optional<std::chi_squared_distribution<double>> chi2;
   };
   std::vector<Source> sources;
-  for (size_t k = 0; k < a.covariance_sources.size(); ++k) sources.push_back({a.angle_budget[i][k].u, a.angle_budget[i][k].dof});
+  for (size_t k = 0; k < a.covariance_sources.size(); ++k) {
+    const BudgetEntry& e = a.angle_budget[i][k];
+    sources.push_back({e.u, e.dof, std::isfinite(e.dof) ? std::optional(std::chi_squared_distribution<double>(e.dof))
+                                                        : std::nullopt});
+  }
   const ReferenceCalibration* ref = opts.reference ? &*opts.reference : nullptr;
+  std::optional<ReferenceCalibration> drawn;
   double other = 0, ref_nominal = 0;
   if (ref) {
     const double extent = other_axis_extent_arcsec(rep, sensor_axis);
     other = reference_worst_other_arcsec(*ref, opts.mount, sensor_axis, out.angle_arcsec, extent);
     ref_nominal = reference_error_arcsec(*ref, opts.mount, sensor_axis, out.angle_arcsec, other);
+    drawn = *ref;
   }
 
   std::normal_distribution<double> z;
   std::vector<double> err(trials);
   for (size_t t = 0; t < trials; ++t) {
     double e = 0;
-    for (const Source& s : sources) {
-      double scale = 1.0;  // Student's t for finite degrees of freedom (JCGM 101 6.4.9)
-      if (std::isfinite(s.dof)) scale = std::sqrt(s.dof / std::chi_squared_distribution<double>(s.dof)(rng));
+    for (Source& s : sources) {
+      const double scale = s.chi2 ? std::sqrt(s.dof / (*s.chi2)(rng)) : 1.0;
       e += s.u * scale * z(rng);
     }
-    if (ref) e += reference_error_arcsec(drawn_reference(*ref, rng, z), opts.mount, sensor_axis, out.angle_arcsec, other) -
-                  ref_nominal;
+    if (ref) {
+      redraw(*ref, *drawn, rng, z);
+      e += reference_error_arcsec(*drawn, opts.mount, sensor_axis, out.angle_arcsec, other) - ref_nominal;
+    }
     err[t] = e;
   }
   double sum = 0, sum2 = 0;

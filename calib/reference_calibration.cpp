@@ -62,12 +62,6 @@ std::vector<BudgetEntry> axis_terms(const ReferenceAxis& a, const std::string& a
   return out;
 }
 
-double root_sum_square(const std::vector<BudgetEntry>& b) {
-  double v = 0;
-  for (const BudgetEntry& e : b) v += e.u * e.u;
-  return std::sqrt(v);
-}
-
 double axis_u(const ReferenceAxis& a, double own_arcsec, double other_arcsec) {
   return root_sum_square(axis_terms(a, "", own_arcsec, other_arcsec));
 }

@@ -19,7 +19,7 @@ void grow(AxisFit& a, const CalibrationOptions& opts, int sensor_axis, double ot
   for (size_t i = 0; i < a.angle_sigma_arcsec.size(); ++i) {
     auto& [angle, sigma] = a.angle_sigma_arcsec[i];
     const std::vector<BudgetEntry> terms = reference_budget(ref, opts.mount, sensor_axis, angle, other_extent_arcsec);
-    const double u = combine(terms).u;
+    const double u = root_sum_square(terms);
     sigma = std::hypot(sigma, u);  // infinite stays infinite: the fit cannot speak there either
     worst = std::max(worst, u);
     if (i < a.angle_budget.size() && !a.angle_budget[i].empty()) {

@@ -77,14 +77,26 @@ double student_t_quantile(double p, double nu) {
   return 0.5 * (lo + hi);
 }
 
+namespace {
+
+double sum_of_squares(const std::vector<BudgetEntry>& budget) {
+  double var = 0;
+  for (const auto& e : budget) var += e.u * e.u;
+  return var;
+}
+
+}  // namespace
+
+double root_sum_square(const std::vector<BudgetEntry>& budget) { return std::sqrt(sum_of_squares(budget)); }
+
 Combined combine(const std::vector<BudgetEntry>& budget) {
   Combined c;
-  double var = 0, ws = 0;
+  const double var = sum_of_squares(budget);
+  c.u = std::sqrt(var);
+  double ws = 0;
   for (const auto& e : budget) {
-    var += e.u * e.u;
     if (std::isfinite(e.dof) && e.u > 0) ws += std::pow(e.u, 4) / e.dof;
   }
-  c.u = std::sqrt(var);
   c.dof_eff = ws > 0 ? var * var / ws : kInf;
   // The integer below, forgiving the rounding of u^4 / (u^4 / nu) for a single entry.
   const double nu = std::isfinite(c.dof_eff) ? std::max(1.0, std::floor(c.dof_eff * (1 + 1e-12))) : kInf;

@@ -32,6 +32,9 @@ struct Combined {
 // "u" in acceptance.json, "u_arcsec" in calibration.json.
 nlohmann::ordered_json budget_json(const std::vector<BudgetEntry>& budget, const char* u_key);
 
+// The combined standard uncertainty alone: the root sum of squares of the entries' u.
+double root_sum_square(const std::vector<BudgetEntry>& budget);
+
 // Root sum of squares of the entries' u; Welch-Satterthwaite for dof_eff (GUM G.4.1:
 // u^4 / sum(u_i^4 / nu_i), infinite entries dropping out, infinite when all are); k at the
 // integer below dof_eff (GUM G.4.1 note), at least 1.

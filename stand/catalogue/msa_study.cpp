@@ -124,15 +124,15 @@ std::optional<GaugeStudy> study_of(const Cells& c, const std::string& q, size_t 
 
 }  // namespace
 
-MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const std::map<std::string, MsaTolerance>& tolerances) {
+MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const MsaTolerances& tolerances) {
+  for (const std::string& u : sel.units) {
+    if (!cat.has_unit(u)) throw InputError(fmt::format("--units: unit {} is not in the catalogue", u));
+  }
   std::vector<Observation> cal_obs, acc_obs;
   for (const std::string& u : cat.units()) {
     if (!selected(sel.units, u)) continue;
     for (const CalibrationRecord& r : cat.unit_history(u)) cal_obs.push_back(from_calibration(r));
     for (const AcceptanceRecord& r : cat.unit_acceptances(u)) acc_obs.push_back(from_acceptance(r));
-  }
-  for (const std::string& u : sel.units) {
-    if (!cat.has_unit(u)) throw InputError(fmt::format("--units: unit {} is not in the catalogue", u));
   }
   MsaStudy out;
   const Cells cals = sort_into_cells(std::move(cal_obs), sel, out.records_left_out);
@@ -162,39 +162,29 @@ MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const std::map
   }
   out.repeats = repeats;
   for (const auto& [k, v] : cals.cell) out.records_used += std::min(v.size(), repeats);
-  std::vector<std::string> names;
-  for (const char* axis : {"pitch", "yaw"}) {
-    names.push_back(fmt::format("residual_mean_{}_arcsec", axis));
-    for (double deg : kSetPointsDeg) names.push_back(set_point_name(axis, deg));
-  }
-  for (const std::string& q : names) {
+  // One quantity's study, or why not (`from` names where its records are when not calibrations).
+  const auto add = [&](const Cells& c, const std::string& q, size_t r, const std::optional<MsaTolerance>& tol,
+                       const std::string& from) {
     std::string why;
-    const auto s = study_of(cals, q, repeats, why);
+    const auto s = study_of(c, q, r, why);
     if (!s) {
-      out.skipped[q] = why;
-      continue;
+      out.skipped[q] = from + why;
+      return;
     }
-    MsaQuantity m{q, "arcsec", std::nullopt, *s, {}};
-    if (const auto t = tolerances.find(q); t != tolerances.end()) m.tolerance = t->second;
-    m.result = gauge_rr(m.study, m.tolerance ? std::optional<double>(m.tolerance->value) : std::nullopt);
+    MsaQuantity m{q, "arcsec", tol, *s, {}};
+    m.result = gauge_rr(m.study, tol ? std::optional<double>(tol->value) : std::nullopt);
     out.quantities.push_back(std::move(m));
+  };
+  for (const char* axis : {"pitch", "yaw"}) {
+    add(cals, fmt::format("residual_mean_{}_arcsec", axis), repeats, tolerances.residual_mean, "");
+    for (double deg : kSetPointsDeg) add(cals, set_point_name(axis, deg), repeats, tolerances.set_point_angle, "");
   }
   // Accuracy comes from acceptances: a study of its own cells, when they are crossed too.
+  Cells crossed = accs;
+  crossed.units = out.units;
+  crossed.stands = out.stands;
   for (const char* axis : {"pitch", "yaw"}) {
-    const std::string q = fmt::format("accuracy_3sigma_{}_arcsec", axis);
-    Cells c = accs;
-    c.units = out.units;
-    c.stands = out.stands;
-    std::string why;
-    const auto s = study_of(c, q, 2, why);
-    if (!s) {
-      out.skipped[q] = "acceptances: " + why;
-      continue;
-    }
-    MsaQuantity m{q, "arcsec", std::nullopt, *s, {}};
-    if (const auto t = tolerances.find(q); t != tolerances.end()) m.tolerance = t->second;
-    m.result = gauge_rr(m.study, m.tolerance ? std::optional<double>(m.tolerance->value) : std::nullopt);
-    out.quantities.push_back(std::move(m));
+    add(crossed, fmt::format("accuracy_3sigma_{}_arcsec", axis), 2, tolerances.accuracy, "acceptances: ");
   }
   return out;
 }

@@ -14,15 +14,22 @@ namespace fpss {
 
 struct MsaSelection {
   std::vector<std::string> units;   // empty: every unit with records
-  std::vector<std::string> stands;  // empty: every stand with records ("" is named "emulated")
+  std::vector<std::string> stands;  // empty: every stand with records (an empty stand is named "emulated")
   std::string since;                // ISO 8601 date or time; records before it are left out ("": all)
 };
 
-// Each quantity's tolerance (the width the acceptance limits allow: a one-sided limit with a
-// natural zero is its value, a two-sided one twice it) and where it comes from.
+// A quantity's tolerance (the width the acceptance limits allow: a one-sided limit with a natural
+// zero is its value, a two-sided one twice it) and where it comes from.
 struct MsaTolerance {
   double value = 0;
   std::string source;
+};
+
+// The tolerance of each kind of quantity (none: %GRR of the tolerance is left out).
+struct MsaTolerances {
+  std::optional<MsaTolerance> residual_mean;    // residual_mean_<axis>_arcsec
+  std::optional<MsaTolerance> set_point_angle;  // angle_<axis>_at_<deg>deg_arcsec
+  std::optional<MsaTolerance> accuracy;         // accuracy_3sigma_<axis>_arcsec
 };
 
 // One quantity's study: y[unit][stand][repeat], the latest `repeats` records of each cell.
@@ -47,8 +54,7 @@ struct MsaStudy {
 // which trades with the sinusoids' phases); of each acceptance record:
 // accuracy_3sigma_<axis>_arcsec. InputError (exit 2) when the selection cannot make a crossed study:
 // fewer than two units or stands, a unit x stand cell without two records (naming the cells).
-MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel,
-                   const std::map<std::string, MsaTolerance>& tolerances);
+MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const MsaTolerances& tolerances);
 
 // AIAG's reading of %GRR (of the tolerance, else of the total variation): under 10 % acceptable,
 // 10 to 30 % marginal, above unacceptable; and ndc of at least 5.

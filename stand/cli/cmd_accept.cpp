@@ -358,7 +358,6 @@ CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r
   info.points_completed = r.points_done;
   info.date_utc = utc_now_iso();
   info.calibration_file = r.calibration ? r.calibration->filename().string() : "";
-  if (r.calibration) info.calibration_uncertainty = calibration_uncertainty(read_json_file(*r.calibration).value("uncertainties", nlohmann::json()));
   if (const auto& ref = req.stand.bench.reference) info.reference = ref->identity();
   return info;
 }
@@ -436,7 +435,11 @@ int accept_command(const AcceptArgs& a) {
   find_reference(data, cat_url, unit, run_id);
 
   const Judgement j = judge(data, p.limits);
-  const CertificateInfo info = certificate_info(p, r, run, unit);
+  CertificateInfo info = certificate_info(p, r, run, unit);
+  // The calibrated angle's figures as calibration.json has them (loaded once, above).
+  if (data.calibration) {
+    info.calibration_uncertainty = calibration_uncertainty(data.calibration->extra.value("uncertainties", nlohmann::json()));
+  }
   nlohmann::ordered_json cert = certificate_json(j, p.limits, info);
   if (r.answers.count("operator")) {
     cert["operator"] = r.answers.at("operator");

@@ -21,24 +21,17 @@ namespace fpss::cli {
 
 namespace {
 
-// The tolerance of each quantity from the acceptance limits: the mean residual's limit is
+// The tolerance of each kind of quantity from the acceptance limits: the mean residual's limit is
 // one-sided with a natural zero (the tolerance is the limit), the calibrated angle's at the set
 // points is the accuracy limit either side (twice it), accuracy's its own limit.
-std::map<std::string, MsaTolerance> tolerances_from(const AcceptanceLimits& l) {
-  std::map<std::string, MsaTolerance> t;
-  const std::string file = l.origin;
-  for (const char* axis : {"pitch", "yaw"}) {
-    t[fmt::format("residual_mean_{}_arcsec", axis)] = {
-        l.residual_mean_abs_arcsec.value, fmt::format("{}: residual_mean_abs_arcsec, one-sided from 0", file)};
-    t[fmt::format("accuracy_3sigma_{}_arcsec", axis)] = {
-        l.accuracy_3sigma_arcsec.value, fmt::format("{}: accuracy_3sigma_arcsec, one-sided from 0", file)};
-    const MsaTolerance two_sided{2 * l.accuracy_3sigma_arcsec.value,
-                                 fmt::format("{}: accuracy_3sigma_arcsec either side (twice it)", file)};
-    for (const char* deg : {"-0.4", "-0.2", "+0.0", "+0.2", "+0.4"}) t[fmt::format("angle_{}_at_{}deg_arcsec", axis, deg)] = two_sided;
-  }
-  return t;
+MsaTolerances tolerances_from(const AcceptanceLimits& l) {
+  const std::string& file = l.origin;
+  return {MsaTolerance{l.residual_mean_abs_arcsec.value, fmt::format("{}: residual_mean_abs_arcsec, one-sided from 0", file)},
+          MsaTolerance{2 * l.accuracy_3sigma_arcsec.value, fmt::format("{}: accuracy_3sigma_arcsec either side (twice it)", file)},
+          MsaTolerance{l.accuracy_3sigma_arcsec.value, fmt::format("{}: accuracy_3sigma_arcsec, one-sided from 0", file)}};
 }
 
+// A comma-separated list of names; an empty name is refused (CLI11's delimiter would drop it).
 std::vector<std::string> split_list(const std::string& s, const char* option) {
   std::vector<std::string> out;
   size_t b = 0;
@@ -130,7 +123,7 @@ void add_msa(CLI::App& app, Runner& run) {
   sub->add_option("--runs-dir", o->runs_dir, "runs folder; the default catalogue is its stand.db")->capture_default_str();
   sub->add_option("--units", o->units, "the units (parts), comma-separated (default: every unit)");
   sub->add_option("--stands", o->stands, "the stands (appraisers), comma-separated (default: every stand; "
-                                         "'emulated' for runs without a stand file)");
+                                         "'emulator' for emulated runs without a stand file)");
   sub->add_option("--since", o->since, "only records from this ISO 8601 date or time on");
   o->files.input(sub, "--limits", o->limits, "acceptance limits file: the tolerances (default: the shipped limits)");
   o->files.output(sub, "--out", o->out, "the study as JSON (MSA.json; required)");

@@ -429,6 +429,10 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
       EXPECT_EQ(seen.size(), 3u) << "round " << round;
     }
   }
+  r = test::run_stand({"msa", "plan", "--units", "SN-0,,SN-2", "--stands", "stand-A,stand-B", "--out", plan.string()},
+                      dir_.path(), "plan-bad");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--units SN-0,,SN-2: an empty name in the list"), std::string::npos) << r.err;
   // One stand is no crossed study: exit 2, saying why.
   r = test::run_stand({"msa", "--catalogue", url_, "--stands", "stand-A", "--out", out.string()}, dir_.path(), "one");
   EXPECT_EQ(r.code, 2);

@@ -39,7 +39,7 @@ std::vector<std::string> stand_runs(const fs::path& dir, const std::string& stan
     for (int u = 0; u < kUnits; ++u) {
       // Units are the published sets A-2..A-6 of FPSS1: five real transfer functions.
       script += fmt::format(
-          "'{}' run '{}' --emulate --speed 100 --quiet --no-progress --stand '{}' --bench '{}' --runs-dir '{}' "
+          "'{}' run '{}' --emulate --speed 50 --quiet --no-progress --stand '{}' --bench '{}' --runs-dir '{}' "
           "--unit-serial SN-{} --truth '{}' --seed {}\n",
           test::stand_binary().string(), (test::source_dir() / "procedures" / "discrete_grid.yaml").string(),
           (dir / "stand.yaml").string(), (dir / "bench.yaml").string(), (dir / "runs").string(), u,
