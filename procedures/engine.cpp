@@ -57,9 +57,24 @@ void Engine::prepare() {
   }
   io_->command_rate(b_.profile_rate_arcsec_s);
   io_->command_watchdog(b_.watchdog_s);
-  io_->sensor().set_rate(static_cast<int>(std::lround(b_.sample_rate_hz)));
-  io_->sensor().start();
+  for (size_t i = 0; i < io_->units(); ++i) {
+    if (io_->lost(i)) continue;
+    Sensor& s = *io_->unit(i).sensor;
+    if (io_->units() == 1) {  // one unit: its failure is the run's
+      s.set_rate(static_cast<int>(std::lround(b_.sample_rate_hz)));
+      s.start();
+      continue;
+    }
+    try {
+      s.set_rate(static_cast<int>(std::lround(b_.sample_rate_hz)));
+      s.start();
+    } catch (const DeviceError& e) {
+      if (!io_->lose(i, LossCause::link_failed, fmt::format("could not start its stream: {}", e.what()), -1)) throw;
+    }
+  }
 }
+
+void Engine::set_units(std::vector<EngineUnit> units) { io_->set_units(std::move(units)); }
 
 void Engine::compute(const Action& a, const char* what, const std::function<void(const Action&)>& hook,
                      StopCause cause) {
@@ -158,11 +173,14 @@ bool Engine::safe_stop() {
       }
     }
   }
-  try {
-    Timed t(stats_.device_s);
-    io_->sensor().stop();
-  } catch (const DeviceError& e) {
-    log_.warn("safe stop: sensor stop failed: {}", e.what());
+  for (size_t i = 0; i < io_->units(); ++i) {
+    if (io_->lost(i)) continue;
+    try {
+      Timed t(stats_.device_s);
+      io_->unit(i).sensor->stop();
+    } catch (const DeviceError& e) {
+      log_.warn("safe stop: sensor stop failed: {}", e.what());
+    }
   }
   io_->set_stopping(false);
   return ok;
@@ -328,6 +346,7 @@ EngineResult Engine::run(int session) {
     }
   }
   r.points_done = measurer_->next_point();
+  r.lost = io_->losses();
   if (const std::optional<double> bench_s = clock_->bench_s()) {
     const double bench = *bench_s;
     stats_.bench_s += bench;

@@ -28,12 +28,28 @@ struct RunControl {
   std::atomic<int> signal{0};       // the signal that asked for the abort, for the log
 };
 
+// One sensor unit the engine reads: several share the gimbal's readings (docs/procedures.md,
+// "Several units"). `id` is the unit's index in the stand's list, written in each row (RecordedRow::unit).
+struct EngineUnit {
+  int id = 0;
+  Sensor* sensor = nullptr;  // borrowed
+  AxisMapping axes;          // how it sits on the gimbal
+};
+// A unit dropped from the run: why, and at which point (0-based; -1 before the first).
+struct UnitLoss {
+  int unit = 0;
+  LossCause cause = LossCause::silence;
+  std::string reason;
+  int64_t point = -1;
+};
+
 struct EngineResult {
   RunOutcome outcome = RunOutcome::completed;
   StopCause cause = StopCause::none;
   std::string reason;         // why it failed or stopped, for people
   int64_t points_done = 0;    // completed points in the recording (all sessions)
   bool safe_state = true;     // the gimbal was stopped and returned to null (or was never moved)
+  std::vector<UnitLoss> lost;  // units dropped along the way (several units only)
 };
 
 // Where the controller's own time goes, to compare with the time spent waiting on devices.
@@ -85,6 +101,12 @@ class Engine {
   // Its parts hold references to each other and to its statistics.
   Engine(const Engine&) = delete;
   Engine& operator=(const Engine&) = delete;
+
+  // Several units on the one gimbal: replaces the constructor's single sensor (unit 0 on the
+  // settings' axes) before run(). The first is the lead: its frames pace the dwells; the others'
+  // frames are taken over the same dwell and referenced to the same gimbal readings. A unit that
+  // fails is dropped (EngineResult::lost) and the others go on; the lead's place passes to the next.
+  void set_units(std::vector<EngineUnit> units);
 
   // Runs the plan from `from.next_point` (0 for a new run).
   // `session` is 1 + the number of resumes, written in each row.

@@ -36,6 +36,11 @@ class EngineClock {
 
   // Stand time: base + (sensor time - sensor t0), kept non-decreasing across sensor restarts.
   double stand_time(double sensor_time_s);
+  // The same mapping without moving it on: for another unit's frames on the same clock.
+  double stand_time_of(double sensor_time_s) const {
+    const double t = sensor_t0_ ? time_base_ + (sensor_time_s - *sensor_t0_) : last_time_;
+    return std::round(t * 1e6) / 1e6;
+  }
   double sensor_clock_s(const SensorSample& f) const;
 
   // A frame's time (shared clock): the sensor's frames come on a grid of its period from it.

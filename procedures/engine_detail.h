@@ -42,6 +42,7 @@ struct SensorFailure : std::runtime_error {
   explicit SensorFailure(const std::string& what, StopCause c = StopCause::sensor_timeout)
       : std::runtime_error(what), cause(c) {}
   StopCause cause;
+  bool sensor_side = false;  // the last attempt failed on the sensor's side (several units: the lead may be dropped)
 };
 // The recording could not be made durable: never re-measured, the run stops.
 struct StorageFailure : std::runtime_error {
@@ -58,6 +59,7 @@ struct PointFailure : std::runtime_error {
   explicit PointFailure(const std::string& what, StopCause c = StopCause::other)
       : std::runtime_error(what), cause(c) {}
   StopCause cause;
+  bool sensor_side = false;  // the last attempt failed on the sensor's side (several units: the lead may be dropped)
 };
 // The operator or a signal asked for the abort: unwinds to run(), which stops safely.
 struct Aborted {};

@@ -27,15 +27,61 @@ GimbalState EngineIo::read_gimbal() {
   return st;
 }
 
-double EngineIo::read_temperature_c(const Action& a) {
+double EngineIo::read_temperature_c(const Action& a) { return read_temperature_c(a, sensor()); }
+
+double EngineIo::read_temperature_c(const Action& a, Sensor& sensor) {
   try {
     Timed t(stats_.device_s);
-    return s_.temperature_c();
+    return sensor.temperature_c();
   } catch (const DeviceError& e) {
     // No reply, a malformed one or an implausible value: the rows carry none (never the value).
     warn(&a, fmt::format("point {}: no temperature ({})", a.point + 1, e.what()));
     return std::numeric_limits<double>::quiet_NaN();
   }
+}
+
+void EngineIo::set_units(std::vector<EngineUnit> units) {
+  if (units.empty()) throw std::logic_error("Engine::set_units: no unit");
+  units_ = std::move(units);
+  lost_.assign(units_.size(), false);
+  strikes_.assign(units_.size(), 0);
+  lead_ = 0;
+}
+
+std::vector<size_t> EngineIo::followers() const {
+  std::vector<size_t> out;
+  for (size_t i = 0; i < units_.size(); ++i) {
+    if (i != lead_ && !lost_[i]) out.push_back(i);
+  }
+  return out;
+}
+
+bool EngineIo::can_lose_lead() const { return !followers().empty(); }
+
+bool EngineIo::lose(size_t i, LossCause cause, const std::string& reason, int64_t point) {
+  if (lost_[i]) return true;
+  lost_[i] = true;
+  losses_.push_back(UnitLoss{units_[i].id, cause, reason, point});
+  const std::string msg = fmt::format("unit {} lost ({}): {}; the other units go on", units_[i].id + 1, to_string(cause), reason);
+  log_.error("{}", msg);
+  events_.publish(Fault{Fault::Level::fault, point, msg, {}});
+  try {
+    Timed t(stats_.device_s);
+    units_[i].sensor->stop();
+  } catch (const DeviceError&) {
+    // It is lost already: its stream need not stop cleanly.
+  }
+  if (i == lead_) {
+    for (size_t k = 0; k < units_.size(); ++k) {
+      if (!lost_[k]) {
+        lead_ = k;
+        log_.warn("unit {} leads from here", units_[k].id + 1);
+        return true;
+      }
+    }
+    return false;
+  }
+  return true;
 }
 
 void EngineIo::command_rate(double arcsec_s) {

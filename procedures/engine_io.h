@@ -22,10 +22,30 @@ class EngineIo {
  public:
   EngineIo(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, EventBus& events, spdlog::logger& log,
            RunControl& control, EngineStats& stats, EngineClock& clock)
-      : g_(gimbal), s_(sensor), b_(bench), events_(events), log_(log), ctl_(control), stats_(stats), clock_(clock) {}
+      : g_(gimbal), b_(bench), events_(events), log_(log), ctl_(control), stats_(stats), clock_(clock),
+        units_{EngineUnit{0, &sensor, bench.axes}}, lost_(1, false) {}
 
   Gimbal& gimbal() { return g_; }
-  Sensor& sensor() { return s_; }
+  // The lead unit's sensor: its frames pace the dwells.
+  Sensor& sensor() { return *units_[lead_].sensor; }
+  const EngineUnit& lead() const { return units_[lead_]; }
+  size_t lead_index() const { return lead_; }
+
+  // --- several units (Engine::set_units) ---
+  void set_units(std::vector<EngineUnit> units);
+  size_t units() const { return units_.size(); }
+  const EngineUnit& unit(size_t i) const { return units_[i]; }
+  bool lost(size_t i) const { return lost_[i]; }
+  // The units still read besides the lead, by index.
+  std::vector<size_t> followers() const;
+  // Drops unit i for the rest of the run (a Fault event says so); the lead's place passes to the
+  // next unit still read. False when it was the last.
+  bool lose(size_t i, LossCause cause, const std::string& reason, int64_t point);
+  // Another unit could take the lead's place.
+  bool can_lose_lead() const;
+  const std::vector<UnitLoss>& losses() const { return losses_; }
+  // A failing unit's strikes: the points in a row it gave nothing at (reset by a good point).
+  int& strikes(size_t i) { return strikes_[i]; }
   const EngineSettings& settings() const { return b_; }
   EventBus& events() { return events_; }
   spdlog::logger& log() { return log_; }
@@ -38,6 +58,7 @@ class EngineIo {
   double last_yaw_arcsec() const { return last_yaw_arcsec_; }
   // The sensor's temperature for point `a`'s rows; NaN (and a warning) when it does not answer.
   double read_temperature_c(const Action& a);
+  double read_temperature_c(const Action& a, Sensor& sensor);
 
   // Every command the engine sends goes through these, so it knows what the gimbal should hold.
   void command_rate(double arcsec_s);
@@ -74,7 +95,6 @@ class EngineIo {
 
  private:
   Gimbal& g_;
-  Sensor& s_;
   const EngineSettings& b_;
   EventBus& events_;
   spdlog::logger& log_;
@@ -87,6 +107,11 @@ class EngineIo {
   bool stopping_ = false;
   double last_pitch_arcsec_ = 0, last_yaw_arcsec_ = 0;  // the latest encoder reading
   std::vector<std::pair<double, double>> places_;        // note_place, in order
+  std::vector<EngineUnit> units_;
+  std::vector<bool> lost_;
+  std::vector<int> strikes_ = std::vector<int>(1, 0);
+  size_t lead_ = 0;
+  std::vector<UnitLoss> losses_;
 };
 
 }  // namespace fpss

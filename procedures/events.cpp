@@ -52,6 +52,24 @@ const char* to_string(StopCause c) {
   return "?";
 }
 
+const char* to_string(LossCause c) {
+  switch (c) {
+    case LossCause::silence: return "silence";
+    case LossCause::crc_storm: return "crc_storm";
+    case LossCause::invalid_frames: return "invalid_frames";
+    case LossCause::wrong_serial: return "wrong_serial";
+    case LossCause::link_failed: return "link_failed";
+  }
+  return "?";
+}
+
+std::optional<LossCause> parse_loss_cause(std::string_view name) {
+  for (int i = 0; i <= static_cast<int>(LossCause::link_failed); ++i) {
+    if (name == to_string(static_cast<LossCause>(i))) return static_cast<LossCause>(i);
+  }
+  return std::nullopt;
+}
+
 std::optional<StopCause> parse_stop_cause(std::string_view name) {
   for (int i = 0; i <= static_cast<int>(StopCause::other); ++i) {
     if (name == to_string(static_cast<StopCause>(i))) return static_cast<StopCause>(i);
@@ -83,15 +101,20 @@ std::string StepStopped::reason() const {
                      sigma_max_arcsec, until_sigma_arcsec);
 }
 
-PointStats PointStats::of(const std::vector<RecordedRow>& rows) {
+PointStats PointStats::of(const std::vector<RecordedRow>& all) {
   PointStats s;
+  if (all.empty()) return s;
+  // Several units: the lead's rows (the first unit's in the point) describe the point.
+  std::vector<const RecordedRow*> rows;
+  for (const auto& r : all) {
+    if (r.unit == all.front().unit) rows.push_back(&r);
+  }
   s.rows = rows.size();
-  if (rows.empty()) return s;
-  for (const auto& r : rows) {
-    s.ref_pitch_arcsec += r.sample.ref_pitch_arcsec;
-    s.ref_yaw_arcsec += r.sample.ref_yaw_arcsec;
-    s.counts_alpha += r.sample.counts_alpha;
-    s.counts_beta += r.sample.counts_beta;
+  for (const RecordedRow* r : rows) {
+    s.ref_pitch_arcsec += r->sample.ref_pitch_arcsec;
+    s.ref_yaw_arcsec += r->sample.ref_yaw_arcsec;
+    s.counts_alpha += r->sample.counts_alpha;
+    s.counts_beta += r->sample.counts_beta;
   }
   const double n = static_cast<double>(rows.size());
   s.ref_pitch_arcsec /= n;
@@ -100,9 +123,9 @@ PointStats PointStats::of(const std::vector<RecordedRow>& rows) {
   s.counts_beta /= n;
   if (rows.size() > 1) {
     double va = 0, vb = 0;
-    for (const auto& r : rows) {
-      va += (r.sample.counts_alpha - s.counts_alpha) * (r.sample.counts_alpha - s.counts_alpha);
-      vb += (r.sample.counts_beta - s.counts_beta) * (r.sample.counts_beta - s.counts_beta);
+    for (const RecordedRow* r : rows) {
+      va += (r->sample.counts_alpha - s.counts_alpha) * (r->sample.counts_alpha - s.counts_alpha);
+      vb += (r->sample.counts_beta - s.counts_beta) * (r->sample.counts_beta - s.counts_beta);
     }
     s.sd_counts_alpha = std::sqrt(va / (n - 1));
     s.sd_counts_beta = std::sqrt(vb / (n - 1));

@@ -46,6 +46,17 @@ const char* to_string(StopCause c);
 // The name's cause; nullopt for any other text.
 std::optional<StopCause> parse_stop_cause(std::string_view name);
 
+// Why one unit of several on the gimbal was dropped from the rest of the run (the others go on).
+enum class LossCause {
+  silence,         // no frame within the frame timeout, after a restart of its stream
+  crc_storm,       // its frames arrived with bad CRCs (a line fault): none usable
+  invalid_frames,  // it kept sending invalid frames (no Sun, an axis invalid, saturated)
+  wrong_serial,    // it reported another serial than the stand file's
+  link_failed,     // its link could not be opened or reopened
+};
+const char* to_string(LossCause c);
+std::optional<LossCause> parse_loss_cause(std::string_view name);
+
 // Every event carries the values its events.jsonl line carries (docs/formats.md), so a line read
 // back (event_from_json) is the same event; `utc` is when it was written (empty until then: the
 // writer stamps it).

@@ -47,15 +47,17 @@ void PointMeasurer::publish_point(const Action& a, std::vector<RecordedRow> meas
 }
 
 RecordedRow PointMeasurer::make_row(const Action& a, Phase phase, const SensorSample& f, double sensor_time_s,
-                                    const GimbalRef& g, double temperature_c, int attempt, int session) {
+                                    double stand_time_s, const GimbalRef& g, double temperature_c, int attempt,
+                                    int session, const EngineUnit& u) {
   // The reference angles are the true ones when the reference's calibration is known; the raw
   // encoder readings stay in the row's provenance.
   const auto [true_p, true_y] =
       b_.reference ? b_.reference->true_from_reading(g.pitch_arcsec, g.yaw_arcsec) : std::pair{g.pitch_arcsec, g.yaw_arcsec};
-  const auto [ref_a, ref_b] = b_.axes.sensor_from_stand(true_p, true_y);
+  const auto [ref_a, ref_b] = u.axes.sensor_from_stand(true_p, true_y);
   RecordedRow r;
+  r.unit = u.id;
   r.sensor_time_s = sensor_time_s;
-  r.sample = Sample{clock_.stand_time(sensor_time_s), phase, a.point + 1, ref_a, ref_b,
+  r.sample = Sample{stand_time_s, phase, a.point + 1, ref_a, ref_b,
                     static_cast<double>(f.counts_alpha), static_cast<double>(f.counts_beta)};
   r.frame_seq = f.seq;
   r.sensor_status = f.status;
@@ -121,9 +123,30 @@ void PointMeasurer::recover(const std::string& reason, bool sensor_side) {
 }
 
 void PointMeasurer::with_remeasure(const Action& a, const std::function<void(int)>& attempt_fn) {
+  // Several units: a lead that fails the point on every attempt is dropped, and the next unit
+  // measures the point afresh (its attempts counted anew).
+  for (;;) {
+    const uint64_t crc0 = io_.sensor().stats().crc_errors;
+    try {
+      attempts(a, attempt_fn);
+      return;
+    } catch (const PointFailure& e) {
+      if (!e.sensor_side || !a.is_point() || !io_.can_lose_lead()) throw;
+      const uint64_t crc = io_.sensor().stats().crc_errors - crc0;
+      const LossCause cause = crc > static_cast<uint64_t>(a.frames) ? LossCause::crc_storm
+                              : e.cause == StopCause::sensor_invalid ? LossCause::invalid_frames
+                                                                     : LossCause::silence;
+      io_.lose(io_.lead_index(), cause, e.what(), a.point);
+      flush_followers();
+    }
+  }
+}
+
+void PointMeasurer::attempts(const Action& a, const std::function<void(int)>& attempt_fn) {
   std::string reason;
   StopCause cause = StopCause::other;
   const int attempts = 1 + std::max(0, b_.max_remeasure);
+  bool last_sensor_side = false;
   for (int attempt = 1; attempt <= attempts; ++attempt) {
     bool sensor_side = false;
     try {
@@ -149,6 +172,7 @@ void PointMeasurer::with_remeasure(const Action& a, const std::function<void(int
       cause = StopCause::other;
       sensor_side = true;  // not knowing which device failed, reset both
     }
+    last_sensor_side = sensor_side;
     io_.warn(&a, fmt::format("{} attempt {}/{} not counted: {}", label(a), attempt, attempts, reason));
     io_.check_abort();
     if (attempt < attempts) {
@@ -156,10 +180,12 @@ void PointMeasurer::with_remeasure(const Action& a, const std::function<void(int
       recover(reason, sensor_side);
     }
   }
-  throw PointFailure(fmt::format("{} failed after {} attempts: {}",
-                                 a.is_point() ? a.describe() : fmt::format("{} ({})", label(a), a.describe()), attempts,
-                                 reason),
-                     cause);
+  PointFailure failure(fmt::format("{} failed after {} attempts: {}",
+                                   a.is_point() ? a.describe() : fmt::format("{} ({})", label(a), a.describe()), attempts,
+                                   reason),
+                       cause);
+  failure.sensor_side = last_sensor_side;
+  throw failure;
 }
 
 std::optional<SensorSample> PointMeasurer::settle(const Action& a, const GimbalState& arrived, double& settled_host_s) {
@@ -213,6 +239,8 @@ PointMeasurer::DwellFrames PointMeasurer::take_dwell(const Action& a, const Gimb
     move_at_s = sched_.has_queued() ? sched_.adopt_queued_move(a, end_s, arrived) : sched_.schedule_next_move(a, end_s);
   }
   std::optional<SensorSample> first = settle(a, arrived, settled_host);
+  d.settled_bench_s = settled_bench;
+  d.settled_host_s = settled_host;
   bool reading = true;  // readings after the next move's start are no reference of this dwell
   uint8_t last_bad_status = 0;
   while (static_cast<int>(d.frames.size()) < a.frames) {
@@ -300,8 +328,13 @@ void PointMeasurer::measure_dwell(const Action& a, int session) {
     for (size_t i = 0; i < d.frames.size(); ++i) {
       const GimbalState& g = d.refs[d.ref_of[i]];
       const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
-      rows.push_back(make_row(a, a.phase, d.frames[i], clock_.sensor_clock_s(d.frames[i]), ref, temp, attempt, session));
+      const double ts = clock_.sensor_clock_s(d.frames[i]);
+      rows.push_back(make_row(a, a.phase, d.frames[i], ts, clock_.stand_time(ts), ref, temp, attempt, session, io_.lead()));
       rows.back().time_since_move_s = since_arrival_s(d.frames[i], arrived, arrived_s);
+    }
+    for (size_t u : io_.followers()) {
+      std::vector<RecordedRow> more = follower_dwell(a, u, d, rows, arrived, arrived_s, attempt, session);
+      rows.insert(rows.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
     }
     publish_point(a, std::move(rows), attempt, session, d.invalid);
   });
@@ -372,6 +405,7 @@ void PointMeasurer::measure_slew(const Action& a, int session) {
         io_.command_rate(a.rate_arcsec_s);
         io_.sensor().flush();
       }
+      flush_followers();
       fix(io_.read_gimbal());
       {
         Timed t(stats_.device_s);
@@ -416,31 +450,8 @@ void PointMeasurer::measure_slew(const Action& a, int session) {
     }
     io_.verify_command();
     if (frames.empty()) throw SensorFailure("the sensor sent no frame during the slew");
-    std::vector<double> s_times, g_times;  // sensor time -> gimbal time
-    slew_times(frames, fixes, s_times, g_times);
-    const double temp = io_.read_temperature_c(a);
-    std::vector<RecordedRow> rows;
     int invalid = 0, gapped = 0;
-    double next_keep = -std::numeric_limits<double>::infinity();
-    for (size_t i = 0; i < frames.size(); ++i) {
-      const auto& f = frames[i];
-      auto at = interpolate_at(fixes, g_times[i]);
-      if (!at) continue;  // before the first or after the last gimbal reading: no reference
-      if (at->gap_s > b_.max_reference_gap_s) {
-        ++gapped;  // the gimbal was not read often enough around this frame to trust its reference
-        continue;
-      }
-      if (!f.valid()) {
-        ++invalid;
-        continue;
-      }
-      // One sample per period on the sensor's clock: the first frame at least a period after the
-      // last one kept (a microsecond of slack for float rounding).
-      if (s_times[i] + 1e-6 < next_keep) continue;
-      next_keep = s_times[i] + a.sample_period_s;
-      const GimbalRef ref{g_times[i], at->pitch_arcsec, at->yaw_arcsec, at->status};
-      rows.push_back(make_row(a, Phase::slew, f, s_times[i], ref, temp, attempt, session));
-    }
+    std::vector<RecordedRow> rows = slew_rows(a, io_.lead(), true, frames, fixes, attempt, session, invalid, gapped);
     if (rows.empty()) {
       throw SensorFailure(fmt::format("no valid frame aligned with the gimbal during the slew ({} frames, {} invalid)",
                                       frames.size(), invalid),
@@ -451,12 +462,177 @@ void PointMeasurer::measure_slew(const Action& a, int session) {
       log_.info("point {}: {} frame(s) skipped: gimbal readings around them more than {} s apart", a.point + 1, gapped,
                 b_.max_reference_gap_s);
     }
+    const std::vector<std::vector<SensorSample>> more = drain_followers();
+    const std::vector<size_t> followers = io_.followers();
+    for (size_t k = 0; k < followers.size(); ++k) {
+      int f_invalid = 0, f_gapped = 0;
+      std::vector<RecordedRow> f_rows =
+          slew_rows(a, io_.unit(followers[k]), false, more[k], fixes, attempt, session, f_invalid, f_gapped);
+      if (f_rows.empty()) {
+        follower_failed(a, followers[k], fmt::format("no valid frame aligned with the gimbal during the slew ({} frames, "
+                                                     "{} invalid)", more[k].size(), f_invalid), f_invalid);
+        continue;
+      }
+      follower_ok(followers[k]);
+      rows.insert(rows.end(), std::make_move_iterator(f_rows.begin()), std::make_move_iterator(f_rows.end()));
+    }
     double max_gap = 0;
     for (size_t i = 1; i < fixes.size(); ++i) max_gap = std::max(max_gap, fixes[i].gimbal_time_s - fixes[i - 1].gimbal_time_s);
     log_.debug("point {}: slew of {} frames, {} kept, {} gimbal readings (largest gap {:.1f} ms of bench time)",
                a.point + 1, frames.size(), rows.size(), fixes.size(), max_gap * 1e3);
     publish_point(a, std::move(rows), attempt, session, invalid);
   });
+}
+
+std::vector<RecordedRow> PointMeasurer::slew_rows(const Action& a, const EngineUnit& u, bool lead,
+                                                  const std::vector<SensorSample>& frames,
+                                                  const std::vector<GimbalFix>& fixes, int attempt, int session,
+                                                  int& invalid, int& gapped) {
+  std::vector<RecordedRow> rows;
+  if (frames.empty()) return rows;
+  std::vector<double> s_times, g_times;  // sensor time -> gimbal time
+  slew_times(frames, fixes, s_times, g_times);
+  const double temp = lead ? io_.read_temperature_c(a) : io_.read_temperature_c(a, *u.sensor);
+  double next_keep = -std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const auto& f = frames[i];
+    auto at = interpolate_at(fixes, g_times[i]);
+    if (!at) continue;  // before the first or after the last gimbal reading: no reference
+    if (at->gap_s > b_.max_reference_gap_s) {
+      ++gapped;  // the gimbal was not read often enough around this frame to trust its reference
+      continue;
+    }
+    if (!f.valid()) {
+      ++invalid;
+      continue;
+    }
+    // One sample per period on the sensor's clock: the first frame at least a period after the
+    // last one kept (a microsecond of slack for float rounding).
+    if (s_times[i] + 1e-6 < next_keep) continue;
+    next_keep = s_times[i] + a.sample_period_s;
+    const GimbalRef ref{g_times[i], at->pitch_arcsec, at->yaw_arcsec, at->status};
+    // A follower's frames are on the lead's stand time through the shared clock, else through the
+    // gimbal's clock (g_times: the same instant on the gimbal's clock for every unit).
+    const double stand_s = lead ? clock_.stand_time(s_times[i])
+                                : clock_.stand_time_of(b_.clock == ClockSync::shared ? s_times[i] : g_times[i]);
+    rows.push_back(make_row(a, Phase::slew, f, s_times[i], stand_s, ref, temp, attempt, session, u));
+  }
+  return rows;
+}
+
+void PointMeasurer::flush_followers() {
+  for (size_t u : io_.followers()) {
+    try {
+      Timed t(stats_.device_s);
+      io_.unit(u).sensor->flush();
+    } catch (const DeviceError& e) {
+      log_.warn("unit {}: flush failed: {}", io_.unit(u).id + 1, e.what());
+    }
+  }
+}
+
+std::vector<std::vector<SensorSample>> PointMeasurer::drain_followers() {
+  std::vector<std::vector<SensorSample>> out;
+  for (size_t u : io_.followers()) {
+    out.emplace_back();
+    try {
+      Timed t(stats_.device_s);
+      while (auto f = io_.unit(u).sensor->next_sample(0.0)) out.back().push_back(*f);
+    } catch (const DeviceError& e) {
+      log_.warn("unit {}: {}", io_.unit(u).id + 1, e.what());
+    }
+  }
+  return out;
+}
+
+std::vector<RecordedRow> PointMeasurer::follower_dwell(const Action& a, size_t ui, const DwellFrames& d,
+                                                       const std::vector<RecordedRow>& lead_rows,
+                                                       const GimbalState& arrived, double arrived_s, int attempt,
+                                                       int session) {
+  const EngineUnit& u = io_.unit(ui);
+  const bool shared = b_.clock == ClockSync::shared;
+  const double period_s = 1.0 / b_.sample_rate_hz;
+  // One clock for every device: the frames' stamps say when they were sampled; else their receipt.
+  auto when = [&](const SensorSample& f) { return shared ? clock_.sensor_clock_s(f) : f.host_time_s; };
+  const double lo = shared ? d.settled_bench_s : d.settled_host_s;
+  const double hi = when(d.frames.back()) + (shared ? 0.5 * period_s : b_.wall(0.5 * period_s));
+  std::vector<SensorSample> frames;
+  int invalid = 0;
+  std::string failure;
+  const auto deadline = Clock::now() + std::chrono::duration<double>(b_.wall(period_s) + b_.frame_timeout_s);
+  while (static_cast<int>(frames.size()) < a.frames) {
+    const double left = std::chrono::duration<double>(deadline - Clock::now()).count();
+    if (left <= 0) break;
+    std::optional<SensorSample> f;
+    try {
+      Timed t(stats_.device_s);
+      f = u.sensor->next_sample(left);
+    } catch (const DeviceError& e) {
+      failure = e.what();
+      break;
+    }
+    if (!f) break;
+    const double t = when(*f);
+    if (t + 1e-6 < lo) continue;  // sampled before the settle ended (during the move)
+    if (t > hi + 1e-6) break;     // after the dwell: the next move's
+    if (!f->valid()) {
+      ++invalid;
+      continue;
+    }
+    frames.push_back(*f);
+  }
+  if (frames.empty()) {
+    follower_failed(a, ui, failure.empty() ? fmt::format("no valid frame over the dwell ({} invalid)", invalid) : failure,
+                    invalid);
+    return {};
+  }
+  follower_ok(ui);
+  const double temp = io_.read_temperature_c(a, *u.sensor);
+  std::vector<double> lead_t;
+  for (const auto& f : d.frames) lead_t.push_back(when(f));
+  std::vector<RecordedRow> rows;
+  for (const auto& f : frames) {
+    // The lead frame nearest in time gives the gimbal reading (and, off a shared clock, the time).
+    const double t = when(f);
+    size_t j = static_cast<size_t>(std::lower_bound(lead_t.begin(), lead_t.end(), t) - lead_t.begin());
+    if (j == lead_t.size() || (j > 0 && t - lead_t[j - 1] < lead_t[j] - t)) j = j == 0 ? 0 : j - 1;
+    const GimbalState& g = d.refs[d.ref_of[j]];
+    const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
+    const double ts = shared ? clock_.sensor_clock_s(f) : f.sensor_time_s + b_.sensor_time_offset_s;
+    const double stand_s = shared ? clock_.stand_time_of(ts)
+                                  : std::round((lead_rows[j].sample.time_s + (t - lead_t[j]) * b_.time_scale) * 1e6) / 1e6;
+    rows.push_back(make_row(a, a.phase, f, ts, stand_s, ref, temp, attempt, session, u));
+    rows.back().time_since_move_s = since_arrival_s(f, arrived, arrived_s);
+  }
+  return rows;
+}
+
+void PointMeasurer::follower_failed(const Action& a, size_t ui, const std::string& why, int invalid) {
+  const EngineUnit& u = io_.unit(ui);
+  if (crc_seen_.size() < io_.units()) crc_seen_.resize(io_.units(), 0);
+  uint64_t crc = crc_seen_[ui];
+  try {
+    crc = u.sensor->stats().crc_errors;
+  } catch (const std::exception&) {
+  }
+  const bool storm = crc - crc_seen_[ui] > static_cast<uint64_t>(a.frames);
+  crc_seen_[ui] = crc;
+  // A point without frames is forgiven as often as the stand re-measures a point (its stream
+  // restarted in between); one more in a row and the unit is dropped.
+  if (++io_.strikes(ui) > std::max(1, b_.max_remeasure)) {
+    const LossCause cause = storm ? LossCause::crc_storm : invalid > 0 ? LossCause::invalid_frames : LossCause::silence;
+    io_.lose(ui, cause, fmt::format("{} at {} points in a row, the last {}", why, io_.strikes(ui), a.describe()), a.point);
+    return;
+  }
+  io_.warn(&a, fmt::format("unit {}: {} at {}; restarting its stream", u.id + 1, why, a.describe()));
+  try {
+    Timed t(stats_.device_s);
+    u.sensor->stop();
+    u.sensor->flush();
+    u.sensor->start();
+  } catch (const DeviceError& e) {
+    log_.warn("unit {} not answering while restarting: {}", u.id + 1, e.what());
+  }
 }
 
 }  // namespace fpss

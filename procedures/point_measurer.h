@@ -31,6 +31,7 @@ class PointMeasurer {
   void measure_dwell(const Action& a, int session);
   void measure_slew(const Action& a, int session);
   // Runs attempt(1), attempt(2), ... until one succeeds or the stand's re-measurements run out.
+  // Several units: a lead failing every attempt on its side is dropped and the next one begins again.
   void with_remeasure(const Action& a, const std::function<void(int)>& attempt);
 
   int64_t next_point() const { return next_point_; }
@@ -44,7 +45,9 @@ class PointMeasurer {
     std::vector<GimbalState> refs;
     std::vector<size_t> ref_of;
     int invalid = 0;  // frames skipped as invalid
+    double settled_bench_s = 0, settled_host_s = 0;  // the settle's end, on the bench's and the host's clocks
   };
+  void attempts(const Action& a, const std::function<void(int)>& attempt);  // one lead's attempts
   DwellFrames take_dwell(const Action& a, const GimbalState& arrived);
   // Waits out the settle after the arrival; the dwell's first frame when the frames told.
   std::optional<SensorSample> settle(const Action& a, const GimbalState& arrived, double& settled_host_s);
@@ -63,9 +66,28 @@ class PointMeasurer {
     double time_s = 0, pitch_arcsec = 0, yaw_arcsec = 0;
     uint16_t status = 0;
   };
-  // One row of point `a`: frame `f` at `sensor_time_s` (sensor clock) with its reference `g`.
-  RecordedRow make_row(const Action& a, Phase phase, const SensorSample& f, double sensor_time_s, const GimbalRef& g,
-                       double temperature_c, int attempt, int session);
+  // One row of point `a` for unit `u`: frame `f` at `sensor_time_s` (its sensor clock) and
+  // `stand_time_s`, with its reference `g`.
+  RecordedRow make_row(const Action& a, Phase phase, const SensorSample& f, double sensor_time_s, double stand_time_s,
+                       const GimbalRef& g, double temperature_c, int attempt, int session, const EngineUnit& u);
+  // A slew's rows for unit `u` from its frames and the gimbal's readings; counts what it skipped.
+  std::vector<RecordedRow> slew_rows(const Action& a, const EngineUnit& u, bool lead, const std::vector<SensorSample>& frames,
+                                     const std::vector<GimbalFix>& fixes, int attempt, int session, int& invalid,
+                                     int& gapped);
+
+  // --- several units: the followers' frames over the lead's point ---
+  // A follower's dwell rows: its frames sampled between the settle's end and the lead's dwell end,
+  // each referenced to the gimbal reading of the lead frame nearest in time (lead_rows: the lead's).
+  std::vector<RecordedRow> follower_dwell(const Action& a, size_t unit, const DwellFrames& d,
+                                          const std::vector<RecordedRow>& lead_rows, const GimbalState& arrived,
+                                          double arrived_s, int attempt, int session);
+  // Every follower's frames queued now (a slew's, after it).
+  std::vector<std::vector<SensorSample>> drain_followers();
+  void flush_followers();
+  // A follower gave no rows at a point: its stream restarted, or it is dropped after too many in a row.
+  void follower_failed(const Action& a, size_t unit, const std::string& why, int invalid);
+  void follower_ok(size_t unit) { io_.strikes(unit) = 0; }
+  std::vector<uint64_t> crc_seen_;  // per unit: its driver's CRC errors at its last good point
 
   EngineIo& io_;
   EngineClock& clock_;

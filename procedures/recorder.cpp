@@ -115,6 +115,10 @@ std::vector<JournalEntry> RunRecorder::read_journal(const fs::path& path) {
       je.session = j.value("session", 1);
       je.attempts = j.value("attempts", 1);
       je.skipped = j.value("skipped", "");
+      if (j.contains("unit_bytes")) {
+        je.unit_bytes = j.at("unit_bytes").get<std::vector<uint64_t>>();
+        if (je.unit_bytes.size() > 64) throw InputError(fmt::format("{}:{}: key unit_bytes: more than 64 units", path.string(), line_no));
+      }
       if (je.skipped.size() > 200) throw InputError(fmt::format("{}:{}: key skipped: longer than 200 characters", path.string(), line_no));
     } catch (const nlohmann::json::exception& ex) {
       // The journal is not synced line by line (samples.csv is, before each line): a crash can
@@ -150,17 +154,16 @@ uint64_t journal_good_bytes(const fs::path& path, size_t entries) {
 }
 }  // namespace
 
-RunRecorder::RunRecorder(const fs::path& run_dir) : dir_(run_dir) {
-  fs::create_directories(dir_);
-  const fs::path samples = samples_path();
-  journal_ = read_journal(journal_path());
-  // Cut the journal back to its readable lines (a torn line is a point that never completed).
-  if (fs::exists(journal_path())) {
-    const uint64_t good = journal_good_bytes(journal_path(), journal_.size());
-    if (good != fs::file_size(journal_path())) fs::resize_file(journal_path(), good);
-  }
-  const std::string header = header_text();
-  const uint64_t keep = journal_.empty() ? header.size() : journal_.back().bytes;
+std::string unit_folder_name(const std::string& serial) { return safe_name(serial); }
+
+fs::path RunRecorder::samples_path(size_t unit) const {
+  if (serials_.size() <= 1) return dir_ / "samples.csv";
+  return dir_ / "units" / unit_folder_name(serials_.at(unit)) / "samples.csv";
+}
+
+void RunRecorder::open_samples(size_t unit, uint64_t keep) {
+  const fs::path samples = samples_path(unit);
+  fs::create_directories(samples.parent_path());
   if (fs::exists(samples)) {
     const uint64_t size = fs::file_size(samples);
     if (size < keep) {
@@ -169,13 +172,38 @@ RunRecorder::RunRecorder(const fs::path& run_dir) : dir_(run_dir) {
                                    samples.string(), size, journal_path().string(), keep));
     }
     if (size > keep) {
-      cut_bytes_ = size - keep;
+      cut_bytes_ += size - keep;
       fs::resize_file(samples, keep);
     }
   } else if (!journal_.empty()) {
     throw InputError(fmt::format("{}: missing, but the journal lists {} points", samples.string(), journal_.size()));
   }
-  writer_ = std::make_unique<SamplesCsvWriter>(samples, recorder_extra_columns());
+  writers_.push_back(std::make_unique<SamplesCsvWriter>(samples, recorder_extra_columns()));
+  fsync_dir(samples.parent_path());
+}
+
+RunRecorder::RunRecorder(const fs::path& run_dir, std::vector<std::string> unit_serials)
+    : dir_(run_dir), serials_(std::move(unit_serials)) {
+  if (serials_.size() == 1) serials_.clear();
+  fs::create_directories(dir_);
+  journal_ = read_journal(journal_path());
+  // Cut the journal back to its readable lines (a torn line is a point that never completed).
+  if (fs::exists(journal_path())) {
+    const uint64_t good = journal_good_bytes(journal_path(), journal_.size());
+    if (good != fs::file_size(journal_path())) fs::resize_file(journal_path(), good);
+  }
+  const uint64_t header = header_text().size();
+  for (size_t u = 0; u < units(); ++u) {
+    uint64_t keep = header;
+    if (!journal_.empty()) {
+      const JournalEntry& last = journal_.back();
+      if (serials_.empty()) keep = last.bytes;
+      else if (last.unit_bytes.size() == serials_.size()) keep = last.unit_bytes[u];
+      else throw InputError(fmt::format("{}: the journal's unit_bytes list {} units, the run has {}",
+                                        journal_path().string(), last.unit_bytes.size(), serials_.size()));
+    }
+    open_samples(u, keep);
+  }
   if (!journal_.empty()) {
     last_time_s_ = journal_.back().last_time_s;
     for (const auto& j : journal_) has_rows_ = has_rows_ || j.rows > 0;
@@ -196,10 +224,12 @@ void RunRecorder::append_point(int64_t point, const std::vector<RecordedRow>& ro
     throw std::logic_error(fmt::format("recorder: point {} out of order (next is {})", point + 1, next_point() + 1));
   }
   for (const auto& r : rows) {
-    writer_->append(r.sample, r.extras());
+    const size_t u = serials_.empty() ? 0 : static_cast<size_t>(r.unit);
+    if (u >= writers_.size()) throw std::logic_error(fmt::format("recorder: a row of unit {} (the run has {})", u + 1, writers_.size()));
+    writers_[u]->append(r.sample, r.extras());
     last_time_s_ = std::max(last_time_s_, r.sample.time_s);
   }
-  writer_->sync();
+  for (auto& w : writers_) w->sync();
   journal_point(point, rows.size(), attempts, session, {});
   has_rows_ = has_rows_ || !rows.empty();
 }
@@ -217,6 +247,7 @@ void RunRecorder::journal_point(int64_t point, size_t rows, int attempts, int se
   je.step = point + 1;
   je.rows = rows;
   je.bytes = fs::file_size(samples_path());
+  for (size_t u = 0; u < serials_.size(); ++u) je.unit_bytes.push_back(fs::file_size(samples_path(u)));
   je.last_time_s = last_time_s_;
   je.utc = utc_now_iso();
   je.session = session;
@@ -226,6 +257,7 @@ void RunRecorder::journal_point(int64_t point, size_t rows, int attempts, int se
                    {"bytes", je.bytes},     {"last_time_s", je.last_time_s}, {"utc", je.utc},
                    {"session", je.session}, {"attempts", je.attempts}};
   if (!skipped.empty()) j["skipped"] = skipped;
+  if (!je.unit_bytes.empty()) j["unit_bytes"] = je.unit_bytes;
   const std::string line = j.dump() + "\n";
   // No fsync here: samples.csv is durable already, and a journal line lost in a crash only
   // means the point is cut and measured again on resume (one fsync per point, not two).

@@ -2,6 +2,7 @@
 #pragma once
 #include <cstdint>
 #include <filesystem>
+#include <algorithm>
 #include <limits>
 #include <string>
 #include <vector>
@@ -31,6 +32,7 @@ struct RecordedRow {
   double temperature_c = 0;   // NaN when the sensor did not answer
   int attempt = 1;            // measurement attempt of the point that was kept
   int session = 1;            // 1 + number of resumes before this row
+  int unit = 0;               // which unit of the stand (its index in the stand's units); not a column
   // Dwells: the row's time less the gimbal's arrival (the arrival the settle counts from, on the
   // gimbal's clock); NaN (empty) in slews, which are moving.
   double time_since_move_s = std::numeric_limits<double>::quiet_NaN();
@@ -52,7 +54,13 @@ struct JournalEntry {
   int attempts = 1;
   // Not measured: why ("until": a grid's adaptive stop had reached its target); rows is then 0.
   std::string skipped;
+  // Several units: each unit's samples.csv size once this point was synced (bytes is the first's).
+  std::vector<uint64_t> unit_bytes;
 };
+
+// A unit's folder name in RUN_DIR/units/: its serial, with anything but letters, digits, '.', '_'
+// and '-' replaced by '_' ("unknown" when empty).
+std::string unit_folder_name(const std::string& serial);
 
 
 // An ISO 8601 UTC time (utc_now_iso(), 2024-05-01T12:00:00Z) compact for folder names (20240501T120000Z).
@@ -76,9 +84,12 @@ struct ResumePoint {
 // Appends points to samples.csv and records each in points.jsonl once it is durable, so a crash
 // loses at most the point in progress. Opening an existing folder (a resume) cuts samples.csv
 // back to the end of the last journalled point: no half point survives, none is repeated.
+// Several units: each unit's rows (RecordedRow::unit) go to RUN_DIR/units/<SERIAL>/samples.csv,
+// all synced before the point is journalled; the journal gives every file's size (unit_bytes).
 class RunRecorder {
  public:
-  explicit RunRecorder(const std::filesystem::path& run_dir);
+  // `unit_serials`: several units' serials in the stand's order; empty or one: RUN_DIR/samples.csv.
+  explicit RunRecorder(const std::filesystem::path& run_dir, std::vector<std::string> unit_serials = {});
   RunRecorder(const RunRecorder&) = delete;
   RunRecorder& operator=(const RunRecorder&) = delete;
 
@@ -95,11 +106,14 @@ class RunRecorder {
     return {next_point(), last_time_s_, journal_.empty() ? std::string() : journal_.back().utc};
   }
   bool has_rows() const { return has_rows_; }
-  size_t rows() const { return writer_->rows_written(); }
+  size_t rows() const { return writers_.front()->rows_written(); }  // the first unit's
   // Bytes of a torn point cut away when the folder was opened (0 on a clean open).
   uint64_t cut_bytes() const { return cut_bytes_; }
   const std::filesystem::path& dir() const { return dir_; }
-  std::filesystem::path samples_path() const { return dir_ / "samples.csv"; }
+  // The first unit's samples.csv (the only one with one unit).
+  std::filesystem::path samples_path() const { return samples_path(0); }
+  std::filesystem::path samples_path(size_t unit) const;
+  size_t units() const { return std::max<size_t>(1, serials_.size()); }
   std::filesystem::path journal_path() const { return dir_ / "points.jsonl"; }
 
   // Reads the journal, ignoring a torn or unreadable last line; InputError for anything else
@@ -108,7 +122,9 @@ class RunRecorder {
 
  private:
   std::filesystem::path dir_;
-  std::unique_ptr<SamplesCsvWriter> writer_;
+  std::vector<std::string> serials_;  // several units; empty for one
+  std::vector<std::unique_ptr<SamplesCsvWriter>> writers_;  // every unit's (several units)
+  void open_samples(size_t unit, uint64_t keep);
   std::vector<JournalEntry> journal_;
   UniqueFd journal_fd_;
   double last_time_s_ = 0;

@@ -182,10 +182,66 @@ json acceptance_json(const RunFileAcceptance& a) {
   return j;
 }
 
+RunFileUnit unit_of(const Obj& o) {
+  RunFileUnit u;
+  u.serial = o.text("serial");
+  u.sensor_id = o.opt_text("sensor_id");
+  u.endpoint = o.opt_text("endpoint");
+  u.outcome = o.text("outcome");
+  if (u.outcome != "running" && u.outcome != "completed" && u.outcome != "lost" && u.outcome != "failed" &&
+      u.outcome != "interrupted") {
+    o.bad("outcome", "expected running, completed, lost, failed or interrupted, got \"" + u.outcome + "\"");
+  }
+  u.loss_cause = o.opt_text("loss_cause");
+  if (u.loss_cause && !parse_loss_cause(*u.loss_cause)) o.bad("loss_cause", "unknown cause \"" + *u.loss_cause + "\"");
+  u.reason = o.opt_text("reason");
+  u.lost_at_point = o.opt_integer("lost_at_point");
+  u.samples = o.opt_text("samples");
+  u.calibration = o.opt_text("calibration");
+  u.acceptance = o.opt_text("acceptance");
+  u.certificate = o.opt_text("certificate");
+  u.verdict = o.opt_text("verdict");
+  if (o.has("relative") && !o.at("relative").is_null()) {
+    const Obj r = o.obj("relative");
+    u.relative = RunFileRelative{r.text("to"),
+                                 r.number("boresight_pitch_arcsec"), r.number("boresight_pitch_sigma_arcsec"),
+                                 r.number("boresight_yaw_arcsec"), r.number("boresight_yaw_sigma_arcsec"),
+                                 r.number("roll_arcsec"), r.number("roll_sigma_arcsec")};
+  }
+  return u;
+}
+
+json unit_json(const RunFileUnit& u) {
+  json j = json::object();
+  j["serial"] = u.serial;
+  put(j, "sensor_id", u.sensor_id);
+  put(j, "endpoint", u.endpoint);
+  j["outcome"] = u.outcome;
+  put(j, "loss_cause", u.loss_cause);
+  put(j, "reason", u.reason);
+  put(j, "lost_at_point", u.lost_at_point);
+  put(j, "samples", u.samples);
+  put(j, "calibration", u.calibration);
+  put(j, "acceptance", u.acceptance);
+  put(j, "certificate", u.certificate);
+  put(j, "verdict", u.verdict);
+  if (u.relative) {
+    const RunFileRelative& r = *u.relative;
+    j["relative"] = {{"to", r.to},
+                     {"boresight_pitch_arcsec", r.boresight_pitch_arcsec},
+                     {"boresight_pitch_sigma_arcsec", r.boresight_pitch_sigma_arcsec},
+                     {"boresight_yaw_arcsec", r.boresight_yaw_arcsec},
+                     {"boresight_yaw_sigma_arcsec", r.boresight_yaw_sigma_arcsec},
+                     {"roll_arcsec", r.roll_arcsec},
+                     {"roll_sigma_arcsec", r.roll_sigma_arcsec}};
+  }
+  return j;
+}
+
 const char* const kKnown[] = {"format",         "run_id",  "software", "procedure",  "stand",     "unit",
                               "sensor_id",      "emulated", "emulator", "started_utc", "ended_utc", "outcome",
                               "reason",         "stop_cause", "points", "adaptive_stops", "safe_state", "operator",
-                              "signed_off_utc", "sessions", "files",   "acceptance", "reference"};
+                              "signed_off_utc", "sessions", "files",   "acceptance", "reference", "units"};
 
 void read_top(RunFile& r, const Obj& o) {
   r.format = o.opt_text("format");
@@ -261,6 +317,12 @@ RunFile run_file_from_json(const nlohmann::json& j, const std::string& origin) {
   r.files = {f.opt_text("samples"),     f.opt_text("journal"),     f.opt_text("events"),
              f.opt_text("event_stream"), f.opt_text("calibration"), f.opt_text("gap")};
   if (o.has("acceptance")) r.acceptance = acceptance_of(o.obj("acceptance"));
+  if (o.has("units")) {
+    const json& a = o.array("units");
+    if (a.size() > 64) o.bad("units", "more than 64 units");
+    r.units.emplace();
+    for (size_t i = 0; i < a.size(); ++i) r.units->push_back(unit_of(Obj(a[i], o.origin(), fmt::format("units[{}]", i))));
+  }
   if (o.has("reference")) {
     const Obj ref = o.obj("reference");
     r.reference = RunFileReference{ref.text("file"), ref.text("sha256"), ref.text("certificate"), ref.text("date"),
@@ -311,6 +373,10 @@ nlohmann::json to_json(const RunFile& r) {
   put(files, "gap", r.files.gap);
   j["files"] = files;
   if (r.acceptance) j["acceptance"] = acceptance_json(*r.acceptance);
+  if (r.units) {
+    j["units"] = json::array();
+    for (const auto& u : *r.units) j["units"].push_back(unit_json(u));
+  }
   if (r.reference) {
     j["reference"] = {{"file", r.reference->file}, {"sha256", r.reference->sha256}, {"certificate", r.reference->certificate},
                       {"date", r.reference->date}, {"lab", r.reference->lab}};

@@ -57,6 +57,29 @@ struct RunFileReference {
   std::string file, sha256, certificate, date, lab;
 };
 
+// How a unit sits relative to the run's first unit (several units): its boresight offset and
+// roll, arcsec, each with its 1-sigma (calib/unit_alignment.h).
+struct RunFileRelative {
+  std::string to;  // the first unit's serial
+  double boresight_pitch_arcsec = 0, boresight_pitch_sigma_arcsec = 0;
+  double boresight_yaw_arcsec = 0, boresight_yaw_sigma_arcsec = 0;
+  double roll_arcsec = 0, roll_sigma_arcsec = 0;
+};
+
+// One entry of `units` (several units on one gimbal): a unit's outcome and its files, relative
+// to the run folder (units/<SERIAL>/...).
+struct RunFileUnit {
+  std::string serial;
+  std::optional<std::string> sensor_id, endpoint;
+  std::string outcome = "running";          // running | completed | lost | failed | interrupted
+  std::optional<std::string> loss_cause;    // lost: silence | crc_storm | invalid_frames | wrong_serial | link_failed
+  std::optional<std::string> reason;        // lost: what happened
+  std::optional<int64_t> lost_at_point;     // lost: the point (1-based) it was dropped at; 0 before the first
+  std::optional<std::string> samples, calibration, acceptance, certificate;
+  std::optional<std::string> verdict;       // accept: pass | conditional | fail
+  std::optional<RunFileRelative> relative;  // every unit but the first, once calibrated
+};
+
 struct RunFile {
   std::optional<std::string> format;  // kRunFileFormat
   std::optional<std::string> run_id;  // a UUIDv7; older runs: absent (the folder's name)
@@ -96,6 +119,7 @@ struct RunFile {
   } files;
   std::optional<RunFileAcceptance> acceptance;
   std::optional<RunFileReference> reference;  // absent: the readings were taken as true
+  std::optional<std::vector<RunFileUnit>> units;  // several units on one gimbal; absent for one
   nlohmann::json extra = nlohmann::json::object();  // keys this version does not know, kept as read
 
   // The run id, or the folder's name for runs made before ids were UUIDs.

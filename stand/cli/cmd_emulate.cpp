@@ -3,6 +3,7 @@
 #include <signal.h>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <cstdio>
 #include <sstream>
@@ -66,8 +67,9 @@ void inject_from_file(Emulator& emu, const std::string& path) {
 int run_emulate(const EmulateArgs& a, bool seed_given) {
   EmulatorOptions o;
   o.bench = a.bench_file.empty() ? default_bench_config() : load_bench_file(a.bench_file);
-  if (!a.truth_file.empty()) o.bench.truth = load_coefficients(a.truth_file);
-  if (!a.unit_serial.empty()) o.bench.serial = a.unit_serial;
+  // With a bench of several units, --truth and --unit-serial are the first unit's.
+  if (!a.truth_file.empty()) (o.bench.sensors.empty() ? o.bench.truth : o.bench.sensors.front().truth) = load_coefficients(a.truth_file);
+  if (!a.unit_serial.empty()) (o.bench.sensors.empty() ? o.bench.serial : o.bench.sensors.front().serial) = a.unit_serial;
   if (seed_given || a.bench_file.empty()) o.bench.seed = a.seed;
   for (const auto& e : a.effects) o.bench.effects.push_back(parse_effect(e));
   for (const auto& f : a.faults) o.faults.push_back(parse_fault(f));
@@ -102,11 +104,16 @@ int run_emulate(const EmulateArgs& a, bool seed_given) {
   namespace r = emulator_ready;
   std::printf("%.*s%s\n", int(r::gimbal.size()), r::gimbal.data(), ep.gimbal().c_str());
   if (a.modbus_rtu) std::printf("%.*s%s\n", int(r::gimbal_rtu.size()), r::gimbal_rtu.data(), ep.gimbal_rtu().c_str());
-  std::printf("%.*s%s\n", int(r::sensor.size()), r::sensor.data(), ep.sensor().c_str());
+  for (size_t u = 0; u < ep.sensor_ptys.size(); ++u) {  // one line per unit, in the bench's order
+    std::printf("%.*s%s\n", int(r::sensor.size()), r::sensor.data(), ep.sensor(u).c_str());
+  }
   std::printf("%.*s\n", int(r::ready.size()), r::ready.data());
   std::fflush(stdout);
-  fmt::print(stderr, "emulate: bench clock x{} wall, seed {}, unit {}{}\n", a.speed, emu->options().bench.seed,
-             emu->options().bench.serial, a.serial_link.empty() ? "" : ", sensor linked at " + a.serial_link);
+  std::vector<std::string> serials;
+  for (const auto& u : emu->options().bench.units()) serials.push_back(u.serial);
+  fmt::print(stderr, "emulate: bench clock x{} wall, seed {}, unit{} {}{}\n", a.speed, emu->options().bench.seed,
+             serials.size() > 1 ? "s" : "", fmt::join(serials, ", "),
+             a.serial_link.empty() ? "" : ", sensor linked at " + a.serial_link);
 
   for (;;) {
     int sig = 0;
@@ -169,7 +176,8 @@ void add_emulate(CLI::App& app, Runner& run) {
                   "Fault NAME[:key=value,...] with optional trigger at_s= or at_request= (repeatable, docs/emulator.md)");
   sub->add_option("--fault-file", args->fault_file, "On SIGUSR1, arm the faults listed in this file (one per line)");
   examples(sub, {"fpss-stand emulate --modbus-port 5020 --serial-link /tmp/fpss-sensor --speed 10",
-                 "fpss-stand emulate --bench procedures/paper_mount_bench.yaml --effect drift:pitch_arcsec_per_s=0.01"});
+                 "fpss-stand emulate --bench procedures/paper_mount_bench.yaml --effect drift:pitch_arcsec_per_s=0.01",
+                 "fpss-stand emulate --bench procedures/two_unit_bench.yaml --modbus-port 0  # one sensor: line per unit"});
   sub->callback([args, seed, &run] {
     run = [args, seed] { return run_emulate(*args, seed->count() > 0); };
   });

@@ -27,6 +27,10 @@ bool parse_signed_axis(const std::string& s, AxisMapping::SensorAxis& axis, doub
   return true;
 }
 
+std::string axis_name(AxisMapping::SensorAxis axis, double sign) {
+  return std::string(sign < 0 ? "-" : "+") + (axis == AxisMapping::alpha ? "alpha" : "beta");
+}
+
 void read_endpoint(MapReader& r, std::string& out, bool gimbal) {
   auto e = r.string("endpoint", true);
   if (!e) return;
@@ -47,7 +51,44 @@ void read_endpoint(MapReader& r, std::string& out, bool gimbal) {
   out = *e;
 }
 
+void read_sensor_options(MapReader& r, SensorOptions& o, EngineSettings& b) {
+  if (auto v = r.integer("sample_rate_hz", false, 1, 200)) b.sample_rate_hz = static_cast<double>(*v);
+  if (auto v = r.positive("frame_timeout_s")) b.frame_timeout_s = *v;
+  if (auto v = r.positive("command_timeout_s")) o.command_timeout_s = *v;
+  if (auto v = r.integer("command_retries", false, 0, 100)) o.command_retries = static_cast<int>(*v);
+  if (auto v = r.integer("reconnects", false, 0, 100)) o.reconnects = static_cast<int>(*v);
+  if (auto v = r.range("temperature_range_c")) std::tie(o.temperature_min_c, o.temperature_max_c) = *v;
+}
+
+void read_axes(const YAML::Node& n, const std::string& where, AxisMapping& axes, Diagnostics& d) {
+  MapReader r(n, where, d);
+  for (auto [key, axis, sign] : {std::tuple{"pitch", &axes.pitch_axis, &axes.pitch_sign},
+                                 std::tuple{"yaw", &axes.yaw_axis, &axes.yaw_sign}}) {
+    if (auto s = r.string(key)) {
+      if (!parse_signed_axis(*s, *axis, *sign)) {
+        d.error(r.node(key), fmt::format("{}: field {}: expected alpha, beta, +alpha, -alpha, +beta or -beta, "
+                                         "got \"{}\"",
+                                         where, key, *s));
+      }
+    }
+  }
+  r.finish();
+  if (axes.pitch_axis == axes.yaw_axis) {
+    d.error(n, fmt::format("{}: pitch and yaw both map to {}; each sensor axis must be used once", where,
+                           axes.pitch_axis == AxisMapping::alpha ? "alpha" : "beta"));
+  }
+}
+
+constexpr size_t kMaxStandUnits = 16;
+
 }  // namespace
+
+void StandConfig::sync_first_unit() {
+  if (units.empty()) units.push_back({});
+  units.front().serial = unit_serial;
+  units.front().sensor = sensor;
+  units.front().axes = bench.axes;
+}
 
 // reference: the gimbal's calibration file (docs/formats.md), relative to the stand file.
 static void read_reference(MapReader& top, const std::string& origin, EngineSettings& b, Diagnostics& d) {
@@ -92,20 +133,60 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
     if (auto v = r.boolean("timed_moves")) c.gimbal.timed_moves = b.timed_moves = *v;
     r.finish();
   }
-  // sensor
-  {
+  // sensor: one unit, or sensors: a list of units (each with its serial, endpoint and axes)
+  const bool listed = top.has("sensors");
+  if (listed && top.has("sensor")) {
+    d.error(top.node("sensors"), "stand file: give sensor (one unit) or sensors (a list), not both");
+  }
+  if (!listed) {
     YAML::Node n = top.node("sensor");
-    if (!n.IsDefined()) d.error(root, "stand file: missing field sensor (with its endpoint)");
+    if (!n.IsDefined()) d.error(root, "stand file: missing field sensor (with its endpoint), or sensors (a list of units)");
     MapReader r(n, "sensor", d);
     if (n.IsDefined()) read_endpoint(r, c.sensor.endpoint, false);  // else one error says it, not two
-    if (auto v = r.integer("sample_rate_hz", false, 1, 200)) b.sample_rate_hz = static_cast<double>(*v);
-    if (auto v = r.positive("frame_timeout_s")) b.frame_timeout_s = *v;
-    if (auto v = r.positive("command_timeout_s")) c.sensor.command_timeout_s = *v;
-    if (auto v = r.integer("command_retries", false, 0, 100)) c.sensor.command_retries = static_cast<int>(*v);
-    if (auto v = r.integer("reconnects", false, 0, 100)) c.sensor.reconnects = static_cast<int>(*v);
+    read_sensor_options(r, c.sensor, b);
     if (auto v = r.string("serial")) c.unit_serial = *v;
-    if (auto v = r.range("temperature_range_c")) std::tie(c.sensor.temperature_min_c, c.sensor.temperature_max_c) = *v;
     r.finish();
+    read_axes(top.node("axes"), "axes", b.axes, d);
+    c.units = {StandUnit{c.unit_serial, c.sensor, b.axes}};
+  } else {
+    if (top.has("axes")) d.error(top.node("axes"), "stand file: with sensors, each unit gives its own axes");
+    if (top.has("unit")) d.error(top.node("unit"), "stand file: with sensors, each unit gives its own serial (unit)");
+    YAML::Node list = top.node("sensors");
+    if (!list.IsSequence() || list.size() == 0 || list.size() > kMaxStandUnits) {
+      d.error(list, fmt::format("sensors: expected a list of 1 to {} units, each with unit, endpoint and axes", kMaxStandUnits));
+    } else {
+      const EngineSettings common = b;
+      for (size_t i = 0; i < list.size(); ++i) {
+        const std::string where = fmt::format("sensors[{}]", i + 1);
+        MapReader r(list[i], where, d);
+        StandUnit u;
+        read_endpoint(r, u.sensor.endpoint, false);
+        if (auto v = r.string("unit", true)) u.serial = *v;
+        EngineSettings mine = common;
+        read_sensor_options(r, u.sensor, mine);
+        if (i == 0) {
+          b.sample_rate_hz = mine.sample_rate_hz;
+          b.frame_timeout_s = mine.frame_timeout_s;
+        } else if (mine.sample_rate_hz != b.sample_rate_hz || mine.frame_timeout_s != b.frame_timeout_s) {
+          d.error(list[i], fmt::format("{}: sample_rate_hz and frame_timeout_s are the engine's: every unit must give "
+                                       "the same", where));
+        }
+        read_axes(r.node("axes"), where + ".axes", u.axes, d);
+        r.finish();
+        for (const StandUnit& o : c.units) {
+          if (o.serial == u.serial && !u.serial.empty()) d.error(list[i], fmt::format("{}: unit {} is listed twice", where, u.serial));
+          if (o.sensor.endpoint == u.sensor.endpoint && !u.sensor.endpoint.empty()) {
+            d.error(list[i], fmt::format("{}: endpoint {} is another unit's", where, u.sensor.endpoint));
+          }
+        }
+        c.units.push_back(std::move(u));
+      }
+      if (!c.units.empty()) {
+        c.unit_serial = c.units.front().serial;
+        c.sensor = c.units.front().sensor;
+        b.axes = c.units.front().axes;
+      }
+    }
   }
   // soft limits
   {
@@ -132,26 +213,6 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
   if (b.profile_rate_arcsec_s > b.limits.max_rate_arcsec_s) {
     d.error(top.node("gimbal"), fmt::format("gimbal: profile rate {} arcsec/s is above soft_limits max rate {} arcsec/s",
                                             b.profile_rate_arcsec_s, b.limits.max_rate_arcsec_s));
-  }
-  // axes
-  {
-    YAML::Node n = top.node("axes");
-    MapReader r(n, "axes", d);
-    for (auto [key, axis, sign] : {std::tuple{"pitch", &b.axes.pitch_axis, &b.axes.pitch_sign},
-                                   std::tuple{"yaw", &b.axes.yaw_axis, &b.axes.yaw_sign}}) {
-      if (auto s = r.string(key)) {
-        if (!parse_signed_axis(*s, *axis, *sign)) {
-          d.error(r.node(key), fmt::format("axes: field {}: expected alpha, beta, +alpha, -alpha, +beta or -beta, "
-                                           "got \"{}\"",
-                                           key, *s));
-        }
-      }
-    }
-    r.finish();
-    if (b.axes.pitch_axis == b.axes.yaw_axis) {
-      d.error(n, fmt::format("axes: pitch and yaw both map to {}; each sensor axis must be used once",
-                             b.axes.pitch_axis == AxisMapping::alpha ? "alpha" : "beta"));
-    }
   }
   // clock
   {
@@ -208,6 +269,7 @@ StandConfig emulated_stand(double speed) {
   c.bench.in_position_tolerance_arcsec = 1.0;
   c.bench.sample_rate_hz = 50;
   c.gimbal.limits = c.bench.limits;
+  c.sync_first_unit();
   adapt_to_emulator(c, speed);
   return c;
 }
@@ -230,6 +292,16 @@ nlohmann::json to_json(const StandConfig& s) {
         {"reconnects", s.sensor.reconnects},
         {"temperature_range_c", {s.sensor.temperature_min_c, s.sensor.temperature_max_c}}}},
       {"bench", to_json(s.bench)},
+      {"units", [&] {
+         nlohmann::json a = nlohmann::json::array();
+         for (const StandUnit& u : s.units) {
+           a.push_back({{"unit", u.serial},
+                        {"endpoint", u.sensor.endpoint},
+                        {"axes", {{"pitch", axis_name(u.axes.pitch_axis, u.axes.pitch_sign)},
+                                  {"yaw", axis_name(u.axes.yaw_axis, u.axes.yaw_sign)}}}});
+         }
+         return a;
+       }()},
   };
 }
 

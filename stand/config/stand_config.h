@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -11,6 +12,13 @@
 #include "procedures/yaml_diag.h"
 
 namespace fpss {
+
+// One sensor unit on the stand's gimbal (a `sensors:` entry, or the single `sensor:`).
+struct StandUnit {
+  std::string serial;   // expected serial; "" accepts whatever the sensor reports
+  SensorOptions sensor;
+  AxisMapping axes;     // how it sits on the gimbal
+};
 
 // A stand as a stand file describes it: the devices' options and what the engine needs.
 struct StandConfig {
@@ -23,6 +31,12 @@ struct StandConfig {
   GimbalOptions gimbal;
   SensorOptions sensor;
   EngineSettings bench;
+  // Every unit, in order (`sensors:`; `sensor:` is a list of one). The first unit's serial, options
+  // and axes are also unit_serial, sensor and bench.axes above, which single-unit code reads.
+  std::vector<StandUnit> units;
+  bool multi_unit() const { return units.size() > 1; }
+  // Makes units[0] and the single-unit fields agree again after either changed.
+  void sync_first_unit();
 };
 
 nlohmann::json to_json(const StandConfig& s);  // resolved settings, for run.json

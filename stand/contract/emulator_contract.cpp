@@ -50,9 +50,12 @@ bool EmulatorReadyLines::take_line(std::string_view line) {
     out = std::string(line.substr(key.size()));
     return true;
   };
-  if (after(emulator_ready::gimbal, gimbal) || after(emulator_ready::gimbal_rtu, gimbal_rtu) ||
-      after(emulator_ready::sensor, sensor))
+  if (after(emulator_ready::gimbal, gimbal) || after(emulator_ready::gimbal_rtu, gimbal_rtu)) return true;
+  if (std::string s; after(emulator_ready::sensor, s)) {
+    if (sensors.empty()) sensor = s;
+    sensors.push_back(std::move(s));
     return true;
+  }
   if (line == emulator_ready::ready) return ready = true;
   return false;
 }

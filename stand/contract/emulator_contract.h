@@ -30,7 +30,7 @@ struct EmulatorSpec {
 // The lines `emulate` prints on standard output once it serves, in this order, then flushes:
 //   gimbal: <endpoint>       the Modbus TCP endpoint (tcp:HOST:PORT)
 //   gimbal-rtu: <endpoint>   only with --modbus-rtu
-//   sensor: <endpoint>       the sensor's pty (pty:PATH)
+//   sensor: <endpoint>       the sensor's pty (pty:PATH); one line per unit, in the bench's order
 //   ready
 namespace emulator_ready {
 inline constexpr std::string_view gimbal = "gimbal: ", gimbal_rtu = "gimbal-rtu: ", sensor = "sensor: ",
@@ -39,7 +39,8 @@ inline constexpr std::string_view gimbal = "gimbal: ", gimbal_rtu = "gimbal-rtu:
 
 // What the ready lines said so far.
 struct EmulatorReadyLines {
-  std::string gimbal, gimbal_rtu, sensor;
+  std::string gimbal, gimbal_rtu, sensor;  // sensor: the first unit's
+  std::vector<std::string> sensors;         // every unit's, in order
   bool ready = false;
   // Takes one line (without its newline); false for a line that is not part of the contract.
   bool take_line(std::string_view line);

@@ -60,14 +60,14 @@ RunVerdict run_verdict(const std::optional<RunFile>& run) {
   return run_verdict(*run);
 }
 
-std::string verdict_banner_html(const RunVerdict& v) {
+std::string verdict_banner_html(const RunVerdict& v, const std::string& id) {
   const char* colour = v.verdict == "pass" ? "#1e7d32" : v.verdict == "fail" ? "#c0392b" : "#8a6d00";
   std::string word = v.verdict;
   std::transform(word.begin(), word.end(), word.begin(), [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
   return fmt::format(
-      "<div id=\"verdict\" class=\"verdict {0}\" style=\"background:{1};color:#fff;padding:0.6em 1em;margin:0.8em 0;"
+      "<div id=\"{4}\" class=\"verdict {0}\" style=\"background:{1};color:#fff;padding:0.6em 1em;margin:0.8em 0;"
       "border-radius:4px\"><strong style=\"font-size:1.6em\">{2}</strong> <span>{3}</span></div>\n",
-      html_escape(v.verdict), colour, html_escape(word), html_escape(v.why));
+      html_escape(v.verdict), colour, html_escape(word), html_escape(v.why), html_escape(id));
 }
 
 std::optional<int64_t> fit_last_step(const CoefficientSet& cal, const std::string& origin) {

@@ -28,7 +28,8 @@ RunVerdict run_verdict(const RunFile& run);
 RunVerdict run_verdict(const std::optional<RunFile>& run);
 
 // The banner at the top of report.html: PASS / FAIL / RUNNING / INCOMPLETE in a coloured box.
-std::string verdict_banner_html(const RunVerdict& v);
+// `id`: the element's id (a page of several units has one banner per unit).
+std::string verdict_banner_html(const RunVerdict& v, const std::string& id = "verdict");
 
 // The last step a calibration was fitted on (calibration.json "fit_last_step", written by the run);
 // empty for a calibration that does not say. InputError naming `origin` for a wrong value.

@@ -4,6 +4,8 @@
 #include <fmt/ranges.h>
 #include <unistd.h>
 
+#include "base/errors.h"
+
 namespace fpss {
 
 namespace fs = std::filesystem;
@@ -24,8 +26,20 @@ void BenchLauncher::start(const SessionRequest& req, bool resuming, StandConfig&
   log.info("starting the emulated bench: {}", fmt::join(emu->command(), " "));
   emu->start();
   stand.gimbal.endpoint = emu->gimbal_endpoint();
-  stand.sensor.endpoint = emu->sensor_endpoint();
-  log.info("emulated bench ready: gimbal {}, sensor {}", stand.gimbal.endpoint, stand.sensor.endpoint);
+  // The bench's units in its order, onto the stand's: a stand without a file (or with one unit and
+  // no serial) takes as many units as the bench serves; a stand file listing units must list as many.
+  const auto& sensors = emu->sensor_endpoints();
+  if (stand.units.size() == 1 && stand.units.front().serial.empty()) {
+    while (stand.units.size() < sensors.size()) stand.units.push_back(stand.units.front());
+  }
+  if (stand.units.size() != sensors.size()) {
+    throw InputError(fmt::format("{}: the stand lists {} sensor unit(s), the emulated bench serves {}",
+                                 stand.origin.empty() ? "stand" : stand.origin, stand.units.size(), sensors.size()));
+  }
+  for (size_t u = 0; u < sensors.size(); ++u) stand.units[u].sensor.endpoint = sensors[u];
+  stand.sensor.endpoint = stand.units.front().sensor.endpoint;
+  log.info("emulated bench ready: gimbal {}, sensor{} {}", stand.gimbal.endpoint, sensors.size() > 1 ? "s" : "",
+           fmt::join(sensors, ", "));
 }
 
 void BenchLauncher::settle_log(const fs::path& run_dir) {

@@ -113,6 +113,7 @@ void EmulatorProcess::start() {
   }
   gimbal_ = ep.gimbal;
   sensor_ = ep.sensor;
+  sensors_ = ep.sensors;
   if (gimbal_.empty() || sensor_.empty()) {
     stop();
     throw std::runtime_error(fmt::format("emulator: ready without both endpoints (gimbal \"{}\", sensor \"{}\")",

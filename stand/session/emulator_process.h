@@ -39,6 +39,7 @@ class EmulatorProcess {
   pid_t pid() const { return pid_; }
   const std::string& gimbal_endpoint() const { return gimbal_; }
   const std::string& sensor_endpoint() const { return sensor_; }
+  const std::vector<std::string>& sensor_endpoints() const { return sensors_; }  // one per unit
   // The full command line, for run.json.
   std::vector<std::string> command() const;
 
@@ -48,6 +49,7 @@ class EmulatorProcess {
   pid_t pid_ = -1;
   UniqueFd out_fd_;
   std::string gimbal_, sensor_;
+  std::vector<std::string> sensors_;
 };
 
 }  // namespace fpss

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/sinks/basic_file_sink.h>
 #include <spdlog/sinks/stdout_sinks.h>
 #include <spdlog/spdlog.h>
@@ -21,10 +22,12 @@
 #include "calib/report.h"
 #include "calib/streaming.h"
 #include "calib/transfer_function.h"
+#include "calib/unit_alignment.h"
 #include "drivers/endpoints.h"
 #include "procedures/recorder.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/report/report.h"
+#include "stand/report/units_page.h"
 #include "stand/session/bench_launcher.h"
 #include "stand/session/catch_up.h"
 #include "stand/session/computation_checks.h"
@@ -59,6 +62,18 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 // The session
 
 namespace {
+
+// One sensor unit of the run: its device, its recording and its fits (several units: each its own).
+struct UnitState {
+  StandUnit cfg;
+  std::unique_ptr<Sensor> sensor;
+  std::string id_reply, serial;
+  std::optional<UnitLoss> loss;  // dropped at the connection or during the run
+  SampleTable recorded;          // every row so far, old (a resume) and new: what calibrate steps fit
+  std::optional<CalibrationReport> cal;
+  std::optional<fs::path> calibration;  // its latest calibration file
+  fs::path dir;                         // the run folder (one unit) or RUN_DIR/units/<SERIAL>
+};
 
 class Session {
  public:
@@ -96,8 +111,13 @@ class Session {
   StandConfig stand_;
   BenchLauncher bench_;
   std::unique_ptr<Gimbal> gimbal_;
-  std::unique_ptr<Sensor> sensor_;
-  std::string id_reply_, unit_, run_id_;
+  std::vector<UnitState> units_;  // the stand's, in order; units_[0] is the single unit of a one-unit run
+  std::string unit_, run_id_;     // unit_: the run's name for its unit(s)
+  bool multi() const { return units_.size() > 1; }
+  void connect_unit(UnitState& u);
+  void calibrate_unit(const Action& a, UnitState& u);
+  void relate_units();  // run.json's units[].relative from the latest calibrations
+  void write_unit_reports();
   std::optional<RunFolderLock> lock_;
   std::unique_ptr<RunRecorder> rec_;
   std::unique_ptr<EventLog> event_log_;
@@ -107,10 +127,8 @@ class Session {
   std::string catalogue_url_;
   std::string catalogue_error_;
   bool catalogue_away_ = false;  // the server was unreachable (worth waiting for), not a refusal
-  SampleTable recorded_;  // every row so far, old (a resume) and new: what calibrate steps fit
   std::unique_ptr<LiveFit> live_;
   std::unique_ptr<Progress> progress_;
-  std::optional<CalibrationReport> last_cal_;
   int calibrations_ = 0;
   int diagnoses_ = 0;
   std::vector<std::string> after_progress_;  // a terminal: Table 1 and the check, shown once the live line is done
@@ -126,18 +144,60 @@ void Session::make_logger() {
   log_->flush_on(spdlog::level::info);
 }
 
+void Session::connect_unit(UnitState& u) {
+  u.sensor = make_sensor(u.cfg.sensor);
+  u.sensor->connect();
+  u.id_reply = u.sensor->identify();
+  u.serial = serial_from_id(u.id_reply);
+  log_->info("sensor{}: {}", multi() ? fmt::format(" {}", &u - units_.data() + 1) : "", u.id_reply);
+  if (!u.cfg.serial.empty() && u.serial != u.cfg.serial) {
+    throw InputError(fmt::format("{}: the sensor{} reports serial \"{}\" ({}), the stand file expects \"{}\"",
+                                 stand_.origin.empty() ? "stand" : stand_.origin,
+                                 multi() ? fmt::format(" at {}", u.cfg.sensor.endpoint) : "", u.serial, u.id_reply,
+                                 u.cfg.serial));
+  }
+}
+
 void Session::connect_devices() {
   stand_.gimbal.limits = stand_.bench.limits;
   gimbal_ = make_gimbal(stand_.gimbal);
-  sensor_ = make_sensor(stand_.sensor);
   gimbal_->connect();
-  sensor_->connect();
-  id_reply_ = sensor_->identify();
-  unit_ = serial_from_id(id_reply_);
-  log_->info("sensor: {}", id_reply_);
-  if (!stand_.unit_serial.empty() && unit_ != stand_.unit_serial) {
-    throw InputError(fmt::format("{}: the sensor reports serial \"{}\" ({}), the stand file expects \"{}\"",
-                                 stand_.origin.empty() ? "stand" : stand_.origin, unit_, id_reply_, stand_.unit_serial));
+  if (stand_.units.empty()) stand_.sync_first_unit();
+  for (const StandUnit& cfg : stand_.units) units_.push_back(UnitState{cfg, nullptr, {}, {}, {}, {}, {}, {}, {}});
+  for (UnitState& u : units_) {
+    if (!multi()) {
+      connect_unit(u);
+      continue;
+    }
+    // Several units: one that cannot be reached or is not the unit expected is dropped; the others go on.
+    try {
+      connect_unit(u);
+    } catch (const InputError& e) {
+      u.loss = UnitLoss{static_cast<int>(&u - units_.data()), LossCause::wrong_serial, e.what(), -1};
+    } catch (const DeviceError& e) {
+      u.loss = UnitLoss{static_cast<int>(&u - units_.data()), LossCause::link_failed, e.what(), -1};
+    }
+    if (u.serial.empty()) u.serial = !u.cfg.serial.empty() ? u.cfg.serial : fmt::format("unit{}", &u - units_.data() + 1);
+    if (u.loss) log_->error("unit {} ({}) lost before the run: {}", u.loss->unit + 1, u.serial, u.loss->reason);
+  }
+  if (multi()) {
+    bool any = false;
+    for (const UnitState& u : units_) any = any || !u.loss;
+    if (!any) throw InputError(fmt::format("{}: no sensor unit could be used: {}", stand_.origin.empty() ? "stand" : stand_.origin,
+                                           units_.front().loss->reason));
+    for (size_t i = 0; i < units_.size(); ++i) {
+      for (size_t j = 0; j < i; ++j) {
+        if (units_[i].serial == units_[j].serial) {
+          throw InputError(fmt::format("{}: units {} and {} both report serial \"{}\"",
+                                       stand_.origin.empty() ? "stand" : stand_.origin, j + 1, i + 1, units_[i].serial));
+        }
+      }
+    }
+    std::vector<std::string> serials;
+    for (const UnitState& u : units_) serials.push_back(u.serial);
+    unit_ = fmt::format("{}", fmt::join(serials, "+"));
+  } else {
+    unit_ = units_.front().serial;
   }
   if (resuming_ && prior_.run.unit != unit_) {
     throw InputError(fmt::format("{}: the run was made on unit \"{}\", the sensor now reports \"{}\"",
@@ -163,17 +223,25 @@ void Session::open_folder() {
   log_->sinks().push_back(file_sink);
   log_->info("run {} session {}: procedure {} ({}), unit {}, {}", run_id_, session_, req_.procedure.name,
              req_.procedure.origin, unit_, req_.emulator ? "emulated bench" : "stand " + stand_.stand_id);
-  rec_ = std::make_unique<RunRecorder>(res_.run_dir);
+  std::vector<std::string> serials;
+  for (UnitState& u : units_) {
+    serials.push_back(u.serial);
+    u.dir = multi() ? res_.run_dir / "units" / unit_folder_name(u.serial) : res_.run_dir;
+  }
+  rec_ = std::make_unique<RunRecorder>(res_.run_dir, serials);
   if (rec_->cut_bytes() > 0) {
     log_->warn("samples.csv: cut {} bytes of a point that never completed (it is measured again)", rec_->cut_bytes());
   }
   event_log_ = std::make_unique<EventLog>(res_.run_dir / "events.jsonl");
-  if (rec_->has_rows()) recorded_ = read_samples_csv(rec_->samples_path());
-  // The provenance as numbers (a resume's columns stay as read: new rows are written into them).
-  if (recorded_.extra_names().empty()) {
-    for (const auto& c : recorder_extra_columns()) recorded_.add_numeric_column(c);
+  for (size_t i = 0; i < units_.size(); ++i) {
+    SampleTable& t = units_[i].recorded;
+    if (rec_->has_rows()) t = read_samples_csv(rec_->samples_path(i));
+    // The provenance as numbers (a resume's columns stay as read: new rows are written into them).
+    if (t.extra_names().empty()) {
+      for (const auto& c : recorder_extra_columns()) t.add_numeric_column(c);
+    }
+    t.origin = rec_->samples_path(i).string();
   }
-  recorded_.origin = rec_->samples_path().string();
 }
 
 void Session::write_start_record() {
@@ -187,12 +255,29 @@ void Session::write_start_record() {
     run_.stand = RunFile::Stand{stand_.origin.empty() ? std::nullopt : std::optional(stand_.origin),
                                 stand_.text.empty() ? std::nullopt : std::optional(stand_.text), to_json(stand_)};
     run_.unit = unit_;
-    run_.sensor_id = id_reply_;
+    run_.sensor_id = units_.front().id_reply;
+    if (multi()) {
+      run_.units.emplace();
+      for (const UnitState& u : units_) {
+        RunFileUnit ru;
+        ru.serial = u.serial;
+        if (!u.id_reply.empty()) ru.sensor_id = u.id_reply;
+        ru.endpoint = u.cfg.sensor.endpoint;
+        ru.samples = fs::relative(rec_->samples_path(static_cast<size_t>(&u - units_.data())), res_.run_dir).string();
+        if (u.loss) {
+          ru.outcome = "lost";
+          ru.loss_cause = to_string(u.loss->cause);
+          ru.reason = u.loss->reason;
+          ru.lost_at_point = 0;
+        }
+        run_.units->push_back(ru);
+      }
+    }
     run_.emulated = req_.emulator.has_value();
     if (req_.emulator) run_.emulator = req_.emulator->to_json();
     run_.started_utc = now_utc;
     run_.points = {static_cast<int64_t>(plan_.points), 0, std::nullopt};
-    run_.files.samples = "samples.csv";
+    run_.files.samples = fs::relative(rec_->samples_path(), res_.run_dir).string();
     if (const auto& ref = stand_.bench.reference) {
       run_.reference = RunFileReference{ref->file, ref->sha256, ref->certificate, ref->date, ref->lab};
     }
@@ -213,6 +298,7 @@ void Session::write_start_record() {
   if (bench_.emu) {
     sess.emulator = nlohmann::json{{"command", bench_.emu->command()}, {"gimbal", stand_.gimbal.endpoint},
                                    {"sensor", stand_.sensor.endpoint}};
+    if (multi()) sess.emulator->operator[]("sensors") = bench_.emu->sensor_endpoints();
   }
   run_.sessions.push_back(sess);
   write_run_file(res_.run_dir, run_);
@@ -263,7 +349,7 @@ void Session::subscribe() {
   record_with(bus_, *rec_);
   bus_.subscribe([this](const Event& e) {
     if (const auto* s = std::get_if<Samples>(&e)) {
-      for (const auto& r : *s->rows) recorded_.push_back(r.sample, r.provenance());
+      for (const auto& r : *s->rows) units_.at(static_cast<size_t>(r.unit)).recorded.push_back(r.sample, r.provenance());
     }
   });
   bus_.subscribe([this](const Event& e) { event_log_->write(e); });
@@ -273,7 +359,8 @@ void Session::subscribe() {
     log_->warn("live residual off: {}", e.what());
   }
   live_guarded([&] {
-    for (size_t i = 0; i < recorded_.size(); ++i) live_->add(recorded_.row(i));
+    const SampleTable& first = units_.front().recorded;  // several units: the live fit follows the first
+    for (size_t i = 0; i < first.size(); ++i) live_->add(first.row(i));
   });
   progress_ = std::make_unique<Progress>(plan_.points, static_cast<size_t>(rec_->next_point()), req_.tty, *log_);
   bus_.subscribe([this](const Event& e) {
@@ -287,7 +374,9 @@ void Session::on_point_done(const PointDone& p) {
   // fit's own thread), and always after the last point.
   std::vector<Sample> rows;
   rows.reserve(p.rows->size());
-  for (const auto& r : *p.rows) rows.push_back(r.sample);
+  for (const auto& r : *p.rows) {
+    if (r.unit == 0) rows.push_back(r.sample);
+  }
   publish_live_fit(p.point.index + 1, progress_->done() + 1 >= plan_.points, rows);
   // Each point against the latest live fit, for the console's residual chart and map.
   live_guarded([&] {
@@ -344,34 +433,45 @@ int64_t Session::points_before(const Action& a) const {
 
 void Session::on_calibrate(const Action& a) {
   progress_->clear();
-  const SampleTable rows = recorded_.up_to_step(points_before(a));
+  ++calibrations_;
+  res_.calibration.reset();
+  for (UnitState& u : units_) {
+    if (u.loss) continue;  // a lost unit's recording is cut short: nothing to certify
+    calibrate_unit(a, u);
+  }
+  if (multi()) relate_units();
+}
+
+void Session::calibrate_unit(const Action& a, UnitState& u) {
+  const SampleTable rows = u.recorded.up_to_step(points_before(a));
   CalibrationOptions o;
   o.method = parse_method(a.calibrate->method).value_or(Method::differences);
   if (a.calibrate->init) o.init = load_coefficients(*a.calibrate->init);
   if (a.calibrate->max_iterations) o.max_iterations = *a.calibrate->max_iterations;
   if (a.calibrate->refine_nodes) o.refine_nodes = static_cast<size_t>(*a.calibrate->refine_nodes);
   if (a.calibrate->threads) o.threads = *a.calibrate->threads;
-  o.unit = unit_;
+  o.unit = u.serial;
   // The engine already corrected the rows' reference angles: the fit carries the file's u.
   o.reference = stand_.bench.reference;
-  o.mount = stand_.bench.axes;
+  o.mount = u.cfg.axes;
   const auto t0 = std::chrono::steady_clock::now();
   CalibrationReport rep = calibrate(rows, o);
-  ++calibrations_;
-  const fs::path out = res_.run_dir / (calibrations_ == 1 ? std::string("calibration.json")
-                                                          : fmt::format("calibration-{}.json", calibrations_));
+  const fs::path out = u.dir / (calibrations_ == 1 ? std::string("calibration.json")
+                                                    : fmt::format("calibration-{}.json", calibrations_));
   // The report's Table 1 counts the rows this fit saw, not the points measured after it (verification).
   CoefficientSet fitted = rep.coefficients();
   fitted.extra["fit_last_step"] = points_before(a);
   save_coefficients(out, fitted);
-  log_->info("calibrated on {} rows of {} points in {:.2f} s -> {}\n{}", rows.size(), points_before(a),
-             seconds_since(t0), out.filename().string(), summary_text(rep));
+  log_->info("{}calibrated on {} rows of {} points in {:.2f} s -> {}\n{}", multi() ? "unit " + u.serial + ": " : "",
+             rows.size(), points_before(a), seconds_since(t0), fs::relative(out, res_.run_dir).string(),
+             summary_text(rep));
   if (req_.tty) after_progress_.push_back(summary_text(rep));
-  res_.calibration = out;
-  last_cal_ = rep;
+  u.calibration = out;
+  if (!res_.calibration) res_.calibration = out;
+  u.cal = rep;
   with_catalogue("calibration", [&](Catalogue& cat) {
     CalibrationRecord cr = CalibrationRecord::from_calibration_json(to_json(fitted), out.string());
-    cr.unit = unit_;
+    cr.unit = u.serial;
     cr.source = "run";
     cr.run_id = run_id_;
     cr.source_ref = run_id_;
@@ -381,33 +481,69 @@ void Session::on_calibrate(const Action& a) {
   });
 }
 
+void Session::relate_units() {
+  const UnitState* first = nullptr;
+  std::optional<UnitPose> first_pose;
+  for (UnitState& u : units_) {
+    if (!u.cal || u.loss) continue;
+    try {
+      const UnitPose pose = unit_pose(*u.cal, reduce(u.recorded, reduction_options_of(u.cal->coefficients().extra, "calibration")).dwells, u.cfg.axes);
+      if (!first) {
+        first = &u;
+        first_pose = pose;
+        continue;
+      }
+      const RelativePose r = relative_pose(*first_pose, pose);
+      RunFileUnit& ru = run_.units->at(static_cast<size_t>(&u - units_.data()));
+      ru.relative = RunFileRelative{first->serial, r.boresight_pitch_arcsec, r.boresight_pitch_sigma_arcsec,
+                                    r.boresight_yaw_arcsec, r.boresight_yaw_sigma_arcsec, r.roll_arcsec,
+                                    r.roll_sigma_arcsec};
+      log_->info("unit {} relative to {}: boresight pitch {:+.3f} +- {:.3f}, yaw {:+.3f} +- {:.3f}, roll {:+.2f} +- {:.2f} arcsec",
+                 u.serial, first->serial, r.boresight_pitch_arcsec, r.boresight_pitch_sigma_arcsec,
+                 r.boresight_yaw_arcsec, r.boresight_yaw_sigma_arcsec, r.roll_arcsec, r.roll_sigma_arcsec);
+    } catch (const DataError& e) {
+      log_->warn("unit {}: no relative pose: {}", u.serial, e.what());
+    }
+  }
+}
+
 void Session::on_diagnose(const Action& a) {
   progress_->clear();
   // The rows in memory hold every column samples.csv does (the provenance as numbers): the
   // diagnosis reads the same ones `fpss-stand diagnose --data` would, up to the last point before.
-  const DiagnoseStepResult r = run_diagnose_step(recorded_, points_before(a), *a.diagnose, res_.run_dir, ++diagnoses_);
-  log_->info("diagnosis -> {}, {}: verdict {}, cause {}: {}", r.json.filename().string(),
-             r.html.filename().string(), r.verdict, r.cause, r.sentence);
-  if (r.incomplete && !a.diagnose->partial) {
-    log_->warn("diagnosis: this recording cannot tell every effect apart (GAP.json, not_observable)");
+  ++diagnoses_;
+  for (UnitState& u : units_) {
+    if (u.loss) continue;
+    const DiagnoseStepResult r = run_diagnose_step(u.recorded, points_before(a), *a.diagnose, u.dir, diagnoses_);
+    log_->info("{}diagnosis -> {}, {}: verdict {}, cause {}: {}", multi() ? "unit " + u.serial + ": " : "",
+               fs::relative(r.json, res_.run_dir).string(), r.html.filename().string(), r.verdict, r.cause, r.sentence);
+    if (r.incomplete && !a.diagnose->partial) {
+      log_->warn("diagnosis: this recording cannot tell every effect apart (GAP.json, not_observable)");
+    }
+    if (diagnoses_ == 1 && &u == &units_.front()) run_.files.gap = fs::relative(r.json, res_.run_dir).string();
   }
-  if (diagnoses_ == 1) run_.files.gap = r.json.filename().string();
 }
 
 std::string Session::on_check(const Action& a) {
-  if (!last_cal_) return "no calibration to check";
-  std::string broken = check_limits(a.check->pitch, last_cal_->pitch.residuals, "pitch");
-  const std::string y = check_limits(a.check->yaw, last_cal_->yaw.residuals, "yaw");
-  if (!y.empty()) broken += (broken.empty() ? "" : "; ") + y;
-  if (absurd(a.check->pitch, last_cal_->pitch.residuals) || absurd(a.check->yaw, last_cal_->yaw.residuals)) {
-    broken += ". Residuals over 100x the limit: the likely cause is the stand file's axis mapping (axes:, which "
-              "must match how the sensor is mounted) or the coefficients (the calibrate step's init); see "
-              "docs/procedures.md, \"Axis mapping\"";
+  std::string all;
+  for (const UnitState& u : units_) {
+    if (u.loss) continue;
+    if (!u.cal) return "no calibration to check";
+    std::string broken = check_limits(a.check->pitch, u.cal->pitch.residuals, "pitch");
+    const std::string y = check_limits(a.check->yaw, u.cal->yaw.residuals, "yaw");
+    if (!y.empty()) broken += (broken.empty() ? "" : "; ") + y;
+    if (absurd(a.check->pitch, u.cal->pitch.residuals) || absurd(a.check->yaw, u.cal->yaw.residuals)) {
+      broken += ". Residuals over 100x the limit: the likely cause is the stand file's axis mapping (axes:, which "
+                "must match how the sensor is mounted) or the coefficients (the calibrate step's init); see "
+                "docs/procedures.md, \"Axis mapping\"";
+    }
+    const std::string who = multi() ? "unit " + u.serial + " " : "";
+    const std::string line = fmt::format("{}check: {}", who, broken.empty() ? "residuals within the limits" : broken);
+    log_->info("{}", line);
+    if (req_.tty) after_progress_.push_back(line);
+    if (!broken.empty()) all += (all.empty() ? "" : "; ") + who + broken;
   }
-  const std::string line = fmt::format("check: {}", broken.empty() ? "residuals within the limits" : broken);
-  log_->info("{}", line);
-  if (req_.tty) after_progress_.push_back(line);
-  return broken;
+  return all;
 }
 
 void Session::finish(const EngineResult& er) {
@@ -434,13 +570,28 @@ void Session::finish(const EngineResult& er) {
                             {"points", st.points},         {"remeasured", st.remeasured},   {"recoveries", st.recoveries},
                             {"bench_s", st.bench_s},       {"physical_s", plan_.physical_s},
                             {"estimated_s", plan_.estimated_s}, {"scheduled_moves", st.scheduled_moves}};
-  if (sensor_) {
-    const SensorStats ss = sensor_->stats();
+  if (units_.front().sensor) {
+    const SensorStats ss = units_.front().sensor->stats();
     s.sensor_stats = nlohmann::json{{"frames", ss.frames},           {"crc_errors", ss.crc_errors},
                                     {"garbage_bytes", ss.garbage_bytes}, {"seq_gaps", ss.seq_gaps},
                                     {"frames_lost", ss.frames_lost}};
   }
-  if (res_.calibration) run_.files.calibration = res_.calibration->filename().string();
+  if (res_.calibration) run_.files.calibration = fs::relative(*res_.calibration, res_.run_dir).string();
+  if (multi()) {
+    // Each unit's outcome: the run's, unless it was dropped along the way.
+    for (const UnitLoss& l : er.lost) units_.at(static_cast<size_t>(l.unit)).loss = l;
+    for (size_t i = 0; i < units_.size(); ++i) {
+      RunFileUnit& ru = run_.units->at(i);
+      const UnitState& u = units_[i];
+      ru.outcome = u.loss ? "lost" : to_string(er.outcome);
+      if (u.loss) {
+        ru.loss_cause = to_string(u.loss->cause);
+        ru.reason = u.loss->reason;
+        ru.lost_at_point = u.loss->point + 1;
+      }
+      if (u.calibration) ru.calibration = fs::relative(*u.calibration, res_.run_dir).string();
+    }
+  }
   write_run_file(res_.run_dir, run_);
   with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, er.outcome, end_utc); });
   if (!catalogue_error_.empty()) {
@@ -460,12 +611,41 @@ void Session::finish(const EngineResult& er) {
 // The report needs a calibration (this session's or an earlier one's); a failure to draw it
 // never fails the run: the recording is what matters.
 void Session::write_report() {
-  if (!req_.write_report || !fs::exists(res_.run_dir / "calibration.json")) return;
+  if (!req_.write_report) return;
+  if (multi()) {
+    write_unit_reports();
+    return;
+  }
+  if (!fs::exists(res_.run_dir / "calibration.json")) return;
   try {
     const auto t0 = std::chrono::steady_clock::now();
     ReportOptions ro;
-    ro.recording = &recorded_;
+    ro.recording = &units_.front().recorded;
     res_.report = fpss::write_report(res_.run_dir, ro);
+    log_->info("report: {} ({:.2f} s)", res_.report->string(), seconds_since(t0));
+  } catch (const std::exception& e) {
+    log_->warn("report not written: {}", e.what());
+  }
+}
+
+// Several units: each unit's own report in its folder, and the run's page with a section and a
+// banner per unit (stand/report/units_page.h).
+void Session::write_unit_reports() {
+  try {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<UnitReport> pages;
+    for (size_t i = 0; i < units_.size(); ++i) {
+      const UnitState& u = units_[i];
+      UnitReport page{run_.units->at(i), unit_verdict(run_, run_.units->at(i)), std::nullopt};
+      if (fs::exists(u.dir / "calibration.json")) {
+        ReportOptions ro;
+        ro.recording = &u.recorded;
+        ro.verdict = page.verdict;
+        page.report = fpss::write_report(u.dir, ro);
+      }
+      pages.push_back(std::move(page));
+    }
+    res_.report = write_units_report(res_.run_dir, run_, pages);
     log_->info("report: {} ({:.2f} s)", res_.report->string(), seconds_since(t0));
   } catch (const std::exception& e) {
     log_->warn("report not written: {}", e.what());
@@ -474,7 +654,7 @@ void Session::write_report() {
 
 void Session::ask_prompts(ControlPoller& poller, RunControl& control) {
   if (req_.prompts.empty()) return;
-  const OperatorAnswers got = ask_operator(req_.prompts, unit_, poller, control, *event_log_, *log_);
+  const OperatorAnswers got = ask_operator(req_.prompts, units_.front().serial, poller, control, *event_log_, *log_);
   if (!got.complete) return;  // aborted: the engine stops before it moves
   res_.answers = got.answers;
   res_.signed_off_utc = got.signed_off_utc;
@@ -543,14 +723,21 @@ SessionResult Session::run() {
       });
       progress_->note("keys: p pause, r resume, a abort to the safe state; Ctrl-C interrupts");
     }
-    Engine engine(*gimbal_, *sensor_, stand_.bench, plan_, bus_, *log_, control, hooks, rec_->resume_point());
+    std::vector<EngineUnit> live;
+    for (size_t i = 0; i < units_.size(); ++i) {
+      if (!units_[i].loss) live.push_back(EngineUnit{static_cast<int>(i), units_[i].sensor.get(), units_[i].cfg.axes});
+    }
+    Engine engine(*gimbal_, *live.front().sensor, stand_.bench, plan_, bus_, *log_, control, hooks, rec_->resume_point());
+    if (multi()) engine.set_units(live);
     er = engine.run(session_);
     res_.stats = engine.stats();
   }
   progress_->finish();
   for (const auto& text : after_progress_) std::fprintf(stderr, "%s\n", text.c_str());
   try {
-    sensor_->disconnect();
+    for (UnitState& u : units_) {
+      if (u.sensor) u.sensor->disconnect();
+    }
     gimbal_->disconnect();
   } catch (const std::exception& e) {
     log_->warn("disconnect: {}", e.what());
@@ -563,12 +750,22 @@ SessionResult Session::run() {
              skipped ? fmt::format(", {} of them skipped by the adaptive stop", skipped) : "",
              er.reason.empty() ? "" : ": " + er.reason);
   res_.exit_code = er.outcome == RunOutcome::completed ? 0 : 1;
+  // Several units: the run exits 0 only when every unit completed.
+  for (const UnitState& u : units_) {
+    if (u.loss) res_.exit_code = 1;
+  }
+  if (multi()) {
+    for (const UnitState& u : units_) {
+      log_->info("unit {}: {}", u.serial, u.loss ? fmt::format("lost ({}): {}", to_string(u.loss->cause), u.loss->reason)
+                                                  : std::string(to_string(er.outcome)));
+    }
+  }
   if (!catalogue_error_.empty()) {
     res_.exit_code = 1;
     res_.catalogue_error = catalogue_error_;
   }
   res_.wall_s = seconds_since(t_start);
-  res_.recording = std::move(recorded_);
+  res_.recording = std::move(units_.front().recorded);
   log_->flush();
   return res_;
 }
