@@ -74,7 +74,10 @@ void Engine::prepare() {
   }
 }
 
-void Engine::set_units(std::vector<EngineUnit> units) { io_->set_units(std::move(units)); }
+void Engine::set_units(std::vector<EngineUnit> units) {
+  io_->set_units(std::move(units));
+  if (hooks_.unit_lost) io_->on_lost(hooks_.unit_lost);
+}
 
 void Engine::compute(const Action& a, const char* what, const std::function<void(const Action&)>& hook,
                      StopCause cause) {

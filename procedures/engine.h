@@ -81,6 +81,8 @@ struct EngineHooks {
   // A point of a grid with an adaptive stop is about to be measured: the live fit's largest
   // 1-sigma (arcsec) over the range of the point's group and axes; infinite when it cannot tell.
   std::function<double(const Action&)> until_sigma;
+  // Several units: a unit was dropped (the session stops fitting and diagnosing it from here on).
+  std::function<void(const UnitLoss&)> unit_lost;
 };
 
 class EngineClock;

@@ -65,11 +65,15 @@ bool EngineIo::lose(size_t i, LossCause cause, const std::string& reason, int64_
   const std::string msg = fmt::format("unit {} lost ({}): {}; the other units go on", units_[i].id + 1, to_string(cause), reason);
   log_.error("{}", msg);
   events_.publish(Fault{Fault::Level::fault, point, msg, {}});
-  try {
-    Timed t(stats_.device_s);
-    units_[i].sensor->stop();
-  } catch (const DeviceError&) {
-    // It is lost already: its stream need not stop cleanly.
+  if (on_lost_) on_lost_(losses_.back());
+  // A silent unit would only make the stop wait out its command timeouts.
+  if (cause != LossCause::silence) {
+    try {
+      Timed t(stats_.device_s);
+      units_[i].sensor->stop();
+    } catch (const DeviceError&) {
+      // It is lost already: its stream need not stop cleanly.
+    }
   }
   if (i == lead_) {
     for (size_t k = 0; k < units_.size(); ++k) {

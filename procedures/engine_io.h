@@ -1,5 +1,6 @@
 // The engine's hold on its devices and its operator: every command and reading goes through here, so each part knows what the gimbal should hold.
 #pragma once
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -44,6 +45,7 @@ class EngineIo {
   // Another unit could take the lead's place.
   bool can_lose_lead() const;
   const std::vector<UnitLoss>& losses() const { return losses_; }
+  void on_lost(std::function<void(const UnitLoss&)> f) { on_lost_ = std::move(f); }
   // A failing unit's strikes: the points in a row it gave nothing at (reset by a good point).
   int& strikes(size_t i) { return strikes_[i]; }
   const EngineSettings& settings() const { return b_; }
@@ -112,6 +114,7 @@ class EngineIo {
   std::vector<int> strikes_ = std::vector<int>(1, 0);
   size_t lead_ = 0;
   std::vector<UnitLoss> losses_;
+  std::function<void(const UnitLoss&)> on_lost_;
 };
 
 }  // namespace fpss

@@ -617,14 +617,17 @@ void PointMeasurer::follower_failed(const Action& a, size_t ui, const std::strin
   }
   const bool storm = crc - crc_seen_[ui] > static_cast<uint64_t>(a.frames);
   crc_seen_[ui] = crc;
-  // A point without frames is forgiven as often as the stand re-measures a point (its stream
-  // restarted in between); one more in a row and the unit is dropped.
+  // A point without frames is forgiven as often as the stand re-measures a point; one more in a
+  // row and the unit is dropped. Its stream is restarted once, at the first (a stopped stream comes
+  // back; a silent unit costs its command timeouts only once).
   if (++io_.strikes(ui) > std::max(1, b_.max_remeasure)) {
     const LossCause cause = storm ? LossCause::crc_storm : invalid > 0 ? LossCause::invalid_frames : LossCause::silence;
     io_.lose(ui, cause, fmt::format("{} at {} points in a row, the last {}", why, io_.strikes(ui), a.describe()), a.point);
     return;
   }
-  io_.warn(&a, fmt::format("unit {}: {} at {}; restarting its stream", u.id + 1, why, a.describe()));
+  io_.warn(&a, fmt::format("unit {}: {} at {}{}", u.id + 1, why, a.describe(),
+                           io_.strikes(ui) == 1 ? "; restarting its stream" : ""));
+  if (io_.strikes(ui) > 1) return;
   try {
     Timed t(stats_.device_s);
     u.sensor->stop();

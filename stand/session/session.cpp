@@ -710,6 +710,7 @@ SessionResult Session::run() {
   hooks.calibrate = [this](const Action& a) { on_calibrate(a); };
   hooks.check = [this](const Action& a) { return on_check(a); };
   hooks.diagnose = [this](const Action& a) { on_diagnose(a); };
+  hooks.unit_lost = [this](const UnitLoss& l) { units_.at(static_cast<size_t>(l.unit)).loss = l; };
   hooks.until_sigma = [this](const Action& a) {
     return live_ ? live_->until_sigma(a) : std::numeric_limits<double>::infinity();
   };
