@@ -36,6 +36,7 @@
 #include "stand/config/stand_config.h"
 #include "stand/report/compare_plot.h"
 #include "stand/report/report.h"
+#include "stand/report/units_page.h"
 #include "stand/session/session.h"
 
 extern char** environ;
@@ -396,6 +397,16 @@ std::string write_acceptance_files(const fs::path& run_dir, const nlohmann::orde
 
 // The run's own report, when no verdict comes (the session leaves report.html to accept).
 void write_plain_report(const SessionResult& r) {
+  if (!r.units.empty()) {  // several units: each one's own report, and the run's page
+    try {
+      std::vector<UnitFolder> folders;
+      for (const auto& u : r.units) folders.push_back({u.dir, &u.recording});
+      write_unit_reports(r.run_dir, read_run_file(r.run_dir), folders);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "fpss-stand accept: report not written: %s\n", e.what());
+    }
+    return;
+  }
   if (!r.calibration) return;
   try {
     ReportOptions ro;
@@ -404,6 +415,138 @@ void write_plain_report(const SessionResult& r) {
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fpss-stand accept: report not written: %s\n", e.what());
   }
+}
+
+// One unit's verdict, written and recorded.
+struct UnitAcceptance {
+  Judgement judgement;
+  nlohmann::ordered_json cert;
+  std::string text;
+  int64_t acc_id = 0;
+  bool recorded = true;  // the catalogue took it
+};
+
+// Judges one unit's recording and calibration, writes acceptance.json and certificate.txt into
+// `dir` and records the verdict in the catalogue. `page`: writes dir's report with the certificate
+// (and, for one unit, run.json's acceptance).
+UnitAcceptance accept_unit(const AcceptArgs& a, const AcceptancePlan& p, const SessionResult& r, const RunFile& run,
+                           const std::string& unit, const fs::path& dir, SampleTable recording,
+                           const std::optional<fs::path>& calibration, bool single) {
+  const bool completed = r.outcome == RunOutcome::completed;
+  AcceptanceData data;
+  data.roles = p.roles;
+  data.points_planned = p.plan.points;
+  data.run_completed = completed;
+  data.run_reason = r.reason;
+  data.samples = std::move(recording);  // the session's recording: samples.csv is not read again
+  if (calibration && fs::exists(*calibration)) data.calibration = load_coefficients(*calibration);
+  const std::string cat_url = p.req.catalogue;
+  const std::string run_id = run.id_or(r.run_dir);
+  find_reference(data, cat_url, unit, run_id);
+
+  UnitAcceptance out{judge(data, p.limits), {}, {}, 0, true};
+  const Judgement& j = out.judgement;
+  CertificateInfo info = certificate_info(p, r, run, unit);
+  if (calibration) info.calibration_file = fs::relative(*calibration, r.run_dir).string();
+  // The calibrated angle's figures as calibration.json has them (loaded once, above).
+  if (data.calibration) {
+    info.calibration_uncertainty = calibration_uncertainty(data.calibration->extra.value("uncertainties", nlohmann::json()));
+  }
+  out.cert = certificate_json(j, p.limits, info);
+  if (r.answers.count("operator")) {
+    out.cert["operator"] = r.answers.at("operator");
+    out.cert["signed_off_utc"] = r.signed_off_utc;
+  }
+  const std::string title = fmt::format("Acceptance of {} ({})", unit, run_id);
+  if (single) {
+    out.text = write_acceptance_files(dir, out.cert, j, p.limits, run, title, data.samples);
+  } else {
+    write_text_atomic(dir / "acceptance.json", out.cert.dump(1) + "\n");
+    out.text = certificate_text(out.cert);
+    write_text_atomic(dir / "certificate.txt", out.text);
+    RunFileUnit ru;
+    ru.serial = unit;
+    ru.outcome = to_string(r.outcome);
+    ru.verdict = to_string(j.outcome);
+    try {
+      ReportOptions ro;
+      ro.extra_sections.push_back({"acceptance", "Acceptance", certificate_html(out.cert)});
+      ro.verdict = unit_verdict(run, ru);
+      ro.recording = &data.samples;
+      write_report(dir, ro);
+    } catch (const std::exception& e) {
+      write_text_atomic(dir / "report.html", standalone_page(title, verdict_banner_html(unit_verdict(run, ru)) +
+                                                                        certificate_html(out.cert),
+                                                             fmt::format("The unit's report could not be drawn: {}", e.what())));
+    }
+  }
+  try {
+    const auto cat = open_catalogue(cat_url);
+    AcceptanceRecord rec;
+    rec.unit = unit;
+    rec.run_id = run_id;
+    rec.passed = j.passed;
+    rec.date_utc = info.date_utc;
+    rec.certificate = nlohmann::json::parse(out.cert.dump());
+    rec.stand = p.req.stand.stand_id;
+    out.acc_id = cat->record_acceptance(rec);
+  } catch (const std::exception& e) {
+    // The folder holds the verdict; its mark lets the next run or `catalogue rebuild` index it.
+    try {
+      mark_catalogue_pending(r.run_dir, url_for_messages(cat_url), "acceptance", e.what());
+    } catch (const std::exception&) {
+    }
+    std::fprintf(stderr, "fpss-stand accept: verdict %s written to %s, but the catalogue %s could not record it: %s\n",
+                 to_string(j.outcome), (dir / "acceptance.json").c_str(), url_for_messages(cat_url).c_str(), e.what());
+    out.recorded = false;
+  }
+  (void)a;
+  return out;
+}
+
+int exit_code_of(const Judgement& j) { return j.passed ? 0 : j.outcome == Outcome::fail ? 3 : 4; }
+
+// Several units: a verdict per unit that completed; a lost unit has none (its outcome names the
+// loss). Exit 1 when any unit has no verdict, else 3 when any failed, 4 when any is conditional.
+int accept_units(const AcceptArgs& a, const AcceptancePlan& p, SessionResult& r) {
+  RunFile run = read_run_file(r.run_dir);
+  int code = 0;
+  nlohmann::ordered_json all = nlohmann::ordered_json::array();
+  for (size_t i = 0; i < r.units.size(); ++i) {
+    SessionResult::Unit& u = r.units[i];
+    RunFileUnit& ru = run.units->at(i);
+    if (u.loss || !u.calibration) {
+      std::printf("unit %s: no verdict (%s)\n", u.serial.c_str(), u.loss ? ("lost: " + u.loss->reason).c_str() : "no calibration");
+      code = 1;
+      continue;
+    }
+    const UnitAcceptance ua = accept_unit(a, p, r, run, u.serial, u.dir, std::move(u.recording), u.calibration, false);
+    ru.acceptance = fs::relative(u.dir / "acceptance.json", r.run_dir).string();
+    ru.certificate = fs::relative(u.dir / "certificate.txt", r.run_dir).string();
+    ru.verdict = to_string(ua.judgement.outcome);
+    if (!ua.recorded) code = 1;
+    const int c = exit_code_of(ua.judgement);
+    if (code != 1 && (c == 3 || (c == 4 && code == 0))) code = c;
+    if (a.json) {
+      all.push_back({{"unit", u.serial}, {"certificate", ua.cert}});
+    } else {
+      std::printf("%s\nunit %s: acceptance %s: %s\n", ua.text.c_str(), u.serial.c_str(),
+                  ua.judgement.passed ? "PASSED" : ua.judgement.outcome == Outcome::fail ? "FAILED" : "CONDITIONAL",
+                  (u.dir / "acceptance.json").c_str());
+    }
+  }
+  write_run_file(r.run_dir, run);
+  std::vector<UnitReport> pages;
+  for (size_t i = 0; i < r.units.size(); ++i) {
+    const fs::path own = r.units[i].dir / "report.html";
+    pages.push_back({run.units->at(i), unit_verdict(run, run.units->at(i)),
+                     fs::exists(own) ? std::optional<fs::path>(own) : std::nullopt});
+  }
+  const fs::path page = write_units_report(r.run_dir, run, pages);
+  if (a.json) std::printf("%s\n", all.dump(1).c_str());
+  else std::printf("report: %s\n", page.c_str());
+  std::fflush(stdout);
+  return code;
 }
 
 int accept_command(const AcceptArgs& a) {
@@ -420,68 +563,27 @@ int accept_command(const AcceptArgs& a) {
     write_plain_report(r);
     return 1;
   }
+  if (!r.units.empty()) return accept_units(a, p, r);
 
   const RunFile run = read_run_file(run_dir);
   const std::string unit = run.unit.empty() ? a.unit : run.unit;
-  AcceptanceData data;
-  data.roles = p.roles;
-  data.points_planned = p.plan.points;
-  data.run_completed = completed;
-  data.run_reason = r.reason;
-  data.samples = std::move(r.recording);  // the session's recording: samples.csv is not read again
-  if (r.calibration && fs::exists(*r.calibration)) data.calibration = load_coefficients(*r.calibration);
+  const std::optional<fs::path> calibration = r.calibration;
+  const UnitAcceptance ua = accept_unit(a, p, r, run, unit, run_dir, std::move(r.recording), calibration, true);
+  if (!ua.recorded) return 1;
+  const Judgement& j = ua.judgement;
   const std::string cat_url = p.req.catalogue;
-  const std::string run_id = run.id_or(run_dir);
-  find_reference(data, cat_url, unit, run_id);
-
-  const Judgement j = judge(data, p.limits);
-  CertificateInfo info = certificate_info(p, r, run, unit);
-  // The calibrated angle's figures as calibration.json has them (loaded once, above).
-  if (data.calibration) {
-    info.calibration_uncertainty = calibration_uncertainty(data.calibration->extra.value("uncertainties", nlohmann::json()));
-  }
-  nlohmann::ordered_json cert = certificate_json(j, p.limits, info);
-  if (r.answers.count("operator")) {
-    cert["operator"] = r.answers.at("operator");
-    cert["signed_off_utc"] = r.signed_off_utc;
-  }
-  const std::string text = write_acceptance_files(run_dir, cert, j, p.limits, run,
-                                                  fmt::format("Acceptance of {} ({})", unit, run_id), data.samples);
-  int64_t acc_id = 0;
-  try {
-    const auto cat = open_catalogue(cat_url);
-    AcceptanceRecord rec;
-    rec.unit = unit;
-    rec.run_id = run_id;
-    rec.passed = j.passed;
-    rec.date_utc = info.date_utc;
-    rec.certificate = nlohmann::json::parse(cert.dump());
-    rec.stand = p.req.stand.stand_id;
-    acc_id = cat->record_acceptance(rec);
-  } catch (const std::exception& e) {
-    // The folder holds the verdict; its mark lets the next run or `catalogue rebuild` index it.
-    try {
-      mark_catalogue_pending(run_dir, url_for_messages(cat_url), "acceptance", e.what());
-    } catch (const std::exception&) {
-    }
-    std::fprintf(stderr, "fpss-stand accept: verdict %s written to %s, but the catalogue %s could not record it: %s\n",
-                 to_string(j.outcome), (run_dir / "acceptance.json").c_str(), url_for_messages(cat_url).c_str(),
-                 e.what());
-    return 1;
-  }
-
   if (a.json) {
-    std::printf("%s\n", cert.dump(1).c_str());
+    std::printf("%s\n", ua.cert.dump(1).c_str());
   } else {
-    std::printf("%s\n", text.c_str());
+    std::printf("%s\n", ua.text.c_str());
     std::printf("acceptance %s: %s\ncertificate: %s\nreport: %s\ncatalogue: %s (acceptance %lld)\n",
                 j.passed ? "PASSED" : j.outcome == Outcome::fail ? "FAILED" : "CONDITIONAL", (run_dir / "acceptance.json").c_str(),
                 (run_dir / "certificate.txt").c_str(), (run_dir / "report.html").c_str(), url_for_messages(cat_url).c_str(),
-                static_cast<long long>(acc_id));
+                static_cast<long long>(ua.acc_id));
   }
   std::fflush(stdout);
   // Conditional is no acceptance (exit 4, catalogue passed = false), nor a failure (exit 3).
-  return j.passed ? 0 : j.outcome == Outcome::fail ? 3 : 4;
+  return exit_code_of(j);
 }
 
 void add_accept_command(CLI::App& app, Runner& run) {

@@ -103,4 +103,19 @@ fs::path write_units_report(const fs::path& run_dir, const RunFile& run, const s
   return out;
 }
 
+fs::path write_unit_reports(const fs::path& run_dir, const RunFile& run, const std::vector<UnitFolder>& units) {
+  std::vector<UnitReport> pages;
+  for (size_t i = 0; i < units.size(); ++i) {
+    UnitReport page{run.units->at(i), unit_verdict(run, run.units->at(i)), std::nullopt};
+    if (fs::exists(units[i].dir / "calibration.json")) {
+      ReportOptions ro;
+      ro.recording = units[i].recording;
+      ro.verdict = page.verdict;
+      page.report = write_report(units[i].dir, ro);
+    }
+    pages.push_back(std::move(page));
+  }
+  return write_units_report(run_dir, run, pages);
+}
+
 }  // namespace fpss

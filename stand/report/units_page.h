@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "calib/samples.h"
 #include "stand/catalogue/run_file.h"
 #include "stand/report/run_summary.h"
 
@@ -24,5 +25,15 @@ struct UnitReport {
 // to the first unit. Written atomically; returns its path.
 std::filesystem::path write_units_report(const std::filesystem::path& run_dir, const RunFile& run,
                                          const std::vector<UnitReport>& units);
+
+// What a unit's own report is drawn from: its folder (calibration.json inside) and its recording.
+struct UnitFolder {
+  std::filesystem::path dir;
+  const SampleTable* recording = nullptr;  // null: its samples.csv is read
+};
+// Each unit's own report (units/<SERIAL>/report.html, where it has a calibration, its banner its
+// unit_verdict), then the run's page (write_units_report). `units` in run.json's units order.
+std::filesystem::path write_unit_reports(const std::filesystem::path& run_dir, const RunFile& run,
+                                         const std::vector<UnitFolder>& units);
 
 }  // namespace fpss

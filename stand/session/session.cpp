@@ -633,19 +633,9 @@ void Session::write_report() {
 void Session::write_unit_reports() {
   try {
     const auto t0 = std::chrono::steady_clock::now();
-    std::vector<UnitReport> pages;
-    for (size_t i = 0; i < units_.size(); ++i) {
-      const UnitState& u = units_[i];
-      UnitReport page{run_.units->at(i), unit_verdict(run_, run_.units->at(i)), std::nullopt};
-      if (fs::exists(u.dir / "calibration.json")) {
-        ReportOptions ro;
-        ro.recording = &u.recorded;
-        ro.verdict = page.verdict;
-        page.report = fpss::write_report(u.dir, ro);
-      }
-      pages.push_back(std::move(page));
-    }
-    res_.report = write_units_report(res_.run_dir, run_, pages);
+    std::vector<UnitFolder> folders;
+    for (const UnitState& u : units_) folders.push_back({u.dir, &u.recorded});
+    res_.report = fpss::write_unit_reports(res_.run_dir, run_, folders);
     log_->info("report: {} ({:.2f} s)", res_.report->string(), seconds_since(t0));
   } catch (const std::exception& e) {
     log_->warn("report not written: {}", e.what());
@@ -766,7 +756,11 @@ SessionResult Session::run() {
     res_.catalogue_error = catalogue_error_;
   }
   res_.wall_s = seconds_since(t_start);
-  res_.recording = std::move(units_.front().recorded);
+  if (multi()) {
+    for (UnitState& u : units_) res_.units.push_back({u.serial, u.dir, u.calibration, u.loss, std::move(u.recorded)});
+  } else {
+    res_.recording = std::move(units_.front().recorded);
+  }
   log_->flush();
   return res_;
 }

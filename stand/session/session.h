@@ -59,6 +59,16 @@ struct SessionResult {
   // Every row of the run (a resume's earlier rows too), as samples.csv holds them: the one
   // recording the session's calibrate steps fitted, handed on so nothing reads the file again.
   SampleTable recording;
+  // Several units on the gimbal: each one's folder, recording, latest calibration and loss, in the
+  // stand's order (`recording` above is then the first unit's). Empty for one unit.
+  struct Unit {
+    std::string serial;
+    std::filesystem::path dir;
+    std::optional<std::filesystem::path> calibration;
+    std::optional<UnitLoss> loss;
+    SampleTable recording;
+  };
+  std::vector<Unit> units;
 };
 
 // Throws InputError for bad input found before anything moved (invalid procedure or stand, a

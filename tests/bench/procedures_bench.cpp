@@ -9,6 +9,12 @@
 #include <chrono>
 #include <filesystem>
 
+#include <fmt/format.h>
+
+#include "calib/calibrator.h"
+#include "calib/coefficients.h"
+#include "calib/transfer_function.h"
+#include "calib/units.h"
 #include "procedures/engine.h"
 #include "procedures/plan.h"
 #include "procedures/procedure.h"
@@ -95,6 +101,72 @@ void BM_DiscreteGridAtSpeed(benchmark::State& state) {
   if (dry.out.find("estimated duration:") == std::string::npos) state.SkipWithError("the dry run printed no estimate");
 }
 BENCHMARK(BM_DiscreteGridAtSpeed)->Arg(20)->Arg(100)->Arg(1000)->Iterations(3)->UseManualTime()->Unit(benchmark::kSecond);
+
+// Units per bench hour (issue: several units on one gimbal): `run --emulate --bench` with 1, 2 and
+// 4 units of different published truths in one pass, with the shipped grid (arg 1 = 0) and with
+// the procedure `design` makes for the grid's accuracy (arg 1 = 1: the largest 1-sigma the grid
+// reaches, 0.03 arcsec). Bench time is run.json's engine bench_s; every unit's fit is held against
+// its truth over +-0.4 deg (worst_error_arcsec). Target: at least 150 units per bench hour at the
+// grid's accuracy.
+void BM_UnitsPerBenchHour(benchmark::State& state) {
+  const int units = static_cast<int>(state.range(0));
+  const bool designed = state.range(1) == 1;
+  fpss::test::TempDir tmp("bench-units");
+  const char* truths[] = {"a-6-fpss1", "a-6-fpss2", "a-5-fpss1", "a-5-fpss2"};
+  std::string bench = "seed: 3\nsensors:\n";
+  for (int u = 0; u < units; ++u) {
+    bench += fmt::format("  - {{serial: U{}, truth: {}/calib/data/published/{}.json}}\n", u + 1,
+                         fpss::test::source_dir().string(), truths[u]);
+  }
+  const fs::path bench_file = tmp.write("bench.yaml", bench);
+  std::string procedure = (fpss::test::source_dir() / "procedures" / "discrete_grid.yaml").string();
+  if (designed) {
+    procedure = (tmp / "designed.yaml").string();
+    const auto d = fpss::test::run_stand({"design", "--target-sigma-arcsec", "0.03", "--emulate", "--bench",
+                                          bench_file.string(), "--out", procedure},
+                                         tmp.path(), "design", 300);
+    if (d.code != 0) {
+      state.SkipWithError(("design failed: " + d.err).c_str());
+      return;
+    }
+  }
+  double bench_s = 0, worst = 0;
+  int n = 0;
+  for (auto _ : state) {
+    const fs::path runs = tmp / ("runs" + std::to_string(n++));
+    const auto t0 = Clock::now();
+    const auto r = fpss::test::run_stand({"run", procedure, "--emulate", "--bench", bench_file.string(), "--speed", "200",
+                                          "--runs-dir", runs.string(), "--quiet"},
+                                         tmp.path(), "run", 300);
+    state.SetIterationTime(std::chrono::duration<double>(Clock::now() - t0).count());
+    if (r.code != 0) {
+      state.SkipWithError(("run failed: " + r.err).c_str());
+      return;
+    }
+    const fs::path dir = fpss::test::run_dirs(runs).front();
+    bench_s += fpss::read_json_file(dir / "run.json")["sessions"][0]["engine"]["bench_s"].get<double>();
+    for (int u = 0; u < units; ++u) {
+      const fs::path cal = units == 1 ? dir / "calibration.json" : dir / "units" / ("U" + std::to_string(u + 1)) / "calibration.json";
+      const fpss::CoefficientSet fit = fpss::load_coefficients(cal), truth = fpss::load_published(truths[u]);
+      for (auto axis : {&fpss::CoefficientSet::alpha, &fpss::CoefficientSet::beta}) {
+        const fpss::AxisModel t(truth.*axis);
+        const double lo = t.counts_for_angle(fpss::arcsec_to_rad(-1440)), hi = t.counts_for_angle(fpss::arcsec_to_rad(1440));
+        worst = std::max(worst, fpss::compare_transfer(fit.*axis, truth.*axis, std::min(lo, hi), std::max(lo, hi)).max_abs_arcsec);
+      }
+    }
+  }
+  bench_s /= n;
+  state.counters["units"] = units;
+  state.counters["bench_s"] = bench_s;
+  state.counters["units_per_bench_hour"] = units * 3600.0 / bench_s;
+  state.counters["worst_error_arcsec"] = worst;
+}
+BENCHMARK(BM_UnitsPerBenchHour)
+    ->ArgsProduct({{1, 2, 4}, {0, 1}})
+    ->ArgNames({"units", "designed"})
+    ->Iterations(1)
+    ->UseManualTime()
+    ->Unit(benchmark::kSecond);
 
 // Devices that are always where they were told to be and always have a frame ready.
 class InstantGimbal : public fpss::Gimbal {
