@@ -1,30 +1,105 @@
 // fpss-stand diagnose (sim-to-real gap: which unmodelled effect, where, how far it shrinks) and
 // fpss-stand blindtest (the diagnosis against random effects on the simulated bench).
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
 #include <cstdio>
+#include <filesystem>
 
 #include "base/errors.h"
 #include "base/text_file.h"
 #include "calib/coefficients.h"
 #include "calib/diagnosis/diagnosis.h"
+#include "calib/diagnosis/joint.h"
 #include "calib/samples.h"
 #include "stand/blindtest/blindtest.h"
+#include "stand/blindtest/joint_blindtest.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/file_options.h"
 #include "stand/cli/help.h"
+#include "stand/catalogue/run_file.h"
 #include "stand/report/diagnosis_page.h"
 
 namespace fpss::cli {
 
 namespace {
 
+namespace fs = std::filesystem;
+
 void write_json_file(const std::string& path, const nlohmann::ordered_json& j) {
   write_text_atomic(path, j.dump(1) + '\n');
 }
 
+// An input given as an output too (an option's file the command would overwrite): exit 2.
+void check_not_output(const std::string& input, const std::string& output, const std::string& option) {
+  std::error_code ec;
+  if (!output.empty() && fs::exists(input) && fs::equivalent(input, output, ec)) {
+    throw InputError(fmt::format("{} {}: is also --out: the command would overwrite what it reads", option, input));
+  }
+}
+
+// diagnose --run: each unit's recording against its model (units/SERIAL/GAP.json and GAP.html),
+// then what is the stand's and what each unit's (`out`). Exit 2 for a unit the run does not have.
+int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models, const std::string& out,
+                 const DiagnosisOptions& opts, bool partial) {
+  const RunFile run = read_run_file(run_dir);
+  if (!run.units) {
+    throw InputError(fmt::format("{}: run.json lists no units (a single-unit run): use --model FILE --data "
+                                 "RUN_DIR/samples.csv",
+                                 run_dir.string()));
+  }
+  std::vector<std::pair<std::string, Diagnosis>> diagnosed;
+  bool incomplete = false;
+  for (const std::string& m : models) {
+    const auto eq = m.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      throw InputError(fmt::format("--model {}: with --run, give SERIAL=FILE (one per unit)", m));
+    }
+    const std::string serial = m.substr(0, eq), file = m.substr(eq + 1);
+    check_not_output(file, out, "--model");
+    const auto unit = std::find_if(run.units->begin(), run.units->end(), [&](const RunFileUnit& u) { return u.serial == serial; });
+    if (unit == run.units->end()) {
+      std::vector<std::string> serials;
+      for (const auto& u : *run.units) serials.push_back(u.serial);
+      throw InputError(fmt::format("--model {}: the run has no unit {} (it has {})", m, serial, fmt::join(serials, ", ")));
+    }
+    if (!unit->samples) throw InputError(fmt::format("--model {}: run.json names no samples of unit {}", m, serial));
+    const CoefficientSet model = load_coefficients(file);
+    DiagnosisFigures figures;
+    Diagnosis d = diagnose(read_diagnosis_columns(run_dir / *unit->samples), model, opts, &figures);
+    const fs::path dir = (run_dir / *unit->samples).parent_path();
+    nlohmann::ordered_json j = d.to_json();
+    j["model"] = file;
+    write_json_file((dir / "GAP.json").string(), j);
+    write_diagnosis_page((dir / "GAP.html").string(), d, figures);
+    std::printf("unit %s: verdict %s, cause %s", serial.c_str(), d.verdict.c_str(), d.cause.c_str());
+    for (size_t k = 1; k < d.causes.size(); ++k) std::printf(", then %s", d.causes[k].name.c_str());
+    std::printf(" -> %s\n", (dir / "GAP.json").c_str());
+    incomplete = incomplete || d.incomplete_recording();
+    diagnosed.emplace_back(serial, std::move(d));
+  }
+  const JointDiagnosis joint = attribute_effects(diagnosed);
+  nlohmann::ordered_json j = joint.to_json();
+  j["run"] = run.id_or(run_dir);
+  write_json_file(out, j);
+  for (const StandEffect& s : joint.stand_effects) std::printf("stand: %s %s\n", s.name.c_str(), s.params.dump().c_str());
+  for (const auto& [serial, effects] : joint.unit_effects) {
+    for (const UnitEffect& u : effects) std::printf("unit %s: %s %s\n", serial.c_str(), u.name.c_str(), u.params.dump().c_str());
+  }
+  if (incomplete) {
+    std::fprintf(stderr, "fpss-stand diagnose: this recording cannot tell every effect apart (each unit's GAP.json, "
+                         "not_observable; --partial accepts it)\n");
+    return partial ? 0 : 2;
+  }
+  return 0;
+}
+
 void add_diagnose_command(CLI::App& app, Runner& run) {
   struct Opts {
-    std::string model, data, out, report, emit_bench;
+    std::vector<std::string> models;
+    std::string data, run_dir, out, report, emit_bench;
     DiagnosisOptions d;
     bool partial = false;
     FileOptions files;
@@ -32,13 +107,16 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("diagnose", "Which unmodelled effect explains model(counts) - reference, checked on held-out steps");
   FileOptions& f = o->files;
-  expect_file(sub, f.input(sub, "--model", o->model, "the sim model: a coefficient file (JSON)")->required(), o->model,
-              FileKind::coefficients);
-  expect_file(sub,
-              f.input(sub, "--data", o->data,
-                      "the real recording: a samples CSV (all phases; temperature_c used when present)")
-                  ->required(),
-              o->data, FileKind::samples);
+  sub->add_option("--model", o->models,
+                  "the sim model: a coefficient file (JSON); with --run, SERIAL=FILE for each unit (repeatable)")
+      ->required()
+      ->allow_extra_args(false);
+  auto* data = f.input(sub, "--data", o->data, "the real recording: a samples CSV (all phases; temperature_c used when present)");
+  expect_file(sub, data, o->data, FileKind::samples);
+  auto* run_opt = sub->add_option("--run", o->run_dir,
+                                  "a run folder of several units: each unit's diagnosis into units/SERIAL/GAP.json, and "
+                                  "--out tells the stand's effects from each unit's");
+  data->excludes(run_opt);
   f.output(sub, "--out", o->out, "GAP.json to write")->required();
   f.output(sub, "--report", o->report, "GAP.html: residuals against every factor before/after, residual map");
   f.output(sub, "--emit-bench", o->emit_bench,
@@ -52,18 +130,27 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   sub->add_flag("--partial", o->partial,
                 "accept a recording that cannot reveal every effect (no slews or no offsets): exit 0 instead of 2");
   examples(sub, {"fpss-stand diagnose --model calib/data/published/a-6-fpss1.json --data RUN_DIR/samples.csv "
-                 "--out gap.json --report gap.html --partial"});
+                 "--out gap.json --report gap.html --partial",
+                 "fpss-stand diagnose --run RUN_DIR --model FPSS1-A6=calib/data/published/a-6-fpss1.json "
+                 "--model FPSS2-A6=calib/data/published/a-6-fpss2.json --out joint.json --partial"});
   sub->callback([o, &run] {
     run = [o] {
       o->files.check();
-      const CoefficientSet model = load_coefficients(o->model);
+      if (!o->run_dir.empty()) return diagnose_run(o->run_dir, o->models, o->out, o->d, o->partial);
+      if (o->data.empty()) throw InputError("diagnose: give --data (one recording) or --run (a run folder of several units)");
+      if (o->models.size() != 1 || o->models.front().empty()) {
+        throw InputError("diagnose --data: give one --model (a coefficient file); SERIAL=FILE pairs go with --run");
+      }
+      const std::string model_path = o->models.front();
+      check_not_output(model_path, o->out, "--model");
+      const CoefficientSet model = load_coefficients(model_path);
       // Straight into the columns the diagnosis reads (no whole table of every column in memory).
       DiagnosisFigures figures;
       Diagnosis d = diagnose(read_diagnosis_columns(o->data), model, o->d, o->report.empty() ? nullptr : &figures);
       nlohmann::ordered_json j = d.to_json();
-      j["model"] = o->model;
+      j["model"] = model_path;
       write_json_file(o->out, j);
-      if (!o->emit_bench.empty()) write_emitted_bench(o->emit_bench, d, o->model);
+      if (!o->emit_bench.empty()) write_emitted_bench(o->emit_bench, d, model_path);
       if (!o->report.empty()) write_diagnosis_page(o->report, d, figures);
       std::printf("verdict: %s\n%s\ncause: %s", d.verdict.c_str(), d.verdict_sentence.c_str(), d.cause.c_str());
       for (size_t k = 1; k < d.causes.size(); ++k) std::printf(", then %s", d.causes[k].name.c_str());
@@ -90,7 +177,7 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
 void add_blindtest_command(CLI::App& app, Runner& run) {
   struct Opts {
     BlindTestOptions b;
-    bool json = false, quiet = false;
+    bool json = false, quiet = false, units = false;
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("blindtest", "Blind check of the diagnosis: random effects on the simulated bench");
@@ -101,10 +188,24 @@ void add_blindtest_command(CLI::App& app, Runner& run) {
                   "folder for every case's recording, model, truth and GAP.json (to re-run `diagnose` on them)");
   sub->add_flag("--quiet", o->quiet, "no progress lines on stderr");
   sub->add_flag("--pairs", o->b.pairs, "two different effects per case (correct when both are reported)");
+  sub->add_flag("--units", o->units,
+                "two units on one gimbal pass, a stand effect for both and a unit effect on one: is each attributed "
+                "to the stand or to its unit (diagnose --run)");
   examples(sub, {"fpss-stand blindtest --cases 2 --seed 3", "fpss-stand blindtest --cases 22 --pairs --json"});
   sub->callback([o, &run] {
     run = [o] {
       if (o->b.cases < 1) throw InputError("--cases must be at least 1");
+      if (o->units) {
+        const JointBlindReport rep = run_joint_blindtest(o->b.cases, o->b.seed, [&](const JointBlindCase& c) {
+          if (!o->quiet) {
+            std::fprintf(stderr, "case %3d  stand %-22s + %-15s on %s  %s\n", c.index, c.stand_effect.c_str(),
+                         c.unit_effect.c_str(), c.unit_serial.c_str(), c.correct ? "ok" : "MISS");
+          }
+        });
+        if (o->json) std::printf("%s\n", rep.to_json().dump(1).c_str());
+        else std::printf("%s", rep.to_text().c_str());
+        return 0;
+      }
       const BlindTestReport rep = run_blindtest(o->b, [&](const BlindCase& c) {
         if (o->quiet) return;
         std::string got = c.cause;
