@@ -346,7 +346,21 @@ std::optional<std::filesystem::path> coefficient_file(MapReader& r, const std::s
 
 StepBody parse_diagnose(MapReader& r, const std::string& origin) {
   DiagnoseStep s;
-  if (auto f = coefficient_file(r, "model", origin, true)) s.model = *f;
+  const bool listed = r.has("models");
+  if (auto f = coefficient_file(r, "model", origin, !listed)) s.model = *f;
+  if (listed) {
+    const YAML::Node m = r.node("models");
+    if (!m.IsMap() || m.size() == 0 || m.size() > 64) {
+      r.diagnostics().error(m, fmt::format("{}: field models: expected a map of 1 to 64 units, SERIAL: FILE", r.where()));
+    } else {
+      MapReader units(m, r.where() + ".models", r.diagnostics());
+      for (auto it = m.begin(); it != m.end(); ++it) {
+        const std::string serial = it->first.as<std::string>();
+        if (auto f = coefficient_file(units, serial, origin, true)) s.models[serial] = *f;
+      }
+      units.finish();
+    }
+  }
   if (auto v = r.boolean("partial")) s.partial = *v;
   if (auto v = r.non_negative("settle_s")) s.settle_s = *v;
   return s;

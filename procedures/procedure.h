@@ -1,6 +1,7 @@
 // Calibration procedures: declarative YAML steps (no code), parsed and validated with every error at once.
 #pragma once
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -114,7 +115,10 @@ struct CheckStep {
 // The sim-to-real diagnosis (calib/diagnosis/diagnosis.h) of every point recorded before it, against a model:
 // GAP.json and GAP.html in the run folder.
 struct DiagnoseStep {
-  std::filesystem::path model;  // the sim's coefficient file (relative to the procedure)
+  std::filesystem::path model;  // the sim's coefficient file (relative to the procedure); "" with `models`
+  // Several units: each unit's sim model by serial (relative to the procedure); a unit not listed
+  // takes `model` when it is given, else is not diagnosed.
+  std::map<std::string, std::filesystem::path> models;
   bool partial = false;         // a recording that cannot tell every effect apart is not a warning
   double settle_s = 0;          // time from a dwell's arrival to its first sample (diagnose --settle-s)
 };

@@ -8,6 +8,10 @@
 
 namespace fpss {
 
+// A refitted transfer function contains a scale factor (its linear term): a unit whose diagnosis
+// names a change of its coefficients may show the gimbal's scale factor only inside that change.
+bool absorbed_by_coefficients(const std::string& name) { return name == "scale_factor"; }
+
 bool is_gimbal_effect(const std::string& name) {
   return name == "backlash" || name == "scale_factor" || name == "axis_nonorthogonality" || name == "settling";
 }
@@ -52,32 +56,48 @@ JointDiagnosis attribute_effects(const std::vector<std::pair<std::string, Diagno
   std::map<std::string, bool> common;
   for (const std::string& name : names) {
     std::vector<const EffectResult*> found;
-    std::vector<std::string> serials;
+    std::vector<std::string> serials, absorbed;
     for (const auto& [serial, d] : units) {
+      const EffectResult* named = nullptr;
+      bool refitted = false;
       for (const EffectResult& c : d.causes) {
-        if (c.name == name) {
-          found.push_back(&c);
-          serials.push_back(serial);
-          break;
-        }
+        if (c.name == name && !named) named = &c;
+        refitted = refitted || c.name == "coefficients";
+      }
+      if (named) {
+        found.push_back(named);
+        serials.push_back(serial);
+      } else if (refitted && absorbed_by_coefficients(name)) {
+        absorbed.push_back(serial);
       }
     }
-    common[name] = units.size() >= 2 && found.size() == units.size() && name != "coefficients";
+    common[name] = units.size() >= 2 && !found.empty() && found.size() + absorbed.size() == units.size() &&
+                   name != "coefficients";
     if (!common[name]) continue;
     StandEffect s;
     s.name = name;
     double spread = 0;
     s.params = mean_params(found, spread);
     s.units = serials;
+    s.units.insert(s.units.end(), absorbed.begin(), absorbed.end());
     s.evidence = nlohmann::ordered_json::object();
-    s.evidence["rule"] = fmt::format("named in the diagnosis of every unit ({} of {}): the stand's", found.size(), units.size());
+    s.evidence["rule"] =
+        absorbed.empty()
+            ? fmt::format("named in the diagnosis of every unit ({} of {}): the stand's", found.size(), units.size())
+            : fmt::format("named in {} of {} units; the others' refitted coefficients contain it: the stand's",
+                          found.size(), units.size());
+    if (!absorbed.empty()) {
+      s.evidence["absorbed_by_coefficients"] = absorbed;
+      s.evidence["note"] = "these units' change of coefficients holds the stand's effect too: its size is the other "
+                           "units' alone";
+    }
     s.evidence["largest_departure_from_mean"] = spread;
     nlohmann::ordered_json per = nlohmann::ordered_json::object();
     for (size_t k = 0; k < found.size(); ++k) {
       per[serials[k]] = {{"params", found[k]->params}, {"heldout_rms_arcsec", found[k]->heldout_rms_arcsec}};
     }
     s.evidence["units"] = per;
-    if (spread > 0.5) {
+    if (spread > 0.5 && absorbed.empty()) {
       s.evidence["note"] = "the units disagree on its size by more than half: part of it may be each unit's own";
     }
     j.stand_effects.push_back(std::move(s));

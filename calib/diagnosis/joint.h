@@ -38,7 +38,9 @@ struct JointDiagnosis {
 
 // The rule (docs/diagnosis.md, "Several units"): an effect named in the diagnosis of every unit
 // (two at least) is the stand's, except a change of a unit's coefficients, which is always its own;
-// an effect named in some units only is each of those units' own. `units`: (serial, its diagnosis).
+// the gimbal's scale factor counts as named by a unit whose diagnosis names a change of its
+// coefficients (a refit contains it); an effect named in some units only is each of those units'
+// own. `units`: (serial, its diagnosis).
 JointDiagnosis attribute_effects(const std::vector<std::pair<std::string, Diagnosis>>& units);
 
 // Effects the gimbal causes: seen by one unit alone they point at that unit's mount.

@@ -11,7 +11,6 @@
 #include "base/text_file.h"
 #include "calib/coefficients.h"
 #include "calib/diagnosis/diagnosis.h"
-#include "calib/diagnosis/joint.h"
 #include "calib/samples.h"
 #include "stand/blindtest/blindtest.h"
 #include "stand/blindtest/joint_blindtest.h"
@@ -20,6 +19,7 @@
 #include "stand/cli/file_options.h"
 #include "stand/cli/help.h"
 #include "stand/catalogue/run_file.h"
+#include "stand/session/diagnose_step.h"
 #include "stand/report/diagnosis_page.h"
 
 namespace fpss::cli {
@@ -80,13 +80,15 @@ int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models
     incomplete = incomplete || d.incomplete_recording();
     diagnosed.emplace_back(serial, std::move(d));
   }
-  const JointDiagnosis joint = attribute_effects(diagnosed);
-  nlohmann::ordered_json j = joint.to_json();
-  j["run"] = run.id_or(run_dir);
-  write_json_file(out, j);
-  for (const StandEffect& s : joint.stand_effects) std::printf("stand: %s %s\n", s.name.c_str(), s.params.dump().c_str());
-  for (const auto& [serial, effects] : joint.unit_effects) {
-    for (const UnitEffect& u : effects) std::printf("unit %s: %s %s\n", serial.c_str(), u.name.c_str(), u.params.dump().c_str());
+  const nlohmann::ordered_json j = joint_diagnosis_json(diagnosed, run.id_or(run_dir));
+  write_json_file(out, j);  // the same content a run's diagnose step writes
+  for (const auto& s : j["stand_effects"]) {
+    std::printf("stand: %s %s\n", s["name"].get<std::string>().c_str(), s["params"].dump().c_str());
+  }
+  for (const auto& [serial, effects] : j["unit_effects"].items()) {
+    for (const auto& u : effects) {
+      std::printf("unit %s: %s %s\n", serial.c_str(), u["name"].get<std::string>().c_str(), u["params"].dump().c_str());
+    }
   }
   if (incomplete) {
     std::fprintf(stderr, "fpss-stand diagnose: this recording cannot tell every effect apart (each unit's GAP.json, "

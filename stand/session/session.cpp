@@ -512,15 +512,29 @@ void Session::on_diagnose(const Action& a) {
   // The rows in memory hold every column samples.csv does (the provenance as numbers): the
   // diagnosis reads the same ones `fpss-stand diagnose --data` would, up to the last point before.
   ++diagnoses_;
+  std::vector<std::pair<std::string, Diagnosis>> diagnosed;
   for (UnitState& u : units_) {
     if (u.loss) continue;
-    const DiagnoseStepResult r = run_diagnose_step(u.recorded, points_before(a), *a.diagnose, u.dir, diagnoses_);
+    const auto listed = a.diagnose->models.find(u.serial);
+    const fs::path model = listed != a.diagnose->models.end() ? listed->second : a.diagnose->model;
+    if (model.empty()) {
+      log_->warn("diagnosis: unit {} has no model in the step's models: not diagnosed", u.serial);
+      continue;
+    }
+    DiagnoseStepResult r = run_diagnose_step(u.recorded, points_before(a), *a.diagnose, u.dir, diagnoses_, model);
     log_->info("{}diagnosis -> {}, {}: verdict {}, cause {}: {}", multi() ? "unit " + u.serial + ": " : "",
                fs::relative(r.json, res_.run_dir).string(), r.html.filename().string(), r.verdict, r.cause, r.sentence);
     if (r.incomplete && !a.diagnose->partial) {
       log_->warn("diagnosis: this recording cannot tell every effect apart (GAP.json, not_observable)");
     }
-    if (diagnoses_ == 1 && &u == &units_.front()) run_.files.gap = fs::relative(r.json, res_.run_dir).string();
+    if (!multi() && diagnoses_ == 1) run_.files.gap = r.json.filename().string();
+    diagnosed.emplace_back(u.serial, std::move(r.diagnosis));
+  }
+  if (multi() && !diagnosed.empty()) {
+    // What is the stand's and what each unit's: the file `diagnose --run ... --out` writes.
+    const fs::path joint = write_joint_diagnosis(diagnosed, res_.run_dir, diagnoses_, run_id_);
+    log_->info("stand or unit -> {}", joint.filename().string());
+    if (diagnoses_ == 1) run_.files.gap = joint.filename().string();
   }
 }
 

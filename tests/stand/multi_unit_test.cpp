@@ -196,5 +196,73 @@ TEST_F(MultiUnit, AWrongSerialIsLostBeforeTheRunAndAGimbalFaultStopsEveryUnit) {
   for (const auto& u : j.at("units")) EXPECT_EQ(u.at("outcome"), "failed") << u.dump();
 }
 
+// Stand or unit: a stand backlash of 3 arcsec and a bias on U2 only. The run's own diagnose step
+// (models: by serial) and `diagnose --run` both name the backlash the stand's and the bias U2's.
+TEST_F(MultiUnit, TheStandsBacklashAndOneUnitsBiasAreToldApart) {
+  std::string procedure = test::read_file(test::source_dir() / "procedures" / "sim_to_real.yaml");
+  const auto at = procedure.find("  - diagnose:");
+  ASSERT_NE(at, std::string::npos);
+  procedure = procedure.substr(0, at) + "  - diagnose:\n      partial: true\n      models:\n        U1: " +
+              published("a-6-fpss1") + "\n        U2: " + published("a-6-fpss2") + "\n";
+  const fs::path proc = dir_.write("sim_to_real_units.yaml", procedure);
+  const fs::path bench = dir_.write(
+      "bench.yaml", bench_yaml({{"U1", "a-6-fpss1"}, {"U2", "a-6-fpss2", "[{name: bias, pitch_arcsec: 2, yaw_arcsec: -1.5}]"}},
+                               "[{name: backlash, width_arcsec: 3}]"));
+  const auto r = test::run_stand({"run", proc.string(), "--emulate", "--bench", bench.string(), "--speed", "100",
+                                  "--runs-dir", (dir_ / "runs").string()},
+                                 dir_.path(), "run", 300);
+  ASSERT_EQ(r.code, 0) << r.err;
+  run_dir_ = test::run_dirs(dir_ / "runs").back();
+  auto check = [](const nlohmann::json& j) {
+    ASSERT_EQ(j.at("stand_effects").size(), 1u) << j.dump(1);
+    EXPECT_EQ(j.at("stand_effects").at(0).at("name"), "backlash");
+    EXPECT_NEAR(j.at("stand_effects").at(0).at("params").at("width_arcsec").get<double>(), 3.0, 0.3);
+    EXPECT_TRUE(j.at("unit_effects").at("U1").empty()) << j.dump(1);
+    ASSERT_EQ(j.at("unit_effects").at("U2").size(), 1u) << j.dump(1);
+    EXPECT_EQ(j.at("unit_effects").at("U2").at(0).at("name"), "bias");
+    EXPECT_NEAR(j.at("unit_effects").at("U2").at(0).at("params").at("pitch_arcsec").get<double>(), 2.0, 0.2);
+  };
+  check(read_json_file(run_dir_ / "GAP.json"));
+  EXPECT_TRUE(fs::exists(unit_dir("U1") / "GAP.json"));
+  EXPECT_TRUE(fs::exists(unit_dir("U2") / "GAP.html"));
+  const auto d = test::run_stand({"diagnose", "--run", run_dir_.string(), "--model", "U1=" + published("a-6-fpss1"),
+                                  "--model", "U2=" + published("a-6-fpss2"), "--out", (dir_ / "joint.json").string(),
+                                  "--partial"},
+                                 dir_.path(), "diagnose", 300);
+  ASSERT_EQ(d.code, 0) << d.err;
+  check(read_json_file(dir_ / "joint.json"));
+  // A unit the run does not have, and a pair without its serial: exit 2, naming them.
+  auto bad = test::run_stand({"diagnose", "--run", run_dir_.string(), "--model", "U9=" + published("a-6-fpss1"), "--out",
+                              (dir_ / "bad.json").string()},
+                             dir_.path(), "bad", 60);
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("no unit U9 (it has U1, U2)"), std::string::npos) << bad.err;
+  bad = test::run_stand({"diagnose", "--run", run_dir_.string(), "--model", published("a-6-fpss1"), "--out",
+                         (dir_ / "bad.json").string()},
+                        dir_.path(), "bad2", 60);
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("SERIAL=FILE"), std::string::npos) << bad.err;
+}
+
+// accept with two units: a verdict, certificate and catalogue record per unit, one run id.
+TEST_F(MultiUnit, AcceptCertifiesEachUnitUnderItsSerial) {
+  const auto r = test::run_stand({"accept", "--emulate", "--bench", (test::source_dir() / "procedures" / "two_unit_bench.yaml").string(),
+                                  "--speed", "50", "--runs-dir", (dir_ / "runs").string(), "--quiet", "--no-progress"},
+                                 dir_.path(), "accept", 300);
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  run_dir_ = test::run_dirs(dir_ / "runs").back();
+  const nlohmann::json j = run_json();
+  for (const char* u : {"FPSS1-A6", "FPSS2-A6"}) {
+    SCOPED_TRACE(u);
+    EXPECT_TRUE(fs::exists(unit_dir(u) / "certificate.txt"));
+    const nlohmann::json acc = read_json_file(unit_dir(u) / "acceptance.json");
+    EXPECT_EQ(acc.at("unit"), u);
+  }
+  for (const auto& u : j.at("units")) EXPECT_EQ(u.at("verdict"), "pass") << u.dump();
+  const auto h = test::run_stand({"history", "FPSS2-A6", "--runs-dir", (dir_ / "runs").string()}, dir_.path(), "history", 60);
+  EXPECT_EQ(h.code, 0) << h.err;
+  EXPECT_NE(h.out.find(j.at("run_id").get<std::string>().substr(0, 8)), std::string::npos) << h.out;
+}
+
 }  // namespace
 }  // namespace fpss
