@@ -101,6 +101,7 @@ class RunFile:
     operator: Optional[str] = None
     signed_off_utc: Optional[str] = None
     acceptance: Optional[dict] = None
+    units: Optional[tuple] = None  # several units: run.json ``units[]`` as dicts (serial, outcome, files, relative)
     extra: dict = field(default_factory=dict)
     json: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -114,6 +115,8 @@ class RunFile:
         d["sessions"] = tuple(_build(Session, s) for s in content.get("sessions", []))
         if "adaptive_stops" in content:
             d["adaptive_stops"] = tuple(content["adaptive_stops"])
+        if "units" in content:
+            d["units"] = tuple(dict(u) for u in content["units"])
         r = _build(cls, d)
         object.__setattr__(r, "json", content)
         return r
@@ -293,6 +296,9 @@ class Run:
 
     def _unit_dirs(self):
         """{serial: folder}: RUN_DIR/units/<SERIAL>/ for a multi-unit run, else the run's one unit."""
+        if self.run_file.units:
+            return {u["serial"]: os.path.dirname(os.path.join(self.path, u["samples"]))
+                    for u in self.run_file.units if u.get("samples")}
         units = os.path.join(self.path, "units")
         if os.path.isdir(units):
             found = {s: os.path.join(units, s) for s in sorted(os.listdir(units))
@@ -311,7 +317,7 @@ class Run:
     def samples_by_unit(self):
         """{unit serial: samples DataFrame}, read by the stand's samples reader."""
         from . import read_samples
-        name = self.run_file.files.samples or "samples.csv"
+        name = "samples.csv" if self.run_file.units else (self.run_file.files.samples or "samples.csv")
         return {serial: read_samples(os.path.join(d, name)) for serial, d in self._unit_dirs().items()}
 
     @property
@@ -326,7 +332,7 @@ class Run:
         name = self.run_file.files.journal or "points.jsonl"
         out = {}
         for serial, d in self._unit_dirs().items():
-            path = os.path.join(d, name)
+            path = os.path.join(self.path if self.run_file.units else d, name)  # several units share the run's journal
             rows = _native.read_journal(path) if os.path.exists(path) else []
             df = _typed_frame(rows)
             if df.empty:

@@ -131,16 +131,18 @@ def test_not_a_run_folder_or_a_torn_file_names_the_file(run_dir, tmp_path):
         fs.open_run(d)
 
 
-def test_a_multi_unit_layout_gives_samples_per_unit(run_dir, tmp_path):
-    d = tmp_path / "multi"
-    shutil.copytree(run_dir, d)
-    for serial in ("FPSS-A", "FPSS-B"):
-        os.makedirs(d / "units" / serial)
-        shutil.copy(run_dir / "samples.csv", d / "units" / serial / "samples.csv")
-        shutil.copy(run_dir / "points.jsonl", d / "units" / serial / "points.jsonl")
+def test_a_multi_unit_run_gives_samples_per_unit(fpss, short_calibration, source_dir, tmp_path):
+    """A run of two units on one gimbal (`run --emulate --bench procedures/two_unit_bench.yaml`)."""
+    runs = tmp_path / "runs"
+    fpss("run", short_calibration, "--emulate", "--bench", os.path.join(source_dir, "procedures", "two_unit_bench.yaml"),
+         "--speed", 100, "--runs-dir", runs, "--quiet", "--no-progress")
+    (d,) = [p for p in runs.iterdir() if (p / "run.json").exists()]
     r = fs.open_run(d)
-    assert sorted(r.samples_by_unit) == ["FPSS-A", "FPSS-B"]
-    assert len(r.samples_by_unit["FPSS-B"]) == len(fs.open_run(run_dir).samples)
-    assert len(r.points_by_unit["FPSS-A"]) > 0
+    assert sorted(r.samples_by_unit) == ["FPSS1-A6", "FPSS2-A6"]
+    for serial, df in r.samples_by_unit.items():
+        assert len(df) == len(pd.read_csv(d / "units" / serial / "samples.csv"))
+    assert [u["outcome"] for u in r.run_file.units] == ["completed", "completed"]
+    assert r.run_file.units[1]["relative"]["to"] == "FPSS1-A6"
+    assert len(r.points_by_unit["FPSS2-A6"]) == len(r.points_by_unit["FPSS1-A6"]) > 0
     with pytest.raises(fs.InputError, match="samples_by_unit"):
         r.samples
