@@ -68,34 +68,44 @@ void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
   }
   std::set<std::string> have;
   for (const auto& c : cat.run_calibrations(rs.run_id)) have.insert(c.coefficients.dump());
-  for (const auto& f : calibration_files(dir)) {
-    CalibrationRecord cr = CalibrationRecord::from_calibration_json(read_json_file(f, "calibration file"), f.string());
-    if (have.count(cr.coefficients.dump())) continue;
-    cr.unit = rs.unit;
-    cr.source = "run";
-    cr.run_id = rs.run_id;
-    cr.source_ref = rs.run_id;
-    cr.date_utc = cr.coefficients.value("calibrated_at", run.ended_utc.value_or(rs.started_utc));
-    cr.stand = rs.stand;
-    cat.record_calibration(cr);
-    have.insert(cr.coefficients.dump());
-    ++r.calibrations_added;
-  }
-  if (fs::exists(dir / "acceptance.json")) {
-    bool indexed = false;
-    for (const auto& a : cat.unit_acceptances(rs.unit)) indexed |= a.run_id == rs.run_id;
-    if (!indexed) {
-      const nlohmann::json cert = read_json_file(dir / "acceptance.json", "acceptance file");
-      AcceptanceRecord rec;
-      rec.unit = cert.value("unit", rs.unit);
-      rec.run_id = rs.run_id;
-      rec.passed = cert.value("passed", false);
-      rec.date_utc = cert.value("date_utc", ended_utc);
-      rec.certificate = cert;
-      rec.stand = rs.stand;
-      cat.record_acceptance(rec);
-      ++r.acceptances_added;
+  // One unit: the run folder's files; several: each unit's folder, under its serial.
+  std::vector<std::pair<std::string, fs::path>> folders;
+  if (run.units) {
+    for (const RunFileUnit& u : *run.units) {
+      if (u.samples) folders.emplace_back(u.serial, (dir / *u.samples).parent_path());
     }
+  } else {
+    folders.emplace_back(rs.unit, dir);
+  }
+  for (const auto& [unit, folder] : folders) {
+    if (!fs::is_directory(folder)) continue;
+    for (const auto& f : calibration_files(folder)) {
+      CalibrationRecord cr = CalibrationRecord::from_calibration_json(read_json_file(f, "calibration file"), f.string());
+      if (have.count(cr.coefficients.dump())) continue;
+      cr.unit = unit;
+      cr.source = "run";
+      cr.run_id = rs.run_id;
+      cr.source_ref = rs.run_id;
+      cr.date_utc = cr.coefficients.value("calibrated_at", run.ended_utc.value_or(rs.started_utc));
+      cr.stand = rs.stand;
+      cat.record_calibration(cr);
+      have.insert(cr.coefficients.dump());
+      ++r.calibrations_added;
+    }
+    if (!fs::exists(folder / "acceptance.json")) continue;
+    bool indexed = false;
+    for (const auto& a : cat.unit_acceptances(unit)) indexed |= a.run_id == rs.run_id;
+    if (indexed) continue;
+    const nlohmann::json cert = read_json_file(folder / "acceptance.json", "acceptance file");
+    AcceptanceRecord rec;
+    rec.unit = cert.value("unit", unit);
+    rec.run_id = rs.run_id;
+    rec.passed = cert.value("passed", false);
+    rec.date_utc = cert.value("date_utc", ended_utc);
+    rec.certificate = cert;
+    rec.stand = rs.stand;
+    cat.record_acceptance(rec);
+    ++r.acceptances_added;
   }
 }
 

@@ -211,7 +211,9 @@ RunFileUnit unit_of(const Obj& o) {
   return u;
 }
 
-json unit_json(const RunFileUnit& u) {
+}  // namespace
+
+json to_json(const RunFileUnit& u) {
   json j = json::object();
   j["serial"] = u.serial;
   put(j, "sensor_id", u.sensor_id);
@@ -237,6 +239,8 @@ json unit_json(const RunFileUnit& u) {
   }
   return j;
 }
+
+namespace {
 
 const char* const kKnown[] = {"format",         "run_id",  "software", "procedure",  "stand",     "unit",
                               "sensor_id",      "emulated", "emulator", "started_utc", "ended_utc", "outcome",
@@ -375,7 +379,7 @@ nlohmann::json to_json(const RunFile& r) {
   if (r.acceptance) j["acceptance"] = acceptance_json(*r.acceptance);
   if (r.units) {
     j["units"] = json::array();
-    for (const auto& u : *r.units) j["units"].push_back(unit_json(u));
+    for (const auto& u : *r.units) j["units"].push_back(to_json(u));
   }
   if (r.reference) {
     j["reference"] = {{"file", r.reference->file}, {"sha256", r.reference->sha256}, {"certificate", r.reference->certificate},

@@ -129,6 +129,7 @@ struct RunFile {
 // The file's JSON: the same keys and values the session has always written (nlohmann::json keeps
 // keys sorted, so the bytes are the same too).
 nlohmann::json to_json(const RunFile& r);
+nlohmann::json to_json(const RunFileUnit& u);  // one entry of `units`, as the file has it
 // InputError "<origin>: key \"k\": ..." for a key missing or of the wrong type or value.
 RunFile run_file_from_json(const nlohmann::json& j, const std::string& origin);
 // Reads RUN_DIR/run.json (base/json_file.h's limits); InputError naming the file and the key.

@@ -30,7 +30,10 @@ std::string stats_text(const std::optional<AxisResidualStats>& s) {
 
 }  // namespace
 
-RunVerdict run_verdict(const RunFile& run) {
+namespace {
+
+// The verdict of one unit's run: its acceptance, else how the run ended.
+RunVerdict single_run_verdict(const RunFile& run) {
   const std::string& outcome = run.outcome;
   const std::string cause = run.stop_cause ? to_string(*run.stop_cause) : "";
   const std::string reason = run.reason.value_or("");
@@ -53,6 +56,47 @@ RunVerdict run_verdict(const RunFile& run) {
   }
   return {"incomplete", fmt::format("the run {}{} before a verdict{}", outcome, cause.empty() ? "" : " (" + cause + ")",
                                     reason.empty() ? "" : ": " + reason)};
+}
+
+// Several units: every unit passes, or the worst of their verdicts with each unit's reason.
+RunVerdict units_verdict(const RunFile& run) {
+  static const std::vector<std::string> worst_first = {"fail", "incomplete", "conditional", "running", "pass"};
+  size_t worst = worst_first.size() - 1, passed = 0;
+  std::string why;
+  for (const RunFileUnit& u : *run.units) {
+    const RunVerdict v = unit_verdict(run, u);
+    const size_t rank = static_cast<size_t>(std::find(worst_first.begin(), worst_first.end(), v.verdict) - worst_first.begin());
+    worst = std::min(worst, rank);
+    if (v.verdict == "pass") ++passed;
+    else why += fmt::format("{}unit {}: {}", why.empty() ? "" : "; ", u.serial, v.why);
+  }
+  if (worst == worst_first.size() - 1) return {"pass", fmt::format("every unit ({}) passed", passed)};
+  return {worst_first[std::min(worst, worst_first.size() - 1)],
+          fmt::format("{} of {} units pass; {}", passed, run.units->size(), why)};
+}
+
+}  // namespace
+
+RunVerdict run_verdict(const RunFile& run) {
+  if (run.units && !run.units->empty()) return units_verdict(run);
+  return single_run_verdict(run);
+}
+
+RunVerdict unit_verdict(const RunFile& run, const RunFileUnit& u) {
+  if (u.outcome == "lost") {
+    return {"fail", fmt::format("unit {} lost ({}){}: {}", u.serial, u.loss_cause.value_or("?"),
+                                u.lost_at_point && *u.lost_at_point > 0 ? fmt::format(" at point {}", *u.lost_at_point)
+                                                                        : std::string(" before the first point"),
+                                u.reason.value_or(""))};
+  }
+  if (u.verdict) {
+    if (*u.verdict == "pass") return {"pass", "acceptance passed: every criterion within its limit"};
+    if (*u.verdict == "conditional") {
+      return {"conditional", "acceptance conditional: a value within the guard band (see its certificate)"};
+    }
+    return {"fail", "acceptance failed (see its certificate)"};
+  }
+  return single_run_verdict(run);
 }
 
 RunVerdict run_verdict(const std::optional<RunFile>& run) {
@@ -130,6 +174,9 @@ RunSummary read_run_summary(const fs::path& run_dir) {
     if (!name.empty() && name[0] != '.') s.files.push_back(name);
   }
   std::sort(s.files.begin(), s.files.end());
+  if (run.units) {
+    for (const RunFileUnit& u : *run.units) s.units.push_back({u, unit_verdict(run, u)});
+  }
   return s;
 }
 
@@ -155,6 +202,15 @@ nlohmann::ordered_json RunSummary::to_json() const {
   j["calibration"] = opt(calibration);
   j["residuals"] = {{"pitch", axis(pitch)}, {"yaw", axis(yaw)}};
   j["files"] = files;
+  if (!units.empty()) {
+    j["units"] = nlohmann::ordered_json::array();
+    for (const Unit& u : units) {
+      nlohmann::ordered_json e = nlohmann::ordered_json::parse(fpss::to_json(u.unit).dump());
+      e["verdict"] = u.verdict.verdict;
+      e["verdict_reason"] = u.verdict.why;
+      j["units"].push_back(e);
+    }
+  }
   return j;
 }
 
@@ -176,6 +232,20 @@ std::string RunSummary::text() const {
   t += fmt::format("  residuals  pitch {}\n             yaw   {}\n", stats_text(pitch), stats_text(yaw));
   t += fmt::format("  calibration {}\n", calibration.empty() ? "none" : calibration);
   t += fmt::format("  files      {}\n", fmt::join(files, " "));
+  for (size_t i = 0; i < units.size(); ++i) {
+    const RunFileUnit& u = units[i].unit;
+    std::string word = units[i].verdict.verdict;
+    std::transform(word.begin(), word.end(), word.begin(), [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+    t += fmt::format("  {} {}  {}  {}  {}\n", i == 0 ? "units     " : "          ", u.serial,
+                     u.outcome + (u.loss_cause ? " (" + *u.loss_cause + ")" : ""), word, u.calibration.value_or("no calibration"));
+    if (u.relative) {
+      const RunFileRelative& r = *u.relative;
+      t += fmt::format("             relative to {}: boresight pitch {:+.3f} +- {:.3f}, yaw {:+.3f} +- {:.3f}, "
+                       "roll {:+.2f} +- {:.2f} arcsec\n",
+                       r.to, r.boresight_pitch_arcsec, r.boresight_pitch_sigma_arcsec, r.boresight_yaw_arcsec,
+                       r.boresight_yaw_sigma_arcsec, r.roll_arcsec, r.roll_sigma_arcsec);
+    }
+  }
   return t;
 }
 

@@ -23,7 +23,10 @@ struct RunVerdict {
   std::string verdict;  // pass | conditional | fail | running | incomplete
   std::string why;      // one sentence for people (the stop reason, the failed limits)
 };
+// Several units (run.json `units`): every unit passes, or the worst unit verdict, naming each unit.
 RunVerdict run_verdict(const RunFile& run);
+// One unit of several: lost (fail, naming the loss), its acceptance's, else how the run ended.
+RunVerdict unit_verdict(const RunFile& run, const RunFileUnit& unit);
 // A folder without run.json: "incomplete", the run's end unknown.
 RunVerdict run_verdict(const std::optional<RunFile>& run);
 
@@ -44,6 +47,12 @@ struct RunSummary {
   std::string calibration;                    // file name in the folder, "" for none
   std::optional<AxisResidualStats> pitch, yaw;  // the calibration's residuals (Table 1 form)
   std::vector<std::string> files;             // what the folder holds, by name
+  // Several units: each one's outcome, verdict, calibration and pose relative to the first.
+  struct Unit {
+    RunFileUnit unit;
+    RunVerdict verdict;
+  };
+  std::vector<Unit> units;
 
   nlohmann::ordered_json to_json() const;
   std::string text() const;  // the lines `fpss-stand show` prints

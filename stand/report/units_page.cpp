@@ -11,23 +11,6 @@ namespace fpss {
 
 namespace fs = std::filesystem;
 
-RunVerdict unit_verdict(const RunFile& run, const RunFileUnit& u) {
-  if (u.outcome == "lost") {
-    return {"fail", fmt::format("unit {} lost ({}){}: {}", u.serial, u.loss_cause.value_or("?"),
-                                u.lost_at_point && *u.lost_at_point > 0 ? fmt::format(" at point {}", *u.lost_at_point)
-                                                                        : std::string(" before the first point"),
-                                u.reason.value_or(""))};
-  }
-  if (u.verdict) {
-    if (*u.verdict == "pass") return {"pass", "acceptance passed: every criterion within its limit"};
-    if (*u.verdict == "conditional") return {"conditional", "acceptance conditional: a value within the guard band (see its certificate)"};
-    return {"fail", "acceptance failed (see its certificate)"};
-  }
-  RunFile alone = run;
-  alone.acceptance.reset();
-  return run_verdict(alone);
-}
-
 namespace {
 
 // The unit's Table 1 (calibration.json's residuals block): its numbers, never a second computation.
@@ -60,11 +43,7 @@ fs::path write_units_report(const fs::path& run_dir, const RunFile& run, const s
   h += fmt::format("<h1>Run {}: {} units on one gimbal</h1>\n<p>Procedure {}, started {}, outcome {}.</p>\n",
                    html_escape(run.id_or(run_dir)), units.size(), html_escape(run.procedure.name),
                    html_escape(run.started_utc), html_escape(run.outcome));
-  size_t ok = 0;
-  for (const auto& u : units) ok += u.verdict.verdict == "pass" ? 1 : 0;
-  const RunVerdict all{ok == units.size() ? "pass" : "fail",
-                       fmt::format("{} of {} units pass", ok, units.size())};
-  h += verdict_banner_html(all);
+  h += verdict_banner_html(run_verdict(run));
   h += "<h2>How the units sit relative to the first</h2>\n<table id=\"relative\"><tr><th class=\"l\">unit</th>"
        "<th>boresight pitch (arcsec)</th><th>1 sigma</th><th>boresight yaw (arcsec)</th><th>1 sigma</th>"
        "<th>roll (arcsec)</th><th>1 sigma</th></tr>\n";

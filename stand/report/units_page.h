@@ -11,9 +11,6 @@
 
 namespace fpss {
 
-// One unit's verdict: lost (fail, naming the loss), its acceptance's, else the run's.
-RunVerdict unit_verdict(const RunFile& run, const RunFileUnit& unit);
-
 struct UnitReport {
   RunFileUnit unit;
   RunVerdict verdict;

@@ -262,6 +262,17 @@ TEST_F(MultiUnit, AcceptCertifiesEachUnitUnderItsSerial) {
   const auto h = test::run_stand({"history", "FPSS2-A6", "--runs-dir", (dir_ / "runs").string()}, dir_.path(), "history", 60);
   EXPECT_EQ(h.code, 0) << h.err;
   EXPECT_NE(h.out.find(j.at("run_id").get<std::string>().substr(0, 8)), std::string::npos) << h.out;
+  // show lists the units; a catalogue rebuilt from the folders has each unit's calibration and acceptance.
+  const auto show = test::run_stand({"show", run_dir_.string(), "--json"}, dir_.path(), "show", 60);
+  ASSERT_EQ(show.code, 0) << show.err;
+  const nlohmann::json sj = nlohmann::json::parse(show.out);
+  EXPECT_EQ(sj.at("verdict"), "pass");
+  ASSERT_EQ(sj.at("units").size(), 2u);
+  EXPECT_EQ(sj.at("units").at(1).at("verdict"), "pass");
+  fs::remove(dir_ / "runs" / "stand.db");
+  const auto rb = test::run_stand({"catalogue", "rebuild", "--runs-dir", (dir_ / "runs").string()}, dir_.path(), "rebuild", 60);
+  ASSERT_EQ(rb.code, 0) << rb.err;
+  EXPECT_NE(rb.out.find("2 calibrations, 2 acceptances"), std::string::npos) << rb.out;
 }
 
 }  // namespace
