@@ -168,15 +168,18 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
           b.sample_rate_hz = mine.sample_rate_hz;
           b.frame_timeout_s = mine.frame_timeout_s;
         } else if (mine.sample_rate_hz != b.sample_rate_hz || mine.frame_timeout_s != b.frame_timeout_s) {
-          d.error(list[i], fmt::format("{}: sample_rate_hz and frame_timeout_s are the engine's: every unit must give "
-                                       "the same", where));
+          const YAML::Node at = list[i]["sample_rate_hz"] ? list[i]["sample_rate_hz"] : list[i]["frame_timeout_s"];
+          d.error(at, fmt::format("{}: sample_rate_hz and frame_timeout_s are the engine's: every unit must give "
+                                  "the same", where));
         }
         read_axes(r.node("axes"), where + ".axes", u.axes, d);
         r.finish();
         for (const StandUnit& o : c.units) {
-          if (o.serial == u.serial && !u.serial.empty()) d.error(list[i], fmt::format("{}: unit {} is listed twice", where, u.serial));
+          if (o.serial == u.serial && !u.serial.empty()) {
+            d.error(list[i]["unit"], fmt::format("{}: unit {} is listed twice", where, u.serial));
+          }
           if (o.sensor.endpoint == u.sensor.endpoint && !u.sensor.endpoint.empty()) {
-            d.error(list[i], fmt::format("{}: endpoint {} is another unit's", where, u.sensor.endpoint));
+            d.error(list[i]["endpoint"], fmt::format("{}: endpoint {} is another unit's", where, u.sensor.endpoint));
           }
         }
         c.units.push_back(std::move(u));

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <csignal>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -242,6 +244,31 @@ TEST_F(MultiUnit, TheStandsBacklashAndOneUnitsBiasAreToldApart) {
                         dir_.path(), "bad2", 60);
   EXPECT_EQ(bad.code, 2);
   EXPECT_NE(bad.err.find("SERIAL=FILE"), std::string::npos) << bad.err;
+}
+
+// Interrupted and resumed: each unit's file cut back to the journal and continued, none repeated.
+TEST_F(MultiUnit, AnInterruptedRunOfTwoUnitsResumes) {
+  const fs::path runs = dir_ / "runs";
+  test::Child c = test::start_stand({"run", (test::source_dir() / "procedures" / "discrete_grid.yaml").string(), "--emulate",
+                                     "--bench", (test::source_dir() / "procedures" / "two_unit_bench.yaml").string(),
+                                     "--runs-dir", runs.string(), "--quiet"},
+                                    dir_.path());
+  ASSERT_TRUE(test::wait_until([&] { return test::journaled_points(runs) >= 10; }, 60, std::chrono::milliseconds(20)));
+  c.signal(SIGINT);
+  EXPECT_EQ(c.wait(60), 1);
+  run_dir_ = test::run_dirs(runs).back();
+  EXPECT_EQ(run_json().at("outcome"), "interrupted");
+  const auto r = test::run_stand({"run", "--resume", run_dir_.string(), "--quiet"}, dir_.path(), "resume", 300);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(run_json().at("outcome"), "completed");
+  for (const char* u : {"FPSS1-A6", "FPSS2-A6"}) {
+    SCOPED_TRACE(u);
+    const SampleTable t = read_samples_csv(unit_dir(u) / "samples.csv");
+    std::set<int64_t> steps(t.step.begin(), t.step.end());
+    EXPECT_EQ(steps.size(), 113u);
+    for (size_t i = 1; i < t.size(); ++i) ASSERT_GE(t.step[i], t.step[i - 1]) << "row " << i;
+    expect_fit_near_truth(u, std::string("a-6-fpss") + u[4]);
+  }
 }
 
 // accept with two units: a verdict, certificate and catalogue record per unit, one run id.

@@ -59,6 +59,37 @@ TEST(StandConfig, Table2MappingGivesSensorFrameReferences) {
 
 TEST(StandConfig, EveryErrorAtOnce) { EXPECT_TRUE(errors_as_marked("every_error.yaml")); }
 
+TEST(StandConfig, SeveralUnitsErrorsEachAtItsPlace) { EXPECT_TRUE(errors_as_marked("sensors_list.yaml")); }
+
+TEST(StandConfig, SeveralUnitsEachWithItsSerialEndpointAndAxes) {
+  Diagnostics d("s.yaml");
+  const StandConfig c = parse_stand(
+      "gimbal: {endpoint: 'modbus-tcp:127.0.0.1:1502'}\n"
+      "sensors:\n"
+      "  - {unit: FPSS1, endpoint: 'pty:/dev/pts/1', sample_rate_hz: 20}\n"
+      "  - {unit: FPSS2, endpoint: 'serial:/dev/ttyUSB1:115200', axes: {pitch: beta, yaw: -alpha}, sample_rate_hz: 20,"
+      " command_timeout_s: 2}\n",
+      "s.yaml", d);
+  ASSERT_TRUE(d.empty()) << d.text();
+  ASSERT_EQ(c.units.size(), 2u);
+  EXPECT_TRUE(c.multi_unit());
+  EXPECT_EQ(c.units[1].serial, "FPSS2");
+  EXPECT_EQ(c.units[1].axes.describe(), "pitch = +beta, yaw = -alpha");
+  EXPECT_DOUBLE_EQ(c.units[1].sensor.command_timeout_s, 2);
+  EXPECT_DOUBLE_EQ(c.bench.sample_rate_hz, 20);
+  // The first unit is also the single-unit fields.
+  EXPECT_EQ(c.unit_serial, "FPSS1");
+  EXPECT_EQ(c.sensor.endpoint, "pty:/dev/pts/1");
+  // The single sensor: is a list of one.
+  Diagnostics d1("one.yaml");
+  const StandConfig one = parse_stand("gimbal: {endpoint: 'modbus-tcp:127.0.0.1:1502'}\nsensor: {endpoint: 'pty:/dev/pts/9', serial: X}\n",
+                                      "one.yaml", d1);
+  ASSERT_TRUE(d1.empty()) << d1.text();
+  ASSERT_EQ(one.units.size(), 1u);
+  EXPECT_EQ(one.units[0].serial, "X");
+  EXPECT_FALSE(one.multi_unit());
+}
+
 TEST(StandConfig, NumbersOutsideTheirRangeNamePlaceAndField) {
   EXPECT_TRUE(errors_as_marked("numbers_out_of_range.yaml"));
 }
