@@ -107,6 +107,7 @@ nlohmann::json runs_json(const fs::path& runs_dir, const std::string& catalogue_
     if (run) {
       j["points"] = to_json(*run)["points"];
       if (run->acceptance) j["verdict"] = run->acceptance->verdict;
+      if (const auto v = units_verdict(*run)) j["verdict"] = *v;
       if (run->operator_name) j["operator"] = *run->operator_name;
     }
     out.push_back(j);
@@ -130,7 +131,38 @@ nlohmann::json run_json(const RunRef& r) {
     if (run_file(r.dir, f)) files[f] = "/runs/" + r.run_id + "/" + f;
   }
   j["files"] = files;
+  if (run && run->units) {
+    // Several units: each one's outcome, verdict and files (units/<SERIAL>/...), and its pose.
+    j["units"] = nlohmann::json::array();
+    for (const RunFileUnit& u : *run->units) {
+      nlohmann::json e = to_json(u);
+      nlohmann::json uf = nlohmann::json::object();
+      if (u.samples) {
+        const std::string dir = fs::path(*u.samples).parent_path().string();
+        for (const char* f : {"report.html", "GAP.html", "certificate.txt", "acceptance.json", "samples.csv", "calibration.json"}) {
+          const std::string rel = dir + "/" + f;
+          if (run_file(r.dir, rel)) uf[f] = "/runs/" + r.run_id + "/" + rel;
+        }
+      }
+      e["files"] = uf;
+      j["units"].push_back(e);
+    }
+  }
   return j;
+}
+
+std::optional<std::string> units_verdict(const RunFile& run) {
+  if (!run.units) return std::nullopt;
+  bool any = false, conditional = false, fail = false;
+  for (const RunFileUnit& u : *run.units) {
+    if (u.outcome == "lost") fail = any = true;
+    if (!u.verdict) continue;
+    any = true;
+    fail = fail || *u.verdict == "fail";
+    conditional = conditional || *u.verdict == "conditional";
+  }
+  if (!any) return std::nullopt;
+  return fail ? "fail" : conditional ? "conditional" : "pass";
 }
 
 EventChunk read_events(const fs::path& run_dir, uint64_t offset, size_t max_bytes) {

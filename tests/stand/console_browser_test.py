@@ -243,6 +243,22 @@ def open_report(b, run):
     b.shot("7-report")
 
 
+def several_units(b):
+    """Step 7b: a run of two units on one gimbal (the command line, into the console's runs folder):
+    the run's page lists each unit with its outcome and its own files."""
+    src = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    subprocess.run([BIN, "run", os.path.join(src, "procedures", "discrete_grid.yaml"), "--emulate", "--bench",
+                    os.path.join(src, "procedures", "two_unit_bench.yaml"), "--speed", "100", "--runs-dir", b.runs,
+                    "--quiet", "--no-progress"], check=True, capture_output=True, timeout=300)
+    run = [r for r in b.fetch("/api/runs") if "FPSS2-A6" in r["unit"]][0]["run_id"]
+    b.go("index.html#runs/" + run)
+    rows = wait_for("the units of the run", lambda: b.driver.find_elements(By.CSS_SELECTOR, "#run-units tr.run-unit"))
+    assert len(rows) == 2 and "FPSS2-A6" in rows[1].text and "completed" in rows[1].text, [r.text for r in rows]
+    links = rows[1].find_elements(By.CSS_SELECTOR, "a.run-file")
+    assert any(a.text == "report" and "/units/FPSS2-A6/report.html" in a.get_attribute("href") for a in links)
+    b.shot("7b-units")
+
+
 def acceptance(b):
     """Step 8: an acceptance answering its prompts (a wrong serial first); then the unit's history."""
     job = b.queue("accept", "", "FPSS-B1", "")
@@ -322,6 +338,7 @@ def main():
         run1, lat = first_run(b)
         aborted_run(b)
         open_report(b, run1)
+        several_units(b)
         acc_run = acceptance(b)
         fleet(b, acc_run)
         b.check_console()

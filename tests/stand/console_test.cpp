@@ -347,4 +347,29 @@ TEST(Console, ARunIsLiveWhileItsProcessHoldsItsFolderNotItsPid) {
   EXPECT_TRUE(console::find_run(runs, "", "killed")->live);
 }
 
+
+// A run of two units: the runs list's verdict from its units, the run page's units with their files.
+TEST(Console, ARunOfSeveralUnitsShowsEachUnit) {
+  TempDir t;
+  const auto r = run_stand({"accept", "--emulate", "--bench", (source_dir() / "procedures" / "two_unit_bench.yaml").string(),
+                            "--speed", "50", "--runs-dir", (t / "runs").string(), "--quiet", "--no-progress"},
+                           t.path(), "accept", 300);
+  ASSERT_EQ(r.code, 0) << r.err;
+  Serve s(t, {"--listen", "127.0.0.1:0"}, "serve");
+  ASSERT_GT(s.port, 0);
+  auto c = s.client();
+  const json runs = json::parse(c.Get("/api/runs")->body);
+  ASSERT_EQ(runs.size(), 1u) << runs.dump();
+  EXPECT_EQ(runs[0]["verdict"], "pass");
+  const json run = json::parse(c.Get(("/api/runs/" + runs[0]["run_id"].get<std::string>()).c_str())->body);
+  ASSERT_EQ(run["units"].size(), 2u) << run.dump();
+  EXPECT_EQ(run["units"][1]["serial"], "FPSS2-A6");
+  EXPECT_EQ(run["units"][1]["verdict"], "pass");
+  const std::string cert = run["units"][1]["files"]["certificate.txt"];
+  const auto got = c.Get(cert.c_str());
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->status, 200);
+  EXPECT_NE(got->body.find("FPSS2-A6"), std::string::npos);
+}
+
 }  // namespace

@@ -306,7 +306,13 @@ async function runsPage() {
   const names = { 'report.html': 'report', 'GAP.html': 'GAP report', 'certificate.txt': 'certificate', 'acceptance.json': 'acceptance.json', 'samples.csv': 'samples.csv download', 'run.json': 'run.json' };
   $('run-detail').innerHTML = '<h2>' + esc(r.run_id) + '</h2><p>' + esc(r.outcome) + (r.stop_cause ? ' (' + esc(r.stop_cause) + ')' : '') + (r.reason ? ': ' + esc(r.reason) : '') +
     (r.live ? ' <a href="#live/' + esc(r.run_id) + '">watch live</a>' : '') + '</p><ul>' +
-    Object.entries(names).filter(([f]) => r.files[f]).map(([f, n]) => '<li><a class="run-file" href="' + esc(r.files[f]) + '"' + (f === 'samples.csv' ? ' download' : ' target="_blank"') + '>' + n + '</a></li>').join('') + '</ul>';
+    Object.entries(names).filter(([f]) => r.files[f]).map(([f, n]) => '<li><a class="run-file" href="' + esc(r.files[f]) + '"' + (f === 'samples.csv' ? ' download' : ' target="_blank"') + '>' + n + '</a></li>').join('') + '</ul>' +
+    (r.units ? '<table id="run-units"><tr><th>unit</th><th>outcome</th><th>verdict</th><th>relative to the first (arcsec)</th><th>files</th></tr>' +
+      r.units.map((u) => '<tr class="run-unit"><td>' + esc(u.serial) + '</td><td>' + esc(u.outcome) + (u.loss_cause ? ' (' + esc(u.loss_cause) + ')' : '') +
+        '</td><td>' + esc(u.verdict || '') + '</td><td>' + (u.relative ? 'boresight ' + u.relative.boresight_pitch_arcsec.toFixed(3) + ', ' + u.relative.boresight_yaw_arcsec.toFixed(3) +
+        '; roll ' + u.relative.roll_arcsec.toFixed(2) : '') + '</td><td>' +
+        Object.entries(names).filter(([f]) => u.files[f]).map(([f, n]) => '<a class="run-file" href="' + esc(u.files[f]) + '"' + (f === 'samples.csv' ? ' download' : ' target="_blank"') + '>' + n + '</a>').join(' ') +
+        '</td></tr>').join('') + '</table>' : '');
 }
 $('runs-filter').onsubmit = (ev) => { ev.preventDefault(); runsPage(); };
 
