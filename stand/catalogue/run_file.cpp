@@ -294,6 +294,21 @@ RunFileAdaptiveStop RunFileAdaptiveStop::of(const StepStopped& s) {
   return a;
 }
 
+std::optional<std::string> acceptance_verdict(const RunFile& run) {
+  if (run.acceptance) return run.acceptance->verdict;
+  if (!run.units) return std::nullopt;
+  bool any = false, conditional = false, fail = false;
+  for (const RunFileUnit& u : *run.units) {
+    if (u.outcome == "lost") fail = any = true;
+    if (!u.verdict) continue;
+    any = true;
+    fail = fail || *u.verdict == "fail";
+    conditional = conditional || *u.verdict == "conditional";
+  }
+  if (!any) return std::nullopt;
+  return fail ? "fail" : conditional ? "conditional" : "pass";
+}
+
 std::string RunFile::id_or(const std::filesystem::path& run_dir) const {
   return run_id && !run_id->empty() ? *run_id : run_dir.filename().string();
 }

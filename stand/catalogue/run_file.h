@@ -126,6 +126,10 @@ struct RunFile {
   std::string id_or(const std::filesystem::path& run_dir) const;
 };
 
+// The run's acceptance verdict as the runs lists show it (pass | conditional | fail): `acceptance`'s;
+// several units: the worst unit's (a lost unit fails); none before any verdict.
+std::optional<std::string> acceptance_verdict(const RunFile& run);
+
 // The file's JSON: the same keys and values the session has always written (nlohmann::json keeps
 // keys sorted, so the bytes are the same too).
 nlohmann::json to_json(const RunFile& r);

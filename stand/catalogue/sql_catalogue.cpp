@@ -248,7 +248,9 @@ std::vector<RunRecord> SqlCatalogue::list_runs(const RunFilter& filter) const {
   std::string sql = fmt::format("SELECT {} FROM runs", kRunColumns);
   if (filter.unit) {
     p.push_back(*filter.unit);
-    sql += " WHERE unit = " + (sqlite ? std::string(":unit") : param(dialect_, 1));
+    // A run of several units is named by their serials joined with '+': it is each unit's run too.
+    const std::string u = sqlite ? std::string(":unit") : param(dialect_, 1);
+    sql += fmt::format(" WHERE (unit = {0} OR {1}('+' || unit || '+', '+' || {0} || '+') > 0)", u, sqlite ? "instr" : "strpos");
   }
   // Equal start times: SQLite's entry order; PostgreSQL has no row order, so the run id decides.
   sql += sqlite ? " ORDER BY started_utc DESC, rowid DESC" : " ORDER BY started_utc DESC, run_id DESC";

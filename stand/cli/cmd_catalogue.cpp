@@ -98,7 +98,7 @@ FolderStatus folder_status(const RunRecord& r) {
   try {
     const RunFile run = read_run_file(r.run_dir);
     st.total = run.points.total;
-    if (run.acceptance) st.verdict = run.acceptance->verdict;
+    st.verdict = acceptance_verdict(run).value_or("");
     st.done = journal_points(r.run_dir);
   } catch (const std::exception&) {
     // the folder moved or is being written: the catalogue's row alone

@@ -106,8 +106,7 @@ nlohmann::json runs_json(const fs::path& runs_dir, const std::string& catalogue_
                      {"outcome", oc},   {"live", ref.live},       {"emulated", r.emulated}};
     if (run) {
       j["points"] = to_json(*run)["points"];
-      if (run->acceptance) j["verdict"] = run->acceptance->verdict;
-      if (const auto v = units_verdict(*run)) j["verdict"] = *v;
+      if (const auto v = acceptance_verdict(*run)) j["verdict"] = *v;
       if (run->operator_name) j["operator"] = *run->operator_name;
     }
     out.push_back(j);
@@ -151,19 +150,6 @@ nlohmann::json run_json(const RunRef& r) {
   return j;
 }
 
-std::optional<std::string> units_verdict(const RunFile& run) {
-  if (!run.units) return std::nullopt;
-  bool any = false, conditional = false, fail = false;
-  for (const RunFileUnit& u : *run.units) {
-    if (u.outcome == "lost") fail = any = true;
-    if (!u.verdict) continue;
-    any = true;
-    fail = fail || *u.verdict == "fail";
-    conditional = conditional || *u.verdict == "conditional";
-  }
-  if (!any) return std::nullopt;
-  return fail ? "fail" : conditional ? "conditional" : "pass";
-}
 
 EventChunk read_events(const fs::path& run_dir, uint64_t offset, size_t max_bytes) {
   EventChunk c;

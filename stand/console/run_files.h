@@ -10,7 +10,6 @@
 #include <nlohmann/json.hpp>
 
 #include "stand/catalogue/catalogue.h"
-#include "stand/catalogue/run_file.h"
 
 namespace fpss::console {
 
@@ -55,8 +54,6 @@ EventChunk read_events(const std::filesystem::path& run_dir, uint64_t offset, si
 // A file of a run folder by its relative path: segments of [A-Za-z0-9._-] not starting with a
 // dot, a regular file (no symlink) inside the folder. nullopt otherwise.
 std::optional<std::filesystem::path> run_file(const std::filesystem::path& run_dir, const std::string& rel);
-// Several units: the run's verdict in the runs list, the worst unit's (a lost unit fails); none
-// before any unit was judged or lost.
-std::optional<std::string> units_verdict(const RunFile& run);
+
 
 }  // namespace fpss::console

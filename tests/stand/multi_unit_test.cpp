@@ -289,6 +289,13 @@ TEST_F(MultiUnit, AcceptCertifiesEachUnitUnderItsSerial) {
   const auto h = test::run_stand({"history", "FPSS2-A6", "--runs-dir", (dir_ / "runs").string()}, dir_.path(), "history", 60);
   EXPECT_EQ(h.code, 0) << h.err;
   EXPECT_NE(h.out.find(j.at("run_id").get<std::string>().substr(0, 8)), std::string::npos) << h.out;
+  // runs --unit finds the run under either serial, with its units' verdict.
+  const auto runs = test::run_stand({"runs", "--unit", "FPSS2-A6", "--runs-dir", (dir_ / "runs").string(), "--json"},
+                                    dir_.path(), "runs", 60);
+  ASSERT_EQ(runs.code, 0) << runs.err;
+  const nlohmann::json rj = nlohmann::json::parse(runs.out);
+  ASSERT_EQ(rj.size(), 1u) << runs.out;
+  EXPECT_EQ(rj.at(0).at("verdict"), "pass");
   // show lists the units; a catalogue rebuilt from the folders has each unit's calibration and acceptance.
   const auto show = test::run_stand({"show", run_dir_.string(), "--json"}, dir_.path(), "show", 60);
   ASSERT_EQ(show.code, 0) << show.err;
