@@ -124,6 +124,13 @@ TEST_P(Backends, RecordsRunsFromStartToEndAndCountsResumes) {
   EXPECT_EQ(c->list_runs({.unit = "SN-1", .limit = 1}).size(), 1u);
   EXPECT_EQ(c->list_runs({.unit = "SN-1", .limit = 1})[0].run_id, "r2");
   EXPECT_EQ(c->units(), (std::vector<std::string>{"SN-1", "SN-2"}));
+  // A run of several units ("SN-7+SN_8") is each unit's run; a part of a serial is none.
+  c->record_run_start(make_run("r4", "SN-7+SN_8", "2024-05-04T10:00:00Z"));
+  EXPECT_EQ(c->list_runs({.unit = "SN_8"}).size(), 1u);
+  EXPECT_EQ(c->list_runs({.unit = "SN-7"}).size(), 1u);
+  EXPECT_TRUE(c->list_runs({.unit = "SN"}).empty());
+  EXPECT_TRUE(c->list_runs({.unit = "SN-8"}).empty());  // '_' is no wildcard
+  EXPECT_EQ(c->list_runs({.unit = "SN-2"}).size(), 1u);
   EXPECT_TRUE(c->has_unit("SN-2"));
   EXPECT_FALSE(c->has_unit("SN-3"));
   EXPECT_FALSE(c->add_unit("SN-2"));
