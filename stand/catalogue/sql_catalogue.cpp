@@ -154,7 +154,16 @@ void SqlCatalogue::record_run_start(const RunStart& start) {
     if (unit && *unit != start.unit) {
       throw std::invalid_argument(fmt::format("run {} belongs to unit {}, not {}", start.run_id, *unit, start.unit));
     }
+    // A run of several units is named by their serials joined with '+' (the runs' key into units):
+    // each serial is a unit too, and units() lists only those.
     insert_unit(s, dialect_, start.unit);
+    size_t from = 0;
+    for (size_t plus = start.unit.find('+'); ; plus = start.unit.find('+', from)) {
+      const std::string serial = start.unit.substr(from, plus == std::string::npos ? std::string::npos : plus - from);
+      if (!serial.empty() && serial != start.unit) insert_unit(s, dialect_, serial);
+      if (plus == std::string::npos) break;
+      from = plus + 1;
+    }
     const RunStart run = as_recorded(start);
     s.exec(dialect_ == Dialect::sqlite ? kSqliteStartRun : kPostgresStartRun,
            {run.run_id, run.unit, run.procedure, run.procedure_hash, run.started_utc, run.run_dir.string(),
@@ -229,7 +238,9 @@ int64_t SqlCatalogue::record_acceptance(const AcceptanceRecord& given) {
 std::vector<std::string> SqlCatalogue::units() const {
   std::vector<std::string> out;
   query("list units", [&](SqlSession& s) {
-    s.select("SELECT serial FROM units ORDER BY serial", {}, [&](const SqlRow& r) { out.push_back(r.text("serial")); });
+    // Not the names of runs of several units (their serials joined by '+'; each serial is listed).
+    s.select("SELECT serial FROM units WHERE serial NOT LIKE '%+%' ORDER BY serial", {},
+             [&](const SqlRow& r) { out.push_back(r.text("serial")); });
   });
   return out;
 }

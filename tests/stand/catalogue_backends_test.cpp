@@ -131,6 +131,7 @@ TEST_P(Backends, RecordsRunsFromStartToEndAndCountsResumes) {
   EXPECT_TRUE(c->list_runs({.unit = "SN"}).empty());
   EXPECT_TRUE(c->list_runs({.unit = "SN-8"}).empty());  // '_' is no wildcard
   EXPECT_EQ(c->list_runs({.unit = "SN-2"}).size(), 1u);
+  EXPECT_EQ(c->units(), (std::vector<std::string>{"SN-1", "SN-2", "SN-7", "SN_8"}));
   EXPECT_TRUE(c->has_unit("SN-2"));
   EXPECT_FALSE(c->has_unit("SN-3"));
   EXPECT_FALSE(c->add_unit("SN-2"));
