@@ -18,7 +18,8 @@ void add_emulate(CLI::App& app, Runner& run);
 void add_run(CLI::App& app, Runner& run);        // run
 void add_catalogue(CLI::App& app, Runner& run);  // runs, history, catalogue rebuild
 void add_diagnose(CLI::App& app, Runner& run);  // diagnose, blindtest
-void add_accept(CLI::App& app, Runner& run);    // accept, compare, import
+void add_accept(CLI::App& app, Runner& run);    // accept
+void add_compare_import(CLI::App& app, Runner& run);  // compare, import
 void add_design(CLI::App& app, Runner& run);
 void add_show(CLI::App& app, Runner& run);      // show, report
 void add_serve(CLI::App& app, Runner& run);     // serve (the web console)

@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   fpss::cli::add_catalogue(app, run);
   fpss::cli::add_diagnose(app, run);
   fpss::cli::add_accept(app, run);
+  fpss::cli::add_compare_import(app, run);
   fpss::cli::add_serve(app, run);
   fpss::cli::add_design(app, run);
   fpss::cli::add_show(app, run);

@@ -103,37 +103,10 @@ static void read_reference(MapReader& top, const std::string& origin, EngineSett
   }
 }
 
-StandConfig parse_stand(std::string_view text, const std::string& origin, Diagnostics& d) {
-  StandConfig c;
-  c.origin = origin;
-  c.text = std::string(text);
-  YAML::Node root = parse_yaml_map(text, d, "stand file: expected a map with gimbal, sensor, soft_limits, axes, ...");
-  if (!d.empty()) return c;
+// sensor: one unit, or sensors: a list of units (each with its serial, endpoint and axes); the
+// first unit's are also the single-unit fields.
+static void read_units(MapReader& top, const YAML::Node& root, StandConfig& c, Diagnostics& d) {
   EngineSettings& b = c.bench;
-  MapReader top(root, "stand file", d);
-  if (auto s = top.string("stand")) c.stand_id = *s;
-  if (auto s = top.string("unit")) c.unit_serial = *s;
-  if (auto s = top.string("catalogue")) c.catalogue = *s;
-
-  // gimbal
-  {
-    YAML::Node n = top.node("gimbal");
-    if (!n.IsDefined()) d.error(root, "stand file: missing field gimbal (with its endpoint)");
-    MapReader r(n, "gimbal", d);
-    if (n.IsDefined()) read_endpoint(r, c.gimbal.endpoint, true);  // else one error says it, not two
-    if (auto v = r.integer("unit_id", false, 0, 247)) c.gimbal.unit_id = static_cast<int>(*v);
-    if (auto v = r.positive("response_timeout_s")) c.gimbal.response_timeout_s = *v;
-    if (auto v = r.integer("retries", false, 0, 100)) c.gimbal.retries = static_cast<int>(*v);
-    if (auto v = r.rate_arcsec_s("profile_rate")) b.profile_rate_arcsec_s = *v;
-    if (auto v = r.positive("acceleration_arcsec_s2")) b.acceleration_arcsec_s2 = *v;
-    if (auto v = r.positive("in_position_tolerance_arcsec")) b.in_position_tolerance_arcsec = *v;
-    if (auto v = r.positive("move_timeout_s")) b.move_timeout_s = *v;
-    if (auto v = r.positive("home_timeout_s")) b.home_timeout_s = *v;
-    if (auto v = r.non_negative("watchdog_s")) b.watchdog_s = *v;
-    if (auto v = r.boolean("timed_moves")) c.gimbal.timed_moves = b.timed_moves = *v;
-    r.finish();
-  }
-  // sensor: one unit, or sensors: a list of units (each with its serial, endpoint and axes)
   const bool listed = top.has("sensors");
   if (listed && top.has("sensor")) {
     d.error(top.node("sensors"), "stand file: give sensor (one unit) or sensors (a list), not both");
@@ -191,6 +164,39 @@ StandConfig parse_stand(std::string_view text, const std::string& origin, Diagno
       }
     }
   }
+}
+
+StandConfig parse_stand(std::string_view text, const std::string& origin, Diagnostics& d) {
+  StandConfig c;
+  c.origin = origin;
+  c.text = std::string(text);
+  YAML::Node root = parse_yaml_map(text, d, "stand file: expected a map with gimbal, sensor, soft_limits, axes, ...");
+  if (!d.empty()) return c;
+  EngineSettings& b = c.bench;
+  MapReader top(root, "stand file", d);
+  if (auto s = top.string("stand")) c.stand_id = *s;
+  if (auto s = top.string("unit")) c.unit_serial = *s;
+  if (auto s = top.string("catalogue")) c.catalogue = *s;
+
+  // gimbal
+  {
+    YAML::Node n = top.node("gimbal");
+    if (!n.IsDefined()) d.error(root, "stand file: missing field gimbal (with its endpoint)");
+    MapReader r(n, "gimbal", d);
+    if (n.IsDefined()) read_endpoint(r, c.gimbal.endpoint, true);  // else one error says it, not two
+    if (auto v = r.integer("unit_id", false, 0, 247)) c.gimbal.unit_id = static_cast<int>(*v);
+    if (auto v = r.positive("response_timeout_s")) c.gimbal.response_timeout_s = *v;
+    if (auto v = r.integer("retries", false, 0, 100)) c.gimbal.retries = static_cast<int>(*v);
+    if (auto v = r.rate_arcsec_s("profile_rate")) b.profile_rate_arcsec_s = *v;
+    if (auto v = r.positive("acceleration_arcsec_s2")) b.acceleration_arcsec_s2 = *v;
+    if (auto v = r.positive("in_position_tolerance_arcsec")) b.in_position_tolerance_arcsec = *v;
+    if (auto v = r.positive("move_timeout_s")) b.move_timeout_s = *v;
+    if (auto v = r.positive("home_timeout_s")) b.home_timeout_s = *v;
+    if (auto v = r.non_negative("watchdog_s")) b.watchdog_s = *v;
+    if (auto v = r.boolean("timed_moves")) c.gimbal.timed_moves = b.timed_moves = *v;
+    r.finish();
+  }
+  read_units(top, root, c, d);
   // soft limits
   {
     YAML::Node n = top.node("soft_limits");

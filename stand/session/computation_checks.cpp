@@ -30,4 +30,16 @@ bool absurd(const ResidualLimits& lim, const ResidualStats& r) {
          over(lim.max_abs_arcsec, r.max_abs_arcsec);
 }
 
+std::string check_calibration(const CheckStep& step, const CalibrationReport& cal) {
+  std::string broken = check_limits(step.pitch, cal.pitch.residuals, "pitch");
+  const std::string y = check_limits(step.yaw, cal.yaw.residuals, "yaw");
+  if (!y.empty()) broken += (broken.empty() ? "" : "; ") + y;
+  if (absurd(step.pitch, cal.pitch.residuals) || absurd(step.yaw, cal.yaw.residuals)) {
+    broken += ". Residuals over 100x the limit: the likely cause is the stand file's axis mapping (axes:, which "
+              "must match how the sensor is mounted) or the coefficients (the calibrate step's init); see "
+              "docs/procedures.md, \"Axis mapping\"";
+  }
+  return broken;
+}
+
 }  // namespace fpss

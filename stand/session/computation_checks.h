@@ -14,5 +14,8 @@ namespace fpss {
 std::string check_limits(const ResidualLimits& lim, const ResidualStats& r, const char* axis);
 // Residuals a hundred times a limit.
 bool absurd(const ResidualLimits& lim, const ResidualStats& r);
+// A check step against a calibration: what both axes break ("" when nothing), and when the
+// residuals are absurd, the likely cause (the axis mapping or the coefficients).
+std::string check_calibration(const CheckStep& step, const CalibrationReport& cal);
 
 }  // namespace fpss

@@ -44,4 +44,36 @@ std::filesystem::path write_joint_diagnosis(const std::vector<std::pair<std::str
   return out;
 }
 
+std::filesystem::path diagnose_units(const std::vector<SessionUnit>& units, int64_t last_step, const DiagnoseStep& step,
+                                     const std::filesystem::path& run_dir, int nth, const std::string& run_id,
+                                     spdlog::logger& log) {
+  namespace fs = std::filesystem;
+  const bool several = units.size() > 1;
+  std::vector<std::pair<std::string, Diagnosis>> diagnosed;
+  fs::path named;
+  for (const SessionUnit& u : units) {
+    if (u.loss) continue;
+    const auto listed = step.models.find(u.serial);
+    const fs::path model = listed != step.models.end() ? listed->second : step.model;
+    if (model.empty()) {
+      log.warn("diagnosis: unit {} has no model in the step's models: not diagnosed", u.serial);
+      continue;
+    }
+    DiagnoseStepResult r = run_diagnose_step(u.recorded, last_step, step, u.dir, nth, model);
+    log.info("{}diagnosis -> {}, {}: verdict {}, cause {}: {}", several ? "unit " + u.serial + ": " : "",
+             fs::relative(r.json, run_dir).string(), r.html.filename().string(), r.verdict, r.cause, r.sentence);
+    if (r.incomplete && !step.partial) {
+      log.warn("diagnosis: this recording cannot tell every effect apart (GAP.json, not_observable)");
+    }
+    if (!several) named = r.json;
+    diagnosed.emplace_back(u.serial, std::move(r.diagnosis));
+  }
+  if (several && !diagnosed.empty()) {
+    // What is the stand's and what each unit's: the file `diagnose --run ... --out` writes.
+    named = write_joint_diagnosis(diagnosed, run_dir, nth, run_id);
+    log.info("stand or unit -> {}", named.filename().string());
+  }
+  return named;
+}
+
 }  // namespace fpss

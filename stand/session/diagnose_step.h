@@ -4,11 +4,14 @@
 #include <filesystem>
 #include <string>
 
+#include <spdlog/logger.h>
+
 #include <utility>
 #include <vector>
 
 #include "calib/diagnosis/diagnosis.h"
 #include "calib/samples.h"
+#include "stand/session/session_units.h"
 #include "procedures/procedure.h"
 
 namespace fpss {
@@ -36,5 +39,13 @@ nlohmann::ordered_json joint_diagnosis_json(const std::vector<std::pair<std::str
 // The same written as RUN_DIR/GAP.json (GAP-N.json for later steps).
 std::filesystem::path write_joint_diagnosis(const std::vector<std::pair<std::string, Diagnosis>>& units,
                                             const std::filesystem::path& run_dir, int nth, const std::string& run_id);
+
+// A run's diagnose step over its units: each unit still read against its model (the step's
+// `models` by serial, else its `model`; a unit with neither is left out, logged) into its folder,
+// then, for several units, the stand-or-unit attribution into RUN_DIR/GAP.json. Returns the file
+// run.json names (the single unit's GAP.json, or the attribution); empty when nothing was diagnosed.
+std::filesystem::path diagnose_units(const std::vector<SessionUnit>& units, int64_t last_step, const DiagnoseStep& step,
+                                     const std::filesystem::path& run_dir, int nth, const std::string& run_id,
+                                     spdlog::logger& log);
 
 }  // namespace fpss

@@ -36,6 +36,8 @@
 #include "stand/session/live_fit.h"
 #include "stand/session/progress.h"
 #include "stand/session/run_folder.h"
+#include "stand/session/run_record.h"
+#include "stand/session/session_units.h"
 #include "stand/session/signals.h"
 #include "stand/session/terminal_keys.h"
 
@@ -62,18 +64,6 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 // The session
 
 namespace {
-
-// One sensor unit of the run: its device, its recording and its fits (several units: each its own).
-struct UnitState {
-  StandUnit cfg;
-  std::unique_ptr<Sensor> sensor;
-  std::string id_reply, serial;
-  std::optional<UnitLoss> loss;  // dropped at the connection or during the run
-  SampleTable recorded;          // every row so far, old (a resume) and new: what calibrate steps fit
-  std::optional<CalibrationReport> cal;
-  std::optional<fs::path> calibration;  // its latest calibration file
-  fs::path dir;                         // the run folder (one unit) or RUN_DIR/units/<SERIAL>
-};
 
 class Session {
  public:
@@ -111,12 +101,10 @@ class Session {
   StandConfig stand_;
   BenchLauncher bench_;
   std::unique_ptr<Gimbal> gimbal_;
-  std::vector<UnitState> units_;  // the stand's, in order; units_[0] is the single unit of a one-unit run
+  std::vector<SessionUnit> units_;  // the stand's, in order; units_[0] is the single unit of a one-unit run
   std::string unit_, run_id_;     // unit_: the run's name for its unit(s)
   bool multi() const { return units_.size() > 1; }
-  void connect_unit(UnitState& u);
-  void calibrate_unit(const Action& a, UnitState& u);
-  void relate_units();  // run.json's units[].relative from the latest calibrations
+  void calibrate_unit(const Action& a, SessionUnit& u);
   void write_unit_reports();
   std::optional<RunFolderLock> lock_;
   std::unique_ptr<RunRecorder> rec_;
@@ -144,61 +132,13 @@ void Session::make_logger() {
   log_->flush_on(spdlog::level::info);
 }
 
-void Session::connect_unit(UnitState& u) {
-  u.sensor = make_sensor(u.cfg.sensor);
-  u.sensor->connect();
-  u.id_reply = u.sensor->identify();
-  u.serial = serial_from_id(u.id_reply);
-  log_->info("sensor{}: {}", multi() ? fmt::format(" {}", &u - units_.data() + 1) : "", u.id_reply);
-  if (!u.cfg.serial.empty() && u.serial != u.cfg.serial) {
-    throw InputError(fmt::format("{}: the sensor{} reports serial \"{}\" ({}), the stand file expects \"{}\"",
-                                 stand_.origin.empty() ? "stand" : stand_.origin,
-                                 multi() ? fmt::format(" at {}", u.cfg.sensor.endpoint) : "", u.serial, u.id_reply,
-                                 u.cfg.serial));
-  }
-}
-
 void Session::connect_devices() {
   stand_.gimbal.limits = stand_.bench.limits;
   gimbal_ = make_gimbal(stand_.gimbal);
   gimbal_->connect();
   if (stand_.units.empty()) stand_.sync_first_unit();
-  for (const StandUnit& cfg : stand_.units) units_.push_back(UnitState{cfg, nullptr, {}, {}, {}, {}, {}, {}, {}});
-  for (UnitState& u : units_) {
-    if (!multi()) {
-      connect_unit(u);
-      continue;
-    }
-    // Several units: one that cannot be reached or is not the unit expected is dropped; the others go on.
-    try {
-      connect_unit(u);
-    } catch (const InputError& e) {
-      u.loss = UnitLoss{static_cast<int>(&u - units_.data()), LossCause::wrong_serial, e.what(), -1};
-    } catch (const DeviceError& e) {
-      u.loss = UnitLoss{static_cast<int>(&u - units_.data()), LossCause::link_failed, e.what(), -1};
-    }
-    if (u.serial.empty()) u.serial = !u.cfg.serial.empty() ? u.cfg.serial : fmt::format("unit{}", &u - units_.data() + 1);
-    if (u.loss) log_->error("unit {} ({}) lost before the run: {}", u.loss->unit + 1, u.serial, u.loss->reason);
-  }
-  if (multi()) {
-    bool any = false;
-    for (const UnitState& u : units_) any = any || !u.loss;
-    if (!any) throw InputError(fmt::format("{}: no sensor unit could be used: {}", stand_.origin.empty() ? "stand" : stand_.origin,
-                                           units_.front().loss->reason));
-    for (size_t i = 0; i < units_.size(); ++i) {
-      for (size_t j = 0; j < i; ++j) {
-        if (units_[i].serial == units_[j].serial) {
-          throw InputError(fmt::format("{}: units {} and {} both report serial \"{}\"",
-                                       stand_.origin.empty() ? "stand" : stand_.origin, j + 1, i + 1, units_[i].serial));
-        }
-      }
-    }
-    std::vector<std::string> serials;
-    for (const UnitState& u : units_) serials.push_back(u.serial);
-    unit_ = fmt::format("{}", fmt::join(serials, "+"));
-  } else {
-    unit_ = units_.front().serial;
-  }
+  units_ = connect_units(stand_, *log_);
+  unit_ = units_name(units_);
   if (resuming_ && prior_.run.unit != unit_) {
     throw InputError(fmt::format("{}: the run was made on unit \"{}\", the sensor now reports \"{}\"",
                                  req_.resume_dir.string(), prior_.run.unit, unit_));
@@ -223,25 +163,12 @@ void Session::open_folder() {
   log_->sinks().push_back(file_sink);
   log_->info("run {} session {}: procedure {} ({}), unit {}, {}", run_id_, session_, req_.procedure.name,
              req_.procedure.origin, unit_, req_.emulator ? "emulated bench" : "stand " + stand_.stand_id);
-  std::vector<std::string> serials;
-  for (UnitState& u : units_) {
-    serials.push_back(u.serial);
-    u.dir = multi() ? res_.run_dir / "units" / unit_folder_name(u.serial) : res_.run_dir;
-  }
-  rec_ = std::make_unique<RunRecorder>(res_.run_dir, serials);
+  rec_ = std::make_unique<RunRecorder>(res_.run_dir, unit_folders(units_, res_.run_dir));
   if (rec_->cut_bytes() > 0) {
     log_->warn("samples.csv: cut {} bytes of a point that never completed (it is measured again)", rec_->cut_bytes());
   }
   event_log_ = std::make_unique<EventLog>(res_.run_dir / "events.jsonl");
-  for (size_t i = 0; i < units_.size(); ++i) {
-    SampleTable& t = units_[i].recorded;
-    if (rec_->has_rows()) t = read_samples_csv(rec_->samples_path(i));
-    // The provenance as numbers (a resume's columns stay as read: new rows are written into them).
-    if (t.extra_names().empty()) {
-      for (const auto& c : recorder_extra_columns()) t.add_numeric_column(c);
-    }
-    t.origin = rec_->samples_path(i).string();
-  }
+  open_recordings(units_, *rec_);
 }
 
 void Session::write_start_record() {
@@ -256,34 +183,7 @@ void Session::write_start_record() {
                                 stand_.text.empty() ? std::nullopt : std::optional(stand_.text), to_json(stand_)};
     run_.unit = unit_;
     run_.sensor_id = units_.front().id_reply;
-    if (multi()) {
-      run_.units.emplace();
-      for (const UnitState& u : units_) {
-        RunFileUnit ru;
-        ru.serial = u.serial;
-        if (!u.id_reply.empty()) ru.sensor_id = u.id_reply;
-        ru.endpoint = u.cfg.sensor.endpoint;
-        ru.samples = fs::relative(rec_->samples_path(static_cast<size_t>(&u - units_.data())), res_.run_dir).string();
-        if (u.loss) {
-          ru.outcome = "lost";
-          ru.loss_cause = to_string(u.loss->cause);
-          ru.reason = u.loss->reason;
-          ru.lost_at_point = 0;
-        }
-        run_.units->push_back(ru);
-      }
-    }
-    run_.emulated = req_.emulator.has_value();
-    if (req_.emulator) run_.emulator = req_.emulator->to_json();
-    run_.started_utc = now_utc;
-    run_.points = {static_cast<int64_t>(plan_.points), 0, std::nullopt};
-    run_.files.samples = fs::relative(rec_->samples_path(), res_.run_dir).string();
-    if (const auto& ref = stand_.bench.reference) {
-      run_.reference = RunFileReference{ref->file, ref->sha256, ref->certificate, ref->date, ref->lab};
-    }
-    run_.files.journal = "points.jsonl";
-    run_.files.events = "events.log";
-    run_.files.event_stream = "events.jsonl";
+    if (multi()) run_.units = unit_entries(units_, *rec_, res_.run_dir);
   }
   if (!req_.operator_name.empty()) run_.operator_name = req_.operator_name;
   run_.outcome = "running";
@@ -435,25 +335,16 @@ void Session::on_calibrate(const Action& a) {
   progress_->clear();
   ++calibrations_;
   res_.calibration.reset();
-  for (UnitState& u : units_) {
+  for (SessionUnit& u : units_) {
     if (u.loss) continue;  // a lost unit's recording is cut short: nothing to certify
     calibrate_unit(a, u);
   }
-  if (multi()) relate_units();
+  if (multi()) relate_units(units_, run_, *log_);
 }
 
-void Session::calibrate_unit(const Action& a, UnitState& u) {
+void Session::calibrate_unit(const Action& a, SessionUnit& u) {
   const SampleTable rows = u.recorded.up_to_step(points_before(a));
-  CalibrationOptions o;
-  o.method = parse_method(a.calibrate->method).value_or(Method::differences);
-  if (a.calibrate->init) o.init = load_coefficients(*a.calibrate->init);
-  if (a.calibrate->max_iterations) o.max_iterations = *a.calibrate->max_iterations;
-  if (a.calibrate->refine_nodes) o.refine_nodes = static_cast<size_t>(*a.calibrate->refine_nodes);
-  if (a.calibrate->threads) o.threads = *a.calibrate->threads;
-  o.unit = u.serial;
-  // The engine already corrected the rows' reference angles: the fit carries the file's u.
-  o.reference = stand_.bench.reference;
-  o.mount = u.cfg.axes;
+  const CalibrationOptions o = calibration_options(*a.calibrate, u, stand_.bench);
   const auto t0 = std::chrono::steady_clock::now();
   CalibrationReport rep = calibrate(rows, o);
   const fs::path out = u.dir / (calibrations_ == 1 ? std::string("calibration.json")
@@ -481,76 +372,20 @@ void Session::calibrate_unit(const Action& a, UnitState& u) {
   });
 }
 
-void Session::relate_units() {
-  const UnitState* first = nullptr;
-  std::optional<UnitPose> first_pose;
-  for (UnitState& u : units_) {
-    if (!u.cal || u.loss) continue;
-    try {
-      const UnitPose pose = unit_pose(*u.cal, reduce(u.recorded, reduction_options_of(u.cal->coefficients().extra, "calibration")).dwells, u.cfg.axes);
-      if (!first) {
-        first = &u;
-        first_pose = pose;
-        continue;
-      }
-      const RelativePose r = relative_pose(*first_pose, pose);
-      RunFileUnit& ru = run_.units->at(static_cast<size_t>(&u - units_.data()));
-      ru.relative = RunFileRelative{first->serial, r.boresight_pitch_arcsec, r.boresight_pitch_sigma_arcsec,
-                                    r.boresight_yaw_arcsec, r.boresight_yaw_sigma_arcsec, r.roll_arcsec,
-                                    r.roll_sigma_arcsec};
-      log_->info("unit {} relative to {}: boresight pitch {:+.3f} +- {:.3f}, yaw {:+.3f} +- {:.3f}, roll {:+.2f} +- {:.2f} arcsec",
-                 u.serial, first->serial, r.boresight_pitch_arcsec, r.boresight_pitch_sigma_arcsec,
-                 r.boresight_yaw_arcsec, r.boresight_yaw_sigma_arcsec, r.roll_arcsec, r.roll_sigma_arcsec);
-    } catch (const DataError& e) {
-      log_->warn("unit {}: no relative pose: {}", u.serial, e.what());
-    }
-  }
-}
-
 void Session::on_diagnose(const Action& a) {
   progress_->clear();
   // The rows in memory hold every column samples.csv does (the provenance as numbers): the
   // diagnosis reads the same ones `fpss-stand diagnose --data` would, up to the last point before.
-  ++diagnoses_;
-  std::vector<std::pair<std::string, Diagnosis>> diagnosed;
-  for (UnitState& u : units_) {
-    if (u.loss) continue;
-    const auto listed = a.diagnose->models.find(u.serial);
-    const fs::path model = listed != a.diagnose->models.end() ? listed->second : a.diagnose->model;
-    if (model.empty()) {
-      log_->warn("diagnosis: unit {} has no model in the step's models: not diagnosed", u.serial);
-      continue;
-    }
-    DiagnoseStepResult r = run_diagnose_step(u.recorded, points_before(a), *a.diagnose, u.dir, diagnoses_, model);
-    log_->info("{}diagnosis -> {}, {}: verdict {}, cause {}: {}", multi() ? "unit " + u.serial + ": " : "",
-               fs::relative(r.json, res_.run_dir).string(), r.html.filename().string(), r.verdict, r.cause, r.sentence);
-    if (r.incomplete && !a.diagnose->partial) {
-      log_->warn("diagnosis: this recording cannot tell every effect apart (GAP.json, not_observable)");
-    }
-    if (!multi() && diagnoses_ == 1) run_.files.gap = r.json.filename().string();
-    diagnosed.emplace_back(u.serial, std::move(r.diagnosis));
-  }
-  if (multi() && !diagnosed.empty()) {
-    // What is the stand's and what each unit's: the file `diagnose --run ... --out` writes.
-    const fs::path joint = write_joint_diagnosis(diagnosed, res_.run_dir, diagnoses_, run_id_);
-    log_->info("stand or unit -> {}", joint.filename().string());
-    if (diagnoses_ == 1) run_.files.gap = joint.filename().string();
-  }
+  const fs::path gap = diagnose_units(units_, points_before(a), *a.diagnose, res_.run_dir, ++diagnoses_, run_id_, *log_);
+  if (diagnoses_ == 1 && !gap.empty()) run_.files.gap = gap.filename().string();
 }
 
 std::string Session::on_check(const Action& a) {
   std::string all;
-  for (const UnitState& u : units_) {
+  for (const SessionUnit& u : units_) {
     if (u.loss) continue;
     if (!u.cal) return "no calibration to check";
-    std::string broken = check_limits(a.check->pitch, u.cal->pitch.residuals, "pitch");
-    const std::string y = check_limits(a.check->yaw, u.cal->yaw.residuals, "yaw");
-    if (!y.empty()) broken += (broken.empty() ? "" : "; ") + y;
-    if (absurd(a.check->pitch, u.cal->pitch.residuals) || absurd(a.check->yaw, u.cal->yaw.residuals)) {
-      broken += ". Residuals over 100x the limit: the likely cause is the stand file's axis mapping (axes:, which "
-                "must match how the sensor is mounted) or the coefficients (the calibrate step's init); see "
-                "docs/procedures.md, \"Axis mapping\"";
-    }
+    const std::string broken = check_calibration(*a.check, *u.cal);
     const std::string who = multi() ? "unit " + u.serial + " " : "";
     const std::string line = fmt::format("{}check: {}", who, broken.empty() ? "residuals within the limits" : broken);
     log_->info("{}", line);
@@ -573,39 +408,9 @@ void Session::finish(const EngineResult& er) {
   run_.points.completed = er.points_done;
   res_.points_skipped = run_.points.skipped.value_or(0);
   run_.safe_state = er.safe_state;
-  RunFileSession& s = run_.sessions.back();
-  s.ended_utc = end_utc;
-  s.outcome = to_string(er.outcome);
-  if (!er.reason.empty()) s.reason = er.reason;
-  s.points_completed = er.points_done;
-  const EngineStats& st = res_.stats;
-  s.engine = nlohmann::json{{"wall_s", st.wall_s},         {"device_s", st.device_s},       {"sleep_s", st.sleep_s},
-                            {"storage_s", st.storage_s},   {"calibrate_s", st.calibrate_s}, {"own_s", st.own_s()},
-                            {"points", st.points},         {"remeasured", st.remeasured},   {"recoveries", st.recoveries},
-                            {"bench_s", st.bench_s},       {"physical_s", plan_.physical_s},
-                            {"estimated_s", plan_.estimated_s}, {"scheduled_moves", st.scheduled_moves}};
-  if (units_.front().sensor) {
-    const SensorStats ss = units_.front().sensor->stats();
-    s.sensor_stats = nlohmann::json{{"frames", ss.frames},           {"crc_errors", ss.crc_errors},
-                                    {"garbage_bytes", ss.garbage_bytes}, {"seq_gaps", ss.seq_gaps},
-                                    {"frames_lost", ss.frames_lost}};
-  }
+  end_session_record(run_.sessions.back(), end_utc, er, res_.stats, plan_, units_.front().sensor.get());
   if (res_.calibration) run_.files.calibration = fs::relative(*res_.calibration, res_.run_dir).string();
-  if (multi()) {
-    // Each unit's outcome: the run's, unless it was dropped along the way.
-    for (const UnitLoss& l : er.lost) units_.at(static_cast<size_t>(l.unit)).loss = l;
-    for (size_t i = 0; i < units_.size(); ++i) {
-      RunFileUnit& ru = run_.units->at(i);
-      const UnitState& u = units_[i];
-      ru.outcome = u.loss ? "lost" : to_string(er.outcome);
-      if (u.loss) {
-        ru.loss_cause = to_string(u.loss->cause);
-        ru.reason = u.loss->reason;
-        ru.lost_at_point = u.loss->point + 1;
-      }
-      if (u.calibration) ru.calibration = fs::relative(*u.calibration, res_.run_dir).string();
-    }
-  }
+  if (multi()) record_unit_outcomes(units_, er.lost, er.outcome, res_.run_dir, run_);
   write_run_file(res_.run_dir, run_);
   with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, er.outcome, end_utc); });
   if (!catalogue_error_.empty()) {
@@ -648,7 +453,7 @@ void Session::write_unit_reports() {
   try {
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<UnitFolder> folders;
-    for (const UnitState& u : units_) folders.push_back({u.dir, &u.recorded});
+    for (const SessionUnit& u : units_) folders.push_back({u.dir, &u.recorded});
     res_.report = fpss::write_unit_reports(res_.run_dir, run_, folders);
     log_->info("report: {} ({:.2f} s)", res_.report->string(), seconds_since(t0));
   } catch (const std::exception& e) {
@@ -740,7 +545,7 @@ SessionResult Session::run() {
   progress_->finish();
   for (const auto& text : after_progress_) std::fprintf(stderr, "%s\n", text.c_str());
   try {
-    for (UnitState& u : units_) {
+    for (SessionUnit& u : units_) {
       if (u.sensor) u.sensor->disconnect();
     }
     gimbal_->disconnect();
@@ -756,11 +561,11 @@ SessionResult Session::run() {
              er.reason.empty() ? "" : ": " + er.reason);
   res_.exit_code = er.outcome == RunOutcome::completed ? 0 : 1;
   // Several units: the run exits 0 only when every unit completed.
-  for (const UnitState& u : units_) {
+  for (const SessionUnit& u : units_) {
     if (u.loss) res_.exit_code = 1;
   }
   if (multi()) {
-    for (const UnitState& u : units_) {
+    for (const SessionUnit& u : units_) {
       log_->info("unit {}: {}", u.serial, u.loss ? fmt::format("lost ({}): {}", to_string(u.loss->cause), u.loss->reason)
                                                   : std::string(to_string(er.outcome)));
     }
@@ -771,7 +576,7 @@ SessionResult Session::run() {
   }
   res_.wall_s = seconds_since(t_start);
   if (multi()) {
-    for (UnitState& u : units_) res_.units.push_back({u.serial, u.dir, u.calibration, u.loss, std::move(u.recorded)});
+    for (SessionUnit& u : units_) res_.units.push_back({u.serial, u.dir, u.calibration, u.loss, std::move(u.recorded)});
   } else {
     res_.recording = std::move(units_.front().recorded);
   }

@@ -102,7 +102,7 @@ void BM_DiscreteGridAtSpeed(benchmark::State& state) {
 }
 BENCHMARK(BM_DiscreteGridAtSpeed)->Arg(20)->Arg(100)->Arg(1000)->Iterations(3)->UseManualTime()->Unit(benchmark::kSecond);
 
-// Units per bench hour (issue: several units on one gimbal): `run --emulate --bench` with 1, 2 and
+// Units per bench hour (docs/procedures.md, "Several units"): `run --emulate --bench` with 1, 2 and
 // 4 units of different published truths in one pass, with the shipped grid (arg 1 = 0) and with
 // the procedure `design` makes for the grid's accuracy (arg 1 = 1: the largest 1-sigma the grid
 // reaches, 0.03 arcsec). Bench time is run.json's engine bench_s; every unit's fit is held against
