@@ -32,14 +32,6 @@ void write_json_file(const std::string& path, const nlohmann::ordered_json& j) {
   write_text_atomic(path, j.dump(1) + '\n');
 }
 
-// An input given as an output too (an option's file the command would overwrite): exit 2.
-void check_not_output(const std::string& input, const std::string& output, const std::string& option) {
-  std::error_code ec;
-  if (!output.empty() && fs::exists(input) && fs::equivalent(input, output, ec)) {
-    throw InputError(fmt::format("{} {}: is also --out: the command would overwrite what it reads", option, input));
-  }
-}
-
 // diagnose --run: each unit's recording against its model (units/SERIAL/GAP.json and GAP.html),
 // then what is the stand's and what each unit's (`out`). Exit 2 for a unit the run does not have.
 int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models, const std::string& out,
@@ -58,7 +50,6 @@ int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models
       throw InputError(fmt::format("--model {}: with --run, give SERIAL=FILE (one per unit)", m));
     }
     const std::string serial = m.substr(0, eq), file = m.substr(eq + 1);
-    check_not_output(file, out, "--model");
     const auto unit = std::find_if(run.units->begin(), run.units->end(), [&](const RunFileUnit& u) { return u.serial == serial; });
     if (unit == run.units->end()) {
       std::vector<std::string> serials;
@@ -100,7 +91,9 @@ int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models
 
 void add_diagnose_command(CLI::App& app, Runner& run) {
   struct Opts {
-    std::vector<std::string> models;
+    std::vector<std::string> models;       // FILE, or SERIAL=FILE with --run
+    std::vector<std::string> model_files;  // the files they name (checked against the outputs)
+    std::string model;                     // --data: the one model file (for the hints)
     std::string data, run_dir, out, report, emit_bench;
     DiagnosisOptions d;
     bool partial = false;
@@ -109,10 +102,12 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("diagnose", "Which unmodelled effect explains model(counts) - reference, checked on held-out steps");
   FileOptions& f = o->files;
-  sub->add_option("--model", o->models,
-                  "the sim model: a coefficient file (JSON); with --run, SERIAL=FILE for each unit (repeatable)")
-      ->required()
-      ->allow_extra_args(false);
+  auto* model_opt = sub->add_option("--model", o->models,
+                                    "the sim model: a coefficient file (JSON); with --run, SERIAL=FILE for each unit (repeatable)")
+                        ->required()
+                        ->allow_extra_args(false);
+  f.inputs("--model", o->model_files);
+  expect_file(sub, model_opt, o->model, FileKind::coefficients);
   auto* data = f.input(sub, "--data", o->data, "the real recording: a samples CSV (all phases; temperature_c used when present)");
   expect_file(sub, data, o->data, FileKind::samples);
   auto* run_opt = sub->add_option("--run", o->run_dir,
@@ -137,6 +132,11 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
                  "--model FPSS2-A6=calib/data/published/a-6-fpss2.json --out joint.json --partial"});
   sub->callback([o, &run] {
     run = [o] {
+      for (const std::string& m : o->models) {
+        const auto eq = m.find('=');
+        o->model_files.push_back(o->run_dir.empty() || eq == std::string::npos ? m : m.substr(eq + 1));
+      }
+      if (o->run_dir.empty() && !o->models.empty()) o->model = o->models.front();
       o->files.check();
       if (!o->run_dir.empty()) return diagnose_run(o->run_dir, o->models, o->out, o->d, o->partial);
       if (o->data.empty()) throw InputError("diagnose: give --data (one recording) or --run (a run folder of several units)");
@@ -144,7 +144,6 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
         throw InputError("diagnose --data: give one --model (a coefficient file); SERIAL=FILE pairs go with --run");
       }
       const std::string model_path = o->models.front();
-      check_not_output(model_path, o->out, "--model");
       const CoefficientSet model = load_coefficients(model_path);
       // Straight into the columns the diagnosis reads (no whole table of every column in memory).
       DiagnosisFigures figures;

@@ -176,8 +176,7 @@ void add_emulate(CLI::App& app, Runner& run) {
                   "Fault NAME[:key=value,...] with optional trigger at_s= or at_request= (repeatable, docs/emulator.md)");
   sub->add_option("--fault-file", args->fault_file, "On SIGUSR1, arm the faults listed in this file (one per line)");
   examples(sub, {"fpss-stand emulate --modbus-port 5020 --serial-link /tmp/fpss-sensor --speed 10",
-                 "fpss-stand emulate --bench procedures/paper_mount_bench.yaml --effect drift:pitch_arcsec_per_s=0.01",
-                 "fpss-stand emulate --bench procedures/two_unit_bench.yaml --modbus-port 0  # one sensor: line per unit"});
+                 "fpss-stand emulate --bench procedures/two_unit_bench.yaml --effect drift:pitch_arcsec_per_s=0.01"});
   sub->callback([args, seed, &run] {
     run = [args, seed] { return run_emulate(*args, seed->count() > 0); };
   });

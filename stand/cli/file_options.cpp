@@ -40,6 +40,11 @@ CLI::Option* FileOptions::input(CLI::App* sub, const std::string& name, std::str
   return opt;
 }
 
+void FileOptions::inputs(const std::string& option, std::vector<std::string>& paths) {
+  (void)option;
+  input_lists_.push_back(&paths);
+}
+
 CLI::Option* FileOptions::output(CLI::App* sub, const std::string& name, std::string& path, const std::string& help,
                                  Beside beside) {
   CLI::Option* opt = sub->add_option(name, path, help);
@@ -50,6 +55,7 @@ CLI::Option* FileOptions::output(CLI::App* sub, const std::string& name, std::st
 void FileOptions::check() const {
   std::vector<fs::path> read;
   for (const auto& f : inputs_) read.emplace_back(*f.path);
+  for (const auto* list : input_lists_) read.insert(read.end(), list->begin(), list->end());
   // Every file the given outputs write, with the option that names it.
   std::vector<std::pair<std::string, fs::path>> written;
   for (const auto& f : outputs_) {

@@ -16,6 +16,9 @@ class FileOptions {
  public:
   // `path` is where the option's value goes; it must outlive check() (a field of the same options).
   CLI::Option* input(CLI::App* sub, const std::string& name, std::string& path, const std::string& help);
+  // Files an option names inside its values (diagnose --model SERIAL=FILE): `paths` is filled from
+  // the values before check(), which then reads them as inputs of `option`.
+  void inputs(const std::string& option, std::vector<std::string>& paths);
   // `beside`, when the output may bring a second file named after it (diagnose --emit-bench's
   // refitted transfer function): that file is checked as an output of the same option.
   using Beside = std::function<std::filesystem::path(const std::string& path)>;
@@ -32,6 +35,7 @@ class FileOptions {
     Beside beside;
   };
   std::vector<File> inputs_, outputs_;
+  std::vector<std::vector<std::string>*> input_lists_;
 };
 
 }  // namespace fpss::cli

@@ -136,7 +136,7 @@ void Session::connect_devices() {
   stand_.gimbal.limits = stand_.bench.limits;
   gimbal_ = make_gimbal(stand_.gimbal);
   gimbal_->connect();
-  if (stand_.units.empty()) stand_.sync_first_unit();
+  if (stand_.units.size() <= 1) stand_.sync_first_unit();  // one unit: its fields may have been set by a caller
   units_ = connect_units(stand_, *log_);
   unit_ = units_name(units_);
   if (resuming_ && prior_.run.unit != unit_) {
@@ -184,6 +184,15 @@ void Session::write_start_record() {
     run_.unit = unit_;
     run_.sensor_id = units_.front().id_reply;
     if (multi()) run_.units = unit_entries(units_, *rec_, res_.run_dir);
+    run_.emulated = req_.emulator.has_value();
+    if (req_.emulator) run_.emulator = req_.emulator->to_json();
+    run_.started_utc = now_utc;
+    run_.points = {static_cast<int64_t>(plan_.points), 0, std::nullopt};
+    run_.files = {fs::relative(rec_->samples_path(), res_.run_dir).string(), "points.jsonl", "events.log", "events.jsonl",
+                  std::nullopt, std::nullopt};
+    if (const auto& ref = stand_.bench.reference) {
+      run_.reference = RunFileReference{ref->file, ref->sha256, ref->certificate, ref->date, ref->lab};
+    }
   }
   if (!req_.operator_name.empty()) run_.operator_name = req_.operator_name;
   run_.outcome = "running";

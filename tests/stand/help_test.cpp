@@ -87,6 +87,8 @@ bool not_run_here(const std::string& example) {
                            "fpss-stand blindtest --cases 22", "fpss-stand msa --"}) {
     if (example.find(what) != std::string::npos) return true;
   }
+  // Needs a run of several units: tests/stand/multi_unit_test.cpp runs it on one.
+  if (example.find("fpss-stand diagnose --run") != std::string::npos) return true;
   // A full run of the grid takes the bench's time (the dry run is checked).
   return example.rfind("fpss-stand run ", 0) == 0 && example.find("--dry-run") == std::string::npos;
 }

@@ -86,6 +86,8 @@ TEST_F(MultiUnit, TwoUnitsOfThePaperInOnePassEachWithinATenthOfItsTruth) {
   expect_fit_near_truth("FPSS1-A6", "a-6-fpss1");
   expect_fit_near_truth("FPSS2-A6", "a-6-fpss2");
   const nlohmann::json j = run_json();
+  EXPECT_EQ(j.at("points").at("total"), 113);
+  EXPECT_EQ(j.at("files").at("samples"), "units/FPSS1-A6/samples.csv");
   ASSERT_EQ(j.at("units").size(), 2u);
   for (const auto& u : j.at("units")) EXPECT_EQ(u.at("outcome"), "completed") << u.dump();
   // Every point recorded for both units against the same gimbal readings.
@@ -113,6 +115,21 @@ TEST_F(MultiUnit, TwoUnitsOfThePaperInOnePassEachWithinATenthOfItsTruth) {
   EXPECT_NE(page.find("id=\"verdict-FPSS2-A6\""), std::string::npos);
   EXPECT_TRUE(fs::exists(unit_dir("FPSS2-A6") / "report.html"));
   EXPECT_FALSE(fs::exists(run_dir_ / "samples.csv"));
+}
+
+// Each unit on a clock of its own (clock.sync: host, as a real stand's lines): the followers' frames
+// are taken by their receipt and the fits hold as well.
+TEST_F(MultiUnit, OnHostClocksEachUnitIsWithinATenthOfItsTruth) {
+  const fs::path stand = dir_.write("host.yaml",
+                                    "gimbal: {endpoint: \"modbus-tcp:127.0.0.1:1\"}\n"
+                                    "clock: {sync: host}\n"
+                                    "sensors:\n"
+                                    "  - {unit: U1, endpoint: \"pty:/nonexistent/1\"}\n"
+                                    "  - {unit: U2, endpoint: \"pty:/nonexistent/2\"}\n");
+  const auto r = run(bench_yaml({{"U1", "a-6-fpss1"}, {"U2", "a-5-fpss2"}}), {"--stand", stand.string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  expect_fit_near_truth("U1", "a-6-fpss1");
+  expect_fit_near_truth("U2", "a-5-fpss2");
 }
 
 TEST_F(MultiUnit, FourUnitsOfDifferentTruthsAndARolledBiasedOne) {
