@@ -60,16 +60,14 @@ void Engine::prepare() {
   for (size_t i = 0; i < io_->units(); ++i) {
     if (io_->lost(i)) continue;
     Sensor& s = *io_->unit(i).sensor;
-    if (io_->units() == 1) {  // one unit: its failure is the run's
-      s.set_rate(static_cast<int>(std::lround(b_.sample_rate_hz)));
-      s.start();
-      continue;
-    }
     try {
       s.set_rate(static_cast<int>(std::lround(b_.sample_rate_hz)));
       s.start();
     } catch (const DeviceError& e) {
-      if (!io_->lose(i, LossCause::link_failed, fmt::format("could not start its stream: {}", e.what()), -1)) throw;
+      // One unit: its failure is the run's. Several: it is dropped unless it was the last.
+      if (io_->units() == 1 || !io_->lose(i, LossCause::link_failed, fmt::format("could not start its stream: {}", e.what()), -1)) {
+        throw;
+      }
     }
   }
 }
@@ -349,7 +347,6 @@ EngineResult Engine::run(int session) {
     }
   }
   r.points_done = measurer_->next_point();
-  r.lost = io_->losses();
   if (const std::optional<double> bench_s = clock_->bench_s()) {
     const double bench = *bench_s;
     stats_.bench_s += bench;

@@ -49,7 +49,6 @@ struct EngineResult {
   std::string reason;         // why it failed or stopped, for people
   int64_t points_done = 0;    // completed points in the recording (all sessions)
   bool safe_state = true;     // the gimbal was stopped and returned to null (or was never moved)
-  std::vector<UnitLoss> lost;  // units dropped along the way (several units only)
 };
 
 // Where the controller's own time goes, to compare with the time spent waiting on devices.
@@ -107,7 +106,7 @@ class Engine {
   // Several units on the one gimbal: replaces the constructor's single sensor (unit 0 on the
   // settings' axes) before run(). The first is the lead: its frames pace the dwells; the others'
   // frames are taken over the same dwell and referenced to the same gimbal readings. A unit that
-  // fails is dropped (EngineResult::lost) and the others go on; the lead's place passes to the next.
+  // fails is dropped (EngineHooks::unit_lost) and the others go on; the lead's place passes to the next.
   void set_units(std::vector<EngineUnit> units);
 
   // Runs the plan from `from.next_point` (0 for a new run).

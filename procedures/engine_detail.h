@@ -42,7 +42,6 @@ struct SensorFailure : std::runtime_error {
   explicit SensorFailure(const std::string& what, StopCause c = StopCause::sensor_timeout)
       : std::runtime_error(what), cause(c) {}
   StopCause cause;
-  bool sensor_side = false;  // the last attempt failed on the sensor's side (several units: the lead may be dropped)
 };
 // The recording could not be made durable: never re-measured, the run stops.
 struct StorageFailure : std::runtime_error {

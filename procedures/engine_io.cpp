@@ -61,11 +61,10 @@ bool EngineIo::can_lose_lead() const { return !followers().empty(); }
 bool EngineIo::lose(size_t i, LossCause cause, const std::string& reason, int64_t point) {
   if (lost_[i]) return true;
   lost_[i] = true;
-  losses_.push_back(UnitLoss{units_[i].id, cause, reason, point});
   const std::string msg = fmt::format("unit {} lost ({}): {}; the other units go on", units_[i].id + 1, to_string(cause), reason);
   log_.error("{}", msg);
   events_.publish(Fault{Fault::Level::fault, point, msg, {}});
-  if (on_lost_) on_lost_(losses_.back());
+  if (on_lost_) on_lost_(UnitLoss{units_[i].id, cause, reason, point});
   // A silent unit would only make the stop wait out its command timeouts.
   if (cause != LossCause::silence) {
     try {

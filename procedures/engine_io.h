@@ -44,7 +44,6 @@ class EngineIo {
   bool lose(size_t i, LossCause cause, const std::string& reason, int64_t point);
   // Another unit could take the lead's place.
   bool can_lose_lead() const;
-  const std::vector<UnitLoss>& losses() const { return losses_; }
   void on_lost(std::function<void(const UnitLoss&)> f) { on_lost_ = std::move(f); }
   // A failing unit's strikes: the points in a row it gave nothing at (reset by a good point).
   int& strikes(size_t i) { return strikes_[i]; }
@@ -113,7 +112,6 @@ class EngineIo {
   std::vector<bool> lost_;
   std::vector<int> strikes_ = std::vector<int>(1, 0);
   size_t lead_ = 0;
-  std::vector<UnitLoss> losses_;
   std::function<void(const UnitLoss&)> on_lost_;
 };
 

@@ -126,17 +126,15 @@ void PointMeasurer::with_remeasure(const Action& a, const std::function<void(int
   // Several units: a lead that fails the point on every attempt is dropped, and the next unit
   // measures the point afresh (its attempts counted anew).
   for (;;) {
-    const uint64_t crc0 = io_.sensor().stats().crc_errors;
+    const size_t lead = io_.lead_index();
+    const uint64_t crc0 = crc_errors(lead);
     try {
       attempts(a, attempt_fn);
       return;
     } catch (const PointFailure& e) {
       if (!e.sensor_side || !a.is_point() || !io_.can_lose_lead()) throw;
-      const uint64_t crc = io_.sensor().stats().crc_errors - crc0;
-      const LossCause cause = crc > static_cast<uint64_t>(a.frames) ? LossCause::crc_storm
-                              : e.cause == StopCause::sensor_invalid ? LossCause::invalid_frames
-                                                                     : LossCause::silence;
-      io_.lose(io_.lead_index(), cause, e.what(), a.point);
+      const LossCause cause = loss_cause(crc_errors(lead) - crc0, a, e.cause == StopCause::sensor_invalid);
+      io_.lose(lead, cause, e.what(), a.point);
       flush_followers();
     }
   }

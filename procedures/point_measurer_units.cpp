@@ -100,22 +100,35 @@ std::vector<RecordedRow> PointMeasurer::follower_dwell(const Action& a, size_t u
   return rows;
 }
 
+LossCause PointMeasurer::loss_cause(uint64_t new_crc_errors, const Action& a, bool invalid) {
+  if (new_crc_errors > static_cast<uint64_t>(a.frames)) return LossCause::crc_storm;
+  return invalid ? LossCause::invalid_frames : LossCause::silence;
+}
+
+uint64_t PointMeasurer::crc_errors(size_t unit) const {
+  try {
+    return io_.unit(unit).sensor->stats().crc_errors;
+  } catch (const std::exception&) {
+    return 0;
+  }
+}
+
+void PointMeasurer::follower_ok(size_t ui) {
+  io_.strikes(ui) = 0;
+  if (crc_seen_.size() < io_.units()) crc_seen_.resize(io_.units(), 0);
+  crc_seen_[ui] = crc_errors(ui);
+}
+
 void PointMeasurer::follower_failed(const Action& a, size_t ui, const std::string& why, int invalid) {
   const EngineUnit& u = io_.unit(ui);
   if (crc_seen_.size() < io_.units()) crc_seen_.resize(io_.units(), 0);
-  uint64_t crc = crc_seen_[ui];
-  try {
-    crc = u.sensor->stats().crc_errors;
-  } catch (const std::exception&) {
-  }
-  const bool storm = crc - crc_seen_[ui] > static_cast<uint64_t>(a.frames);
-  crc_seen_[ui] = crc;
+  const uint64_t crc = std::max(crc_errors(ui), crc_seen_[ui]);
+  const uint64_t new_crc = crc - crc_seen_[ui];
   // A point without frames is forgiven as often as the stand re-measures a point; one more in a
   // row and the unit is dropped. Its stream is restarted once, at the first (a stopped stream comes
   // back; a silent unit costs its command timeouts only once).
   if (++io_.strikes(ui) > std::max(1, b_.max_remeasure)) {
-    const LossCause cause = storm ? LossCause::crc_storm : invalid > 0 ? LossCause::invalid_frames : LossCause::silence;
-    io_.lose(ui, cause, fmt::format("{} at {} points in a row, the last {}", why, io_.strikes(ui), a.describe()), a.point);
+    io_.lose(ui, loss_cause(new_crc, a, invalid > 0), fmt::format("{} at {} points in a row, the last {}", why, io_.strikes(ui), a.describe()), a.point);
     return;
   }
   io_.warn(&a, fmt::format("unit {}: {} at {}{}", u.id + 1, why, a.describe(),

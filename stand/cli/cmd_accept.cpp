@@ -103,7 +103,7 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   all.throw_if_any();
   p.roles = acceptance_roles(req.procedure, p.plan);
   if (a.emulate) req.emulator = emulator_spec(a.emu, a.unit);
-  req.write_report = false;  // drawn once, with the certificate (write_acceptance_files)
+  req.write_report = false;  // drawn once, with the certificate (write_certificate_files)
   // The operator's prompts, answered through the run folder's control channel (docs/console.md).
   if (a.operator_prompts) {
     req.prompts = {{"serial", "Mount the unit, then scan or type its serial", PromptKind::serial},
@@ -165,34 +165,24 @@ CertificateInfo certificate_info(const AcceptancePlan& p, const SessionResult& r
   return info;
 }
 
-// acceptance.json, certificate.txt, the report page with the certificate, and run.json's verdict.
-std::string write_acceptance_files(const fs::path& run_dir, const nlohmann::ordered_json& cert, const Judgement& j,
-                                   const AcceptanceLimits& limits, RunFile run, const std::string& title,
-                                   const SampleTable& recording) {
-  write_text_atomic(run_dir / "acceptance.json", cert.dump(1) + "\n");
+// acceptance.json, certificate.txt and the report page with the certificate (the folder's report
+// with it as a section, or the certificate alone), its banner `verdict`, in `dir`.
+std::string write_certificate_files(const fs::path& dir, const nlohmann::ordered_json& cert, const RunVerdict& verdict,
+                                    const std::string& title, const SampleTable& recording) {
+  write_text_atomic(dir / "acceptance.json", cert.dump(1) + "\n");
   const std::string text = certificate_text(cert);
-  write_text_atomic(run_dir / "certificate.txt", text);
-  // The page: the run's report with the certificate as a section, or the certificate alone.
+  write_text_atomic(dir / "certificate.txt", text);
   const std::string section = certificate_html(cert);
-  RunFileAcceptance acc;
-  acc.file = "acceptance.json";
-  acc.certificate = "certificate.txt";
-  acc.verdict = to_string(j.outcome);
-  acc.failed = j.failed();
-  acc.limits = RunFileAcceptance::Limits{limits.origin, limits.sha256};
-  run.acceptance = acc;
-  write_run_file(run_dir, run);
-  const RunVerdict verdict = run_verdict(run);
   try {
     ReportOptions ro;
     ro.extra_sections.push_back({"acceptance", "Acceptance", section});
     ro.verdict = verdict;
     ro.recording = &recording;
-    write_report(run_dir, ro);
+    write_report(dir, ro);
   } catch (const std::exception& e) {
-    write_text_atomic(run_dir / "report.html",
+    write_text_atomic(dir / "report.html",
                       standalone_page(title, verdict_banner_html(verdict) + section,
-                                      fmt::format("The run's report could not be drawn: {}", e.what())));
+                                      fmt::format("The report could not be drawn: {}", e.what())));
   }
   return text;
 }
@@ -228,12 +218,12 @@ struct UnitAcceptance {
   bool recorded = true;  // the catalogue took it
 };
 
-// Judges one unit's recording and calibration, writes acceptance.json and certificate.txt into
-// `dir` and records the verdict in the catalogue. `page`: writes dir's report with the certificate
-// (and, for one unit, run.json's acceptance).
-UnitAcceptance accept_unit(const AcceptArgs& a, const AcceptancePlan& p, const SessionResult& r, const RunFile& run,
-                           const std::string& unit, const fs::path& dir, SampleTable recording,
-                           const std::optional<fs::path>& calibration, bool single) {
+// Judges one unit's recording and calibration, writes its certificate files into `dir` and records
+// the verdict in the catalogue. The verdict goes into `entry` (several units: its run.json entry),
+// else into `run`'s acceptance, written to run.json.
+UnitAcceptance accept_unit(const AcceptancePlan& p, const SessionResult& r, RunFile& run, const std::string& unit,
+                           const fs::path& dir, SampleTable recording, const std::optional<fs::path>& calibration,
+                           RunFileUnit* entry) {
   const bool completed = r.outcome == RunOutcome::completed;
   AcceptanceData data;
   data.roles = p.roles;
@@ -260,28 +250,24 @@ UnitAcceptance accept_unit(const AcceptArgs& a, const AcceptancePlan& p, const S
     out.cert["signed_off_utc"] = r.signed_off_utc;
   }
   const std::string title = fmt::format("Acceptance of {} ({})", unit, run_id);
-  if (single) {
-    out.text = write_acceptance_files(dir, out.cert, j, p.limits, run, title, data.samples);
+  RunVerdict verdict;
+  if (entry) {
+    entry->acceptance = fs::relative(dir / "acceptance.json", r.run_dir).string();
+    entry->certificate = fs::relative(dir / "certificate.txt", r.run_dir).string();
+    entry->verdict = to_string(j.outcome);
+    verdict = unit_verdict(run, *entry);
   } else {
-    write_text_atomic(dir / "acceptance.json", out.cert.dump(1) + "\n");
-    out.text = certificate_text(out.cert);
-    write_text_atomic(dir / "certificate.txt", out.text);
-    RunFileUnit ru;
-    ru.serial = unit;
-    ru.outcome = to_string(r.outcome);
-    ru.verdict = to_string(j.outcome);
-    try {
-      ReportOptions ro;
-      ro.extra_sections.push_back({"acceptance", "Acceptance", certificate_html(out.cert)});
-      ro.verdict = unit_verdict(run, ru);
-      ro.recording = &data.samples;
-      write_report(dir, ro);
-    } catch (const std::exception& e) {
-      write_text_atomic(dir / "report.html", standalone_page(title, verdict_banner_html(unit_verdict(run, ru)) +
-                                                                        certificate_html(out.cert),
-                                                             fmt::format("The unit's report could not be drawn: {}", e.what())));
-    }
+    RunFileAcceptance acc;
+    acc.file = "acceptance.json";
+    acc.certificate = "certificate.txt";
+    acc.verdict = to_string(j.outcome);
+    acc.failed = j.failed();
+    acc.limits = RunFileAcceptance::Limits{p.limits.origin, p.limits.sha256};
+    run.acceptance = acc;
+    write_run_file(r.run_dir, run);
+    verdict = run_verdict(run);
   }
+  out.text = write_certificate_files(dir, out.cert, verdict, title, data.samples);
   try {
     const auto cat = open_catalogue(cat_url);
     AcceptanceRecord rec;
@@ -302,7 +288,6 @@ UnitAcceptance accept_unit(const AcceptArgs& a, const AcceptancePlan& p, const S
                  to_string(j.outcome), (dir / "acceptance.json").c_str(), url_for_messages(cat_url).c_str(), e.what());
     out.recorded = false;
   }
-  (void)a;
   return out;
 }
 
@@ -322,10 +307,7 @@ int accept_units(const AcceptArgs& a, const AcceptancePlan& p, SessionResult& r)
       code = 1;
       continue;
     }
-    const UnitAcceptance ua = accept_unit(a, p, r, run, u.serial, u.dir, std::move(u.recording), u.calibration, false);
-    ru.acceptance = fs::relative(u.dir / "acceptance.json", r.run_dir).string();
-    ru.certificate = fs::relative(u.dir / "certificate.txt", r.run_dir).string();
-    ru.verdict = to_string(ua.judgement.outcome);
+    const UnitAcceptance ua = accept_unit(p, r, run, u.serial, u.dir, std::move(u.recording), u.calibration, &ru);
     if (!ua.recorded) code = 1;
     const int c = exit_code_of(ua.judgement);
     if (code != 1 && (c == 3 || (c == 4 && code == 0))) code = c;
@@ -367,10 +349,10 @@ int accept_command(const AcceptArgs& a) {
   }
   if (!r.units.empty()) return accept_units(a, p, r);
 
-  const RunFile run = read_run_file(run_dir);
+  RunFile run = read_run_file(run_dir);
   const std::string unit = run.unit.empty() ? a.unit : run.unit;
   const std::optional<fs::path> calibration = r.calibration;
-  const UnitAcceptance ua = accept_unit(a, p, r, run, unit, run_dir, std::move(r.recording), calibration, true);
+  const UnitAcceptance ua = accept_unit(p, r, run, unit, run_dir, std::move(r.recording), calibration, nullptr);
   if (!ua.recorded) return 1;
   const Judgement& j = ua.judgement;
   const std::string cat_url = p.req.catalogue;

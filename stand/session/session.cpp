@@ -163,7 +163,7 @@ void Session::open_folder() {
   log_->sinks().push_back(file_sink);
   log_->info("run {} session {}: procedure {} ({}), unit {}, {}", run_id_, session_, req_.procedure.name,
              req_.procedure.origin, unit_, req_.emulator ? "emulated bench" : "stand " + stand_.stand_id);
-  rec_ = std::make_unique<RunRecorder>(res_.run_dir, unit_folders(units_, res_.run_dir));
+  rec_ = std::make_unique<RunRecorder>(res_.run_dir, unit_serials(units_));
   if (rec_->cut_bytes() > 0) {
     log_->warn("samples.csv: cut {} bytes of a point that never completed (it is measured again)", rec_->cut_bytes());
   }
@@ -419,7 +419,7 @@ void Session::finish(const EngineResult& er) {
   run_.safe_state = er.safe_state;
   end_session_record(run_.sessions.back(), end_utc, er, res_.stats, plan_, units_.front().sensor.get());
   if (res_.calibration) run_.files.calibration = fs::relative(*res_.calibration, res_.run_dir).string();
-  if (multi()) record_unit_outcomes(units_, er.lost, er.outcome, res_.run_dir, run_);
+  if (multi()) record_unit_outcomes(units_, er.outcome, res_.run_dir, run_);
   write_run_file(res_.run_dir, run_);
   with_catalogue("run end", [&](Catalogue& cat) { cat.record_run_end(run_id_, er.outcome, end_utc); });
   if (!catalogue_error_.empty()) {

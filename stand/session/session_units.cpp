@@ -74,18 +74,15 @@ std::string units_name(const std::vector<SessionUnit>& units) {
   return fmt::format("{}", fmt::join(serials, "+"));
 }
 
-std::vector<std::string> unit_folders(std::vector<SessionUnit>& units, const fs::path& run_dir) {
+std::vector<std::string> unit_serials(const std::vector<SessionUnit>& units) {
   std::vector<std::string> serials;
-  for (SessionUnit& u : units) {
-    serials.push_back(u.serial);
-    u.dir = units.size() > 1 ? run_dir / "units" / unit_folder_name(u.serial) : run_dir;
-  }
-  if (serials.size() == 1) serials.clear();
+  for (const SessionUnit& u : units) serials.push_back(u.serial);
   return serials;
 }
 
 void open_recordings(std::vector<SessionUnit>& units, const RunRecorder& rec) {
   for (size_t i = 0; i < units.size(); ++i) {
+    units[i].dir = rec.samples_path(i).parent_path();
     SampleTable& t = units[i].recorded;
     if (rec.has_rows()) t = read_samples_csv(rec.samples_path(i));
     // The provenance as numbers (a resume's columns stay as read: new rows are written into them).
@@ -129,9 +126,8 @@ std::vector<RunFileUnit> unit_entries(const std::vector<SessionUnit>& units, con
   return out;
 }
 
-void record_unit_outcomes(std::vector<SessionUnit>& units, const std::vector<UnitLoss>& lost, RunOutcome outcome,
-                          const fs::path& run_dir, RunFile& run) {
-  for (const UnitLoss& l : lost) units.at(static_cast<size_t>(l.unit)).loss = l;
+void record_unit_outcomes(const std::vector<SessionUnit>& units, RunOutcome outcome, const fs::path& run_dir,
+                          RunFile& run) {
   for (size_t i = 0; i < units.size(); ++i) {
     RunFileUnit& ru = run.units->at(i);
     const SessionUnit& u = units[i];

@@ -38,10 +38,11 @@ std::vector<SessionUnit> connect_units(const StandConfig& stand, spdlog::logger&
 // The run's name for its units: the serial, or the serials joined with '+'.
 std::string units_name(const std::vector<SessionUnit>& units);
 
-// Each unit's folder (the run folder, or RUN_DIR/units/<SERIAL> for several) set on it; the serials
-// for the recorder (one: none, the single-unit layout).
-std::vector<std::string> unit_folders(std::vector<SessionUnit>& units, const std::filesystem::path& run_dir);
-// Each unit's recording so far (a resume's, read once) with the recorder's columns.
+// The units' serials, for the recorder (which lays out their folders).
+std::vector<std::string> unit_serials(const std::vector<SessionUnit>& units);
+// Each unit's folder (where the recorder keeps its samples.csv: the run folder, or
+// RUN_DIR/units/<SERIAL> for several) and its recording so far (a resume's, read once) with the
+// recorder's columns.
 void open_recordings(std::vector<SessionUnit>& units, const RunRecorder& rec);
 // A calibrate step's options for one unit (its serial and mount; the stand's reference, which the
 // engine already applied to the rows, so the fit carries its u).
@@ -51,10 +52,9 @@ CalibrationOptions calibration_options(const CalibrateStep& step, const SessionU
 // found at the connection.
 std::vector<RunFileUnit> unit_entries(const std::vector<SessionUnit>& units, const RunRecorder& rec,
                                       const std::filesystem::path& run_dir);
-// At the end: the losses during the run recorded on the units, each entry's outcome (the run's,
-// unless lost), loss and calibration.
-void record_unit_outcomes(std::vector<SessionUnit>& units, const std::vector<UnitLoss>& lost, RunOutcome outcome,
-                          const std::filesystem::path& run_dir, RunFile& run);
+// At the end: each entry's outcome (the run's, unless the unit was lost), loss and calibration.
+void record_unit_outcomes(const std::vector<SessionUnit>& units, RunOutcome outcome, const std::filesystem::path& run_dir,
+                          RunFile& run);
 // Each calibrated unit's boresight and roll relative to the first calibrated one, into run.json's
 // entries (calib/unit_alignment.h).
 void relate_units(const std::vector<SessionUnit>& units, RunFile& run, spdlog::logger& log);
