@@ -1,6 +1,7 @@
 // The recording as the diagnosis sees it: residuals through the model, steps, motion, the
 // approach and settling state each row inherits from the moves before it, and the split.
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -385,6 +386,7 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   r.origin = data.origin.empty() ? std::string("recording") : data.origin;
   r.model = model;
   r.n = data.size();
+  r.parts = std::move(data.parts);
   if (r.n == 0) throw DataError(fmt::format("{}: no rows: nothing to diagnose", r.origin));
   if (!(opts.max_skew_s >= 0) || !(opts.settle_s >= 0) || opts.heldout_every < 2) {
     throw InputError("diagnosis options: max_skew_s and settle_s must be >= 0, heldout_every >= 2");
@@ -412,13 +414,58 @@ namespace fpss {
 DiagnosisColumns DiagnosisColumns::of(const SampleTable& t) {
   // The optional columns are filled below, where the table has them.
   DiagnosisColumns c{t.origin, t.time_s, t.ref_pitch_arcsec, t.ref_yaw_arcsec, t.counts_alpha, t.counts_beta,
-                     t.step, /*temperature_c=*/{}, /*time_since_move_s=*/{}};
+                     t.step, /*temperature_c=*/{}, /*time_since_move_s=*/{}, /*parts=*/{}};
   for (auto [name, out] : {std::pair{"temperature_c", &c.temperature_c}, {"time_since_move_s", &c.time_since_move_s}}) {
     if (!t.has_column(name)) continue;
     const std::vector<double> v = t.numeric_column(name);
     out->assign(v.begin(), v.end());
   }
   return c;
+}
+
+DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts) {
+  if (parts.empty()) throw InputError("a joint diagnosis needs at least one recording");
+  if (parts.size() > kMaxJointRecordings) {
+    throw InputError(fmt::format("a joint diagnosis takes at most {} recordings ({} given)", kMaxJointRecordings,
+                                 parts.size()));
+  }
+  if (parts.size() == 1) return std::move(parts.front());
+  const bool since = std::all_of(parts.begin(), parts.end(), [](const DiagnosisColumns& c) {
+    return !c.time_since_move_s.empty();
+  });
+  const bool temp = std::any_of(parts.begin(), parts.end(), [](const DiagnosisColumns& c) {
+    return !c.temperature_c.empty();
+  });
+  DiagnosisColumns j;
+  std::vector<std::string> names;
+  for (size_t k = 0; k < parts.size(); ++k) {
+    DiagnosisColumns& c = parts[k];
+    const size_t n = c.size();
+    for (int64_t s : c.step) {
+      if (s < 0 || s >= kJointStepStride) {
+        throw InputError(fmt::format("{}: step {} outside 0..{}: a joint diagnosis keeps each recording's steps apart "
+                                     "by {} per recording",
+                                     c.origin, s, kJointStepStride - 1, kJointStepStride));
+      }
+    }
+    auto append = [](auto& to, auto& from) { to.insert(to.end(), from.begin(), from.end()); diag::release(from); };
+    append(j.time_s, c.time_s);
+    append(j.ref_pitch_arcsec, c.ref_pitch_arcsec);
+    append(j.ref_yaw_arcsec, c.ref_yaw_arcsec);
+    append(j.counts_alpha, c.counts_alpha);
+    append(j.counts_beta, c.counts_beta);
+    for (int64_t s : c.step) j.step.push_back(s + static_cast<int64_t>(k) * kJointStepStride);
+    diag::release(c.step);
+    if (temp) {
+      if (c.temperature_c.empty()) j.temperature_c.insert(j.temperature_c.end(), n, std::numeric_limits<float>::quiet_NaN());
+      else append(j.temperature_c, c.temperature_c);
+    }
+    if (since) append(j.time_since_move_s, c.time_since_move_s);
+    j.parts.emplace_back(c.origin, n);
+    names.push_back(c.origin);
+  }
+  j.origin = fmt::format("{}", fmt::join(names, " + "));
+  return j;
 }
 
 DiagnosisColumns read_diagnosis_columns(const std::filesystem::path& path, int64_t last_step) {

@@ -12,8 +12,10 @@
 #include <limits>
 #include <map>
 #include <numeric>
+#include <optional>
 
 #include "base/errors.h"
+#include "calib/diagnosis/followup.h"
 #include "calib/diagnosis/internal.h"
 #include "calib/diagnosis/model.h"
 #include "calib/effect_catalogue.h"
@@ -81,13 +83,14 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // `settling` (the settling candidate's fitted contribution) the decay inside each dwell is taken
 // off first: a fast decay's curvature at a dwell's first frames is not noise, and it raised the
 // floor (0.075-0.12 arcsec against a true 0.065) and with it every materiality and detection limit.
-double noise_floor(const Recording& r, double* per_axis, const Contribution* settling = nullptr) {
+double noise_floor(const Recording& r, double* per_axis, const Contribution* settling = nullptr, size_t from = 0,
+                   size_t to = std::numeric_limits<size_t>::max()) {
   auto res = [&](int a, size_t i) { return settling ? r.res[a][i] - settling->at(a, i) : r.res[a][i]; };
   // order 2: second differences (var 6 sigma^2), order 1: first differences (var 2 sigma^2).
   auto estimate = [&](StepKind kind, int a, int order, size_t* used) {
     std::vector<double> d2;
     for (const auto& s : r.steps) {
-      if (s.kind != kind) continue;
+      if (s.kind != kind || s.begin < from || s.end > to) continue;
       for (size_t i = s.begin + 1; i + (order == 2 ? 1 : 0) < s.end; ++i) {
         if (r.outlier[i] || r.outlier[i - 1] || (order == 2 && r.outlier[i + 1])) continue;
         if (r.shared_reading[i] || (order == 2 && r.shared_reading[i + 1])) continue;
@@ -238,6 +241,10 @@ ojson effect_json(const EffectResult& e) {
     j["degenerate_why"] = e.degenerate;
   }
   if (!e.detection_limit.empty()) j["detection_limit"] = e.detection_limit;
+  if (!e.statistical_limit.empty()) {
+    j["statistical_limit"] = e.statistical_limit;
+    j["limit_arcsec"] = std::isfinite(e.limit_arcsec) ? ojson(e.limit_arcsec) : ojson();
+  }
   return j;
 }
 
@@ -258,6 +265,7 @@ class Diagnoser {
     find_ambiguous();
     locate();
     describe();
+    judge_candidates();
     warn();
     if (figures) *figures = diag::figures(r, combined);
     return std::move(d);
@@ -269,6 +277,7 @@ class Diagnoser {
   void find_ambiguous();
   void locate();
   void describe();
+  void judge_candidates();
   void warn();
 
   const DiagnosisOptions& opts_;
@@ -309,11 +318,24 @@ void Diagnoser::fit_singles() {
   // selection does). Without a settling fit (not observable) the residual itself.
   {
     const auto st = std::find_if(all.begin(), all.end(), [](const Scored& s) { return s.result.name == "settling"; });
-    if (st != all.end() && st->result.degenerate.empty()) {
-      const Contribution c = st->contribution(r);
-      d.noise_floor_arcsec = noise_floor(r, sig, &c);
-    } else {
-      d.noise_floor_arcsec = noise_floor(r, sig);
+    std::optional<Contribution> c;
+    if (st != all.end() && st->result.degenerate.empty()) c = st->contribution(r);
+    const Contribution* settling = c ? &*c : nullptr;
+    d.noise_floor_arcsec = noise_floor(r, sig, settling);
+    // Each recording's own floor (its nuisance level): one entry for a single recording.
+    const std::vector<std::pair<std::string, size_t>> one{{r.origin, r.n}};
+    size_t from = 0;
+    for (const auto& [origin, rows] : r.parts.empty() ? one : r.parts) {
+      Diagnosis::Part p;
+      p.source = origin;
+      p.rows = rows;
+      p.step_offset = static_cast<int64_t>(d.recordings.size()) * (r.parts.empty() ? 0 : kJointStepStride);
+      p.time_span_s[0] = r.t[from];
+      p.time_span_s[1] = r.t[from + rows - 1];
+      double per[2];
+      p.noise_floor_arcsec = r.parts.empty() ? d.noise_floor_arcsec : noise_floor(r, per, settling, from, from + rows);
+      d.recordings.push_back(p);
+      from += rows;
     }
   }
   std::stable_sort(all.begin(), all.end(), [](const Scored& a, const Scored& b) { return a.result.score < b.result.score; });
@@ -367,19 +389,39 @@ void Diagnoser::pick_cause() {
 }
 
 void Diagnoser::find_ambiguous() {
-  // Close competitors of the cause: singles within kAmbiguous score units (a likelihood ratio of
-  // e^5) of its own score.
-  constexpr double kAmbiguous = 10.0;
-  if (d.cause != "none") {
-    double cause_score = 0;
-    for (const auto& s : all) if (s.result.name == d.cause) cause_score = s.result.score;
-    for (const auto& s : all) {
-      const std::string& n = s.result.name;
-      if (std::any_of(d.causes.begin(), d.causes.end(), [&](const EffectResult& c) { return c.name == n; })) continue;
-      const double diff = s.result.score - cause_score;
-      if (std::abs(diff) < kAmbiguous) d.ambiguous_with.push_back({n, diff, why_alike(d.cause, n)});
+  // Close competitors of the cause: singles within the margin of its own score.
+  if (d.cause == "none") return;
+  double cause_score = 0;
+  for (const auto& s : all) if (s.result.name == d.cause) cause_score = s.result.score;
+  Diagnosis::AmbiguousSet set;
+  set.members = {d.cause};
+  set.score_differences = {0.0};
+  for (const auto& s : all) {
+    const std::string& n = s.result.name;
+    if (n == "none" || !s.result.degenerate.empty()) continue;
+    if (std::any_of(d.causes.begin(), d.causes.end(), [&](const EffectResult& c) { return c.name == n; })) continue;
+    const double diff = s.result.score - cause_score;
+    if (std::abs(diff) < kAmbiguityMargin) {
+      d.ambiguous_with.push_back({n, diff, why_alike(d.cause, n)});
+      set.members.push_back(n);
+      set.score_differences.push_back(diff);
     }
   }
+  // Look-alikes the recording could not score: what stands for them is the cause.
+  for (const auto& m : d.not_observable) {
+    const bool alike = (d.cause == "drift" && m.name == "temperature" && m.reason.find("follows time") != std::string::npos) ||
+                       (d.cause == "bias" && m.name == "backlash");
+    if (alike) {
+      set.members.push_back(m.name);
+      set.score_differences.push_back(kNaN);
+    }
+  }
+  if (set.members.size() < 2) return;
+  const diag::Separation sep = diag::separation(set.members[0], set.members[1]);
+  set.factor = sep.factor;
+  set.measurement = sep.measurement;
+  set.why = why_alike(set.members[0], set.members[1]);
+  d.ambiguous.push_back(std::move(set));
 }
 
 void Diagnoser::locate() {
@@ -406,7 +448,20 @@ void Diagnoser::locate() {
   d.outliers_pitch = static_cast<int64_t>(r.outliers_axis[0]);
   d.outliers_yaw = static_cast<int64_t>(r.outliers_axis[1]);
   d.frames = static_cast<int64_t>(r.n);
-  for (auto& e : d.effects) e.detection_limit = detection_limit(r, e, d.noise_floor_arcsec, N);
+  for (auto& e : d.effects) {
+    e.detection_limit = detection_limit(r, e, d.noise_floor_arcsec, N);
+    e.statistical_limit = diag::statistical_limit(r, e, d.noise_floor_arcsec, N, &e.limit_arcsec);
+  }
+  {
+    std::vector<size_t> frames;
+    for (const auto& s : r.steps) if (s.kind == StepKind::dwell) frames.push_back(s.end - s.begin);
+    double median = 1;
+    if (!frames.empty()) {
+      std::nth_element(frames.begin(), frames.begin() + frames.size() / 2, frames.end());
+      median = static_cast<double>(std::max<size_t>(1, frames[frames.size() / 2]));
+    }
+    d.materiality_arcsec = opts_.materiality_arcsec > 0 ? opts_.materiality_arcsec : d.noise_floor_arcsec / std::sqrt(median);
+  }
   decide_verdict(r, d, flexible);
 }
 
@@ -446,7 +501,28 @@ void Diagnoser::describe() {
                  {"arrival_times", r.has_since_move ? "recorded" : "assumed settle_s"}};
 }
 
+// Every candidate against the end state, with the material magnitudes of this stand's recordings.
+void Diagnoser::judge_candidates() {
+  d.material_context = {{"materiality_arcsec", d.materiality_arcsec},
+                        {"rule", "named: a cause; bounded: not seen (no gap left for it, or its score not beating "
+                                 "none's by the ambiguity margin) and limit_arcsec, its RMS where it acts at its "
+                                 "statistical limit, at most the materiality; ambiguous: in a set of look-alikes; "
+                                 "unbounded: anything else (not observable, seen but not named, or its limit above "
+                                 "the materiality)"}};
+  d.candidates = ojson::array();
+  for (const CandidateStatus& s : candidate_status(d, d.materiality_arcsec)) {
+    ojson j{{"name", s.name}, {"status", s.status}};
+    if (!s.why.empty()) j["why"] = s.why;
+    j["limit_arcsec"] = std::isfinite(s.limit_arcsec) ? ojson(s.limit_arcsec) : ojson();
+    d.candidates.push_back(std::move(j));
+  }
+}
+
 void Diagnoser::warn() {
+  if (r.parts.size() > 1 && !r.has_since_move) {
+    d.warnings.push_back("not every recording has a time_since_move_s column: none is used (arrivals assumed settle_s "
+                         "before each dwell's first row in all of them)");
+  }
   if (!r.has_since_move) {
     d.warnings.push_back(fmt::format(
         "no time_since_move_s column: dwells are taken to start {} s after their arrival (settle_s); settling "
@@ -486,6 +562,7 @@ ojson Diagnosis::to_json() const {
   j["gap_after_arcsec"] = gap_after_arcsec;
   j["gap_after_all_arcsec"] = gap_after_all_arcsec;
   j["noise_floor_arcsec"] = noise_floor_arcsec;
+  j["materiality_arcsec"] = materiality_arcsec;
   j["where"] = where_json(where);
   j["where_after"] = where_json(where_after);
   ojson ef = ojson::array();
@@ -513,6 +590,36 @@ ojson Diagnosis::to_json() const {
     amb.push_back({{"name", m.name}, {"score_difference", m.score_difference}, {"why", m.why}});
   }
   j["ambiguous_with"] = amb;
+  ojson sets = ojson::array();
+  for (const auto& a : ambiguous) {
+    ojson diffs = ojson::object();
+    for (size_t k = 0; k < a.members.size(); ++k) {
+      diffs[a.members[k]] = std::isfinite(a.score_differences[k]) ? ojson(a.score_differences[k]) : ojson();
+    }
+    sets.push_back({{"members", a.members},
+                    {"score_differences", diffs},
+                    {"margin", kAmbiguityMargin},
+                    {"separated_by", {{"factor", a.factor}, {"measurement", a.measurement}}},
+                    {"why", a.why},
+                    {"best_followup", a.best_followup}});
+  }
+  j["ambiguous"] = sets;
+  j["ambiguity_rule"] = fmt::format(
+      "a set holds the cause and every candidate whose held-out score lies within {:g} of the cause's (score = -2 ln "
+      "likelihood up to constants: a likelihood ratio below e^{:g}), and the look-alikes the recording cannot score "
+      "(null score difference); the verdict is unchanged",
+      kAmbiguityMargin, kAmbiguityMargin / 2);
+  ojson parts = ojson::array();
+  for (const auto& p : recordings) {
+    parts.push_back({{"source", p.source},
+                     {"rows", p.rows},
+                     {"step_offset", p.step_offset},
+                     {"time_span_s", {p.time_span_s[0], p.time_span_s[1]}},
+                     {"noise_floor_arcsec", std::isfinite(p.noise_floor_arcsec) ? ojson(p.noise_floor_arcsec) : ojson()}});
+  }
+  j["recordings"] = parts;
+  j["candidates"] = candidates;
+  j["material_context"] = material_context;
   if (unexplained) {
     j["unexplained"] = {{"heldout_rms_arcsec", unexplained->heldout_rms_arcsec},
                         {"where", where_json(unexplained->where)},
@@ -546,6 +653,11 @@ Diagnosis diagnose(DiagnosisColumns data, const CoefficientSet& model, const Dia
 
 Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts) {
   return diagnose(DiagnosisColumns::of(data), model, opts);
+}
+
+Diagnosis diagnose(std::vector<DiagnosisColumns> recordings, const CoefficientSet& model, const DiagnosisOptions& opts,
+                   DiagnosisFigures* figures) {
+  return diagnose(join_recordings(std::move(recordings)), model, opts, figures);
 }
 
 SensorPrediction predict_sensor(const SampleTable& data, const CoefficientSet& model, const EffectParams& effect,

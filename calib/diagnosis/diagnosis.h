@@ -40,6 +40,9 @@ struct DiagnosisOptions {
   // A second effect is looked for only while the first leaves more than this times the noise floor
   // (held out or on the fit rows).
   double second_effect_gap_ratio = 1.2;
+  // What an investigation calls material (arcsec; docs/diagnosis.md, "Investigation"): 0 for the
+  // noise floor of one dwell mean. Only the candidates' status uses it.
+  double materiality_arcsec = 0;
   // How the recording's one reduction judges the frames of null and offset dwells (the count
   // noise under the outlier rule's floor, when the stand knows it).
   ReductionOptions reduction;
@@ -65,6 +68,12 @@ struct EffectResult {
   // units; coefficients: angle_rms_arcsec, the RMS change of the angle over the calibrated range);
   // empty for none.
   nlohmann::ordered_json detection_limit = nlohmann::ordered_json::object();
+  // The same for what the data can see at all (the score beats none's by the ambiguity margin
+  // beyond the penalty), without the naming rule's floor: what bounds an effect that is not named.
+  nlohmann::ordered_json statistical_limit = nlohmann::ordered_json::object();
+  // That limit as arcsec: the effect's RMS where it acts, at the limit (+inf when the recording
+  // cannot see it); an investigation bounds a candidate when this is below its materiality.
+  double limit_arcsec = std::numeric_limits<double>::infinity();
 };
 
 struct NotObservable {
@@ -81,10 +90,18 @@ struct Diagnosis {
   double gap_after_arcsec = 0;      // the first cause alone
   double gap_after_all_arcsec = 0;  // every cause in `causes`
   double noise_floor_arcsec = 0;
+  // The default materiality of an investigation: the noise floor of one dwell mean (the frame's
+  // floor over the root of the median frames per dwell).
+  double materiality_arcsec = 0;
   std::vector<WhereEntry> where;        // before any effect is added
   std::vector<WhereEntry> where_after;  // what is left once the causes are added
   std::vector<EffectResult> effects;    // every candidate tried, best first
   std::vector<NotObservable> not_observable;
+  // Every catalogued candidate against the end state of an investigation (calib/diagnosis/followup.h:
+  // named, bounded, immaterial, ambiguous or unbounded) and the context its material magnitudes
+  // come from (the recordings' fastest slew, recorded time, half-range, temperature span).
+  nlohmann::ordered_json candidates = nlohmann::ordered_json::array();
+  nlohmann::ordered_json material_context = nlohmann::ordered_json::object();
   // Candidates that score almost as well as the cause: the data barely tells them apart.
   struct Ambiguity {
     std::string name;
@@ -92,8 +109,31 @@ struct Diagnosis {
     std::string why;
   };
   std::vector<Ambiguity> ambiguous_with;
+  // Sets of candidates this recording cannot tell apart (docs/diagnosis.md, "When one recording
+  // cannot tell"): the cause and every single candidate whose held-out score lies within
+  // kAmbiguityMargin of it, and look-alikes the recording cannot score at all (a temperature that
+  // follows time beside drift, a one-sided approach's backlash beside a bias).
+  struct AmbiguousSet {
+    std::vector<std::string> members;       // the cause first
+    std::vector<double> score_differences;  // each member's score less the cause's; NaN: not scored
+    std::string factor;                     // the `where` factor along which their predictions part
+    std::string measurement;                // the kind of run that separates them
+    std::string why;
+    // The best follow-up's predicted separation (stand/design): null until a designer fills it.
+    nlohmann::ordered_json best_followup;
+  };
+  std::vector<AmbiguousSet> ambiguous;
   nlohmann::ordered_json split;
   nlohmann::ordered_json recording;  // what the data holds: rows, steps, spans
+  // Each recording of a joint diagnosis (one entry for a single recording): its nuisance levels.
+  struct Part {
+    std::string source;
+    size_t rows = 0;
+    int64_t step_offset = 0;
+    double time_span_s[2] = {0, 0};
+    double noise_floor_arcsec = 0;
+  };
+  std::vector<Part> recordings;
   std::vector<std::string> warnings;
 
   // no_gap | explained | partly_explained | unexplained (docs/diagnosis.md)
@@ -134,6 +174,9 @@ struct DiagnosisColumns {
   std::vector<double> time_s, ref_pitch_arcsec, ref_yaw_arcsec, counts_alpha, counts_beta;
   std::vector<int64_t> step;
   std::vector<float> temperature_c, time_since_move_s;
+  // The recordings joined into these columns (join_recordings), in order: each one's origin and
+  // rows; empty for a single recording.
+  std::vector<std::pair<std::string, size_t>> parts;
   size_t size() const { return time_s.size(); }
   static DiagnosisColumns of(const SampleTable& t);  // a copy of the columns the diagnosis reads
 };
@@ -145,12 +188,34 @@ DiagnosisColumns read_diagnosis_columns(const std::filesystem::path& path,
 
 struct DiagnosisFigures;
 
+// Two candidates are ambiguous when their held-out scores (-2 ln likelihood, up to constants)
+// differ by less than this: a likelihood ratio below e^5 (about 150). The ambiguity of the scores
+// is the sampling spread of a realised log-likelihood ratio, whose standard deviation is
+// sqrt(2 x its mean) for Gaussian residuals; 5 is where a chance preference of one look-alike
+// over another becomes rare (docs/diagnosis.md).
+inline constexpr double kAmbiguityMargin = 10.0;
+
+// Several recordings of one unit diagnosed as one (diagnose --data A --data B ...): one effect
+// with one set of parameters must explain every recording, and each keeps its own nuisance
+// levels: its own clock (drift and the temperature's reference start from its own time origin, as
+// a restarted bench does), its own arrival clock and its own noise floor (GAP.json `recordings`).
+// Recording k's (0-based) step ids are offset by k x kJointStepStride so that steps of different
+// recordings never merge; the held-out split runs over the joined steps in order, so it spans the
+// recordings. At most kMaxJointRecordings. A time_since_move_s column is used only when every
+// recording has it (a warning says so otherwise); temperature_c is NaN where a recording lacks it.
+inline constexpr int64_t kJointStepStride = 1000000;
+inline constexpr size_t kMaxJointRecordings = 16;
+DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts);
+
 // Throws InputError/DataError naming what cannot be told apart when the recording cannot
 // support any diagnosis (no rows, a single dwell, counts the model cannot map). The columns are
 // taken over (not copied); `figures`, when given, gets the report's data (diagnosis_figures).
 Diagnosis diagnose(DiagnosisColumns data, const CoefficientSet& model, const DiagnosisOptions& opts = {},
                    DiagnosisFigures* figures = nullptr);
 Diagnosis diagnose(const SampleTable& data, const CoefficientSet& model, const DiagnosisOptions& opts = {});
+// Several recordings jointly (join_recordings).
+Diagnosis diagnose(std::vector<DiagnosisColumns> recordings, const CoefficientSet& model,
+                   const DiagnosisOptions& opts = {}, DiagnosisFigures* figures = nullptr);
 
 // The forward model: what the sensor would read (pitch, yaw arcsec per row, through the model's
 // transfer function) given the recording's reference angles and times, with `effect` applied

@@ -32,6 +32,12 @@ struct Scored {
 
 // Why two effects can look alike, for the ambiguity note.
 std::string why_alike(const std::string& a, const std::string& b);
+// What separates two look-alikes: the `where` factor along which their predictions part, and the
+// kind of run that exercises it (the designer's moves, docs/diagnosis.md).
+struct Separation {
+  std::string factor, measurement;
+};
+Separation separation(const std::string& a, const std::string& b);
 
 // The second effect around the singles `all` (sorted by score, `best` the cause): when a pair is
 // kept, it becomes d's causes and `combined` their joint contribution.
@@ -48,6 +54,13 @@ double within_step_scatter(const Recording& r, const std::vector<float> e[2]);
 // The report's data (diagnosis_figures) from the prepared recording and the causes' contribution.
 DiagnosisFigures figures(const Recording& r, const Contribution& causes);
 nlohmann::ordered_json detection_limit(const Recording& r, const EffectResult& e, double noise, double N);
+// With `acting_rms_arcsec`: the RMS of the effect at its limit over the held-out rows where it acts
+// (a tenth of its peak or more), the worst of its magnitudes; +inf when it acts nowhere.
+nlohmann::ordered_json statistical_limit(const Recording& r, const EffectResult& e, double noise, double N,
+                                         double* acting_rms_arcsec = nullptr);
+// Each magnitude of `e` at which its held-out mean square reaches `need` (N: both axes' held-out rows).
+nlohmann::ordered_json limit_for(const Recording& r, const EffectResult& e, double noise, double N, double need,
+                                 double* acting_rms_arcsec = nullptr);
 void decide_verdict(const Recording& r, Diagnosis& d, const nlohmann::ordered_json& flexible);
 
 }  // namespace fpss::diag

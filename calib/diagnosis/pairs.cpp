@@ -250,6 +250,37 @@ std::string why_alike(const std::string& a, const std::string& b) {
   return "the held-out data barely tells them apart";
 }
 
+Separation separation(const std::string& a, const std::string& b) {
+  auto is = [&](const char* x, const char* y) { return (a == x && b == y) || (a == y && b == x); };
+  auto has = [&](const char* x) { return a == x || b == x; };
+  if (has("time_skew")) {
+    return {"slew_rate", "slews at several rates in both directions: a time shift grows with the rate, the others do not"};
+  }
+  if (is("backlash", "settling")) {
+    return {"time_since_move", "approaches from both sides with long dwells: backlash stays for the whole dwell, "
+                               "settling decays"};
+  }
+  if (has("backlash")) {
+    return {"approach_direction", "approaches from both sides at the same points: only backlash changes sign with the "
+                                  "side"};
+  }
+  if (has("settling")) {
+    return {"time_since_move", "dwells of several lengths after moves: settling decays with the time since arrival"};
+  }
+  if (is("drift", "temperature") || (has("temperature") && has("bias"))) {
+    return {"time", "repeated nulls over a longer time: drift keeps growing while the temperature turns or holds"};
+  }
+  if (has("drift")) return {"time", "repeated nulls over time"};
+  if (has("coefficients")) {
+    return {"angle", "offsets over the whole calibrated range at a finer step: a transfer-function change is not "
+                     "proportional to the angle"};
+  }
+  if (has("boresight_roll") || has("axis_nonorthogonality")) {
+    return {"cross_angle", "offsets on both axes: a roll turns yaw into pitch too, a non-orthogonality does not"};
+  }
+  return {"angle", "offsets over the whole calibrated range on both axes"};
+}
+
 void second_effect(const Recording& r, const std::vector<Scored>& all, const Scored& best, double ms0, double N,
                    double material, Diagnosis& d, Contribution& combined) {
   auto single = [&](const std::string& n) -> const Scored& {

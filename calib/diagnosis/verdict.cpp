@@ -43,9 +43,22 @@ double within_step_scatter(const Recording& r, const std::vector<float> e[2]) {
 // Nonlinear parameters (settling's tau, temperature's t0_c) are held at the fitted values;
 // magnitudes are taken small, where every effect is linear in them.
 ojson detection_limit(const Recording& r, const EffectResult& e, double noise, double N) {
+  return limit_for(r, e, noise, N, noise * noise * std::max(0.1, std::expm1(e.parameters * std::log(N) / N)));
+}
+
+// The statistical limit: the magnitude whose expected held-out score beats none's by the
+// ambiguity margin beyond the penalty, N ln(1 + m^2 G / noise^2) = k ln N + margin, without the
+// naming rule's floor of 0.1 noise^2 (what the data can see, not what the diagnosis names).
+ojson statistical_limit(const Recording& r, const EffectResult& e, double noise, double N, double* acting_rms_arcsec) {
+  return limit_for(r, e, noise, N, noise * noise * std::expm1((e.parameters * std::log(N) + kAmbiguityMargin) / N),
+                   acting_rms_arcsec);
+}
+
+ojson limit_for(const Recording& r, const EffectResult& e, double noise, double N, double need,
+                double* acting_rms_arcsec) {
   ojson out = ojson::object();
-  if (e.name == "none" || !std::isfinite(noise) || noise <= 0) return out;
-  const double need = noise * noise * std::max(0.1, std::expm1(e.parameters * std::log(N) / N));
+  if (acting_rms_arcsec) *acting_rms_arcsec = std::numeric_limits<double>::infinity();
+  if (e.name == "none" || !std::isfinite(noise) || noise <= 0 || !(N > 1)) return out;
   if (e.name == "coefficients") {
     // A change of the transfer function, in arcsec: the RMS change of the angle over the
     // calibrated range that would have been material on these held-out rows, for a change of even
@@ -54,8 +67,10 @@ ojson detection_limit(const Recording& r, const EffectResult& e, double noise, d
     // short recording (the k ln N penalty); a change confined to angles the held-out rows never
     // reach is not seen at any size.
     out["angle_rms_arcsec"] = std::sqrt(need);
+    if (acting_rms_arcsec) *acting_rms_arcsec = std::sqrt(need);
     return out;
   }
+  double acting = 0;  // the worst key's
   static const std::map<std::string, double> unit = {
       {"pitch_arcsec", 0.01},         {"yaw_arcsec", 0.01},         {"pitch_arcsec_per_s", 1e-5},
       {"yaw_arcsec_per_s", 1e-5},     {"pitch_ppm", 1.0},           {"yaw_ppm", 1.0},
@@ -82,11 +97,23 @@ ojson detection_limit(const Recording& r, const EffectResult& e, double noise, d
     Contribution k;
     k.resize(r.n);
     c->contribute(r, k);
-    double g = 0;
-    for (uint32_t i : r.heldout_rows) g += k.v[0][i] * k.v[0][i] + k.v[1][i] * k.v[1][i];
+    double g = 0, peak = 0;
+    for (uint32_t i : r.heldout_rows) {
+      g += k.v[0][i] * k.v[0][i] + k.v[1][i] * k.v[1][i];
+      peak = std::max<double>({peak, std::abs(k.v[0][i]), std::abs(k.v[1][i])});
+    }
+    // Where the effect acts (a tenth of its peak or more, each axis a row): the RMS there at the
+    // limit, so that an effect confined to a few rows (a time shift in slews) is judged by what it
+    // does where it shows, not diluted over the rest.
+    double support = 0;
+    for (uint32_t i : r.heldout_rows) {
+      for (int a = 0; a < 2; ++a) support += std::abs(k.v[a][i]) >= 0.1 * peak && peak > 0;
+    }
     g /= N * u->second * u->second;
     out[it.key()] = g > 0 ? std::sqrt(need / g) : std::numeric_limits<double>::infinity();
+    acting = std::max(acting, support > 0 ? std::sqrt(need * N / support) : std::numeric_limits<double>::infinity());
   }
+  if (acting_rms_arcsec && acting > 0) *acting_rms_arcsec = acting;
   return out;
 }
 

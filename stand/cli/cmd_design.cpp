@@ -20,12 +20,16 @@
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
 #include "stand/config/stand_config.h"
+#include "stand/investigate/followup_design.h"
+#include "base/json_file.h"
 
 namespace fpss::cli {
 namespace {
 
 struct DesignArgs {
   double target_sigma_arcsec = 0;
+  std::string discriminate, observe, model;  // a follow-up from a GAP.json
+  double max_bench_s = 0;
   std::string stand_file, bench_file, prior_file, out;
   bool emulate = false, json = false, prior_only = false;
   double extent_deg = DesignInputs{}.extent_deg, settle_s = DesignInputs{}.settle_s;
@@ -85,6 +89,34 @@ DesignInputs design_inputs(const DesignArgs& a, DesignSources& src) {
   return in;
 }
 
+// The model the diagnosis used: --model, else the GAP.json's `model` as written or relative to it.
+std::string followup_model_path(const std::string& given, const nlohmann::ordered_json& gap, const std::string& gap_path) {
+  if (!given.empty()) return given;
+  const std::string m = gap.value("model", std::string());
+  if (m.empty()) throw InputError(fmt::format("{}: names no model: give --model FILE", gap_path));
+  if (std::filesystem::exists(m)) return m;
+  const auto beside = std::filesystem::path(gap_path).parent_path() / m;
+  if (std::filesystem::exists(beside)) return beside.string();
+  throw InputError(fmt::format("{}: its model {} is not found (give --model FILE)", gap_path, m));
+}
+
+// The follow-up's bench: the stand file's motion and frame rate on a default simulated bench, or
+// the emulated bench's own.
+void followup_bench(const DesignArgs& a, EngineSettings& settings, BenchConfig& bench) {
+  if (!a.stand_file.empty()) {
+    settings = load_stand_file(a.stand_file).bench;
+    bench = default_bench_config();
+    bench.max_rate_arcsec_s = settings.profile_rate_arcsec_s;
+    bench.accel_arcsec_s2 = settings.acceleration_arcsec_s2;
+    return;
+  }
+  bench = a.bench_file.empty() ? default_bench_config() : load_bench_file(a.bench_file);
+  settings = emulated_stand(1.0).bench;
+  settings.profile_rate_arcsec_s = bench.max_rate_arcsec_s;
+  settings.acceleration_arcsec_s2 = bench.accel_arcsec_s2;
+  settings.sample_rate_hz = bench.sample_rate_hz;
+}
+
 void print_design(const nlohmann::ordered_json& j, const std::string& out) {
   const auto& g = j["paper_grid"];
   std::printf("design: %s\n", j["reached"].get<bool>() ? "target reached" : "TARGET NOT REACHED");
@@ -106,7 +138,59 @@ void print_design(const nlohmann::ordered_json& j, const std::string& out) {
   if (!out.empty()) std::printf("  procedure: %s\n", out.c_str());
 }
 
+// design --discriminate/--observe: the follow-up run from a GAP.json, on the stand's or the
+// emulated bench's moves; exit 1 with no file when nothing within the budget separates or bounds.
+int run_followup_design(const DesignArgs& a) {
+  if (a.stand_file.empty() && !a.emulate) {
+    throw InputError("design --discriminate/--observe: give --stand STAND.yaml or --emulate (the bench the follow-up runs on)");
+  }
+  if (!a.bench_file.empty() && !a.emulate) throw InputError("design: --bench needs --emulate");
+  if (a.out.empty()) throw InputError("design --discriminate/--observe: give --out FOLLOWUP.yaml");
+  check_output_path(a.out);
+  if (!a.discriminate.empty() && !a.observe.empty() && a.discriminate != a.observe) {
+    throw InputError("design: --discriminate and --observe name different files (give one GAP.json, or both the same)");
+  }
+  const std::string gap_path = a.discriminate.empty() ? a.observe : a.discriminate;
+  FollowupRequest r;
+  r.gap = nlohmann::ordered_json::parse(read_json_file(gap_path, "diagnosis (GAP.json)").dump());
+  r.discriminate = !a.discriminate.empty();
+  r.observe = !a.observe.empty();
+  r.max_bench_s = a.max_bench_s;
+  r.name = std::filesystem::path(a.out).stem().string();
+  r.model = load_coefficients(followup_model_path(a.model, r.gap, gap_path));
+  followup_bench(a, r.settings, r.bench);
+  const FollowupDesign d = design_followup(r);
+  if (d.found || d.useful) write_text_atomic(a.out, d.procedure_text);
+  if (a.json) {
+    std::printf("%s\n", d.to_json().dump(2).c_str());
+  } else {
+    for (const auto& p : d.pairs) {
+      std::printf("%s vs %s: expected log-likelihood ratio %.1f (separating from %.0f)%s\n", p.a.c_str(), p.b.c_str(),
+                  p.expected_log_lr, kSeparatingLogLR, p.separated ? "" : " NOT SEPARATED");
+    }
+    for (const auto& b : d.bounds) {
+      std::printf("%s: seen from %.4f arcsec where it acts (materiality %.4f)%s\n", b.name.c_str(), b.limit_arcsec,
+                  d.materiality_arcsec, b.bounded ? "" : " NOT BOUNDED");
+    }
+    for (const auto& u : d.unreachable) std::printf("not planned: %s\n", u.c_str());
+    std::printf("bench time: %.0f s of a budget of %.0f s (the recordings so far: %.0f s)\n", d.bench_s, d.budget_s,
+                d.first_bench_s);
+    if (d.found || d.useful) std::printf("moves: %s\nprocedure: %s\n", fmt::format("{}", fmt::join(d.moves, "; ")).c_str(), a.out.c_str());
+  }
+  if (!(d.found || d.useful)) {
+    std::fprintf(stderr, "fpss-stand design: %s: nothing within %.0f s of bench time separates or bounds what was asked; "
+                         "no file written\n", gap_path.c_str(), d.budget_s);
+    return 1;
+  }
+  return 0;
+}
+
 int run_design(const DesignArgs& a) {
+  if (!a.discriminate.empty() || !a.observe.empty()) return run_followup_design(a);
+  if (a.target_sigma_arcsec == 0) {
+    throw InputError("design: give --target-sigma-arcsec (a calibration grid) or --discriminate/--observe GAP.json (a "
+                     "follow-up)");
+  }
   if (!(std::isfinite(a.target_sigma_arcsec) && a.target_sigma_arcsec > 0)) {
     throw InputError(fmt::format("design: --target-sigma-arcsec {}: expected a number > 0", a.target_sigma_arcsec));
   }
@@ -135,9 +219,20 @@ void add_design(CLI::App& app, Runner& run) {
   auto a = std::make_shared<DesignArgs>();
   auto* sub = app.add_subcommand(
       "design", "Choose the null-to-offset calibration that reaches a target 1-sigma in the least bench time");
-  sub->add_option("--target-sigma-arcsec", a->target_sigma_arcsec,
-                  "largest 1-sigma of the fitted angle over the range, both axes (arcsec)")
-      ->required();
+  auto* target = sub->add_option("--target-sigma-arcsec", a->target_sigma_arcsec,
+                                 "largest 1-sigma of the fitted angle over the range, both axes (arcsec)");
+  auto* disc = sub->add_option("--discriminate", a->discriminate,
+                               "GAP.json: design the follow-up run that separates its ambiguous candidates");
+  auto* obs = sub->add_option("--observe", a->observe,
+                              "GAP.json: design the follow-up run that bounds its unbounded candidates below the "
+                              "materiality (with --discriminate, the same file: both at once)");
+  target->excludes(disc)->excludes(obs);
+  sub->add_option("--max-bench-s", a->max_bench_s,
+                  "bench time the follow-up may take (default: half the recordings' bench time)")
+      ->check(CLI::PositiveNumber);
+  expect_file(sub, sub->add_option("--model", a->model, "with --discriminate/--observe: the sim model (default: the "
+                                                        "GAP.json's model)"),
+              a->model, FileKind::coefficients);
   auto* stand = sub->add_option("--stand", a->stand_file, "stand file: the gimbal's rate and acceleration, frame rate");
   auto* emulate = sub->add_flag("--emulate", a->emulate, "the emulated bench's rates, frame rate, noise and truth");
   stand->excludes(emulate);
@@ -159,7 +254,7 @@ void add_design(CLI::App& app, Runner& run) {
   sub->add_option("--out", a->out, "write the procedure file here (when the target is reached)");
   sub->add_flag("--json", a->json, "print the design as JSON");
   examples(sub, {"fpss-stand design --target-sigma-arcsec 0.5 --emulate --out designed.yaml",
-                 "fpss-stand design --target-sigma-arcsec 1 --stand procedures/example_stand.yaml --prior-only --json"});
+                 "fpss-stand design --discriminate GAP.json --observe GAP.json --emulate --out followup.yaml"});
   sub->callback([a, &run] { run = [a] { return run_design(*a); }; });
 }
 

@@ -14,6 +14,7 @@
 #include "calib/samples.h"
 #include "stand/blindtest/blindtest.h"
 #include "stand/blindtest/joint_blindtest.h"
+#include "stand/investigate/followup_design.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/file_options.h"
@@ -95,6 +96,7 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
     std::vector<std::string> model_files;  // the files they name (checked against the outputs)
     std::string model;                     // --data: the one model file (for the hints)
     std::string data, run_dir, out, report, emit_bench;
+    std::vector<std::string> datas;  // every --data (several: a joint diagnosis)
     DiagnosisOptions d;
     bool partial = false;
     FileOptions files;
@@ -108,7 +110,12 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
                         ->allow_extra_args(false);
   f.inputs("--model", o->model_files);
   expect_file(sub, model_opt, o->model, FileKind::coefficients);
-  auto* data = f.input(sub, "--data", o->data, "the real recording: a samples CSV (all phases; temperature_c used when present)");
+  auto* data = sub->add_option("--data", o->datas,
+                               "the real recording: a samples CSV (all phases; temperature_c used when present); "
+                               "repeated: several recordings of one unit diagnosed jointly (one effect, one set of "
+                               "parameters for all)")
+                   ->allow_extra_args(false);
+  f.inputs("--data", o->datas);
   expect_file(sub, data, o->data, FileKind::samples);
   auto* run_opt = sub->add_option("--run", o->run_dir,
                                   "a run folder of several units: each unit's diagnosis into units/SERIAL/GAP.json, and "
@@ -126,6 +133,9 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   sub->add_option("--max-skew-s", o->d.max_skew_s, "largest sampling-time shift searched (and slew-end margin)")->default_val(0.25);
   sub->add_flag("--partial", o->partial,
                 "accept a recording that cannot reveal every effect (no slews or no offsets): exit 0 instead of 2");
+  sub->add_option("--materiality-arcsec", o->d.materiality_arcsec,
+                  "what is material, for the candidates' status (default: the noise floor of one dwell mean)")
+      ->check(CLI::PositiveNumber);
   examples(sub, {"fpss-stand diagnose --model calib/data/published/a-6-fpss1.json --data RUN_DIR/samples.csv "
                  "--out gap.json --report gap.html --partial",
                  "fpss-stand diagnose --run RUN_DIR --model FPSS1-A6=calib/data/published/a-6-fpss1.json "
@@ -137,6 +147,7 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
         o->model_files.push_back(o->run_dir.empty() || eq == std::string::npos ? m : m.substr(eq + 1));
       }
       if (o->run_dir.empty() && !o->models.empty()) o->model = o->models.front();
+      if (!o->datas.empty()) o->data = o->datas.front();
       o->files.check();
       if (!o->run_dir.empty()) return diagnose_run(o->run_dir, o->models, o->out, o->d, o->partial);
       if (o->data.empty()) throw InputError("diagnose: give --data (one recording) or --run (a run folder of several units)");
@@ -146,8 +157,11 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
       const std::string model_path = o->models.front();
       const CoefficientSet model = load_coefficients(model_path);
       // Straight into the columns the diagnosis reads (no whole table of every column in memory).
+      std::vector<DiagnosisColumns> recordings;
+      for (const std::string& path : o->datas) recordings.push_back(read_diagnosis_columns(path));
       DiagnosisFigures figures;
-      Diagnosis d = diagnose(read_diagnosis_columns(o->data), model, o->d, o->report.empty() ? nullptr : &figures);
+      Diagnosis d = diagnose(std::move(recordings), model, o->d, o->report.empty() ? nullptr : &figures);
+      predict_best_followups(d, model);
       nlohmann::ordered_json j = d.to_json();
       j["model"] = model_path;
       write_json_file(o->out, j);

@@ -21,6 +21,7 @@ void add_diagnose(CLI::App& app, Runner& run);  // diagnose, blindtest
 void add_accept(CLI::App& app, Runner& run);    // accept
 void add_compare_import(CLI::App& app, Runner& run);  // compare, import
 void add_design(CLI::App& app, Runner& run);
+void add_investigate(CLI::App& app, Runner& run);  // investigate (the active sim-to-real loop)
 void add_show(CLI::App& app, Runner& run);      // show, report
 void add_serve(CLI::App& app, Runner& run);     // serve (the web console)
 void add_msa(CLI::App& app, Runner& run);       // msa (measurement-system analysis)

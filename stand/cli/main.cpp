@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   fpss::cli::add_compare_import(app, run);
   fpss::cli::add_serve(app, run);
   fpss::cli::add_design(app, run);
+  fpss::cli::add_investigate(app, run);
   fpss::cli::add_show(app, run);
   fpss::cli::add_msa(app, run);
   // After the sub-commands: they would inherit it.

@@ -91,6 +91,18 @@ void write_diagnosis_page(const std::string& html_path, const Diagnosis& d, cons
     for (const auto& n : d.not_observable) h << "<li><b>" << esc(n.name) << "</b>: " << esc(n.reason) << "</li>\n";
     h << "</ul>\n";
   }
+  if (!d.ambiguous.empty()) {
+    h << "<h2 id=ambiguous>What this recording cannot tell apart</h2>\n<table><tr><th>look-alikes</th><th>separated "
+         "by</th><th>the run that would</th><th>best follow-up (predicted)</th></tr>\n";
+    for (const auto& a : d.ambiguous) {
+      std::string members;
+      for (const auto& m : a.members) members += (members.empty() ? "" : " / ") + m;
+      h << "<tr><td>" << esc(members) << "</td><td>" << esc(a.factor) << "</td><td>" << esc(a.measurement)
+        << "</td><td><code>" << esc(a.best_followup.is_null() ? std::string("not designed") : a.best_followup.dump())
+        << "</code></td></tr>\n";
+    }
+    h << "</table>\n";
+  }
   h << "<p>Recording: <code>" << esc(d.source) << "</code></p>\n";
   h << "<table><tr><th>verdict</th><td>" << esc(d.verdict) << "</td></tr><tr><th>cause</th><td>" << esc(d.cause)
     << "</td></tr>";

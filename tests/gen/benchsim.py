@@ -299,14 +299,48 @@ def simulate(classes, seed, size="normal", vary=False):
     else:
         samples, arrivals = record_plain(g, session(rng, with_since), rng)
 
+    phases = [s[2] for s in samples]
+    if wrong_phases:
+        phases = [str(rng.choice(["null", "offset", "slew", "move"])) for _ in phases]
+    rows = observe(g, samples, arrivals, phases, params, ta, tb, ma, temperature_profile(temp), temp["t0_c"],
+                   with_temp, with_since, rng)
+    meta = {"classes": list(classes), "params": params, "seed": seed, "size": size,
+            "settle_s": 0.2, "time_since_move_s": with_since, "temperature_c": with_temp,
+            "wrong_phases": wrong_phases, "accel_arcsec_s2": accel, "expected_scatter_arcsec": expected_scatter(ma)}
+    if vary:
+        meta.update(settle_s=setup["settle_s"], vary=setup, columns=bv.columns(rows, setup, rng))
+    return rows, meta, model_path
+
+
+def temperature_profile(temp):
+    """The bench temperature (deg C) at times t: t0_c + ramp t + a sine; a varied profile has a
+    phase but still starts at t0_c (the effect is zero there)."""
+    def temperature(t):
+        ph = temp.get("phase_rad", 0.0)
+        T = temp["t0_c"] + temp["ramp_c_per_s"] * t + temp["amplitude_c"] * np.sin(2 * math.pi * t / temp["period_s"] + ph)
+        return T - temp["amplitude_c"] * math.sin(ph) if ph else T
+    return temperature
+
+
+def expected_scatter(ma):
+    """The expected scatter of one sample's residual about its step mean (arcsec): count noise and
+    whole-count rounding through the transfer function's slope, and the reference noise."""
+    c2 = abs(ma[1]) * fp.ARCSEC_PER_RAD
+    return math.sqrt((COUNT_NOISE ** 2 + 1.0 / 12.0) * c2 ** 2 + REF_NOISE_ARCSEC ** 2)
+
+
+def observe(g, samples, arrivals, phases, params, ta, tb, ma, temperature, t0_c, with_temp, with_since, rng):
+    """What the stand records at the sample times of a gimbal's run: the effects of `params` on the
+    line of sight and the sensor (docs/diagnosis.md, "Physical conventions"), the sensor's whole
+    counts through the true transfer function (ta, tb), the noisy reference; the columns of
+    samples.csv as arrays. samples: (t, step, phase) in time order; arrivals: (t, moved[2],
+    direction[2]) in time order; temperature(t): the bench temperature, t0_c where the
+    temperature effect is zero."""
     T = np.asarray(g.log_t)
     X = np.asarray(g.log_x)  # encoder (servo) positions, arcsec
     V = np.asarray(g.log_v)
     ts = np.array([s[0] for s in samples])
     steps = np.array([s[1] for s in samples])
-    phases = [s[2] for s in samples]
-    if wrong_phases:
-        phases = [str(rng.choice(["null", "offset", "slew", "move"])) for _ in phases]
 
     moving_any = np.any(V != 0, axis=1)
     # Direction of motion of each axis at every tick (held while at rest), for backlash.
@@ -355,13 +389,6 @@ def simulate(classes, seed, size="normal", vary=False):
             x[:, 1] += p["amplitude_arcsec"] * np.sin(2 * math.pi * enc[:, 0] / p["period_arcsec"] + p["phase_rad"])
         return x, enc
 
-
-    def temperature(t):
-        # A varied profile has a phase: it still starts at t0_c (the effect is zero there).
-        ph = temp.get("phase_rad", 0.0)
-        T = temp["t0_c"] + temp["ramp_c_per_s"] * t + temp["amplitude_c"] * np.sin(2 * math.pi * t / temp["period_s"] + ph)
-        return T - temp["amplitude_c"] * math.sin(ph) if ph else T
-
     skew = params.get("time_skew", {}).get("skew_s", 0.0)
     seen, _ = at(ts - skew)            # the sensor's sample at t shows the sky at t - skew
     _, enc_now = at(ts)
@@ -379,7 +406,7 @@ def simulate(classes, seed, size="normal", vary=False):
         p_ = p_ + params["drift"]["pitch_arcsec_per_s"] * tsh
         y_ = y_ + params["drift"]["yaw_arcsec_per_s"] * tsh
     if "temperature" in params:
-        dT = temperature(tsh) - temp["t0_c"]
+        dT = temperature(tsh) - t0_c
         p_ = p_ + params["temperature"]["pitch_arcsec_per_c"] * dT
         y_ = y_ + params["temperature"]["yaw_arcsec_per_c"] * dT
     if "field_distortion" in params:
@@ -415,29 +442,32 @@ def simulate(classes, seed, size="normal", vary=False):
         rows["temperature_c"] = temperature(ts)
     if with_since:
         rows["time_since_move_s"] = since
-    # The expected scatter of one sample's residual about its step mean: count noise and whole-count
-    # rounding through the transfer function's slope, and the reference noise.
-    c2 = abs(ma[1]) * fp.ARCSEC_PER_RAD
-    expected = math.sqrt((COUNT_NOISE ** 2 + 1.0 / 12.0) * c2 ** 2 + REF_NOISE_ARCSEC ** 2)
-    meta = {"classes": list(classes), "params": params, "seed": seed, "size": size,
-            "settle_s": 0.2, "time_since_move_s": with_since, "temperature_c": with_temp,
-            "wrong_phases": wrong_phases, "accel_arcsec_s2": accel, "expected_scatter_arcsec": expected}
-    if vary:
-        meta.update(settle_s=setup["settle_s"], vary=setup, columns=bv.columns(rows, setup, rng))
-    return rows, meta, model_path
+    return rows
 
 
 def write_case(classes, seed, out, size="normal", vary=False):
     rows, meta, model_path = simulate(classes, seed, size, vary)
     os.makedirs(out, exist_ok=True)
+    write_model(model_path, meta["expected_scatter_arcsec"], os.path.join(out, "model.json"))
+    write_samples(rows, meta.get("columns") or list(rows.keys()), os.path.join(out, "samples.csv"))
+    with open(os.path.join(out, "truth.json"), "w") as f:
+        json.dump(meta, f, indent=1)
+    return meta
+
+
+def write_model(model_path, expected_scatter_arcsec, out_path):
+    """The sim's coefficient file (model.json): the published set with expected_scatter_arcsec."""
     with open(model_path) as f:
         model = json.load(f)
-    model["expected_scatter_arcsec"] = meta["expected_scatter_arcsec"]
-    with open(os.path.join(out, "model.json"), "w") as f:
+    model["expected_scatter_arcsec"] = expected_scatter_arcsec
+    with open(out_path, "w") as f:
         json.dump(model, f, indent=1)
-    cols = meta.get("columns") or list(rows.keys())
+
+
+def write_samples(rows, cols, out_path):
+    """samples.csv: the columns `cols` of `rows` (NaN written as an empty field)."""
     n = len(rows["time_s"])
-    with open(os.path.join(out, "samples.csv"), "w") as f:
+    with open(out_path, "w") as f:
         f.write(",".join(cols) + "\n")
         for i in range(n):
             vals = []
@@ -454,9 +484,6 @@ def write_case(classes, seed, out, size="normal", vary=False):
                 else:
                     vals.append(repr(float(v)))
             f.write(",".join(vals) + "\n")
-    with open(os.path.join(out, "truth.json"), "w") as f:
-        json.dump(meta, f, indent=1)
-    return meta
 
 
 # ------------------------------------------------------------------ evaluation

@@ -89,6 +89,9 @@ bool not_run_here(const std::string& example) {
   }
   // Needs a run of several units: tests/stand/multi_unit_test.cpp runs it on one.
   if (example.find("fpss-stand diagnose --run") != std::string::npos) return true;
+  // Needs a diagnosis (GAP.json) or a real stand: tests/stand/investigate_test.cpp designs and investigates.
+  if (example.find("--discriminate GAP.json") != std::string::npos) return true;
+  if (example.find("fpss-stand investigate --model MODEL.json") != std::string::npos) return true;
   // A full run of the grid takes the bench's time (the dry run is checked).
   return example.rfind("fpss-stand run ", 0) == 0 && example.find("--dry-run") == std::string::npos;
 }

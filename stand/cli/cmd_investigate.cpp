@@ -1,0 +1,148 @@
+// fpss-stand investigate: run a procedure, diagnose it, and while look-alikes stay or a candidate
+// is neither named nor bounded, design a follow-up, run it and diagnose every recording jointly.
+#include <fmt/chrono.h>
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <cstdio>
+#include <ctime>
+#include <memory>
+
+#include "base/errors.h"
+#include "base/text_file.h"
+#include "calib/coefficients.h"
+#include "procedures/plan.h"
+#include "procedures/procedure.h"
+#include "stand/cli/catalogue_option.h"
+#include "stand/cli/commands.h"
+#include "stand/cli/emulated_bench.h"
+#include "stand/cli/file_hints.h"
+#include "stand/cli/help.h"
+#include "stand/config/stand_config.h"
+#include "stand/investigate/followup_design.h"
+#include "stand/investigate/investigation.h"
+#include "stand/report/investigation_page.h"
+#include "stand/session/session.h"
+
+namespace fpss::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct InvestigateArgs : BenchChoiceArgs {
+  std::string model, procedure, runs_dir = "runs", out, catalogue;
+  int max_runs = 3;
+  double materiality_arcsec = 0, max_bench_s = 0;
+  bool quiet = false;
+};
+
+// One run of the loop through the stand's session (a fresh emulator child for each on --emulate,
+// its seed stepped so that runs do not share noise).
+InvestigationRun run_on_stand(const InvestigateArgs& a, const fs::path& procedure, int index) {
+  SessionRequest req;
+  req.runs_dir = a.runs_dir;
+  req.quiet = a.quiet;
+  const std::string text = read_text_file(procedure, "procedure file", kMaxConfigFileBytes);
+  Diagnostics dp(procedure.string());
+  req.procedure = parse_procedure(text, procedure.string(), dp);
+  Diagnostics ds(a.stand_file);
+  req.stand = stand_for_run(a.stand_file, a.emulate, a.emu.speed, ds);
+  if (ds.empty()) expand(req.procedure, req.stand.bench, dp);
+  Diagnostics all(procedure.string());
+  all.merge(ds);
+  all.merge(dp);
+  all.throw_if_any();
+  if (a.emulate) {
+    EmulatedBenchArgs emu = a.emu;
+    emu.seed = a.emu.seed + static_cast<uint64_t>(index);
+    req.emulator = emulator_spec(emu, "");
+    req.emulator->exe = this_binary();
+  }
+  req.catalogue = chosen_catalogue(a.catalogue, req.stand.catalogue);
+  const SessionResult r = run_session(req);
+  InvestigationRun out;
+  out.run_dir = r.run_dir;
+  out.samples = r.run_dir / "samples.csv";
+  out.completed = r.outcome == RunOutcome::completed;
+  out.reason = r.reason;
+  if (!a.quiet) {
+    std::printf("run %d: %s -> %s\n", index + 1, to_string(r.outcome), r.run_dir.c_str());
+    std::fflush(stdout);
+  }
+  return out;
+}
+
+int investigate_command(const InvestigateArgs& a) {
+  if (a.stand_file.empty() && !a.emulate) {
+    throw InputError("investigate: give --stand STAND.yaml for a real bench or --emulate for the emulated one");
+  }
+  if (!a.emulate) require_emulate_for_options(a.emu, "investigate");
+  InvestigationOptions o;
+  o.model = load_coefficients(a.model);
+  o.model_path = a.model;
+  o.max_runs = a.max_runs;
+  o.materiality_arcsec = a.materiality_arcsec;
+  o.diagnosis.materiality_arcsec = a.materiality_arcsec;
+  o.max_followup_s = a.max_bench_s;
+  if (!a.stand_file.empty()) {
+    o.settings = load_stand_file(a.stand_file).bench;
+    o.bench = default_bench_config();
+    o.bench.max_rate_arcsec_s = o.settings.profile_rate_arcsec_s;
+    o.bench.accel_arcsec_s2 = o.settings.acceleration_arcsec_s2;
+  } else {
+    o.bench = a.emu.bench.empty() ? default_bench_config() : load_bench_file(a.emu.bench);
+    o.settings = emulated_settings(o.bench);
+  }
+  const fs::path procedure = a.procedure.empty() ? shipped_procedures_dir() / "sim_to_real.yaml" : fs::path(a.procedure);
+  load_procedure(procedure);  // every error before anything moves
+  o.out_dir = a.out.empty() ? fs::path(a.runs_dir) / fmt::format("investigation-{:%Y%m%dT%H%M%SZ}",
+                                                                     fmt::gmtime(std::time(nullptr)))
+                            : fs::path(a.out);
+  const Investigation inv = investigate(procedure, o, [&](const fs::path& p, int k) { return run_on_stand(a, p, k); });
+  const nlohmann::ordered_json j = inv.to_json();
+  write_text_atomic(o.out_dir / "INVESTIGATION.json", j.dump(1) + "\n");
+  write_investigation_page(o.out_dir / "INVESTIGATION.html", j);
+  std::printf("investigation: %s (%s)\nverdict: %s\ncause: %s", inv.stop_reason.c_str(), inv.stop_sentence.c_str(),
+              inv.final.verdict.c_str(), inv.final.cause.c_str());
+  for (size_t k = 1; k < inv.final.causes.size(); ++k) std::printf(", then %s", inv.final.causes[k].name.c_str());
+  std::printf("\n");
+  for (const auto& c : inv.final.causes) std::printf("params: %s %s\n", c.name.c_str(), c.params.dump().c_str());
+  for (const auto& s : inv.final.ambiguous) std::printf("still ambiguous: %s\n", fmt::format("{}", fmt::join(s.members, " / ")).c_str());
+  if (!inv.unbounded.empty()) std::printf("neither named nor bounded: %s\n", fmt::format("{}", fmt::join(inv.unbounded, ", ")).c_str());
+  std::printf("runs: %zu, bench time %.0f s first, %.0f s follow-ups\nreport: %s\n", inv.runs.size(), inv.first_bench_s,
+              inv.followup_bench_s, (o.out_dir / "INVESTIGATION.html").c_str());
+  if (inv.stop_reason == "run_failed") return 1;
+  return 0;
+}
+
+}  // namespace
+
+void add_investigate(CLI::App& app, Runner& run) {
+  auto a = std::make_shared<InvestigateArgs>();
+  auto* sub = app.add_subcommand(
+      "investigate", "Run, diagnose, and design and run follow-ups until every candidate effect is named or bounded");
+  expect_file(sub, sub->add_option("--model", a->model, "the sim model: a coefficient file (JSON)")->required(),
+              a->model, FileKind::coefficients);
+  add_bench_choice_options(sub, *a, "Stand file (YAML) of the real bench", "Run on emulated benches (a child per run)");
+  expect_file(sub,
+              sub->add_option("--procedure", a->procedure, "the first run (default: procedures/sim_to_real.yaml)"),
+              a->procedure, FileKind::procedure);
+  sub->add_option("--max-runs", a->max_runs, "the first run and the follow-ups, at most (default 3)")
+      ->check(CLI::Range(1, 10));
+  sub->add_option("--runs-dir", a->runs_dir, "where run folders are made (default runs/)");
+  sub->add_option("--out", a->out, "folder of INVESTIGATION.json, INVESTIGATION.html, GAP.json and the follow-ups "
+                                   "(default RUNS_DIR/investigation-<UTC time>)");
+  sub->add_option("--materiality-arcsec", a->materiality_arcsec,
+                  "what is material (default: the first run's noise floor of one dwell mean)")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--max-bench-s", a->max_bench_s, "bench time of one follow-up (default: half the first run's)")
+      ->check(CLI::PositiveNumber);
+  add_catalogue_option(sub, a->catalogue);
+  sub->add_flag("--quiet", a->quiet, "no log lines on the console (each run's events.log keeps them)");
+  examples(sub, {"fpss-stand investigate --model calib/data/published/a-6-fpss1.json --emulate --effect "
+                 "time_skew:skew_s=0.004 --procedure procedures/discrete_grid.yaml --speed 50",
+                 "fpss-stand investigate --model MODEL.json --stand procedures/example_stand.yaml --max-runs 2"});
+  sub->callback([&run, a] { run = [a] { return investigate_command(*a); }; });
+}
+
+}  // namespace fpss::cli

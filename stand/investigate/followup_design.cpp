@@ -1,0 +1,395 @@
+// The follow-up designer (stand/investigate/followup_design.h).
+#include "stand/investigate/followup_design.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include "base/errors.h"
+#include "calib/diagnosis/diagnosis.h"
+#include "calib/diagnosis/followup.h"
+#include "procedures/plan.h"
+#include "procedures/procedure.h"
+#include "stand/config/stand_config.h"
+#include "stand/investigate/plan_session.h"
+
+namespace fpss {
+namespace {
+
+using ojson = nlohmann::ordered_json;
+
+constexpr double kExtentArcsec = 1512.0;    // the paper's calibrated half-range, 0.42 deg
+constexpr double kOvershootArcsec = 300.0;  // an approach starts this far before its point
+constexpr int kFrames = 25;                 // frames of a dwell (sim_to_real's)
+
+// One kind of measurement the designer can add, at one size, as procedure steps.
+struct Move {
+  std::string name;
+  std::string yaml;
+};
+
+std::string num(double v) { return fmt::format("{:.6g}", v); }
+
+std::string move_to(double p, double y) {
+  return fmt::format("  - move: {{pitch_arcsec: {}, yaw_arcsec: {}}}\n", num(p), num(y));
+}
+
+// The points the designer measures at, most telling first: both ends of each axis, then halfway.
+std::vector<std::pair<double, double>> points(int n) {
+  const double e = kExtentArcsec, h = kExtentArcsec / 2;
+  const std::vector<std::pair<double, double>> all = {{e, 0}, {-e, 0}, {0, e}, {0, -e}, {h, 0}, {0, h}, {-h, 0}, {0, -h}};
+  return {all.begin(), all.begin() + std::min<size_t>(n, all.size())};
+}
+
+// Each point approached from below and from above on both axes, a dwell from arrival.
+Move approach_both(int n) {
+  std::string y;
+  for (auto [p, w] : points(n)) {
+    y += move_to(p - kOvershootArcsec, w - kOvershootArcsec) + move_to(p, w) + fmt::format("  - sample: {{frames: {}}}\n", kFrames);
+    y += move_to(p + kOvershootArcsec, w + kOvershootArcsec) + move_to(p, w) + fmt::format("  - sample: {{frames: {}}}\n", kFrames);
+  }
+  return {fmt::format("approaches from both sides at {} points", n), y};
+}
+
+// Long dwells from arrival, at points reached across the whole range (so both sides alternate).
+Move long_dwells(int n, double duration_s) {
+  std::string y;
+  const std::vector<std::pair<double, double>> at = {{kExtentArcsec / 2, 0}, {-kExtentArcsec / 2, 0},
+                                                     {0, kExtentArcsec / 2}, {0, -kExtentArcsec / 2}};
+  for (int k = 0; k < n; ++k) {
+    const auto [p, w] = at[k % at.size()];
+    y += move_to(p, w) + fmt::format("  - sample: {{duration_s: {}}}\n", num(duration_s));
+  }
+  return {fmt::format("{} dwells of {} s from arrival", n, num(duration_s)), y};
+}
+
+// Continuous slews on both axes at several rates, both directions, one reversal each.
+Move slews(const std::vector<double>& rates, double period_s) {
+  std::string y;
+  std::vector<std::string> r;
+  for (double v : rates) r.push_back(num(v));
+  for (const char* axis : {"pitch", "yaw"}) {
+    y += fmt::format(
+        "  - continuous_slew: {{axis: {}, amplitude_arcsec: {}, rates_arcsec_s: [{}], directions: both, reversals: 1, "
+        "sample_period_s: {}, settle_s: 0.5}}\n",
+        axis, num(kExtentArcsec - 12), fmt::join(r, ", "), num(period_s));
+  }
+  return {fmt::format("slews on both axes at {} arcsec/s", fmt::join(r, ", ")), y};
+}
+
+// Null dwells repeated over time.
+Move repeated_nulls(int n, double gap_s) {
+  std::string y;
+  for (int k = 0; k < n; ++k) {
+    if (k) y += fmt::format("  - settle: {{duration_s: {}}}\n", num(gap_s));
+    y += move_to(0, 0) + fmt::format("  - sample: {{frames: {}}}\n", kFrames);
+  }
+  return {fmt::format("{} null dwells {} s apart", n, num(gap_s)), y};
+}
+
+// The null-offset grid at a finer step (the whole range, both axes).
+Move fine_grid(double step_arcsec) {
+  return {fmt::format("null-offset grid at {} arcsec steps", num(step_arcsec)),
+          fmt::format("  - null_offset_grid: {{axes: [pitch, yaw], extent_arcsec: {}, step_arcsec: {}, frames: {}, "
+                      "settle_s: 0.2}}\n",
+                      num(kExtentArcsec), num(step_arcsec), kFrames)};
+}
+
+std::vector<Move> library(const EngineSettings& s) {
+  const double top = std::min(600.0, s.profile_rate_arcsec_s);
+  const double period = std::max(0.02, 1.0 / s.sample_rate_hz);
+  std::vector<Move> m;
+  for (int n : {2, 4, 8}) m.push_back(approach_both(n));
+  for (int n : {2, 4}) m.push_back(long_dwells(n, 5.0));
+  m.push_back(slews({top}, period));
+  m.push_back(slews({top / 4, top}, period));
+  m.push_back(slews({top / 4, top / 2, top}, period));
+  for (int n : {4, 8}) m.push_back(repeated_nulls(n, 30.0));
+  m.push_back(fine_grid(108.0));
+  return m;
+}
+
+struct Goal {
+  struct Pair {
+    EffectParams a, b;
+    bool both = true;  // b has fitted params: the smaller of the two directions
+  };
+  std::vector<Pair> pairs;
+  std::vector<std::string> bound;  // candidates to bound
+  std::vector<std::string> unreachable;
+};
+
+const ojson* find_effect(const ojson& gap, const std::string& name) {
+  if (!gap.contains("effects") || !gap["effects"].is_array()) return nullptr;
+  for (const auto& e : gap["effects"]) {
+    if (e.is_object() && e.value("name", "") == name) return &e;
+  }
+  return nullptr;
+}
+
+Goal goals(const FollowupRequest& r) {
+  Goal g;
+  const ojson& gap = r.gap;
+  if (r.discriminate && gap.contains("ambiguous") && gap["ambiguous"].is_array()) {
+    for (const auto& set : gap["ambiguous"]) {
+      const auto& m = set.value("members", ojson::array());
+      if (!m.is_array() || m.size() < 2) continue;
+      const std::string first = m[0].get<std::string>();
+      const ojson* fa = find_effect(gap, first);
+      for (size_t k = 1; k < m.size(); ++k) {
+        const std::string other = m[k].get<std::string>();
+        if (first == "coefficients" || other == "coefficients" || !fa) {
+          g.unreachable.push_back(fmt::format("{} vs {}: a refitted transfer function predicts nothing beyond the rows it "
+                                              "was fitted on",
+                                              first, other));
+          continue;
+        }
+        Goal::Pair p;
+        p.a = effect_from_json(*fa);
+        const ojson* fb = find_effect(gap, other);
+        p.both = fb != nullptr;
+        if (fb) p.b = effect_from_json(*fb);
+        else p.b.name = other;
+        g.pairs.push_back(std::move(p));
+      }
+    }
+  }
+  if (r.observe && gap.contains("candidates") && gap["candidates"].is_array()) {
+    for (const auto& c : gap["candidates"]) {
+      if (c.value("status", "") != "unbounded") continue;
+      const std::string name = c.value("name", "");
+      const std::string why = c.value("why", "");
+      if (name == "temperature" && why.find("no temperature_c") != std::string::npos) {
+        g.unreachable.push_back("temperature: the recording has no temperature_c column; no move adds one");
+      } else if (why.rfind("seen but not named", 0) == 0) {
+        g.unreachable.push_back(name + ": " + why + " (a second effect the diagnosis could not pair; more of the same "
+                                                    "data, not a new move)");
+      } else if (name == "coefficients") {
+        g.unreachable.push_back("coefficients: bounded by more offsets over the range (a longer grid), not planned here");
+      } else {
+        g.bound.push_back(name);
+      }
+    }
+  }
+  return g;
+}
+
+struct Evaluation {
+  bool valid = false;
+  double bench_s = 0, gain = 0;
+  bool all = false;
+  std::string text;
+  std::vector<PairPrediction> pairs;
+  std::vector<BoundPrediction> bounds;
+};
+
+std::string procedure_text(const FollowupRequest& r, const std::vector<const Move*>& moves) {
+  // A null dwell opens and closes every follow-up: a reference for the slews and a held-out
+  // step of each kind even when the moves are slews alone.
+  std::string t = fmt::format("name: {}\nsteps:\n  - home\n  - sample: {{frames: {}}}\n", r.name, kFrames);
+  for (const Move* m : moves) t += m->yaml;
+  return t + move_to(0, 0) + fmt::format("  - sample: {{frames: {}}}\n", kFrames);
+}
+
+Evaluation evaluate(const FollowupRequest& r, const Goal& g, const std::vector<const Move*>& moves, double noise,
+                    double materiality, size_t other_heldout) {
+  Evaluation e;
+  e.text = procedure_text(r, moves);
+  Diagnostics d(r.name + ".yaml");
+  const Procedure proc = parse_procedure(e.text, r.name + ".yaml", d);
+  if (!d.empty()) return e;
+  const Plan plan = expand(proc, r.settings, d);
+  if (!d.empty() || plan.points == 0) return e;
+  e.bench_s = plan.physical_s;
+  BenchConfig bench = r.bench;
+  bench.effects.clear();
+  for (auto& u : bench.sensors) u.effects.clear();
+  const SampleTable t = simulate_procedure(proc, r.settings, bench);
+  if (t.size() < 10) return e;
+  std::optional<PlannedRun> run;
+  try {
+    run.emplace(DiagnosisColumns::of(t), r.model, DiagnosisOptions{}, noise);
+  } catch (const std::exception&) {
+    return e;  // a plan the diagnosis cannot read: no use
+  }
+  e.valid = true;
+  e.all = true;
+  for (const auto& p : g.pairs) {
+    PairPrediction pp{p.a.name, p.b.name, p.both ? run->separation(p.a, p.b) : run->expected_log_lr(p.a, p.b.name)};
+    pp.separated = pp.expected_log_lr >= kSeparatingLogLR;
+    e.all = e.all && pp.separated;
+    e.gain += std::min(1.0, pp.expected_log_lr / kSeparatingLogLR);
+    e.pairs.push_back(pp);
+  }
+  for (const auto& name : g.bound) {
+    BoundPrediction b{name, run->limit_arcsec(name, other_heldout)};
+    b.bounded = b.limit_arcsec <= materiality;
+    e.all = e.all && b.bounded;
+    e.gain += std::isfinite(b.limit_arcsec) ? std::min(1.0, materiality / b.limit_arcsec) : 0.0;
+    e.bounds.push_back(b);
+  }
+  return e;
+}
+
+double number(const ojson& j, const char* key) {
+  if (!j.contains(key) || !j[key].is_number()) {
+    throw InputError(fmt::format("the diagnosis has no number \"{}\" (a GAP.json of this version is needed)", key));
+  }
+  return j[key].get<double>();
+}
+
+}  // namespace
+
+double recorded_bench_s(const ojson& gap) {
+  double s = 0;
+  if (gap.contains("recordings") && gap["recordings"].is_array()) {
+    for (const auto& p : gap["recordings"]) {
+      const auto& span = p.value("time_span_s", ojson::array());
+      if (span.is_array() && span.size() == 2 && span[0].is_number() && span[1].is_number()) {
+        s += span[1].get<double>() - span[0].get<double>();
+      }
+    }
+  }
+  return s;
+}
+
+FollowupDesign design_followup(const FollowupRequest& r) {
+  FollowupDesign out;
+  const double noise = number(r.gap, "noise_floor_arcsec");
+  out.materiality_arcsec = number(r.gap, "materiality_arcsec");
+  if (r.gap.contains("material_context") && r.gap["material_context"].contains("materiality_arcsec")) {
+    out.materiality_arcsec = r.gap["material_context"]["materiality_arcsec"].get<double>();
+  }
+  const size_t other_heldout = r.gap.contains("split") ? r.gap["split"].value("heldout_rows", size_t{0}) : 0;
+  out.first_bench_s = recorded_bench_s(r.gap);
+  out.budget_s = r.max_bench_s > 0 ? r.max_bench_s : 0.5 * out.first_bench_s;
+  const Goal g = goals(r);
+  out.unreachable = g.unreachable;
+  if (g.pairs.empty() && g.bound.empty()) return out;
+
+  const std::vector<Move> lib = library(r.settings);
+  std::vector<const Move*> chosen;
+  Evaluation best;
+  best.gain = 0;
+  for (int round = 0; round < 4; ++round) {
+    std::optional<Evaluation> pick, cheapest_all;
+    const Move* pick_move = nullptr;
+    const Move* all_move = nullptr;
+    double pick_rate = 0;
+    for (const Move& m : lib) {
+      if (std::find(chosen.begin(), chosen.end(), &m) != chosen.end()) continue;
+      std::vector<const Move*> with = chosen;
+      with.push_back(&m);
+      Evaluation e = evaluate(r, g, with, noise, out.materiality_arcsec, other_heldout);
+      if (!e.valid || e.bench_s > out.budget_s) continue;
+      if (e.all && (!cheapest_all || e.bench_s < cheapest_all->bench_s)) {
+        cheapest_all = e;
+        all_move = &m;
+      }
+      const double rate = (e.gain - best.gain) / std::max(1.0, e.bench_s - best.bench_s);
+      if (e.gain > best.gain + 1e-6 && rate > pick_rate) {
+        pick_rate = rate;
+        pick = e;
+        pick_move = &m;
+      }
+    }
+    if (cheapest_all) {
+      chosen.push_back(all_move);
+      best = *cheapest_all;
+      break;
+    }
+    if (!pick) break;
+    chosen.push_back(pick_move);
+    best = *pick;
+  }
+  if (chosen.empty()) return out;
+  out.useful = std::any_of(best.pairs.begin(), best.pairs.end(), [](const PairPrediction& p) { return p.separated; }) ||
+               std::any_of(best.bounds.begin(), best.bounds.end(), [](const BoundPrediction& b) { return b.bounded; });
+  out.found = best.all;
+  out.bench_s = best.bench_s;
+  out.pairs = best.pairs;
+  out.bounds = best.bounds;
+  for (const Move* m : chosen) out.moves.push_back(m->name);
+  std::string head = fmt::format(
+      "# A follow-up designed by `fpss-stand design` from {}: {}.\n# Bench time {:.0f} s of a budget of {:.0f} s (the "
+      "recordings so far: {:.0f} s).\n",
+      r.gap.value("source", std::string("a diagnosis")), fmt::join(out.moves, "; "), out.bench_s, out.budget_s,
+      out.first_bench_s);
+  for (const auto& p : out.pairs) {
+    head += fmt::format("# {} vs {}: expected log-likelihood ratio {:.1f} on the held-out rows (separating from {:g})\n",
+                        p.a, p.b, p.expected_log_lr, kSeparatingLogLR);
+  }
+  for (const auto& b : out.bounds) {
+    head += fmt::format("# {}: would be seen from {:.4f} arcsec where it acts (materiality {:.4f})\n", b.name,
+                        b.limit_arcsec, out.materiality_arcsec);
+  }
+  out.procedure_text = head + best.text;
+  return out;
+}
+
+EngineSettings emulated_settings(const BenchConfig& bench) {
+  EngineSettings s = emulated_stand(1.0).bench;
+  s.profile_rate_arcsec_s = bench.max_rate_arcsec_s;
+  s.acceleration_arcsec_s2 = bench.accel_arcsec_s2;
+  s.sample_rate_hz = bench.sample_rate_hz;
+  return s;
+}
+
+void predict_best_followups(Diagnosis& d, const CoefficientSet& model, const EngineSettings& settings,
+                            const BenchConfig& bench) {
+  if (d.ambiguous.empty()) return;
+  const ojson gap = d.to_json();
+  for (size_t k = 0; k < d.ambiguous.size(); ++k) {
+    FollowupRequest r;
+    r.gap = gap;
+    r.gap["ambiguous"] = ojson::array({gap["ambiguous"][k]});
+    r.model = model;
+    r.settings = settings;
+    r.bench = bench;
+    const FollowupDesign f = design_followup(r);
+    ojson lr = ojson::object();
+    for (const auto& p : f.pairs) lr[p.a + " vs " + p.b] = p.expected_log_lr;
+    d.ambiguous[k].best_followup = {{"separates", f.found},
+                                    {"moves", f.moves},
+                                    {"expected_log_lr", lr},
+                                    {"bench_s", f.bench_s},
+                                    {"budget_s", f.budget_s},
+                                    {"not_planned", f.unreachable},
+                                    {"bench", "the default emulated bench unless `fpss-stand design` was given one"}};
+  }
+}
+
+void predict_best_followups(Diagnosis& d, const CoefficientSet& model) {
+  const BenchConfig bench = default_bench_config();
+  predict_best_followups(d, model, emulated_settings(bench), bench);
+}
+
+ojson FollowupDesign::to_json() const {
+  ojson pj = ojson::array();
+  for (const auto& p : pairs) {
+    pj.push_back({{"a", p.a}, {"b", p.b}, {"expected_log_lr", p.expected_log_lr}, {"separated", p.separated}});
+  }
+  ojson bj = ojson::array();
+  for (const auto& b : bounds) {
+    bj.push_back({{"name", b.name},
+                  {"limit_arcsec", std::isfinite(b.limit_arcsec) ? ojson(b.limit_arcsec) : ojson()},
+                  {"bounded", b.bounded}});
+  }
+  return {{"found", found},
+          {"useful", useful},
+          {"moves", moves},
+          {"bench_s", bench_s},
+          {"budget_s", budget_s},
+          {"first_bench_s", first_bench_s},
+          {"materiality_arcsec", materiality_arcsec},
+          {"separating_log_lr", kSeparatingLogLR},
+          {"pairs", pj},
+          {"bounds", bj},
+          {"unreachable", unreachable}};
+}
+
+}  // namespace fpss

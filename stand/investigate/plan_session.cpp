@@ -1,0 +1,84 @@
+// A procedure's plan on an in-process bench (stand/investigate/plan_session.h).
+#include "stand/investigate/plan_session.h"
+
+#include "base/errors.h"
+#include "procedures/yaml_diag.h"
+
+namespace fpss {
+
+std::vector<SessionOp> session_ops(const Plan& plan, const EngineSettings& settings) {
+  std::vector<SessionOp> ops;
+  for (const Action& a : plan.actions) {
+    SessionOp op;
+    switch (a.kind) {
+      case Action::Kind::home:
+        op.kind = SessionOp::Kind::move;
+        ops.push_back(op);
+        break;
+      case Action::Kind::move:
+        op.kind = SessionOp::Kind::move;
+        op.pitch_arcsec = a.pitch_arcsec;
+        op.yaw_arcsec = a.yaw_arcsec;
+        op.rate_arcsec_s = a.rate_arcsec_s;
+        ops.push_back(op);
+        break;
+      case Action::Kind::settle:
+        op.kind = SessionOp::Kind::settle;
+        op.settle_s = a.settle_s;
+        ops.push_back(op);
+        break;
+      case Action::Kind::dwell:
+        op.kind = SessionOp::Kind::dwell;
+        op.pitch_arcsec = a.pitch_arcsec;
+        op.yaw_arcsec = a.yaw_arcsec;
+        op.settle_s = a.settle_s;
+        op.frames = a.frames;
+        op.sample_rate_hz = settings.sample_rate_hz;
+        op.phase = a.phase;
+        ops.push_back(op);
+        break;
+      case Action::Kind::slew: {
+        SessionOp start;
+        start.kind = SessionOp::Kind::move;
+        start.pitch_arcsec = a.start_pitch_arcsec;
+        start.yaw_arcsec = a.start_yaw_arcsec;
+        ops.push_back(start);
+        if (a.settle_s > 0) {
+          SessionOp wait;
+          wait.kind = SessionOp::Kind::settle;
+          wait.settle_s = a.settle_s;
+          ops.push_back(wait);
+        }
+        for (int k = 0; k <= a.reversals; ++k) {
+          SessionOp leg;
+          leg.kind = SessionOp::Kind::slew;
+          std::tie(leg.pitch_arcsec, leg.yaw_arcsec) = a.leg_target(k);
+          leg.rate_arcsec_s = a.rate_arcsec_s;
+          leg.sample_period_s = a.sample_period_s;
+          leg.same_step = k > 0;
+          ops.push_back(leg);
+        }
+        break;
+      }
+      case Action::Kind::calibrate:
+      case Action::Kind::check:
+      case Action::Kind::diagnose:
+        break;  // off the bench
+    }
+  }
+  return ops;
+}
+
+SampleTable simulate_procedure(const Procedure& procedure, const EngineSettings& settings, const BenchConfig& bench) {
+  Diagnostics d(procedure.origin);
+  const Plan plan = expand(procedure, settings, d);
+  d.throw_if_any();
+  BenchConfig cfg = bench;
+  cfg.sample_rate_hz = settings.sample_rate_hz;
+  Bench b(cfg);
+  SampleTable t = record_ops(b, session_ops(plan, settings));
+  t.origin = procedure.origin;
+  return t;
+}
+
+}  // namespace fpss

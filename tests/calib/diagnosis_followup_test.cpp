@@ -1,0 +1,170 @@
+// Several recordings diagnosed as one, the look-alike sets, the candidates' status and the planned
+// run's predicted separation (calib/diagnosis/followup.h), on recordings of the simulated bench.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "base/errors.h"
+#include "calib/diagnosis/diagnosis.h"
+#include "calib/diagnosis/followup.h"
+#include "fixtures/bench.h"
+#include "fixtures/recording.h"
+
+namespace fpss {
+// Named, not anonymous: the unity build puts this file beside diagnosis_test.cpp.
+namespace followup_test {
+
+constexpr double kSettle = 0.2;
+
+BenchConfig bench(uint64_t seed, const std::vector<std::string>& effects) {
+  BenchConfig c = default_bench_config();
+  c.seed = seed;
+  c.temperature.ramp_c_per_s = 0.02;
+  c.temperature.amplitude_c = 1.5;
+  c.temperature.period_s = 40;
+  for (const auto& e : effects) c.effects.push_back(parse_effect(e));
+  return c;
+}
+
+SessionPlan plan(bool grid, bool slews) {
+  SessionPlan p;
+  if (grid) {
+    GridPlan g;
+    g.extent_deg = 0.36;
+    g.step_deg = 0.12;
+    g.samples_per_dwell = 20;
+    g.sample_rate_hz = 50;
+    g.settle_s = kSettle;
+    p.grids.push_back(g);
+  }
+  if (slews) {
+    for (int axis : {0, 1}) {
+      for (double rate : {300.0, 600.0}) p.slews.push_back(SlewPlan{axis, 1200.0, rate, 0.02});
+    }
+  }
+  return p;
+}
+
+DiagnosisOptions options() {
+  DiagnosisOptions o;
+  o.settle_s = kSettle + 0.005;
+  return o;
+}
+
+DiagnosisColumns record(const BenchConfig& cfg, const SessionPlan& p, const std::string& origin) {
+  Bench b(cfg);
+  SampleTable t = record_session(b, p);
+  t.origin = origin;
+  return DiagnosisColumns::of(t);
+}
+
+const nlohmann::ordered_json* candidate(const Diagnosis& d, const std::string& name) {
+  for (const auto& c : d.candidates) {
+    if (c["name"] == name) return &c;
+  }
+  return nullptr;
+}
+
+TEST(JointDiagnosis, ASkewUnseenInDwellsIsNamedOnceASlewRecordingJoinsWithOneParameterForBoth) {
+  const std::string skew = "time_skew:skew_s=0.004";
+  DiagnosisColumns dwells = record(bench(3, {skew}), plan(true, false), "dwells.csv");
+  const size_t first_rows = dwells.size();
+  const Diagnosis alone = diagnose(dwells, default_bench_config().truth, options());
+  EXPECT_NE(alone.cause, "time_skew");
+  EXPECT_EQ(candidate(alone, "time_skew")->at("status"), "unbounded");
+
+  std::vector<DiagnosisColumns> both;
+  both.push_back(std::move(dwells));
+  both.push_back(record(bench(4, {skew}), plan(false, true), "slews.csv"));
+  const size_t second_rows = both.back().size();
+  const Diagnosis d = diagnose(std::move(both), default_bench_config().truth, options());
+  EXPECT_EQ(d.cause, "time_skew");
+  ASSERT_FALSE(d.causes.empty());
+  EXPECT_NEAR(d.causes[0].params["skew_s"].get<double>(), 0.004, 0.0004);
+  EXPECT_EQ(candidate(d, "time_skew")->at("status"), "named");
+  // Each recording keeps its own nuisance level (its noise floor), and its steps stay apart.
+  ASSERT_EQ(d.recordings.size(), 2u);
+  EXPECT_EQ(d.recordings[0].rows, first_rows);
+  EXPECT_EQ(d.recordings[1].rows, second_rows);
+  EXPECT_EQ(d.recordings[1].step_offset, kJointStepStride);
+  // The slews alone have no dwell floor: their own floor comes from the slews' rows.
+  for (const auto& p : d.recordings) EXPECT_GT(p.noise_floor_arcsec, 0.02) << p.source;
+  // The held-out split spans the recordings: held-out steps of both.
+  const auto ids = d.split["heldout_step_ids"].get<std::vector<int64_t>>();
+  EXPECT_TRUE(std::any_of(ids.begin(), ids.end(), [](int64_t s) { return s < kJointStepStride; }));
+  EXPECT_TRUE(std::any_of(ids.begin(), ids.end(), [](int64_t s) { return s >= kJointStepStride; }));
+  EXPECT_EQ(d.to_json()["recordings"].size(), 2u);
+}
+
+TEST(JointDiagnosis, OneRecordingIsItsOwnJointAndTooManyOrForeignStepsAreRefused) {
+  std::vector<DiagnosisColumns> none;
+  EXPECT_THROW(join_recordings(std::move(none)), InputError);
+  std::vector<DiagnosisColumns> many(kMaxJointRecordings + 1);
+  EXPECT_THROW(join_recordings(std::move(many)), InputError);
+  std::vector<DiagnosisColumns> two;
+  two.push_back(record(bench(5, {}), plan(true, false), "a.csv"));
+  two.push_back(record(bench(6, {}), plan(true, false), "b.csv"));
+  two.back().step.back() = kJointStepStride;  // a step id that would run into the next recording's
+  EXPECT_THROW(join_recordings(std::move(two)), InputError);
+}
+
+TEST(AmbiguousSets, ADriftWhoseTemperatureFollowsTimeIsASetWithTheTemperatureAndTheVerdictStays) {
+  BenchConfig cfg = bench(61, {"temperature:pitch_arcsec_per_c=1.0,yaw_arcsec_per_c=1.0"});
+  cfg.temperature.amplitude_c = 0;  // a plain ramp
+  const Diagnosis d = diagnose(record(cfg, plan(true, false), "ramp.csv"), cfg.truth, options());
+  EXPECT_EQ(d.cause, "drift");
+  EXPECT_EQ(d.verdict, "explained");
+  ASSERT_EQ(d.ambiguous.size(), 1u);
+  EXPECT_EQ(d.ambiguous[0].members, (std::vector<std::string>{"drift", "temperature"}));
+  EXPECT_TRUE(std::isnan(d.ambiguous[0].score_differences[1]));  // the look-alike could not be scored
+  EXPECT_EQ(d.ambiguous[0].factor, "time");
+  const auto j = d.to_json();
+  EXPECT_TRUE(j["ambiguous"][0]["score_differences"]["temperature"].is_null());
+  EXPECT_EQ(j["ambiguous"][0]["margin"], kAmbiguityMargin);
+  EXPECT_EQ(candidate(d, "temperature")->at("status"), "ambiguous");
+}
+
+TEST(AmbiguousSets, AClearCauseOnAFullRecordingHasNoSetAndBoundsWhatItCouldSee) {
+  const BenchConfig cfg = bench(7, {"backlash:width_arcsec=1.5"});
+  const Diagnosis d = diagnose(record(cfg, plan(true, true), "full.csv"), cfg.truth, options());
+  EXPECT_EQ(d.cause, "backlash");
+  EXPECT_TRUE(d.ambiguous.empty());
+  EXPECT_EQ(candidate(d, "backlash")->at("status"), "named");
+  // Every candidate's limit in arcsec where it acts, and a status from the end state's four.
+  for (const auto& c : d.candidates) {
+    const std::string s = c["status"];
+    EXPECT_TRUE(s == "named" || s == "bounded" || s == "unbounded" || s == "ambiguous") << s;
+    if (s == "bounded") EXPECT_LE(c["limit_arcsec"].get<double>(), d.materiality_arcsec) << c.dump();
+  }
+  EXPECT_NEAR(d.materiality_arcsec, d.noise_floor_arcsec / std::sqrt(20.0), 1e-9);
+}
+
+TEST(PlannedRun, SlewsSeparateATimeShiftFromBacklashAndDwellsAloneDoNot) {
+  EffectParams skew{"time_skew", {{"skew_s", 0.002}}, {}};
+  EffectParams backlash{"backlash", {{"width_arcsec", 1.2}}, {}};
+  const CoefficientSet model = default_bench_config().truth;
+  BenchConfig quiet = bench(9, {});
+  const PlannedRun slews(record(quiet, plan(true, true), "plan.csv"), model, options(), 0.07);
+  const PlannedRun dwells(record(quiet, plan(true, false), "plan.csv"), model, options(), 0.07);
+  EXPECT_GT(slews.separation(skew, backlash), 16.0);
+  // At rest a time shift does nothing: backlash predicts the same as no skew at all.
+  EXPECT_LT(dwells.expected_log_lr(skew, "backlash"), 1.0);
+  // The limit of a time shift where it acts: finite with slews, none at rest.
+  EXPECT_TRUE(std::isfinite(slews.limit_arcsec("time_skew", 0)));
+  EXPECT_FALSE(std::isfinite(dwells.limit_arcsec("time_skew", 0)));
+  // More rows that say nothing of it dilute what the plan shows.
+  EXPECT_GT(slews.limit_arcsec("time_skew", 100000), slews.limit_arcsec("time_skew", 0));
+  EXPECT_THROW(PlannedRun(record(quiet, plan(true, false), "plan.csv"), model, options(), 0.0), InputError);
+}
+
+TEST(PlannedRun, AnEffectFromGapJsonNeedsAKnownName) {
+  EXPECT_EQ(effect_from_json({{"name", "bias"}, {"params", {{"pitch_arcsec", 1.0}, {"yaw_arcsec", 2.0}}}}).params.at("yaw_arcsec"), 2.0);
+  EXPECT_THROW(effect_from_json({{"name", "gremlins"}}), InputError);
+  EXPECT_THROW(effect_from_json(nlohmann::ordered_json::array()), InputError);
+}
+
+}  // namespace followup_test
+}  // namespace fpss
