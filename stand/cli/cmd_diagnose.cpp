@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <unistd.h>
 
 #include "base/errors.h"
 #include "base/text_file.h"
@@ -14,6 +15,7 @@
 #include "calib/samples.h"
 #include "stand/blindtest/blindtest.h"
 #include "stand/blindtest/joint_blindtest.h"
+#include "stand/investigate/confusable.h"
 #include "stand/investigate/followup_design.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/file_hints.h"
@@ -192,7 +194,7 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
 void add_blindtest_command(CLI::App& app, Runner& run) {
   struct Opts {
     BlindTestOptions b;
-    bool json = false, quiet = false, units = false;
+    bool json = false, quiet = false, units = false, investigate = false;
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("blindtest", "Blind check of the diagnosis: random effects on the simulated bench");
@@ -206,10 +208,28 @@ void add_blindtest_command(CLI::App& app, Runner& run) {
   sub->add_flag("--units", o->units,
                 "two units on one gimbal pass, a stand effect for both and a unit effect on one: is each attributed "
                 "to the stand or to its unit (diagnose --run)");
+  sub->add_flag("--investigate", o->investigate,
+                "the confusable and unseen cases, each investigated to the end with follow-ups (--cases per kind; "
+                "--save keeps every run, follow-up and INVESTIGATION's GAP.json)");
   examples(sub, {"fpss-stand blindtest --cases 2 --seed 3", "fpss-stand blindtest --cases 22 --pairs --json"});
   sub->callback([o, &run] {
     run = [o] {
       if (o->b.cases < 1) throw InputError("--cases must be at least 1");
+      if (o->investigate) {
+        const std::filesystem::path work =
+            o->b.save_dir.empty() ? std::filesystem::temp_directory_path() / fmt::format("fpss-confusable-{}", ::getpid())
+                                  : std::filesystem::path(o->b.save_dir);
+        const ConfusableReport rep = run_confusable_cases(o->b.cases, o->b.seed, work, [&](const ConfusableCase& c) {
+          if (!o->quiet) {
+            std::fprintf(stderr, "%-24s %-22s %s follow-ups %d (%.2fx) %s\n", c.kind.c_str(), c.truth.c_str(),
+                         c.success() ? "ok  " : "MISS", c.followups, c.followup_ratio, c.stop_reason.c_str());
+          }
+        });
+        if (o->b.save_dir.empty()) std::filesystem::remove_all(work);
+        if (o->json) std::printf("%s\n", rep.summary().dump(1).c_str());
+        else std::printf("%s", rep.to_text().c_str());
+        return 0;
+      }
       if (o->units) {
         const JointBlindReport rep = run_joint_blindtest(o->b.cases, o->b.seed, [&](const JointBlindCase& c) {
           if (!o->quiet) {

@@ -38,19 +38,26 @@ std::string move_to(double p, double y) {
   return fmt::format("  - move: {{pitch_arcsec: {}, yaw_arcsec: {}}}\n", num(p), num(y));
 }
 
-// The points the designer measures at, most telling first: both ends of each axis, then halfway.
+// The points the designer approaches, most telling first: both ends of each axis, then halfway;
+// far enough inside the range that the dwell where an approach starts is inside it too (a frame
+// beyond the sensor's field is no sample, and the side would go unrecorded).
 std::vector<std::pair<double, double>> points(int n) {
-  const double e = kExtentArcsec, h = kExtentArcsec / 2;
+  const double e = kExtentArcsec - kOvershootArcsec, h = e / 2;
   const std::vector<std::pair<double, double>> all = {{e, 0}, {-e, 0}, {0, e}, {0, -e}, {h, 0}, {0, h}, {-h, 0}, {0, -h}};
   return {all.begin(), all.begin() + std::min<size_t>(n, all.size())};
 }
 
-// Each point approached from below and from above on both axes, a dwell from arrival.
+// Each point approached from below and from above on both axes, a dwell from arrival. The
+// recording holds only dwells and slews: a short dwell where each approach starts records the
+// side it comes from (the diagnosis reads directions from the recorded reference).
 Move approach_both(int n) {
   std::string y;
+  const std::string mark = "  - sample: {frames: 5}\n";
   for (auto [p, w] : points(n)) {
-    y += move_to(p - kOvershootArcsec, w - kOvershootArcsec) + move_to(p, w) + fmt::format("  - sample: {{frames: {}}}\n", kFrames);
-    y += move_to(p + kOvershootArcsec, w + kOvershootArcsec) + move_to(p, w) + fmt::format("  - sample: {{frames: {}}}\n", kFrames);
+    for (double side : {-1.0, 1.0}) {
+      y += move_to(p + side * kOvershootArcsec, w + side * kOvershootArcsec) + mark + move_to(p, w) +
+           fmt::format("  - sample: {{frames: {}}}\n", kFrames);
+    }
   }
   return {fmt::format("approaches from both sides at {} points", n), y};
 }
@@ -67,18 +74,19 @@ Move long_dwells(int n, double duration_s) {
   return {fmt::format("{} dwells of {} s from arrival", n, num(duration_s)), y};
 }
 
-// Continuous slews on both axes at several rates, both directions, one reversal each.
-Move slews(const std::vector<double>& rates, double period_s) {
+// Continuous slews on both axes at several rates: each segment goes out and back (one reversal),
+// so both directions of motion are in it.
+Move slews(const std::vector<double>& rates, double period_s, double amplitude_arcsec) {
   std::string y;
   std::vector<std::string> r;
   for (double v : rates) r.push_back(num(v));
   for (const char* axis : {"pitch", "yaw"}) {
     y += fmt::format(
-        "  - continuous_slew: {{axis: {}, amplitude_arcsec: {}, rates_arcsec_s: [{}], directions: both, reversals: 1, "
+        "  - continuous_slew: {{axis: {}, amplitude_arcsec: {}, rates_arcsec_s: [{}], directions: positive, reversals: 1, "
         "sample_period_s: {}, settle_s: 0.5}}\n",
-        axis, num(kExtentArcsec - 12), fmt::join(r, ", "), num(period_s));
+        axis, num(amplitude_arcsec), fmt::join(r, ", "), num(period_s));
   }
-  return {fmt::format("slews on both axes at {} arcsec/s", fmt::join(r, ", ")), y};
+  return {fmt::format("slews on both axes over +-{} arcsec at {} arcsec/s", num(amplitude_arcsec), fmt::join(r, ", ")), y};
 }
 
 // Null dwells repeated over time.
@@ -105,9 +113,11 @@ std::vector<Move> library(const EngineSettings& s) {
   std::vector<Move> m;
   for (int n : {2, 4, 8}) m.push_back(approach_both(n));
   for (int n : {2, 4}) m.push_back(long_dwells(n, 5.0));
-  m.push_back(slews({top}, period));
-  m.push_back(slews({top / 4, top}, period));
-  m.push_back(slews({top / 4, top / 2, top}, period));
+  const double wide = kExtentArcsec - 12;
+  m.push_back(slews({top}, period, wide / 2));
+  m.push_back(slews({top}, period, wide));
+  m.push_back(slews({top / 4, top}, period, wide));
+  m.push_back(slews({top / 4, top / 2, top}, period, wide));
   for (int n : {4, 8}) m.push_back(repeated_nulls(n, 30.0));
   m.push_back(fine_grid(108.0));
   return m;
@@ -120,6 +130,7 @@ struct Goal {
   };
   std::vector<Pair> pairs;
   std::vector<std::string> bound;  // candidates to bound
+  std::vector<double> bound_first;  // their limit_arcsec in the recordings so far (+inf: unseen)
   std::vector<std::string> unreachable;
 };
 
@@ -165,6 +176,8 @@ Goal goals(const FollowupRequest& r) {
       const std::string why = c.value("why", "");
       if (name == "temperature" && why.find("no temperature_c") != std::string::npos) {
         g.unreachable.push_back("temperature: the recording has no temperature_c column; no move adds one");
+      } else if (name == "temperature" && why.find("not observable") != std::string::npos) {
+        g.unreachable.push_back("temperature: " + why + " (the bench's temperature is not the stand's to move)");
       } else if (why.rfind("seen but not named", 0) == 0) {
         g.unreachable.push_back(name + ": " + why + " (a second effect the diagnosis could not pair; more of the same "
                                                     "data, not a new move)");
@@ -172,6 +185,8 @@ Goal goals(const FollowupRequest& r) {
         g.unreachable.push_back("coefficients: bounded by more offsets over the range (a longer grid), not planned here");
       } else {
         g.bound.push_back(name);
+        const auto& l = c.value("limit_arcsec", ojson());
+        g.bound_first.push_back(l.is_number() ? l.get<double>() : std::numeric_limits<double>::infinity());
       }
     }
   }
@@ -196,7 +211,7 @@ std::string procedure_text(const FollowupRequest& r, const std::vector<const Mov
 }
 
 Evaluation evaluate(const FollowupRequest& r, const Goal& g, const std::vector<const Move*>& moves, double noise,
-                    double materiality, size_t other_heldout) {
+                    double materiality) {
   Evaluation e;
   e.text = procedure_text(r, moves);
   Diagnostics d(r.name + ".yaml");
@@ -225,8 +240,11 @@ Evaluation evaluate(const FollowupRequest& r, const Goal& g, const std::vector<c
     e.gain += std::min(1.0, pp.expected_log_lr / kSeparatingLogLR);
     e.pairs.push_back(pp);
   }
-  for (const auto& name : g.bound) {
-    BoundPrediction b{name, run->limit_arcsec(name, other_heldout)};
+  for (size_t k = 0; k < g.bound.size(); ++k) {
+    // What the recordings so far saw of it and what the plan sees combine as two independent
+    // measurements of one magnitude: their limits add in inverse squares.
+    const double plan = run->limit_arcsec(g.bound[k], 0), first = g.bound_first[k];
+    BoundPrediction b{g.bound[k], 1.0 / std::sqrt(1.0 / (plan * plan) + 1.0 / (first * first))};
     b.bounded = b.limit_arcsec <= materiality;
     e.all = e.all && b.bounded;
     e.gain += std::isfinite(b.limit_arcsec) ? std::min(1.0, materiality / b.limit_arcsec) : 0.0;
@@ -264,7 +282,6 @@ FollowupDesign design_followup(const FollowupRequest& r) {
   if (r.gap.contains("material_context") && r.gap["material_context"].contains("materiality_arcsec")) {
     out.materiality_arcsec = r.gap["material_context"]["materiality_arcsec"].get<double>();
   }
-  const size_t other_heldout = r.gap.contains("split") ? r.gap["split"].value("heldout_rows", size_t{0}) : 0;
   out.first_bench_s = recorded_bench_s(r.gap);
   out.budget_s = r.max_bench_s > 0 ? r.max_bench_s : 0.5 * out.first_bench_s;
   const Goal g = goals(r);
@@ -284,7 +301,7 @@ FollowupDesign design_followup(const FollowupRequest& r) {
       if (std::find(chosen.begin(), chosen.end(), &m) != chosen.end()) continue;
       std::vector<const Move*> with = chosen;
       with.push_back(&m);
-      Evaluation e = evaluate(r, g, with, noise, out.materiality_arcsec, other_heldout);
+      Evaluation e = evaluate(r, g, with, noise, out.materiality_arcsec);
       if (!e.valid || e.bench_s > out.budget_s) continue;
       if (e.all && (!cheapest_all || e.bench_s < cheapest_all->bench_s)) {
         cheapest_all = e;
@@ -307,8 +324,13 @@ FollowupDesign design_followup(const FollowupRequest& r) {
     best = *pick;
   }
   if (chosen.empty()) return out;
+  // Useful: it separates a pair, bounds a candidate, or lets the diagnosis see one it could not
+  // see at all (an effect that is there is then named; one that is not gets a limit).
   out.useful = std::any_of(best.pairs.begin(), best.pairs.end(), [](const PairPrediction& p) { return p.separated; }) ||
                std::any_of(best.bounds.begin(), best.bounds.end(), [](const BoundPrediction& b) { return b.bounded; });
+  for (size_t k = 0; k < best.bounds.size(); ++k) {
+    out.useful = out.useful || (!std::isfinite(g.bound_first[k]) && std::isfinite(best.bounds[k].limit_arcsec));
+  }
   out.found = best.all;
   out.bench_s = best.bench_s;
   out.pairs = best.pairs;

@@ -43,7 +43,7 @@ struct BoundPrediction {
 
 struct FollowupDesign {
   bool found = false;  // the plan separates every pair and bounds every candidate it was asked to
-  bool useful = false; // it separates or bounds at least one
+  bool useful = false; // it separates or bounds one, or makes one the recordings could not see visible
   std::string procedure_text;
   std::vector<std::string> moves;
   double bench_s = 0, budget_s = 0, first_bench_s = 0;

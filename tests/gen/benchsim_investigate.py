@@ -33,12 +33,13 @@ run's (GAP.json recordings[].time_span_s), and for unambiguous cases whether it 
 first run.
 
     benchsim_investigate.py eval --fpss-stand BIN --cases N --seed S [--work DIR] [--kinds K,K]
-                                 [--jobs J] [--json PATH] [--assert]
+                                 [--jobs J] [--json PATH] [--assert] [--budget-x X]
 
 N cases per kind. Prints one line per case, a table per kind, the totals and the three figures:
 named within 10 % after <= 2 follow-ups (target >= 95 %), unambiguous cases stopping after the
 first run (target >= 95 %), follow-up bench time <= 1.0x the first run's (max and mean). Exit 1
-with --assert when a target is missed.
+with --assert when a target is missed. --budget-x X (exploration, not the issue's figures) gives
+design --max-bench-s X times the first run's bench time in each round instead of its default.
 
 Run with /usr/bin/python3 (Debian's, with numpy and python3-yaml).
 """
@@ -180,11 +181,14 @@ def diagnose(binary, model, datas, out):
         return json.load(f)
 
 
-def design(binary, gap_path, out):
-    """(design's --json, or None when it exits 1 with nothing within the budget; the stderr)."""
+def design(binary, gap_path, out, max_bench_s=None):
+    """(design's --json or None when it exits 1 with nothing within the budget, the --json of a
+    failed design, the stderr)."""
     if os.path.exists(out):
         os.remove(out)
     cmd = [binary, "design", "--discriminate", gap_path, "--observe", gap_path, "--emulate", "--out", out, "--json"]
+    if max_bench_s:
+        cmd += ["--max-bench-s", f"{max_bench_s:.3f}"]
     p = call(cmd)
     if p.returncode == 1 and not os.path.exists(out):
         try:
@@ -221,7 +225,7 @@ def gap_summary(gap):
             "open": {c["name"]: c["status"] for c in gap.get("candidates", []) if c.get("status") in ("unbounded", "ambiguous")}}
 
 
-def run_case(binary, work, kind, k, seed):
+def run_case(binary, work, kind, k, seed, budget_x=None):
     case_seed = seed * 100003 + list(KINDS).index(kind) * 1000 + k
     rng = np.random.default_rng(case_seed)
     truth = case_truth(kind, k, rng)
@@ -247,7 +251,8 @@ def run_case(binary, work, kind, k, seed):
             if not needs_followup(gap):
                 break
             fup_yaml = os.path.join(d, f"fup{rnd}.yaml")
-            dj, failed, err = design(binary, gap_path, fup_yaml)
+            first_s = gap["recordings"][0]["time_span_s"][1] - gap["recordings"][0]["time_span_s"][0]
+            dj, failed, err = design(binary, gap_path, fup_yaml, budget_x * first_s if budget_x else None)
             rec = {"round": rnd, "designed": dj is not None}
             if dj is None:
                 rec.update(design=failed, stderr=err)
@@ -356,7 +361,7 @@ def evaluate(a):
     jobs = [(kind, k) for kind in kinds for k in range(a.cases)]
     res = []
     with concurrent.futures.ProcessPoolExecutor(max_workers=max(1, a.jobs)) as ex:
-        futs = [ex.submit(run_case, a.fpss_stand, work, kind, k, a.seed) for kind, k in jobs]
+        futs = [ex.submit(run_case, a.fpss_stand, work, kind, k, a.seed, a.budget_x) for kind, k in jobs]
         for f in futs:
             r = f.result()
             res.append(r)
@@ -375,10 +380,19 @@ def main():
     e.add_argument("--kinds", help="comma-separated subset of: " + ", ".join(KINDS))
     e.add_argument("--jobs", type=int, default=1, help="cases run at once")
     e.add_argument("--json", dest="json_out", help="write the per-case results here")
+    e.add_argument("--budget-x", type=float, help="exploration only: design --max-bench-s this many times the first "
+                                                  "run's bench time, each round (default: design's own budget)")
     e.add_argument("--assert", dest="check", action="store_true", help="exit 1 when a target is missed")
     a = ap.parse_args()
+    st = os.stat(a.fpss_stand)
+    binary = {"path": a.fpss_stand, "mtime": time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(st.st_mtime)), "size": st.st_size}
     res = evaluate(a)
     table, figs = summarise(res)
+    figs["binary"] = binary
+    if os.stat(a.fpss_stand).st_mtime != st.st_mtime:
+        figs["binary_changed_during_run"] = True
+        print("warning: the fpss-stand binary was replaced during the run: the figures mix two builds", file=sys.stderr)
+    print(f"fpss-stand: {binary['path']} of {binary['mtime']}")
     print_report(table, figs, res)
     if a.json_out:
         with open(a.json_out, "w") as f:
