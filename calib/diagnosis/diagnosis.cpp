@@ -389,10 +389,17 @@ void Diagnoser::pick_cause() {
 }
 
 void Diagnoser::find_ambiguous() {
-  // Close competitors of the cause: singles within the margin of its own score.
+  // Close competitors of the cause: singles within the margin of its own score, or of the pair's
+  // when two causes were kept (causes[1] carries the joint figures), and any single that beats the
+  // pair's first member alone (the pair may be a stand-in for it: a settling with an endless tau
+  // and a bias for a one-sided backlash).
   if (d.cause == "none") return;
   double cause_score = 0;
   for (const auto& s : all) if (s.result.name == d.cause) cause_score = s.result.score;
+  const double pair_score = d.causes.size() > 1 ? d.causes.back().score : cause_score;
+  const bool endless_settling = std::any_of(d.causes.begin(), d.causes.end(), [](const EffectResult& c) {
+    return c.name == "settling" && c.params.value("tau_s", 0.0) >= 29.0;
+  });
   Diagnosis::AmbiguousSet set;
   set.members = {d.cause};
   set.score_differences = {0.0};
@@ -401,7 +408,9 @@ void Diagnoser::find_ambiguous() {
     if (n == "none" || !s.result.degenerate.empty()) continue;
     if (std::any_of(d.causes.begin(), d.causes.end(), [&](const EffectResult& c) { return c.name == n; })) continue;
     const double diff = s.result.score - cause_score;
-    if (std::abs(diff) < kAmbiguityMargin) {
+    const bool close = std::abs(diff) < kAmbiguityMargin || std::abs(s.result.score - pair_score) < kAmbiguityMargin ||
+                       (d.causes.size() > 1 && diff < 0) || (endless_settling && n == "backlash");
+    if (close) {
       d.ambiguous_with.push_back({n, diff, why_alike(d.cause, n)});
       set.members.push_back(n);
       set.score_differences.push_back(diff);

@@ -68,8 +68,8 @@ struct EffectResult {
   // units; coefficients: angle_rms_arcsec, the RMS change of the angle over the calibrated range);
   // empty for none.
   nlohmann::ordered_json detection_limit = nlohmann::ordered_json::object();
-  // The same for what the data can see at all (the score beats none's by the ambiguity margin
-  // beyond the penalty), without the naming rule's floor: what bounds an effect that is not named.
+  // The same for what the data can see at all (the expected score equals none's: the penalty is
+  // paid), without the naming rule's floor: what bounds an effect that is not named.
   nlohmann::ordered_json statistical_limit = nlohmann::ordered_json::object();
   // That limit as arcsec: the effect's RMS where it acts, at the limit (+inf when the recording
   // cannot see it); an investigation bounds a candidate when this is below its materiality.

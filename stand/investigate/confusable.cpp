@@ -42,7 +42,8 @@ std::string slews_only(const char* rates) {
 // The paper's offsets swept upwards along each axis: every dwell approached from below (the
 // sweep starts with a recorded dwell below its first point, so the recording shows the side).
 std::string one_side_grid() {
-  std::string t = "name: one_side_grid\nsteps:\n  - home\n";
+  // A null dwell first: the side of every later move is then in the recording.
+  std::string t = "name: one_side_grid\nsteps:\n  - home\n  - sample: {frames: 5}\n";
   for (int axis = 0; axis < 2; ++axis) {
     auto at = [&](double o, int frames) {
       t += fmt::format("  - move: {{pitch_arcsec: {}, yaw_arcsec: {}}}\n  - sample: {{frames: {}, settle_s: 0.2}}\n",
