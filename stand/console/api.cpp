@@ -126,6 +126,7 @@ Job job_of(const json& b) {
   Job j;
   j.kind = b.contains("kind") ? str(b, "kind") : "run";
   j.procedure = str(b, "procedure");
+  j.model = str(b, "model");
   j.unit = str(b, "unit");
   j.operator_name = str(b, "operator");
   return j;

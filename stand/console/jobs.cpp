@@ -12,10 +12,12 @@
 #include <stdexcept>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 #include "base/clock.h"
 #include "base/text_file.h"
+#include "calib/coefficients.h"
 #include "stand/console/run_files.h"
 
 extern char** environ;
@@ -33,7 +35,7 @@ bool safe_name(const std::string& s, size_t max) {
 }
 
 nlohmann::json Job::to_json() const {
-  return {{"id", id},           {"kind", kind},         {"procedure", procedure}, {"unit", unit},
+  return {{"id", id},           {"kind", kind},         {"procedure", procedure}, {"model", model}, {"unit", unit},
           {"operator", operator_name}, {"state", state}, {"run_id", run_id.empty() ? nlohmann::json() : nlohmann::json(run_id)},
           {"pid", pid},         {"exit_code", exit_code}, {"message", message},   {"created_utc", created_utc}};
 }
@@ -64,6 +66,7 @@ void JobQueue::load() {
       Job j;
       j.kind = x.value("kind", "run");
       j.procedure = x.value("procedure", "");
+      j.model = x.value("model", "");
       j.unit = x.value("unit", "");
       j.operator_name = x.value("operator", "");
       try {
@@ -92,7 +95,18 @@ JobQueue::~JobQueue() {
 }
 
 void JobQueue::check(const Job& j) const {
-  if (j.kind != "run" && j.kind != "accept") throw std::invalid_argument("kind: \"run\" or \"accept\"");
+  if (j.kind != "run" && j.kind != "accept" && j.kind != "investigate") {
+    throw std::invalid_argument("kind: \"run\", \"accept\" or \"investigate\"");
+  }
+  if (j.kind == "investigate") {
+    const auto names = published_names();
+    if (std::find(names.begin(), names.end(), j.model) == names.end()) {
+      throw std::invalid_argument(fmt::format("model: \"{}\" is not a published set ({})", j.model,
+                                              fmt::join(names, ", ")));
+    }
+  } else if (!j.model.empty()) {
+    throw std::invalid_argument("model: only an investigate job takes one");
+  }
   if (j.kind == "run" || !j.procedure.empty()) {
     if (!safe_name(j.procedure) || !fs::is_regular_file(o_.procedures_dir / j.procedure)) {
       throw std::invalid_argument(fmt::format("procedure: \"{}\" is not a file of {}", j.procedure, o_.procedures_dir.string()));
@@ -100,7 +114,7 @@ void JobQueue::check(const Job& j) const {
   }
   if (!j.unit.empty() && !safe_name(j.unit)) throw std::invalid_argument("unit: 1-64 of A-Z a-z 0-9 . _ -");
   if (j.operator_name.size() > 100) throw std::invalid_argument("operator: at most 100 characters");
-  if (!o_.emulate && j.unit.empty()) throw std::invalid_argument("unit: needed on a real stand");
+  if (!o_.emulate && j.unit.empty() && j.kind != "investigate") throw std::invalid_argument("unit: needed on a real stand");
 }
 
 Job JobQueue::add(Job j) {
@@ -176,17 +190,19 @@ std::optional<Job> JobQueue::find(int64_t id) const {
 std::vector<std::string> JobQueue::argv_of(const Job& j) const {
   std::vector<std::string> a{o_.exe.string(), j.kind};
   if (j.kind == "run") a.push_back((o_.procedures_dir / j.procedure).string());
-  if (j.kind == "accept") {
+  if (j.kind == "accept" || j.kind == "investigate") {
     if (!j.procedure.empty()) a.insert(a.end(), {"--procedure", (o_.procedures_dir / j.procedure).string()});
-    a.push_back("--operator-prompts");
   }
-  a.insert(a.end(), {"--runs-dir", o_.runs_dir.string(), "--quiet", "--no-progress"});
+  if (j.kind == "accept") a.push_back("--operator-prompts");
+  if (j.kind == "investigate") a.insert(a.end(), {"--model", (published_dir() / (j.model + ".json")).string()});
+  a.insert(a.end(), {"--runs-dir", o_.runs_dir.string(), "--quiet"});
+  if (j.kind != "investigate") a.push_back("--no-progress");
   if (!o_.catalogue.empty()) a.insert(a.end(), {"--catalogue", o_.catalogue});
   if (j.kind == "run" && !j.operator_name.empty()) a.insert(a.end(), {"--operator", j.operator_name});
   if (o_.emulate) {
     a.push_back("--emulate");
     a.insert(a.end(), o_.emulator_args.begin(), o_.emulator_args.end());
-    if (!j.unit.empty()) a.insert(a.end(), {j.kind == "run" ? "--unit-serial" : "--unit", j.unit});
+    if (!j.unit.empty() && j.kind != "investigate") a.insert(a.end(), {j.kind == "run" ? "--unit-serial" : "--unit", j.unit});
   } else {
     a.insert(a.end(), {"--stand", o_.stand_file.string()});
     if (j.kind == "accept") a.insert(a.end(), {"--unit", j.unit});

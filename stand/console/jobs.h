@@ -31,8 +31,9 @@ struct ConsoleOptions {
 
 struct Job {
   int64_t id = 0;
-  std::string kind = "run";   // "run" or "accept"
-  std::string procedure;      // file name inside the procedures folder ("" for accept: the default)
+  std::string kind = "run";   // "run", "accept" or "investigate"
+  std::string procedure;      // file name inside the procedures folder ("" for accept and investigate: the default)
+  std::string model;          // investigate: the sim model, a published set's name (calib/data/published)
   std::string unit, operator_name;
   std::string state = "queued";  // queued, starting, running, finished, failed_to_start, removed
   std::string run_id;            // once the child has made its run folder

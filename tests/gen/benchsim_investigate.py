@@ -22,7 +22,9 @@ Kinds of case (parameters drawn per case from the seed):
 - temperature_sine: a slow temperature sine (2 deg C, period 400-1200 s, 1 arcsec/deg C on each axis,
   signs drawn) behind a dwells-only grid (it looks like a drift);
 - unambiguous: one catalogued effect at a time (benchsim.draw, "normal" size) behind the full
-  first run procedures/sim_to_real.yaml.
+  first run procedures/sim_to_real.yaml;
+- backlash_settling_one_side_marked (only with --kinds): the one-sided grid with a 5-frame dwell
+  where each approach starts (overshoot 250 arcsec), so the recording shows the approach's side.
 
 Per case: run the first procedure, `diagnose --partial`; then up to two rounds: when GAP.json has
 ambiguous sets or candidates whose status is unbounded or ambiguous, `design --discriminate GAP
@@ -91,9 +93,12 @@ def slews_only(rates):
             + slews("yaw", rates) + "  - move: {pitch_arcsec: 0, yaw_arcsec: 0}\n  - sample: {frames: 25, settle_s: 0.2}\n")
 
 
-def one_sided_grid(overshoot=300.0):
+def one_sided_grid(overshoot=300.0, marked=False):
     """The paper's grid points (null between offsets), each approached from below on both axes,
-    the offsets of each axis in ascending order."""
+    the offsets of each axis in ascending order. The approach's start is not recorded (the
+    diagnosis reads directions from the recorded reference alone, so it sees the jumps between
+    dwells instead), unless `marked`: then a 5-frame dwell where each approach starts records
+    its side, as the designer's own approaches do."""
     offs = [k * 216.0 for k in range(-7, 8) if k]
     t = "name: one_sided_grid\nsteps:\n  - home\n  - sample: {frames: 25, settle_s: 0.2}\n"
     for axis in (0, 1):
@@ -104,6 +109,8 @@ def one_sided_grid(overshoot=300.0):
             pts += [p, [0.0, 0.0]]
         for p in pts:
             t += f"  - move: {{pitch_arcsec: {p[0] - overshoot:g}, yaw_arcsec: {p[1] - overshoot:g}}}\n"
+            if marked:
+                t += "  - sample: {frames: 5}\n"
             t += f"  - move: {{pitch_arcsec: {p[0]:g}, yaw_arcsec: {p[1]:g}}}\n"
             t += "  - sample: {frames: 25, settle_s: 0.2}\n"
     return t
@@ -128,7 +135,7 @@ def case_truth(kind, k, rng):
         return base_truth(rng, ["time_skew"], {"time_skew": {"skew_s": u(0.002, 0.008)}})
     if kind == "settling_slews":
         return base_truth(rng, ["settling"], {"settling": {"amplitude_arcsec": u(0.3, 2.0), "tau_s": u(0.2, 1.5)}})
-    if kind == "backlash_settling_one_side":
+    if kind in ("backlash_settling_one_side", "backlash_settling_one_side_marked"):
         if k % 2 == 0:
             return base_truth(rng, ["backlash"], {"backlash": {"width_arcsec": u(1, 6)}})
         return base_truth(rng, ["settling"], {"settling": {"amplitude_arcsec": u(1, 3), "tau_s": u(3, 10)}})
@@ -150,7 +157,11 @@ def case_truth(kind, k, rng):
 
 KINDS = {"skew_dwells": dwells_only, "settling_slews": lambda: slews_only([300, 600]),
          "backlash_settling_one_side": one_sided_grid, "skew_backlash_slews": lambda: slews_only([300]),
-         "temperature_sine": dwells_only, "unambiguous": sim_to_real}
+         "temperature_sine": dwells_only, "unambiguous": sim_to_real,
+         # not in the default set (not one of the issue's cases): the one-sided grid with each
+         # approach's start recorded
+         "backlash_settling_one_side_marked": lambda: one_sided_grid(250.0, marked=True)}
+DEFAULT_KINDS = [k for k in KINDS if k != "backlash_settling_one_side_marked"]
 
 
 # ------------------------------------------------------------------ fpss-stand
@@ -357,7 +368,7 @@ def print_report(table, figs, res):
 def evaluate(a):
     work = a.work or f"/tmp/benchsim-investigate-{a.seed}"
     os.makedirs(work, exist_ok=True)
-    kinds = a.kinds.split(",") if a.kinds else list(KINDS)
+    kinds = a.kinds.split(",") if a.kinds else DEFAULT_KINDS
     jobs = [(kind, k) for kind in kinds for k in range(a.cases)]
     res = []
     with concurrent.futures.ProcessPoolExecutor(max_workers=max(1, a.jobs)) as ex:

@@ -190,6 +190,41 @@ TEST(Console, ControlNeedsTheTokenAndRequestsAreBounded) {
   EXPECT_EQ(r->status, 200) << "the page itself (no data) loads, so the token can be given";
 }
 
+TEST(Console, AnInvestigationIsQueuedAsAJobAndWritesItsRecord) {
+  TempDir t;
+  Serve s(t, {"--listen", "127.0.0.1:0", "--speed", "20", "--effect", "time_skew:skew_s=0.004"}, "serve-inv");
+  ASSERT_GT(s.port, 0) << s.banner;
+  const httplib::Headers auth{{"Authorization", "Bearer " + token_of(t)}};
+  auto c = s.client();
+  // The model is a published set's name, nothing else.
+  auto r = c.Post("/api/jobs", auth, R"({"kind":"investigate","model":"../../etc/passwd"})", "application/json");
+  ASSERT_EQ(r->status, 400);
+  EXPECT_NE(r->body.find("model"), std::string::npos) << r->body;
+  r = c.Post("/api/jobs", auth, R"({"kind":"run","procedure":"discrete_grid.yaml","model":"a-6-fpss1"})",
+             "application/json");
+  EXPECT_EQ(r->status, 400) << "only an investigation takes a model";
+  r = c.Post("/api/jobs", auth,
+             R"({"kind":"investigate","model":"a-6-fpss1","procedure":"discrete_grid.yaml","unit":"FPSS-I1"})",
+             "application/json");
+  ASSERT_EQ(r->status, 201) << r->body;
+  const int64_t id = json::parse(r->body)["id"];
+  json job;
+  ASSERT_TRUE(wait_until([&] {
+    job = json::parse(c.Get(("/api/jobs/" + std::to_string(id)).c_str())->body);
+    return job["state"] == "finished";
+  }, 240)) << job.dump();
+  EXPECT_EQ(job["exit_code"], 0) << read_file(t / "runs" / ".console" / ("job-" + std::to_string(id) + ".log"));
+  EXPECT_EQ(job["kind"], "investigate");
+  fs::path record;
+  for (const auto& e : fs::directory_iterator(t / "runs")) {
+    if (e.path().filename().string().rfind("investigation-", 0) == 0) record = e.path() / "INVESTIGATION.json";
+  }
+  ASSERT_TRUE(fs::exists(record));
+  const json inv = json::parse(read_file(record));
+  EXPECT_EQ(inv["cause"], "time_skew") << inv.dump(1);
+  EXPECT_GE(inv["runs"].size(), 2u);
+}
+
 TEST(Console, ARunOutlivesItsConsoleAndARestartedConsoleShowsItLive) {
   TempDir t;
   Serve s(t, {"--listen", "127.0.0.1:0"}, "serve1");

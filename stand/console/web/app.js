@@ -87,6 +87,7 @@ $('start-form').onsubmit = async (ev) => {
   ev.preventDefault();
   const kind = $('start-kind').value;
   const body = { kind, procedure: kind === 'run' ? $('start-procedure').value : '', unit: $('start-unit').value, operator: $('start-operator').value };
+  if (kind === 'investigate') body.model = $('start-model').value;
   // The last submission's answer would otherwise stand until this one's comes, naming the wrong job.
   $('start-message').textContent = 'queuing...';
   try {
