@@ -124,10 +124,12 @@ ConfusableCase run_case(const std::string& kind, int index, uint64_t seed, const
   o.settings = emulated_settings(cfg);
   o.bench = cfg;
   o.out_dir = dir;
+  double clock_s = 0;  // one bench: each run starts a minute after the last one ended
   const Investigation inv = investigate(first, o, [&](const fs::path& procedure, int k) {
     BenchConfig run_cfg = cfg;
     run_cfg.seed = seed * 1000 + static_cast<uint64_t>(index) * 10 + static_cast<uint64_t>(k);
-    SampleTable t = simulate_procedure(load_procedure(procedure), o.settings, run_cfg);
+    SampleTable t = simulate_procedure(load_procedure(procedure), o.settings, run_cfg, clock_s);
+    if (t.size() > 0) clock_s = t.time_s.back() + 60.0;
     InvestigationRun r;
     r.samples = dir / fmt::format("run-{}.csv", k + 1);
     write_samples_csv(r.samples.string(), t);

@@ -69,13 +69,15 @@ std::vector<SessionOp> session_ops(const Plan& plan, const EngineSettings& setti
   return ops;
 }
 
-SampleTable simulate_procedure(const Procedure& procedure, const EngineSettings& settings, const BenchConfig& bench) {
+SampleTable simulate_procedure(const Procedure& procedure, const EngineSettings& settings, const BenchConfig& bench,
+                               double start_s) {
   Diagnostics d(procedure.origin);
   const Plan plan = expand(procedure, settings, d);
   d.throw_if_any();
   BenchConfig cfg = bench;
   cfg.sample_rate_hz = settings.sample_rate_hz;
   Bench b(cfg);
+  b.advance_to(start_s);
   SampleTable t = record_ops(b, session_ops(plan, settings));
   t.origin = procedure.origin;
   return t;

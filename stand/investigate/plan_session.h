@@ -17,8 +17,11 @@ namespace fpss {
 std::vector<SessionOp> session_ops(const Plan& plan, const EngineSettings& settings);
 
 // The procedure expanded for the stand and run on a fresh bench (its noise, effects and seed):
-// samples in the contract with temperature_c and time_since_move_s. Throws InputError when the
-// procedure does not expand on the stand.
-SampleTable simulate_procedure(const Procedure& procedure, const EngineSettings& settings, const BenchConfig& bench);
+// samples in the contract with temperature_c and time_since_move_s. `start_s`: the bench's clock
+// when the run starts (its environment, temperature and drift, has run that long: a later run on
+// the same bench); the recorded time_s runs on that clock. Throws InputError when the procedure
+// does not expand on the stand.
+SampleTable simulate_procedure(const Procedure& procedure, const EngineSettings& settings, const BenchConfig& bench,
+                               double start_s = 0);
 
 }  // namespace fpss

@@ -4,6 +4,7 @@
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <initializer_list>
 #include <map>
 #include <string>
@@ -12,6 +13,7 @@
 #include "calib/diagnosis/diagnosis.h"
 #include "calib/samples.h"
 #include "stand/blindtest/blindtest.h"
+#include "stand/investigate/confusable.h"
 
 namespace fpss {
 namespace {
@@ -60,6 +62,26 @@ void BM_BlindTest200(benchmark::State& state) {
   if (!met) state.SkipWithError("blind-check targets not met");
 }
 BENCHMARK(BM_BlindTest200)->Arg(7)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
+
+// ------------------------------------------------------------------ the active loop
+
+// The confusable and unseen cases (stand/investigate/confusable.h), each investigated to the end:
+// targets (issue "Active sim-to-real"): the true effect named with its main parameter within 10 %
+// after at most two follow-ups in >= 95 % of the confusable cases, >= 95 % of the unambiguous
+// cases stopping after the first run, the follow-ups' bench time <= 1.0x the first run's.
+void BM_ConfusableInvestigations(benchmark::State& state) {
+  ConfusableReport rep;
+  const auto work = std::filesystem::temp_directory_path() / "fpss-bench-confusable";
+  for (auto _ : state) rep = run_confusable_cases(static_cast<int>(state.range(0)), 2, work);
+  std::filesystem::remove_all(work);
+  const auto s = rep.summary();
+  state.counters["named_10pct"] = s["confusable_named_within_10_percent"].get<double>();
+  state.counters["unambiguous_first"] = s["unambiguous_stopped_after_first_run"].get<double>();
+  state.counters["followup_ratio_max"] = s["max_followup_ratio"].get<double>();
+  state.counters["cases"] = static_cast<double>(rep.cases.size());
+  std::printf("\n%s\n", rep.to_text().c_str());
+}
+BENCHMARK(BM_ConfusableInvestigations)->Arg(6)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 
 // Two effects per case: every distinguishable pair twice (86 cases).
 void BM_BlindTestPairs(benchmark::State& state) {
