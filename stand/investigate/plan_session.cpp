@@ -6,19 +6,28 @@
 
 namespace fpss {
 
+namespace {
+
+SessionOp op_at(SessionOp::Kind kind, double pitch_arcsec, double yaw_arcsec) {
+  SessionOp op;
+  op.kind = kind;
+  op.pitch_arcsec = pitch_arcsec;
+  op.yaw_arcsec = yaw_arcsec;
+  return op;
+}
+
+}  // namespace
+
 std::vector<SessionOp> session_ops(const Plan& plan, const EngineSettings& settings) {
   std::vector<SessionOp> ops;
   for (const Action& a : plan.actions) {
     SessionOp op;
     switch (a.kind) {
       case Action::Kind::home:
-        op.kind = SessionOp::Kind::move;
-        ops.push_back(op);
+        ops.push_back(op_at(SessionOp::Kind::move, 0, 0));
         break;
       case Action::Kind::move:
-        op.kind = SessionOp::Kind::move;
-        op.pitch_arcsec = a.pitch_arcsec;
-        op.yaw_arcsec = a.yaw_arcsec;
+        op = op_at(SessionOp::Kind::move, a.pitch_arcsec, a.yaw_arcsec);
         op.rate_arcsec_s = a.rate_arcsec_s;
         ops.push_back(op);
         break;
@@ -28,9 +37,7 @@ std::vector<SessionOp> session_ops(const Plan& plan, const EngineSettings& setti
         ops.push_back(op);
         break;
       case Action::Kind::dwell:
-        op.kind = SessionOp::Kind::dwell;
-        op.pitch_arcsec = a.pitch_arcsec;
-        op.yaw_arcsec = a.yaw_arcsec;
+        op = op_at(SessionOp::Kind::dwell, a.pitch_arcsec, a.yaw_arcsec);
         op.settle_s = a.settle_s;
         op.frames = a.frames;
         op.sample_rate_hz = settings.sample_rate_hz;
@@ -38,11 +45,7 @@ std::vector<SessionOp> session_ops(const Plan& plan, const EngineSettings& setti
         ops.push_back(op);
         break;
       case Action::Kind::slew: {
-        SessionOp start;
-        start.kind = SessionOp::Kind::move;
-        start.pitch_arcsec = a.start_pitch_arcsec;
-        start.yaw_arcsec = a.start_yaw_arcsec;
-        ops.push_back(start);
+        ops.push_back(op_at(SessionOp::Kind::move, a.start_pitch_arcsec, a.start_yaw_arcsec));
         if (a.settle_s > 0) {
           SessionOp wait;
           wait.kind = SessionOp::Kind::settle;
@@ -50,9 +53,8 @@ std::vector<SessionOp> session_ops(const Plan& plan, const EngineSettings& setti
           ops.push_back(wait);
         }
         for (int k = 0; k <= a.reversals; ++k) {
-          SessionOp leg;
-          leg.kind = SessionOp::Kind::slew;
-          std::tie(leg.pitch_arcsec, leg.yaw_arcsec) = a.leg_target(k);
+          const auto [p, y] = a.leg_target(k);
+          SessionOp leg = op_at(SessionOp::Kind::slew, p, y);
           leg.rate_arcsec_s = a.rate_arcsec_s;
           leg.sample_period_s = a.sample_period_s;
           leg.same_step = k > 0;

@@ -66,7 +66,7 @@ BENCHMARK(BM_BlindTest200)->Arg(7)->Iterations(1)->Unit(benchmark::kSecond)->Use
 // ------------------------------------------------------------------ the active loop
 
 // The confusable and unseen cases (stand/investigate/confusable.h), each investigated to the end:
-// targets (issue "Active sim-to-real"): the true effect named with its main parameter within 10 %
+// targets (docs/diagnosis.md, "Confusable and unseen cases"): the true effect named with its main parameter within 10 %
 // after at most two follow-ups in >= 95 % of the confusable cases, >= 95 % of the unambiguous
 // cases stopping after the first run, the follow-ups' bench time <= 1.0x the first run's.
 void BM_ConfusableInvestigations(benchmark::State& state) {

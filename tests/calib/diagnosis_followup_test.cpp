@@ -12,47 +12,16 @@
 #include "calib/diagnosis/followup.h"
 #include "fixtures/bench.h"
 #include "fixtures/recording.h"
+#include "tests/calib/diagnosis_recordings.h"
 
 namespace fpss {
 // Named, not anonymous: the unity build puts this file beside diagnosis_test.cpp.
 namespace followup_test {
 
-constexpr double kSettle = 0.2;
-
-BenchConfig bench(uint64_t seed, const std::vector<std::string>& effects) {
-  BenchConfig c = default_bench_config();
-  c.seed = seed;
-  c.temperature.ramp_c_per_s = 0.02;
-  c.temperature.amplitude_c = 1.5;
-  c.temperature.period_s = 40;
-  for (const auto& e : effects) c.effects.push_back(parse_effect(e));
-  return c;
-}
-
-SessionPlan plan(bool grid, bool slews) {
-  SessionPlan p;
-  if (grid) {
-    GridPlan g;
-    g.extent_deg = 0.36;
-    g.step_deg = 0.12;
-    g.samples_per_dwell = 20;
-    g.sample_rate_hz = 50;
-    g.settle_s = kSettle;
-    p.grids.push_back(g);
-  }
-  if (slews) {
-    for (int axis : {0, 1}) {
-      for (double rate : {300.0, 600.0}) p.slews.push_back(SlewPlan{axis, 1200.0, rate, 0.02});
-    }
-  }
-  return p;
-}
-
-DiagnosisOptions options() {
-  DiagnosisOptions o;
-  o.settle_s = kSettle + 0.005;
-  return o;
-}
+using diagnosis_test::bench;
+using diagnosis_test::kSettle;
+using diagnosis_test::options;
+using diagnosis_test::plan;
 
 DiagnosisColumns record(const BenchConfig& cfg, const SessionPlan& p, const std::string& origin) {
   Bench b(cfg);

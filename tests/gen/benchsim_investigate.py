@@ -28,7 +28,8 @@ Kinds of case (parameters drawn per case from the seed):
 
 Per case: run the first procedure, `diagnose --partial`; then up to two rounds: when GAP.json has
 ambiguous sets or candidates whose status is unbounded or ambiguous, `design --discriminate GAP
---observe GAP --emulate --out FUP.yaml --json` (default budget), stop when it exits 1, otherwise
+--observe GAP --emulate --out FUP.yaml --json --max-bench-s B` (B: the investigation's budget, half the
+first run's bench time and at most what is left of 1.0x it), stop when it exits 1, otherwise
 run FUP.yaml and diagnose all recordings so far jointly. Recorded: the true effect named in
 `causes` with its main parameter within 10 %, the follow-ups run, their bench time over the first
 run's (GAP.json recordings[].time_span_s), and for unambiguous cases whether it stopped after the
@@ -262,8 +263,15 @@ def run_case(binary, work, kind, k, seed, budget_x=None):
             if not needs_followup(gap):
                 break
             fup_yaml = os.path.join(d, f"fup{rnd}.yaml")
-            first_s = gap["recordings"][0]["time_span_s"][1] - gap["recordings"][0]["time_span_s"][0]
-            dj, failed, err = design(binary, gap_path, fup_yaml, budget_x * first_s if budget_x else None)
+            spans = [g["time_span_s"][1] - g["time_span_s"][0] for g in gap["recordings"]]
+            first_s, used_s = spans[0], sum(spans[1:])
+            # The investigation's budget (docs/diagnosis.md, "fpss-stand investigate"): each follow-up
+            # at most half the first run's bench time, all of them at most the first run's.
+            budget = budget_x * first_s if budget_x else min(0.5 * first_s, first_s - used_s)
+            if budget <= 1.0:
+                r["rounds"].append({"round": rnd, "designed": False, "design": "budget spent"})
+                break
+            dj, failed, err = design(binary, gap_path, fup_yaml, budget)
             rec = {"round": rnd, "designed": dj is not None}
             if dj is None:
                 rec.update(design=failed, stderr=err)
