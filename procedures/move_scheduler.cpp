@@ -90,8 +90,20 @@ std::optional<SensorSample> MoveScheduler::wait_bench_until(double t_s) {
   }
 }
 
+void MoveScheduler::note_motion(double from_pitch, double from_yaw, double to_pitch, double to_yaw) {
+  const double from[2] = {rest_known_ ? rest_[0] : from_pitch, rest_known_ ? rest_[1] : from_yaw};
+  const double to[2] = {to_pitch, to_yaw};
+  const double still = 2 * b_.in_position_tolerance_arcsec;
+  for (int a = 0; a < 2; ++a) {
+    if (std::fabs(to[a] - from[a]) > still) dir_[a] = to[a] > from[a] ? 1 : -1;
+    rest_[a] = to[a];
+  }
+  rest_known_ = true;
+}
+
 GimbalState MoveScheduler::move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing) {
   const double rate = io_.move_rate_arcsec_s();
+  const double entry_pitch = io_.last_pitch_arcsec(), entry_yaw = io_.last_yaw_arcsec();
   double arrival = 0;         // when the profile says the gimbal arrives (bench clock): the next look
   double arrival_latest = 0;  // the same from the latest instant the motion can have started
   double on_its_way_s = 0;    // the last instant known to be before the arrival
@@ -136,6 +148,7 @@ GimbalState MoveScheduler::move_and_wait(double pitch, double yaw, double timeou
       // from a known start (a scheduled move's) or from a reading in motion (its position and
       // speed), within what the readings bracket; without either, the reading that found it there.
       arrived_s_ = std::min(std::max(arrival_latest, on_its_way_s), clock_.last_gimbal_s());
+      note_motion(entry_pitch, entry_yaw, st.pitch_arcsec, st.yaw_arcsec);
       return st;
     }
     if (seconds_since(start) > timeout_wall) {

@@ -1,5 +1,6 @@
 // The engine's moves and waits on bench time: a move and its arrival, the next moves commanded or scheduled ahead of the dwell that ends.
 #pragma once
+#include <utility>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -27,6 +28,12 @@ class MoveScheduler {
   // there (docs/procedures.md, "How the engine waits"), which settles count from.
   GimbalState move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing = false);
   double arrived_s() const { return arrived_s_; }
+  // The side each stand axis last came from (+1 upwards, -1 downwards, 0 before any motion): every
+  // move and slew leg of the run counts, those between recorded rows too (samples.csv's
+  // approach_pitch/approach_yaw, in the sensor's frame). A move of an axis by at most twice the
+  // in-position tolerance is none.
+  std::pair<int, int> approach() const { return {dir_[0], dir_[1]}; }
+  void note_motion(double from_pitch, double from_yaw, double to_pitch, double to_yaw);
 
   // Waits until the bench clock reaches t_s: the host clock for the part surely ahead, then (one
   // clock for both devices) the sensor's time-stamped frames. Returns the first frame at or after
@@ -94,6 +101,9 @@ class MoveScheduler {
   bool queue_refused_ = false;        // the same for a scheduled move behind one under way
   bool late_for_schedule_ = false;
   double arrived_s_ = 0;  // the last move's arrival (bench clock), however late a reading saw it
+  double rest_[2] = {0, 0};  // where the gimbal last came to rest (stand frame, its readings)
+  bool rest_known_ = false;
+  int dir_[2] = {0, 0};
   // A move commanded ahead (command_next_move): its target and predicted arrival (bench clock),
   // from the latest stamp before the command (the first look, never late) and from the bench
   // time once the command was surely sent (the latest it can arrive if it follows its profile).

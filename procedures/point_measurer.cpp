@@ -74,6 +74,15 @@ RecordedRow PointMeasurer::make_row(const Action& a, Phase phase, const SensorSa
   return r;
 }
 
+void PointMeasurer::set_approach(RecordedRow& row, const AxisMapping& axes) const {
+  // The stand axes' sides through the unit's mapping: a sign per sensor axis (the mapping only
+  // swaps and negates axes).
+  const auto [p, y] = sched_.approach();
+  const auto [a, b] = axes.sensor_from_stand(p, y);
+  row.approach_pitch = a;
+  row.approach_yaw = b;
+}
+
 double PointMeasurer::since_arrival_s(const SensorSample& f, const GimbalState& arrived, double arrived_s) const {
   // One clock for both devices: the frame's own stamp. Else the host's receipts of the frame and
   // of the in-position reading, at the bench's pace, from that reading's stamp back to the arrival.
@@ -329,6 +338,7 @@ void PointMeasurer::measure_dwell(const Action& a, int session) {
       const double ts = clock_.sensor_clock_s(d.frames[i]);
       rows.push_back(make_row(a, a.phase, d.frames[i], ts, clock_.stand_time(ts), ref, temp, attempt, session, io_.lead()));
       rows.back().time_since_move_s = since_arrival_s(d.frames[i], arrived, arrived_s);
+      set_approach(rows.back(), io_.lead().axes);
     }
     for (size_t u : io_.followers()) {
       std::vector<RecordedRow> more = follower_dwell(a, u, d, rows, arrived, arrived_s, attempt, session);
@@ -422,6 +432,8 @@ void PointMeasurer::measure_slew(const Action& a, int session) {
           throw GimbalFailure(fmt::format("gimbal fault ({}) during the slew", fault_name(st)));
         io_.check_commanded_place(st);
         if (in_position_at(st, a.leg_target(leg), tol)) {
+          const auto from = leg > 0 ? a.leg_target(leg - 1) : std::pair{a.start_pitch_arcsec, a.start_yaw_arcsec};
+          sched_.note_motion(from.first, from.second, st.pitch_arcsec, st.yaw_arcsec);
           if (leg++ == a.reversals) break;
           Timed t(stats_.device_s);
           io_.command_move(a.leg_target(leg).first, a.leg_target(leg).second);

@@ -58,6 +58,8 @@ class PointMeasurer {
   // A dwell frame's time since the gimbal's arrival (`arrived`, the reading that found it in
   // position; arrived_s, the arrival on the gimbal's clock that the settle counts from).
   double since_arrival_s(const SensorSample& f, const GimbalState& arrived, double arrived_s) const;
+  // A dwell row's approach_pitch/approach_yaw: the scheduler's sides through this unit's mapping.
+  void set_approach(RecordedRow& row, const AxisMapping& axes) const;
   void recover(const std::string& reason, bool sensor_side);
   // Publishes the rows (the recorder makes them durable), then PointDone.
   void publish_point(const Action& a, std::vector<RecordedRow> rows, int attempt, int session, int invalid);

@@ -96,6 +96,7 @@ std::vector<RecordedRow> PointMeasurer::follower_dwell(const Action& a, size_t u
                                   : std::round((lead_rows[j].sample.time_s + (t - lead_t[j]) * b_.time_scale) * 1e6) / 1e6;
     rows.push_back(make_row(a, a.phase, f, ts, stand_s, ref, temp, attempt, session, u));
     rows.back().time_since_move_s = since_arrival_s(f, arrived, arrived_s);
+    set_approach(rows.back(), u.axes);
   }
   return rows;
 }

@@ -23,7 +23,7 @@ const std::vector<std::string>& recorder_extra_columns() {
   static const std::vector<std::string> c{
       "sensor_time_s", "frame_seq",  "sensor_status",        "host_time_s",         "gimbal_time_s",
       "gimbal_pitch_arcsec", "gimbal_yaw_arcsec", "gimbal_status", "target_pitch_arcsec", "target_yaw_arcsec",
-      "temperature_c", "attempt",    "session", "time_since_move_s"};
+      "temperature_c", "attempt",    "session", "time_since_move_s", "approach_pitch", "approach_yaw"};
   return c;
 }
 
@@ -31,7 +31,7 @@ std::vector<double> RecordedRow::provenance() const {
   return {sensor_time_s, static_cast<double>(frame_seq), static_cast<double>(sensor_status), host_time_s, gimbal_time_s,
           gimbal_pitch_arcsec, gimbal_yaw_arcsec, static_cast<double>(gimbal_status), target_pitch_arcsec,
           target_yaw_arcsec, temperature_c, static_cast<double>(attempt), static_cast<double>(session),
-          time_since_move_s};
+          time_since_move_s, approach_pitch, approach_yaw};
 }
 
 std::vector<std::string> RecordedRow::extras() const {

@@ -36,6 +36,10 @@ struct RecordedRow {
   // Dwells: the row's time less the gimbal's arrival (the arrival the settle counts from, on the
   // gimbal's clock); NaN (empty) in slews, which are moving.
   double time_since_move_s = std::numeric_limits<double>::quiet_NaN();
+  // Dwells: the side each axis last came from, in the samples' (sensor) frame, +1, -1 or 0 before
+  // any motion (MoveScheduler::approach); NaN (empty) in slews.
+  double approach_pitch = std::numeric_limits<double>::quiet_NaN();
+  double approach_yaw = std::numeric_limits<double>::quiet_NaN();
   // The recorder's columns as numbers (temperature NaN when not answered), in their order.
   std::vector<double> provenance() const;
   // The same as samples.csv writes them ("" for NaN).

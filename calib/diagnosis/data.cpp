@@ -185,7 +185,7 @@ void rates(Recording& r) {
   }
 }
 
-void directions(Recording& r, const DiagnosisOptions& opts) {
+void directions(Recording& r, const DiagnosisOptions& opts, const std::vector<float>* approach) {
   const size_t n = r.n;
   // Direction of motion (backlash), per axis and row, from the reference's own motion and
   // never from step boundaries or labels: a hysteresis on the running extreme, `reverse`
@@ -217,6 +217,15 @@ void directions(Recording& r, const DiagnosisOptions& opts) {
     int8_t d = 0;
     size_t hi_i = 0, lo_i = 0;  // the extremes since the last turn
     for (size_t i = 0; i < n; ++i) {
+      // A dwell row that says which side its axis came from (the recorder knows every move, those
+      // between recorded rows too): that side, and the hysteresis starts again from it.
+      if (!approach[a].empty() && r.steps[r.step_of[i]].kind == StepKind::dwell && std::isfinite(approach[a][i]) &&
+          approach[a][i] != 0) {
+        d = approach[a][i] > 0 ? 1 : -1;
+        hi_i = lo_i = i;
+        r.dir[a][i] = d;
+        continue;
+      }
       if (x[i] > x[hi_i]) hi_i = i;
       if (x[i] < x[lo_i]) lo_i = i;
       int8_t turn = 0;
@@ -391,7 +400,7 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   if (!(opts.max_skew_s >= 0) || !(opts.settle_s >= 0) || opts.heldout_every < 2) {
     throw InputError("diagnosis options: max_skew_s and settle_s must be >= 0, heldout_every >= 2");
   }
-  for (const auto* v : {&data.temperature_c, &data.time_since_move_s}) {
+  for (const auto* v : {&data.temperature_c, &data.time_since_move_s, &data.approach_pitch, &data.approach_yaw}) {
     if (!v->empty() && v->size() != r.n) throw InputError(fmt::format("{}: an optional column's length differs", r.origin));
   }
   reduce_dwells(r, data, opts);
@@ -401,7 +410,9 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   expected_scatter(r, model);
   flag_outlier_frames(r, model, opts);
   rates(r);
-  directions(r, opts);
+  const std::vector<float> approach[2] = {std::move(data.approach_pitch), std::move(data.approach_yaw)};
+  r.has_approach = !approach[0].empty();
+  directions(r, opts, approach);
   settling_clock(r, data.time_since_move_s, opts);
   split_steps(r, opts);
   return r;
@@ -414,8 +425,10 @@ namespace fpss {
 DiagnosisColumns DiagnosisColumns::of(const SampleTable& t) {
   // The optional columns are filled below, where the table has them.
   DiagnosisColumns c{t.origin, t.time_s, t.ref_pitch_arcsec, t.ref_yaw_arcsec, t.counts_alpha, t.counts_beta,
-                     t.step, /*temperature_c=*/{}, /*time_since_move_s=*/{}, /*parts=*/{}};
-  for (auto [name, out] : {std::pair{"temperature_c", &c.temperature_c}, {"time_since_move_s", &c.time_since_move_s}}) {
+                     t.step, /*temperature_c=*/{}, /*time_since_move_s=*/{}, /*approach_pitch=*/{},
+                     /*approach_yaw=*/{}, /*parts=*/{}};
+  for (auto [name, out] : {std::pair{"temperature_c", &c.temperature_c}, {"time_since_move_s", &c.time_since_move_s},
+                           {"approach_pitch", &c.approach_pitch}, {"approach_yaw", &c.approach_yaw}}) {
     if (!t.has_column(name)) continue;
     const std::vector<double> v = t.numeric_column(name);
     out->assign(v.begin(), v.end());
@@ -432,6 +445,9 @@ DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts) {
   if (parts.size() == 1) return std::move(parts.front());
   const bool since = std::all_of(parts.begin(), parts.end(), [](const DiagnosisColumns& c) {
     return !c.time_since_move_s.empty();
+  });
+  const bool approach = std::all_of(parts.begin(), parts.end(), [](const DiagnosisColumns& c) {
+    return !c.approach_pitch.empty() && !c.approach_yaw.empty();
   });
   const bool temp = std::any_of(parts.begin(), parts.end(), [](const DiagnosisColumns& c) {
     return !c.temperature_c.empty();
@@ -461,6 +477,10 @@ DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts) {
       else append(j.temperature_c, c.temperature_c);
     }
     if (since) append(j.time_since_move_s, c.time_since_move_s);
+    if (approach) {
+      append(j.approach_pitch, c.approach_pitch);
+      append(j.approach_yaw, c.approach_yaw);
+    }
     j.parts.emplace_back(c.origin, n);
     names.push_back(c.origin);
   }
@@ -477,6 +497,7 @@ DiagnosisColumns read_diagnosis_columns(const std::filesystem::path& path, int64
       [&](const SampleTable& t, size_t from, double fraction_read) {
         if (done) return;
         const bool temp = t.has_column("temperature_c"), since = t.has_column("time_since_move_s");
+        const bool side = t.has_column("approach_pitch") && t.has_column("approach_yaw");
         if (first && t.size() > from) {
           // Reserve once from the first chunk's share of the file (plus a margin), so that growing
           // the columns never holds two copies of them.
@@ -488,10 +509,13 @@ DiagnosisColumns read_diagnosis_columns(const std::filesystem::path& path, int64
           c.step.reserve(est);
           if (temp) c.temperature_c.reserve(est);
           if (since) c.time_since_move_s.reserve(est);
+          if (side) { c.approach_pitch.reserve(est); c.approach_yaw.reserve(est); }
         }
         std::vector<double> tc, sc;
         if (temp) tc = t.numeric_column("temperature_c");
         if (since) sc = t.numeric_column("time_since_move_s");
+        std::vector<double> ap, ay;
+        if (side) { ap = t.numeric_column("approach_pitch"); ay = t.numeric_column("approach_yaw"); }
         for (size_t i = from; i < t.size(); ++i) {
           if (t.step[i] > last_step) { done = true; return; }
           c.time_s.push_back(t.time_s[i]);
@@ -502,6 +526,10 @@ DiagnosisColumns read_diagnosis_columns(const std::filesystem::path& path, int64
           c.step.push_back(t.step[i]);
           if (temp) c.temperature_c.push_back(static_cast<float>(tc[i]));
           if (since) c.time_since_move_s.push_back(static_cast<float>(sc[i]));
+          if (side) {
+            c.approach_pitch.push_back(static_cast<float>(ap[i]));
+            c.approach_yaw.push_back(static_cast<float>(ay[i]));
+          }
         }
       },
       1024);

@@ -490,7 +490,8 @@ void Diagnoser::describe() {
                  {"noise_floor_per_axis_arcsec", {{"pitch", sig[0]}, {"yaw", sig[1]}}},
                  {"temperature_c", r.has_temperature},
                  {"settle_s", opts_.settle_s},
-                 {"arrival_times", r.has_since_move ? "recorded" : "assumed settle_s"}};
+                 {"arrival_times", r.has_since_move ? "recorded" : "assumed settle_s"},
+                 {"approach_sides", r.has_approach ? "recorded" : "read from the reference"}};
 }
 
 // Every candidate against the end state, with the material magnitudes of this stand's recordings.

@@ -167,13 +167,15 @@ struct Diagnosis {
 };
 
 // The columns the diagnosis reads, column-major and nothing else (about 60 bytes a row): the
-// samples file's required columns but `phase` (labels are not trusted), and temperature_c and
-// time_since_move_s when the recording has them (empty otherwise).
+// samples file's required columns but `phase` (labels are not trusted), and temperature_c,
+// time_since_move_s and approach_pitch/approach_yaw (the side each axis last came from, in the
+// recording's frame) when the recording has them (empty otherwise).
 struct DiagnosisColumns {
   std::string origin;
   std::vector<double> time_s, ref_pitch_arcsec, ref_yaw_arcsec, counts_alpha, counts_beta;
   std::vector<int64_t> step;
   std::vector<float> temperature_c, time_since_move_s;
+  std::vector<float> approach_pitch, approach_yaw;  // +1, -1, 0 (no motion yet), NaN (moving)
   // The recordings joined into these columns (join_recordings), in order: each one's origin and
   // rows; empty for a single recording.
   std::vector<std::pair<std::string, size_t>> parts;

@@ -42,6 +42,7 @@ struct Recording {
   std::vector<float> temp;      // temperature_c, NaN when absent
   bool has_temperature = false;
   bool has_since_move = false;    // the recording had a time_since_move_s column
+  bool has_approach = false;      // ... and approach_pitch/approach_yaw (the side of each dwell)
   std::vector<uint32_t> step_of;  // index into steps
   std::vector<Step> steps;
   std::vector<float> vel[2];        // reference rate, arcsec/s (0 in dwells)
