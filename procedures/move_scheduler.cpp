@@ -94,10 +94,12 @@ void MoveScheduler::note_motion(double from_pitch, double from_yaw, double to_pi
   const double from[2] = {rest_known_ ? rest_[0] : from_pitch, rest_known_ ? rest_[1] : from_yaw};
   const double to[2] = {to_pitch, to_yaw};
   const double still = 2 * b_.in_position_tolerance_arcsec;
-  for (int a = 0; a < 2; ++a) {
-    if (std::fabs(to[a] - from[a]) > still) dir_[a] = to[a] > from[a] ? 1 : -1;
-    rest_[a] = to[a];
+  const bool moved[2] = {std::fabs(to[0] - from[0]) > still, std::fabs(to[1] - from[1]) > still};
+  // A move that moves no axis (a dwell re-commanding its point) is none: the last real one stands.
+  if (moved[0] || moved[1]) {
+    for (int a = 0; a < 2; ++a) dir_[a] = moved[a] ? (to[a] > from[a] ? 1 : -1) : 0;
   }
+  for (int a = 0; a < 2; ++a) rest_[a] = to[a];
   rest_known_ = true;
 }
 

@@ -28,10 +28,10 @@ class MoveScheduler {
   // there (docs/procedures.md, "How the engine waits"), which settles count from.
   GimbalState move_and_wait(double pitch, double yaw, double timeout_physical_s, bool homing = false);
   double arrived_s() const { return arrived_s_; }
-  // The side each stand axis last came from (+1 upwards, -1 downwards, 0 before any motion): every
-  // move and slew leg of the run counts, those between recorded rows too (samples.csv's
-  // approach_pitch/approach_yaw, in the sensor's frame). A move of an axis by at most twice the
-  // in-position tolerance is none.
+  // Each stand axis's direction in the last move that moved the gimbal (+1 upwards, -1 downwards,
+  // 0 when that move left the axis where it was, or before any): every move and slew leg of the
+  // run counts, those between recorded rows too (samples.csv's approach_pitch/approach_yaw, in the
+  // sensor's frame). A move of an axis by at most twice the in-position tolerance is none.
   std::pair<int, int> approach() const { return {dir_[0], dir_[1]}; }
   void note_motion(double from_pitch, double from_yaw, double to_pitch, double to_yaw);
 

@@ -266,7 +266,8 @@ void directions(Recording& r, const DiagnosisOptions& opts, const std::vector<fl
   }
 }
 
-void settling_clock(Recording& r, std::vector<float>& since_col, const DiagnosisOptions& opts) {
+void settling_clock(Recording& r, std::vector<float>& since_col, const DiagnosisOptions& opts,
+                    const std::vector<float>* approach) {
   const size_t n = r.n;
   // Settling clock, as docs/diagnosis.md states the physics: every dwell follows an arrival
   // settle_s before its first row (or time_since_move_s). The axes that ring are those that moved
@@ -300,6 +301,12 @@ void settling_clock(Recording& r, std::vector<float>& since_col, const Diagnosis
         else if (prev.kind == StepKind::motion && prev.moves[a]) now[a] = r.dir[a][s.begin - 1];
         moved = moved || now[a] != 0;
       }
+    }
+    // A recorded approach says which axes the last move moved and which way (an approach through
+    // an unrecorded overshoot too).
+    if (!approach[0].empty() && std::isfinite(approach[0][s.begin]) && std::isfinite(approach[1][s.begin])) {
+      for (int a = 0; a < 2; ++a) now[a] = static_cast<int8_t>(approach[a][s.begin]);
+      moved = true;
     }
     if (moved || !std::isfinite(arrival)) {
       ring[0] = now[0];
@@ -413,7 +420,7 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   const std::vector<float> approach[2] = {std::move(data.approach_pitch), std::move(data.approach_yaw)};
   r.has_approach = !approach[0].empty();
   directions(r, opts, approach);
-  settling_clock(r, data.time_since_move_s, opts);
+  settling_clock(r, data.time_since_move_s, opts, approach);
   split_steps(r, opts);
   return r;
 }

@@ -28,8 +28,9 @@ skipped, they do not touch the bench):
 Every arrival of a move that moved an axis (a slew's legs included) is an arrival in benchsim's
 sense: settling rings from it on the axes that moved, until the next move starts. The session
 starts with the gimbal at rest at (0, 0) (homed before the session: time_since_move_s counts from
-the session's start until the first arrival). samples.csv always has temperature_c and
-time_since_move_s (empty on slew rows, where the gimbal moves).
+the session's start until the first arrival). samples.csv always has temperature_c,
+time_since_move_s and approach_pitch/approach_yaw (each axis's direction in the last move that
+moved the gimbal, 0 if it stood still in it: docs/formats.md), all empty on slew rows.
 
 Truth (truth.json): {"classes": [...], "params": {class: {...}} (benchsim.draw's names),
 "temperature": {t0_c, ramp_c_per_s, amplitude_c, period_s[, phase_rad]}, "bench":
@@ -156,6 +157,10 @@ class Session:
         self.target = [0.0, 0.0]
         self.step = 0
         self.samples, self.arrivals, self.slew_steps = [], [], set()
+        # Each axis's direction in the last move that moved the gimbal, 0 when it stood still in it
+        # (approach_pitch/yaw, docs/formats.md).
+        self.side = [0.0, 0.0]
+        self.sides = {}  # dwell step -> the sides when it was sampled
 
     # -- the gimbal
     def move(self, target, rate=None):
@@ -164,6 +169,9 @@ class Session:
         x0 = self.g.x.copy()
         moved = self.g.move(target, rate or self.profile_rate)
         d = np.sign(np.asarray(target) - x0)
+        went = [abs(target[a] - x0[a]) > 2.0 for a in range(2)]
+        if any(went):  # a move that moves no axis is none: the last real one stands
+            self.side = [float(d[a]) if went[a] else 0.0 for a in range(2)]
         if np.any(moved):
             self.arrivals.append((self.g.t, moved & (d != 0), d))
         self.target = target
@@ -172,6 +180,7 @@ class Session:
         """One step of `frames` samples at the current target, the first settle_s from now."""
         self.g.hold(settle_s)
         self.step += 1
+        self.sides[self.step] = list(self.side)
         phase = phase or ("null" if self.target == [0.0, 0.0] else "offset")
         t0 = self.g.t
         for k in range(frames):
@@ -266,6 +275,8 @@ def run_procedure(steps, truth, seed, lab_start_s=0.0):
     since[moving] = np.nan
     before = ~moving & np.isnan(since)       # no arrival yet: at rest since the session started
     since[before] = rows["time_s"][before]
+    for a, name in enumerate(("approach_pitch", "approach_yaw")):
+        rows[name] = np.array([s.sides[k][a] if k in s.sides else np.nan for k in rows["step"]])
     return rows, s.g.t
 
 
