@@ -111,6 +111,58 @@ TEST(AmbiguousSets, AClearCauseOnAFullRecordingHasNoSetAndBoundsWhatItCouldSee) 
   EXPECT_NEAR(d.materiality_arcsec, d.noise_floor_arcsec / std::sqrt(20.0), 1e-9);
 }
 
+// The paper's offsets along each axis, every point reached through an unrecorded overshoot below it.
+std::vector<SessionOp> one_sided_grid() {
+  std::vector<SessionOp> ops;
+  auto at = [&](double p, double y) {
+    SessionOp over;
+    over.pitch_arcsec = p - 300;
+    over.yaw_arcsec = y - 300;
+    ops.push_back(over);
+    SessionOp dwell;
+    dwell.kind = SessionOp::Kind::dwell;
+    dwell.pitch_arcsec = p;
+    dwell.yaw_arcsec = y;
+    dwell.frames = 25;
+    dwell.sample_rate_hz = 50;
+    ops.push_back(dwell);
+  };
+  at(0, 0);
+  for (int axis = 0; axis < 2; ++axis) {
+    for (int k = -6; k <= 6; ++k) {
+      if (k == 0) continue;
+      at(axis == 0 ? k * 216.0 : 0, axis == 1 ? k * 216.0 : 0);
+      at(0, 0);
+    }
+  }
+  return ops;
+}
+
+TEST(RecordedApproach, AGridReachedThroughUnseenOvershootsReadsItsSidesFromTheApproachColumns) {
+  auto run = [](const std::string& effect) {
+    Bench b(bench(21, {effect}));
+    SampleTable t = record_ops(b, one_sided_grid());
+    t.origin = "one-sided.csv";
+    return t;
+  };
+  // Settling rings after every approach, always the same way: named, with its amplitude.
+  const SampleTable settled = run("settling:amplitude_arcsec=2,tau_s=0.6");
+  ASSERT_TRUE(settled.has_column("approach_pitch"));
+  const Diagnosis s = diagnose(settled, default_bench_config().truth, options());
+  EXPECT_EQ(s.recording["approach_sides"], "recorded");
+  EXPECT_EQ(s.cause, "settling") << s.to_json().dump(1);
+  ASSERT_FALSE(s.causes.empty());
+  EXPECT_NEAR(s.causes[0].params["amplitude_arcsec"].get<double>(), 2.0, 0.2);
+  // Backlash from one side is a constant: a bias, with backlash beside it as its look-alike.
+  const Diagnosis b = diagnose(run("backlash:width_arcsec=3"), default_bench_config().truth, options());
+  EXPECT_NE(b.cause, "backlash");
+  bool beside = false;
+  for (const auto& set : b.ambiguous) {
+    beside = beside || std::find(set.members.begin(), set.members.end(), "backlash") != set.members.end();
+  }
+  EXPECT_TRUE(beside) << b.to_json()["ambiguous"].dump();
+}
+
 TEST(PlannedRun, SlewsSeparateATimeShiftFromBacklashAndDwellsAloneDoNot) {
   EffectParams skew{"time_skew", {{"skew_s", 0.002}}, {}};
   EffectParams backlash{"backlash", {{"width_arcsec", 1.2}}, {}};

@@ -5,11 +5,15 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <map>
+#include <sstream>
+#include <vector>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "stand/investigate/confusable.h"
+#include "tests/procedures/run_util.h"
 #include "tests/support/test_support.h"
 
 namespace fpss {
@@ -75,6 +79,38 @@ TEST(Investigate, ADesignFromADwellsOnlyDiagnosisAddsSlewsAndTheJointDiagnosisNa
   EXPECT_NEAR(gap["causes"][0]["params"]["skew_s"].get<double>(), 0.004, 0.0004);
   ASSERT_EQ(gap["recordings"].size(), 2u);
   EXPECT_THAT(gap["recordings"][1]["source"].get<std::string>(), HasSubstr("followup.csv"));
+}
+
+TEST(Investigate, ARunRecordsTheSideOfEveryApproachThroughUnrecordedMoves) {
+  TempDir tmp("approach-sides");
+  test::write_file(tmp / "p.yaml",
+                   "steps:\n  - home\n"
+                   "  - move: {pitch_arcsec: -300, yaw_arcsec: 200}\n  - move: {pitch_arcsec: 0, yaw_arcsec: 0}\n"
+                   "  - sample: {frames: 5}\n"
+                   "  - move: {pitch_arcsec: 300, yaw_arcsec: 0}\n  - move: {pitch_arcsec: 0, yaw_arcsec: 0}\n"
+                   "  - sample: {frames: 5}\n");
+  const auto r = run_stand({"run", (tmp / "p.yaml").string(), "--emulate", "--speed", "20", "--runs-dir",
+                            (tmp / "runs").string(), "--no-progress", "--quiet"},
+                           tmp.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto dirs = test::run_dirs(tmp / "runs");
+  ASSERT_EQ(dirs.size(), 1u);
+  const std::string csv = test::read_file(dirs.front() / "samples.csv");
+  const auto header = csv.substr(0, csv.find('\n'));
+  ASSERT_THAT(header, HasSubstr("approach_pitch,approach_yaw"));
+  // The emulator's mount is the identity: pitch came up then down, yaw down then stood still.
+  std::istringstream lines(csv);
+  std::string line;
+  std::getline(lines, line);
+  std::map<std::string, std::string> side_of_step;
+  while (std::getline(lines, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string x; std::getline(ss, x, ',');) f.push_back(x);
+    side_of_step[f[2]] = f[f.size() - 2] + "," + f.back();
+  }
+  EXPECT_EQ(side_of_step["1"], "1,-1");
+  EXPECT_EQ(side_of_step["2"], "-1,0");
 }
 
 TEST(Investigate, OnTheEmulatedBenchTheLoopRunsFollowUpsIntoTheCatalogueAndWritesItsRecord) {
