@@ -54,6 +54,8 @@ double within_step_scatter(const Recording& r, const std::vector<float> e[2]);
 // The report's data (diagnosis_figures) from the prepared recording and the causes' contribution.
 DiagnosisFigures figures(const Recording& r, const Contribution& causes);
 nlohmann::ordered_json detection_limit(const Recording& r, const EffectResult& e, double noise, double N);
+// The time constant settling's statistical limit is stated for.
+inline constexpr double kSettlingLimitTau_s = 0.5;
 // With `acting_rms_arcsec`: the RMS of the effect at its limit over the held-out rows where it acts
 // (a tenth of its peak or more), the worst of its magnitudes; +inf when it acts nowhere.
 nlohmann::ordered_json statistical_limit(const Recording& r, const EffectResult& e, double noise, double N,
