@@ -100,23 +100,6 @@ std::string followup_model_path(const std::string& given, const nlohmann::ordere
   throw InputError(fmt::format("{}: its model {} is not found (give --model FILE)", gap_path, m));
 }
 
-// The follow-up's bench: the stand file's motion and frame rate on a default simulated bench, or
-// the emulated bench's own.
-void followup_bench(const DesignArgs& a, EngineSettings& settings, BenchConfig& bench) {
-  if (!a.stand_file.empty()) {
-    settings = load_stand_file(a.stand_file).bench;
-    bench = default_bench_config();
-    bench.max_rate_arcsec_s = settings.profile_rate_arcsec_s;
-    bench.accel_arcsec_s2 = settings.acceleration_arcsec_s2;
-    return;
-  }
-  bench = a.bench_file.empty() ? default_bench_config() : load_bench_file(a.bench_file);
-  settings = emulated_stand(1.0).bench;
-  settings.profile_rate_arcsec_s = bench.max_rate_arcsec_s;
-  settings.acceleration_arcsec_s2 = bench.accel_arcsec_s2;
-  settings.sample_rate_hz = bench.sample_rate_hz;
-}
-
 void print_design(const nlohmann::ordered_json& j, const std::string& out) {
   const auto& g = j["paper_grid"];
   std::printf("design: %s\n", j["reached"].get<bool>() ? "target reached" : "TARGET NOT REACHED");
@@ -158,7 +141,9 @@ int run_followup_design(const DesignArgs& a) {
   r.max_bench_s = a.max_bench_s;
   r.name = std::filesystem::path(a.out).stem().string();
   r.model = load_coefficients(followup_model_path(a.model, r.gap, gap_path));
-  followup_bench(a, r.settings, r.bench);
+  FollowupBench fb = followup_bench(a.stand_file, a.bench_file);
+  r.settings = fb.settings;
+  r.bench = std::move(fb.bench);
   const FollowupDesign d = design_followup(r);
   if (d.found || d.useful) write_text_atomic(a.out, d.procedure_text);
   if (a.json) {

@@ -81,18 +81,11 @@ int investigate_command(const InvestigateArgs& a) {
   o.model = load_coefficients(a.model);
   o.model_path = a.model;
   o.max_runs = a.max_runs;
-  o.materiality_arcsec = a.materiality_arcsec;
   o.diagnosis.materiality_arcsec = a.materiality_arcsec;
   o.max_followup_s = a.max_bench_s;
-  if (!a.stand_file.empty()) {
-    o.settings = load_stand_file(a.stand_file).bench;
-    o.bench = default_bench_config();
-    o.bench.max_rate_arcsec_s = o.settings.profile_rate_arcsec_s;
-    o.bench.accel_arcsec_s2 = o.settings.acceleration_arcsec_s2;
-  } else {
-    o.bench = a.emu.bench.empty() ? default_bench_config() : load_bench_file(a.emu.bench);
-    o.settings = emulated_settings(o.bench);
-  }
+  FollowupBench fb = followup_bench(a.stand_file, a.emu.bench);
+  o.settings = fb.settings;
+  o.bench = std::move(fb.bench);
   const fs::path procedure = a.procedure.empty() ? shipped_procedures_dir() / "sim_to_real.yaml" : fs::path(a.procedure);
   load_procedure(procedure);  // every error before anything moves
   o.out_dir = a.out.empty() ? fs::path(a.runs_dir) / fmt::format("investigation-{:%Y%m%dT%H%M%SZ}",

@@ -210,8 +210,10 @@ std::string procedure_text(const FollowupRequest& r, const std::vector<const Mov
   return t + move_to(0, 0) + fmt::format("  - sample: {{frames: {}}}\n", kFrames);
 }
 
-Evaluation evaluate(const FollowupRequest& r, const Goal& g, const std::vector<const Move*>& moves, double noise,
-                    double materiality) {
+// `quiet`: the request's bench without its effects (a plan is judged on the candidates' own
+// forward models).
+Evaluation evaluate(const FollowupRequest& r, const BenchConfig& quiet, const Goal& g,
+                    const std::vector<const Move*>& moves, double noise, double materiality) {
   Evaluation e;
   e.text = procedure_text(r, moves);
   Diagnostics d(r.name + ".yaml");
@@ -220,10 +222,7 @@ Evaluation evaluate(const FollowupRequest& r, const Goal& g, const std::vector<c
   const Plan plan = expand(proc, r.settings, d);
   if (!d.empty() || plan.points == 0) return e;
   e.bench_s = plan.physical_s;
-  BenchConfig bench = r.bench;
-  bench.effects.clear();
-  for (auto& u : bench.sensors) u.effects.clear();
-  const SampleTable t = simulate_procedure(proc, r.settings, bench);
+  const SampleTable t = simulate_plan(plan, r.settings, quiet);
   if (t.size() < 10) return e;
   std::optional<PlannedRun> run;
   try {
@@ -279,9 +278,6 @@ FollowupDesign design_followup(const FollowupRequest& r) {
   FollowupDesign out;
   const double noise = number(r.gap, "noise_floor_arcsec");
   out.materiality_arcsec = number(r.gap, "materiality_arcsec");
-  if (r.gap.contains("material_context") && r.gap["material_context"].contains("materiality_arcsec")) {
-    out.materiality_arcsec = r.gap["material_context"]["materiality_arcsec"].get<double>();
-  }
   out.first_bench_s = recorded_bench_s(r.gap);
   out.budget_s = r.max_bench_s > 0 ? r.max_bench_s : 0.5 * out.first_bench_s;
   const Goal g = goals(r);
@@ -289,6 +285,9 @@ FollowupDesign design_followup(const FollowupRequest& r) {
   if (g.pairs.empty() && g.bound.empty()) return out;
 
   const std::vector<Move> lib = library(r.settings);
+  BenchConfig quiet = r.bench;
+  quiet.effects.clear();
+  for (auto& u : quiet.sensors) u.effects.clear();
   std::vector<const Move*> chosen;
   Evaluation best;
   best.gain = 0;
@@ -301,7 +300,7 @@ FollowupDesign design_followup(const FollowupRequest& r) {
       if (std::find(chosen.begin(), chosen.end(), &m) != chosen.end()) continue;
       std::vector<const Move*> with = chosen;
       with.push_back(&m);
-      Evaluation e = evaluate(r, g, with, noise, out.materiality_arcsec);
+      Evaluation e = evaluate(r, quiet, g, with, noise, out.materiality_arcsec);
       if (!e.valid || e.bench_s > out.budget_s) continue;
       if (e.all && (!cheapest_all || e.bench_s < cheapest_all->bench_s)) {
         cheapest_all = e;
@@ -359,6 +358,20 @@ EngineSettings emulated_settings(const BenchConfig& bench) {
   s.acceleration_arcsec_s2 = bench.accel_arcsec_s2;
   s.sample_rate_hz = bench.sample_rate_hz;
   return s;
+}
+
+FollowupBench followup_bench(const std::string& stand_file, const std::string& bench_file) {
+  FollowupBench f;
+  if (!stand_file.empty()) {
+    f.settings = load_stand_file(stand_file).bench;
+    f.bench = default_bench_config();
+    f.bench.max_rate_arcsec_s = f.settings.profile_rate_arcsec_s;
+    f.bench.accel_arcsec_s2 = f.settings.acceleration_arcsec_s2;
+    return f;
+  }
+  f.bench = bench_file.empty() ? default_bench_config() : load_bench_file(bench_file);
+  f.settings = emulated_settings(f.bench);
+  return f;
 }
 
 void predict_best_followups(Diagnosis& d, const CoefficientSet& model, const EngineSettings& settings,

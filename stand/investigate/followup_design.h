@@ -61,6 +61,14 @@ FollowupDesign design_followup(const FollowupRequest& r);
 // stand file is given).
 EngineSettings emulated_settings(const BenchConfig& bench);
 
+// The bench a follow-up is planned on: a stand file's motion and frame rate on the default
+// simulated bench, or (no stand file) the emulated bench of `bench_file` (default when empty).
+struct FollowupBench {
+  EngineSettings settings;
+  BenchConfig bench;
+};
+FollowupBench followup_bench(const std::string& stand_file, const std::string& bench_file);
+
 // Fills each ambiguous set's best_followup: the designer's follow-up for that set alone on this
 // bench (moves, predicted log-likelihood ratios, bench time against half the recorded time).
 void predict_best_followups(Diagnosis& d, const CoefficientSet& model, const EngineSettings& settings,

@@ -20,12 +20,11 @@ struct InvestigationOptions {
   CoefficientSet model;
   std::string model_path;           // as given, for the record
   int max_runs = 3;                 // the first run and at most two follow-ups
-  double materiality_arcsec = 0;    // 0: the first diagnosis's (the noise floor of one dwell mean)
   double budget_ratio = 1.0;        // the follow-ups' total bench time, times the first run's
   double max_followup_s = 0;        // one follow-up's; 0: half the first run's
   EngineSettings settings;          // the designer's bench: the stand's, or the emulated one's
   BenchConfig bench;
-  DiagnosisOptions diagnosis;
+  DiagnosisOptions diagnosis;       // its materiality_arcsec 0: the first diagnosis's (one dwell mean's noise)
   std::filesystem::path out_dir;    // FOLLOWUP-k.yaml, GAP.json, GAP.html, INVESTIGATION.json
 };
 

@@ -71,18 +71,23 @@ std::vector<SessionOp> session_ops(const Plan& plan, const EngineSettings& setti
   return ops;
 }
 
-SampleTable simulate_procedure(const Procedure& procedure, const EngineSettings& settings, const BenchConfig& bench,
-                               double start_s) {
-  Diagnostics d(procedure.origin);
-  const Plan plan = expand(procedure, settings, d);
-  d.throw_if_any();
+SampleTable simulate_plan(const Plan& plan, const EngineSettings& settings, const BenchConfig& bench, double start_s,
+                          const std::string& origin) {
   BenchConfig cfg = bench;
   cfg.sample_rate_hz = settings.sample_rate_hz;
   Bench b(cfg);
   b.advance_to(start_s);
   SampleTable t = record_ops(b, session_ops(plan, settings));
-  t.origin = procedure.origin;
+  t.origin = origin;
   return t;
+}
+
+SampleTable simulate_procedure(const Procedure& procedure, const EngineSettings& settings, const BenchConfig& bench,
+                               double start_s) {
+  Diagnostics d(procedure.origin);
+  const Plan plan = expand(procedure, settings, d);
+  d.throw_if_any();
+  return simulate_plan(plan, settings, bench, start_s, procedure.origin);
 }
 
 }  // namespace fpss

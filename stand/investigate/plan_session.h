@@ -23,5 +23,8 @@ std::vector<SessionOp> session_ops(const Plan& plan, const EngineSettings& setti
 // does not expand on the stand.
 SampleTable simulate_procedure(const Procedure& procedure, const EngineSettings& settings, const BenchConfig& bench,
                                double start_s = 0);
+// The same for a plan already expanded for the stand (its origin: the recording's).
+SampleTable simulate_plan(const Plan& plan, const EngineSettings& settings, const BenchConfig& bench,
+                          double start_s = 0, const std::string& origin = {});
 
 }  // namespace fpss
