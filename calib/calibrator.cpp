@@ -79,6 +79,7 @@ uint32_t dwell_row(AxisData& d, Axis axis, const Dwell& dw) {
   r.link = static_cast<uint32_t>(n);
   r.info = AxisData::DwellRow::pack(dw.samples, dw.ref_readings_eff, dw.phase == Phase::null, whole_of(dw, axis));
   d.dwells.push_back(r);
+  d.dwell_temperature_c.push_back(static_cast<float>(dw.temperature_c));
   d.recent_steps[n % kLook] = dw.step;
   // The scatter as float (what a dwell record used to keep): the pooled sums stay as they were.
   const double sd_counts = static_cast<float>(sd_counts_of(dw, axis));
@@ -229,6 +230,8 @@ Prepared prepare_gls(const AxisData& d, const CalibrationOptions& opts) {
   g.dwells = &d.dwells;
   g.noise_known = s.has_value() && ref_dof > 0;
   g.ref_var_arcsec2 = std::isfinite(ref_var) ? ref_var : 0.0;
+  const auto& temp = d.dwell_temperature_c;
+  if (std::any_of(temp.begin(), temp.end(), [](float t) { return std::isfinite(t); })) g.temperature_c = &temp;
   const size_t m = d.dwells.size();
   g.level.resize(m);
   std::vector<double> nulls;
@@ -303,12 +306,32 @@ std::vector<AxisFit::CovarianceSource> covariance_sources(const AxisFit& out, co
   };
 }
 
+// The temperature's entry at `counts`: the fit moved by kappa x shift, kappa not corrected for, so
+// its estimate counts with its sigma (GUM F.2.4.5: an uncorrected effect enlarges the uncertainty).
+std::optional<BudgetEntry> temperature_entry(const AxisFit& out, double counts) {
+  const fit::TemperatureInfluence& t = out.temperature;
+  if (!t.known) return std::nullopt;
+  const double sens = fit::angle_shift_arcsec(t.shift_scaled, out.coeffs, counts);
+  const double kappa_sigma = std::isfinite(t.sensitivity_sigma) ? t.sensitivity_sigma : 0.0;
+  const double u_kappa = std::hypot(t.sensitivity_arcsec_per_c, kappa_sigma);
+  return BudgetEntry{"temperature (the recording's spread at the fitted sensitivity)", 'A', sens,
+                     std::abs(sens) * u_kappa, t.dof};
+}
+
 std::vector<BudgetEntry> fit_budget(const AxisFit& out, double counts) {
   std::vector<BudgetEntry> b;
   for (const auto& s : out.covariance_sources) {
     b.push_back({s.source, s.type, 1.0, angle_sigma_arcsec(s.covariance_scaled, out.coeffs, counts), s.dof});
   }
+  if (auto t = temperature_entry(out, counts)) b.push_back(*t);
   return b;
+}
+
+// The fit's angle sigma at `counts` with the temperature's entry beside it.
+double angle_sigma_with_temperature(const AxisFit& out, const Uncertainty& u, double counts) {
+  const double sig = angle_sigma_arcsec(u, out.coeffs, counts);
+  const auto t = temperature_entry(out, counts);
+  return t ? std::hypot(sig, t->u) : sig;
 }
 
 void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, int count,
@@ -329,7 +352,7 @@ void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, in
     std::vector<BudgetEntry> budget;
     try {
       const double n = model.counts_for_angle_unchecked(arcsec_to_rad(a), d.counts_lo - margin, d.counts_hi + margin);
-      sig = angle_sigma_arcsec(u, out.coeffs, n);
+      sig = angle_sigma_with_temperature(out, u, n);
       budget = fit_budget(out, n);
     } catch (const std::exception&) {
       // not reached within the range: listed as null
@@ -420,11 +443,20 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
     out.solver.gls_iterations = gf.iterations;
     out.solver.gls_converged = gf.converged;
     u = std::move(gf.uncertainty);
+    out.temperature = u.temperature;
   } else {
     u = uncertainty(d, out.coeffs, ro);
   }
   out.sigma = u.sigma;
   out.angle_sigma_max_arcsec = u.angle_sigma_max_arcsec;
+  if (out.temperature.known) {
+    // Over the same 201 counts as the fit's own maximum, with the temperature's entry.
+    constexpr int kSteps = 200;
+    for (int k = 0; k <= kSteps; ++k) {
+      const double n = d.counts_lo + (d.counts_hi - d.counts_lo) * k / kSteps;
+      out.angle_sigma_max_arcsec = std::max(out.angle_sigma_max_arcsec, angle_sigma_with_temperature(out, u, n));
+    }
+  }
   out.covariance_pseudo_inverse = u.pseudo_inverse;
   out.covariance_note = u.note;
 

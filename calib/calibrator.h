@@ -14,6 +14,7 @@
 #include "calib/dwells.h"
 #include "calib/reduction.h"
 #include "calib/reference_calibration.h"
+#include "calib/refine.h"
 #include "calib/residuals.h"
 #include "calib/samples.h"
 #include "calib/uncertainty.h"
@@ -159,6 +160,9 @@ struct AxisFit {
   // The reference calibration's u at the worst listed angle (arcsec), already in the angle sigmas;
   // NaN without a reference file.
   double reference_u_max_arcsec = std::numeric_limits<double>::quiet_NaN();
+  // The sensor's temperature during the recording and how it moved the fit (GLS only): its entry
+  // in every listed angle's budget.
+  fit::TemperatureInfluence temperature;
 
   // The largest listed angle sigma; infinite when none is listed or an angle is not reached (the
   // fit cannot yet speak for the whole range).

@@ -2,6 +2,7 @@
 #pragma once
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -41,6 +42,9 @@ struct Dwell {
   bool whole_counts_alpha = true, whole_counts_beta = true;
   size_t outliers = 0;  // frames left out of the means (calib/outliers.h): rejected on either axis
   size_t outliers_alpha = 0, outliers_beta = 0;  // ... rejected on that axis's counts
+  // The sensor's mean temperature over the step's rows, C (samples.csv `temperature_c`, its
+  // finite values); NaN when the recording has none (calib/reduction.cpp fills it).
+  double temperature_c = std::numeric_limits<double>::quiet_NaN();
   size_t frames() const { return samples + outliers; }  // every frame of the step
 };
 

@@ -63,8 +63,11 @@ MonteCarloAxis check_axis(const AxisFit& a, int sensor_axis, const CalibrationRe
     double u, dof;
     std::optional<std::chi_squared_distribution<double>> chi2;
   };
+  // The temperature's entry follows the fit's sources (calibrator.cpp fit_budget); drawn the same
+  // way, about zero: its u stands for an effect the fit did not correct.
   std::vector<Source> sources;
-  for (size_t k = 0; k < a.covariance_sources.size(); ++k) {
+  const size_t drawn_entries = a.covariance_sources.size() + (a.temperature.known ? 1 : 0);
+  for (size_t k = 0; k < drawn_entries && k < a.angle_budget[i].size(); ++k) {
     const BudgetEntry& e = a.angle_budget[i][k];
     sources.push_back({e.u, e.dof, std::isfinite(e.dof) ? std::optional(std::chi_squared_distribution<double>(e.dof))
                                                         : std::nullopt});

@@ -301,4 +301,8 @@ double angle_sigma_arcsec(const Uncertainty& u, const AxisCoeffs& fit, double co
   return angle_sigma_arcsec(u.covariance_scaled, fit, counts);
 }
 
+double angle_shift_arcsec(const Eigen::Matrix<double, 8, 1>& shift_scaled, const AxisCoeffs& fit, double counts) {
+  return angle_gradient(to_scaled(fit), false, counts).dot(shift_scaled);
+}
+
 }  // namespace fpss::fit

@@ -30,6 +30,22 @@ struct Refined {
   std::string brief;  // Ceres BriefReport
 };
 
+// How the sensor's temperature during the recording moves a GLS fit (GlsData::temperature_c): the
+// fit is linear in the dwells' errors, so a reading that shifts by kappa (T_k - T_ref) arcsec moves
+// the scaled coefficients by kappa x shift_scaled. kappa is estimated from the residuals by the GLS
+// of them on the dwells' temperatures with the fit's columns projected out (what the coefficients
+// did not absorb). Known when some dwells carry a temperature.
+struct TemperatureInfluence {
+  bool known = false;
+  double reference_c = 0;  // T_ref: the dwells' weighted mean temperature (the calibration's)
+  double spread_c = 0;     // weighted SD of the dwells' temperatures about it
+  size_t dwells = 0;       // dwells with a temperature
+  Eigen::Matrix<double, 8, 1> shift_scaled = Eigen::Matrix<double, 8, 1>::Zero();  // per arcsec/C
+  double sensitivity_arcsec_per_c = 0;  // kappa: d(sensor angle - reference) / dT
+  double sensitivity_sigma = 0;         // its 1-sigma (NaN: the temperatures did not vary)
+  double dof = 0;
+};
+
 struct Uncertainty {
   std::array<double, 8> sigma{};  // 1-sigma of C1..C8, in the coefficients' units
   Eigen::Matrix<double, 8, 8> covariance = Eigen::Matrix<double, 8, 8>::Zero();  // of C1..C8
@@ -46,6 +62,7 @@ struct Uncertainty {
   // noise model (sources_known); the uncertainty budget (calibration.json) is built from them.
   std::array<Eigen::Matrix<double, 8, 8>, 3> source_covariance_scaled{};
   bool sources_known = false;
+  TemperatureInfluence temperature;  // (GlsData::temperature_c)
 };
 
 // The sources a dwell mean's variance is made of, in the order of source_covariance_scaled.
@@ -61,6 +78,9 @@ Eigen::Matrix<double, 8, 1> dwell_gradient(const AxisCoeffs& c, double counts);
 
 // 1-sigma of the fitted angle at `counts`, arcsec, from the scaled covariance (C1 included).
 double angle_sigma_arcsec(const Uncertainty& u, const AxisCoeffs& fit, double counts);
+
+// The fitted angle's change at `counts`, arcsec, when the scaled coefficients move by `shift`.
+double angle_shift_arcsec(const Eigen::Matrix<double, 8, 1>& shift_scaled, const AxisCoeffs& fit, double counts);
 
 // The dwells as the fit with the changes' covariance sees them: every change null <-> offset is
 // the difference of two dwells, so fitting the changes with their covariance (GLS) is fitting the
@@ -79,6 +99,8 @@ struct GlsData {
   // Variances from a noise model (given or from within-dwell scatter); false: equal weights, and
   // the covariance is scaled by the residuals.
   bool noise_known = true;
+  // The dwells' sensor temperatures, C (NaN: none); null or all NaN: the recording has none.
+  const std::deque<float>* temperature_c = nullptr;
   size_t size() const { return counts.size(); }
   double ref_arcsec(size_t k) const { return (*dwells)[k].ref_arcsec; }
   uint32_t level_of(size_t k) const { return level.empty() ? 0u : level[k]; }

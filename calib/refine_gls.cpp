@@ -249,30 +249,92 @@ Scaled minimise(const GlsData& g, const Weights& w, const Scaled& u, const Pass&
   return summary.IsSolutionUsable() ? polar_scaled(v) : u;
 }
 
-// The covariance of the scaled coefficients split by the dwells' noise sources. To first order the
-// fit is linear in the dwells' errors eps_k: du = cov sum_k w_k gt_k eps_k (gt_k the gradient less
-// its level's weighted mean) and dC1 = sum_k a_l w_k / W_l eps_k - gbar . du, so with A_k that
-// 8-vector of weights, source c contributes sum_k A_k A_k^T var_c,k; the sources sum to the
-// whole covariance (var_k = 1 / w_k).
-std::array<Eigen::Matrix<double, 8, 8>, 3> source_covariances(const GlsData& g, const Weights& w, const Scaled& u,
-                                                              const Pass& p, const Mat7& cov, const Vec7& gbar) {
-  std::array<Eigen::Matrix<double, 8, 8>, 3> out;
-  for (auto& m : out) m.setZero();
-  Vec7 gr;
-  for (size_t k = 0; k < g.size(); ++k) {
+// To first order the fit is linear in the dwells' errors eps_k: du = cov sum_k w_k gt_k eps_k (gt_k
+// the gradient less its level's weighted mean) and dC1 = sum_k a_l w_k / W_l eps_k - gbar . du. A_k
+// is that 8-vector of weights of dwell k (C1 first); gt_k is returned beside it.
+struct Linear {
+  const GlsData& g;
+  const Weights& w;
+  const Scaled& u;
+  const Pass& p;
+  const Mat7& cov;
+  const Vec7& gbar;
+  // False for a dwell whose level has no weight.
+  bool weights(size_t k, Eigen::Matrix<double, 8, 1>& a, Vec7& gt) const {
     const uint32_t l = g.level_of(k);
     const LevelSums& ls = p.lv[l];
-    if (!(ls.w > 0)) continue;
-    angle_and_gradient(u, g.counts[k], gr);
+    if (!(ls.w > 0)) return false;
+    angle_and_gradient(u, g.counts[k], gt);
+    gt -= ls.wg / ls.w;
     const double wk = w(k);
-    const Vec7 du = cov * (gr - ls.wg / ls.w) * wk;
-    Eigen::Matrix<double, 8, 1> a;
+    const Vec7 du = cov * gt * wk;
     a(0) = g.level_share[l] * wk / ls.w - gbar.dot(du);
     a.tail<7>() = du;
-    const auto v = w.parts(k);
+    return true;
+  }
+};
+
+// The covariance of the scaled coefficients split by the dwells' noise sources: source c
+// contributes sum_k A_k A_k^T var_c,k; the sources sum to the whole covariance (var_k = 1 / w_k).
+std::array<Eigen::Matrix<double, 8, 8>, 3> source_covariances(const Linear& lin) {
+  std::array<Eigen::Matrix<double, 8, 8>, 3> out;
+  for (auto& m : out) m.setZero();
+  Eigen::Matrix<double, 8, 1> a;
+  Vec7 gt;
+  for (size_t k = 0; k < lin.g.size(); ++k) {
+    if (!lin.weights(k, a, gt)) continue;
+    const auto v = lin.w.parts(k);
     for (size_t c = 0; c < 3; ++c) out[c] += v[c] * a * a.transpose();
   }
   return out;
+}
+
+// The temperature's influence (TemperatureInfluence): shift = sum_k A_k x_k with x_k = T_k -
+// T_ref, and kappa from the GLS of the residuals r_k on x'_k, the x_k less their level's mean and
+// less gt_k . shift_u (the part the coefficients absorb), so kappa is what a fit with a temperature
+// term would give. A dwell without a temperature counts as at T_ref.
+TemperatureInfluence temperature_influence(const Linear& lin, double sigma_scale, size_t fit_dof) {
+  TemperatureInfluence t;
+  const GlsData& g = lin.g;
+  if (!g.temperature_c || g.temperature_c->size() != g.size()) return t;
+  const auto& temp = *g.temperature_c;
+  double sw = 0, swt = 0;
+  for (size_t k = 0; k < g.size(); ++k) {
+    if (!std::isfinite(temp[k])) continue;
+    sw += lin.w(k);
+    swt += lin.w(k) * temp[k];
+    ++t.dwells;
+  }
+  if (t.dwells == 0 || !(sw > 0)) return t;
+  t.known = true;
+  t.reference_c = swt / sw;
+  const auto x = [&](size_t k) { return std::isfinite(temp[k]) ? temp[k] - t.reference_c : 0.0; };
+  double sxx = 0;
+  std::vector<double> level_wx(g.levels, 0.0);
+  Eigen::Matrix<double, 8, 1> a;
+  Vec7 gt;
+  for (size_t k = 0; k < g.size(); ++k) {
+    if (!lin.weights(k, a, gt)) continue;
+    t.shift_scaled += a * x(k);
+    level_wx[g.level_of(k)] += lin.w(k) * x(k);
+    if (std::isfinite(temp[k])) sxx += lin.w(k) * x(k) * x(k);
+  }
+  t.spread_c = std::sqrt(sxx / sw);
+  double srx = 0, sx2 = 0;
+  for (size_t k = 0; k < g.size(); ++k) {
+    if (!lin.weights(k, a, gt)) continue;
+    const LevelSums& ls = lin.p.lv[g.level_of(k)];
+    const double r = g.ref_arcsec(k) - angle_and_gradient(lin.u, g.counts[k], gt) - ls.we / ls.w;
+    gt -= ls.wg / ls.w;
+    const double xp = x(k) - level_wx[g.level_of(k)] / ls.w - gt.dot(t.shift_scaled.tail<7>());
+    srx += lin.w(k) * r * xp;
+    sx2 += lin.w(k) * xp * xp;
+  }
+  // r = ref - f0 - level: a reading larger by kappa x lowers r by as much.
+  t.sensitivity_arcsec_per_c = sx2 > 1e-12 ? -srx / sx2 : 0.0;
+  t.sensitivity_sigma = sx2 > 1e-12 ? sigma_scale / std::sqrt(sx2) : std::nan("");
+  t.dof = fit_dof > 1 ? static_cast<double>(fit_dof - 1) : 1.0;
+  return t;
 }
 
 }  // namespace
@@ -338,10 +400,12 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
     for (int j = 0; j < 8; ++j) un.covariance(i, j) = un.covariance_scaled(i, j) * kScaleFactor[i] * kScaleFactor[j];
   }
   for (int i = 0; i < 8; ++i) un.sigma[i] = std::sqrt(std::max(0.0, un.covariance(i, i)));
+  const Linear lin{g, w, u, p, s.cov, gbar};
   if (g.noise_known) {
-    un.source_covariance_scaled = source_covariances(g, w, u, p, s.cov, gbar);
+    un.source_covariance_scaled = source_covariances(lin);
     un.sources_known = true;
   }
+  un.temperature = temperature_influence(lin, out.sigma_scale, out.dof);
   un.note = g.noise_known
                 ? (out.model_remainder
                        ? "GLS of the changes (dwells with one level per joined set), noise model; chi2/dof "

@@ -41,6 +41,19 @@ void add_expanded_uncertainty(nlohmann::ordered_json& ax, const AxisFit& a) {
   ax["expanded_uncertainty_max_arcsec"] = w ? number_or_null(c.U) : nlohmann::json(nullptr);
 }
 
+// The sensor's temperature over the fit's dwells and its fitted sensitivity: the calibration holds at
+// reference_c (null: the recording has no temperature).
+nlohmann::json temperature_json(const fit::TemperatureInfluence& t) {
+  if (!t.known) return nullptr;
+  nlohmann::ordered_json j;
+  j["reference_c"] = t.reference_c;
+  j["spread_c"] = t.spread_c;
+  j["dwells"] = t.dwells;
+  j["sensitivity_arcsec_per_c"] = t.sensitivity_arcsec_per_c;
+  j["sensitivity_sigma_arcsec_per_c"] = number_or_null(t.sensitivity_sigma);
+  return j;
+}
+
 }  // namespace
 
 nlohmann::json residuals_json(const CalibrationReport& r) {
@@ -74,6 +87,7 @@ nlohmann::json uncertainties_json(const CalibrationReport& r) {
     ax["ref_noise_arcsec"] = number_or_null(a->noise.ref_noise_arcsec);
     ax["quantisation_corrected"] = a->noise.quantisation_corrected;
     if (std::isfinite(a->reference_u_max_arcsec)) ax["reference_u_max_arcsec"] = a->reference_u_max_arcsec;
+    ax["temperature"] = temperature_json(a->temperature);
     ax["pseudo_inverse"] = a->covariance_pseudo_inverse;
     ax["covariance"] = a->covariance_note;
     j[a->axis] = ax;

@@ -66,6 +66,8 @@ struct AxisData {
   };
   // Chunked (no reallocation peak of twice the size while growing).
   std::deque<DwellRow> dwells;
+  // Each dwell's sensor temperature, C (NaN: none), beside `dwells` (the budget's temperature entry).
+  std::deque<float> dwell_temperature_c;
   struct Change {
     uint32_t null_dwell = 0, offset_dwell = 0;  // into `dwells`
   };

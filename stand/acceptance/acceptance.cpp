@@ -87,6 +87,7 @@ struct DwellStats {
   double ref_noise[2] = {0, 0}; // sd(reference readings) / sqrt(their worth in independent readings)
   size_t ref_readings = 0;
   double se[2] = {0, 0};
+  double temperature_c = std::numeric_limits<double>::quiet_NaN();  // the sensor's, over the dwell
 };
 
 double sq(double x) { return x * x; }
@@ -108,6 +109,7 @@ std::vector<DwellStats> dwell_stats(const Reduction& reduced, const AcceptanceDa
     d.outliers[1] = w.outliers_beta;
     d.ref[0] = w.ref_pitch_arcsec;
     d.ref[1] = w.ref_yaw_arcsec;
+    d.temperature_c = w.temperature_c;
     for (int ax = 0; ax < 2 && cal; ++ax) {
       const AxisModel m = ax == 0 ? cal->alpha_model() : cal->beta_model();
       const double counts = ax == 0 ? w.counts_alpha : w.counts_beta;
@@ -143,6 +145,60 @@ std::vector<BudgetEntry> dwell_budget(const DwellStats& d, int ax) {
 }
 
 const char* axis_name(int ax) { return ax == 0 ? "pitch" : "yaw"; }
+
+// What calibration.json says of the sensor's temperature on one axis (uncertainties.<axis>.temperature):
+// the temperature it holds at and its fitted sensitivity, u the sensitivity's estimate and sigma
+// combined (an effect the calibration did not correct, docs/calibration.md).
+struct TemperatureSensitivity {
+  double reference_c = 0, u_arcsec_per_c = 0, dof = std::numeric_limits<double>::infinity();
+};
+std::optional<TemperatureSensitivity> temperature_sensitivity(const CoefficientSet* cal, int ax) {
+  if (!cal || !cal->extra.contains("uncertainties")) return std::nullopt;
+  const auto& un = cal->extra["uncertainties"];
+  const char* key = axis_name(ax);
+  if (!un.contains(key) || !un[key].is_object() || !un[key].contains("temperature")) return std::nullopt;
+  const auto& t = un[key]["temperature"];
+  const auto number = [&t](const char* k) {
+    return t.contains(k) && t[k].is_number() ? t[k].get<double>() : std::numeric_limits<double>::quiet_NaN();
+  };
+  if (!t.is_object() || !std::isfinite(number("reference_c")) || !std::isfinite(number("sensitivity_arcsec_per_c"))) {
+    return std::nullopt;
+  }
+  const double sigma = std::isfinite(number("sensitivity_sigma_arcsec_per_c")) ? number("sensitivity_sigma_arcsec_per_c") : 0.0;
+  TemperatureSensitivity out{number("reference_c"), std::hypot(number("sensitivity_arcsec_per_c"), sigma)};
+  if (un[key].contains("chi2_dof") && un[key]["chi2_dof"].is_number() && un[key]["chi2_dof"].get<double>() > 1) {
+    out.dof = un[key]["chi2_dof"].get<double>() - 1;
+  }
+  return out;
+}
+
+// The temperature's entry of an angle error measured at dwells whose temperatures lie `dt_c` (RMS)
+// from the calibration's: none when the recording or the calibration has no temperature.
+void add_temperature(std::vector<BudgetEntry>& b, const std::optional<TemperatureSensitivity>& t, double dt_c,
+                     double sensitivity, const char* what) {
+  if (!t || !std::isfinite(dt_c)) return;
+  b.push_back({fmt::format("temperature ({} from the calibration's {:.2f} C, at its sensitivity)", what, t->reference_c),
+               'A', sensitivity * dt_c, std::abs(sensitivity * dt_c) * t->u_arcsec_per_c, t->dof});
+}
+
+// A dwell's temperature less the calibration's (NaN: either is unknown).
+double temperature_offset(const DwellStats& d, const std::optional<TemperatureSensitivity>& t) {
+  return t ? d.temperature_c - t->reference_c : std::numeric_limits<double>::quiet_NaN();
+}
+
+// The RMS of that over the dwells that have a temperature (NaN: none has).
+double rms_temperature_offset(const std::vector<const DwellStats*>& dwells, const std::optional<TemperatureSensitivity>& t) {
+  double ss = 0;
+  size_t n = 0;
+  for (const DwellStats* d : dwells) {
+    const double dt = temperature_offset(*d, t);
+    if (!std::isfinite(dt)) continue;
+    ss += dt * dt;
+    ++n;
+  }
+  return n > 0 ? std::sqrt(ss / static_cast<double>(n)) : std::numeric_limits<double>::quiet_NaN();
+}
+
 const char* axis_label(int ax) { return ax == 0 ? "pitch (alpha)" : "yaw (beta)"; }
 
 Criterion make(const std::string& id, const std::string& title, const std::string& axis, const Limit& lim,
@@ -366,6 +422,7 @@ void Judging::accuracy_criteria() {
   // 2. Accuracy on the verification points the fit never saw, within the radius.
   for (int ax = 0; ax < 2; ++ax) {
     const auto error_size = [ax](const DwellStats& d) { return std::fabs(d.mean[ax] - d.ref[ax]); };
+    const std::optional<TemperatureSensitivity> temp = temperature_sensitivity(cal, ax);
     Criterion rms3 = make_for_axis(ax, "accuracy_3sigma", "Accuracy, 3 sigma (3 x RMS error)", L.accuracy_3sigma_arcsec,
                                    "accuracy_3sigma_arcsec", "<=", "arcsec");
     Criterion worst = make_for_axis(ax, "accuracy_worst_point", "Accuracy, worst verification point",
@@ -387,18 +444,24 @@ void Judging::accuracy_criteria() {
         const double n = static_cast<double>(ver_in.size());
         const double v3 = 3.0 * std::sqrt(ss / n);
         // An RMS about zero (the reference), not about its own mean: n degrees of freedom.
-        settle(rms3, v3, {{"scatter of the verification errors (RMS / sqrt(2n))", 'A', 3.0, v3 / std::sqrt(2.0 * n), n}},
+        std::vector<BudgetEntry> rms_budget{{"scatter of the verification errors (RMS / sqrt(2n))", 'A', 3.0, v3 / std::sqrt(2.0 * n), n}};
+        add_temperature(rms_budget, temp, rms_temperature_offset(ver_in, temp), 3.0, "RMS of the points' temperatures");
+        settle(rms3, v3, rms_budget,
                fmt::format("{} verification points within {} arcmin; error = calibrated angle - reference, "
                            "mean over each dwell's frames{}",
                            ver_in.size(), L.accuracy_radius_arcmin.value, left_out(ver_in)));
-        settle(worst, w, dwell_budget(*at, ax),
+        std::vector<BudgetEntry> worst_budget = dwell_budget(*at, ax);
+        add_temperature(worst_budget, temp, temperature_offset(*at, temp), 1.0, "the point's temperature");
+        settle(worst, w, worst_budget,
                fmt::format("{:+.3f} arcsec at {}{}", at->mean[ax] - at->ref[ax], where_text(*at), left_out({at})));
       }
       if (ver_null.empty()) {
         settle(centre, std::nullopt, {}, "not measured: no verification null dwell");
       } else {
         const auto [at, w] = worst_dwell(ver_null, error_size);
-        settle(centre, w, dwell_budget(*at, ax),
+        std::vector<BudgetEntry> centre_budget = dwell_budget(*at, ax);
+        add_temperature(centre_budget, temp, temperature_offset(*at, temp), 1.0, "the dwell's temperature");
+        settle(centre, w, centre_budget,
                fmt::format("{} null dwells after the calibration; worst {:+.3f} arcsec at step {}{}", ver_null.size(),
                            at->mean[ax] - at->ref[ax], at->step, left_out(ver_null)));
       }

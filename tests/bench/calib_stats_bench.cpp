@@ -130,13 +130,21 @@ BENCHMARK_CAPTURE(BM_CalibrationStatistics, a5_fpss2, std::string("a-5-fpss2"))-
 // FPSS_MC_RECORDINGS recordings of the independent generator: with the gimbal's errors drawn per
 // recording from procedures/reference_example.json's u (and that file given to the calibrator,
 // whose values are zero, so it adds its u only), and without any. Target: 95 +- 2 %.
-void BM_ExpandedUncertaintyCoverage(benchmark::State& state, bool with_reference) {
+// with_temperature: the sensor's temperature swings by +-1 C over a recording and moves its line of
+// sight by 0.03 arcsec per C (about the dwell means' noise) (the generator's --temperature-*): the error is taken against the truth
+// at the calibration's reference temperature (temperature.reference_c).
+void BM_ExpandedUncertaintyCoverage(benchmark::State& state, bool with_reference, bool with_temperature) {
   const int recordings = env_int("FPSS_MC_RECORDINGS", 200);
   const std::string truth_name = "a-6-fpss1";
   const CoefficientSet truth = load_published(truth_name);
   test::mc::Design design;
   const std::filesystem::path ref = test::source_dir() / "procedures" / "reference_example.json";
   if (with_reference) design.gimbal_errors = ref;
+  constexpr double kArcsecPerC = 0.03;
+  if (with_temperature) {
+    design.temperature_amplitude_c = 1.0;
+    design.temperature_arcsec_per_c = kArcsecPerC;
+  }
   for (auto _ : state) {
     test::TempDir dir("calib-coverage");
     const auto files = test::mc::generate(published_dir() / (truth_name + ".json"), dir / "rec", recordings,
@@ -158,7 +166,8 @@ void BM_ExpandedUncertaintyCoverage(benchmark::State& state, bool with_reference
           if (fit->angle_budget[i].empty()) continue;
           const Combined c = combine(fit->angle_budget[i]);
           const double angle = fit->angle_sigma_arcsec[i][0];
-          const double n = true_model.counts_for_angle(arcsec_to_rad(angle));
+          const double shift = with_temperature ? kArcsecPerC * (fit->temperature.reference_c - 20.0) : 0.0;
+          const double n = true_model.counts_for_angle(arcsec_to_rad(angle + shift));
           const double e = rad_to_arcsec(transfer_angle(fit->coeffs.data(), n)) - angle;
           covered[axis] += std::abs(e) <= c.U;
           ++angles[axis];
@@ -171,15 +180,18 @@ void BM_ExpandedUncertaintyCoverage(benchmark::State& state, bool with_reference
     const double cy = static_cast<double>(covered[1]) / static_cast<double>(angles[1]);
     fmt::print("\nU coverage ({}, {} recordings of the independent generator, {} listed angles per axis each): "
                "pitch {:.1f} %, yaw {:.1f} % (target 95 +- 2 %); mean k {:.3f}\n",
-               with_reference ? "gimbal errors drawn from reference_example.json's u" : "no reference errors",
+               with_reference ? "gimbal errors drawn from reference_example.json's u"
+               : with_temperature ? "temperature +-1 C at 0.03 arcsec/C"
+                                  : "no reference errors",
                files.size(), angles[0] / std::max<size_t>(1, files.size()), 100 * cp, 100 * cy,
                sum_k / static_cast<double>(angles[0] + angles[1]));
     state.counters["coverage_pitch"] = cp;
     state.counters["coverage_yaw"] = cy;
   }
 }
-BENCHMARK_CAPTURE(BM_ExpandedUncertaintyCoverage, reference_errors, true)->Iterations(1)->Unit(benchmark::kSecond);
-BENCHMARK_CAPTURE(BM_ExpandedUncertaintyCoverage, no_reference, false)->Iterations(1)->Unit(benchmark::kSecond);
+BENCHMARK_CAPTURE(BM_ExpandedUncertaintyCoverage, reference_errors, true, false)->Iterations(1)->Unit(benchmark::kSecond);
+BENCHMARK_CAPTURE(BM_ExpandedUncertaintyCoverage, no_reference, false, false)->Iterations(1)->Unit(benchmark::kSecond);
+BENCHMARK_CAPTURE(BM_ExpandedUncertaintyCoverage, temperature, false, true)->Iterations(1)->Unit(benchmark::kSecond);
 
 }  // namespace
 }  // namespace fpss

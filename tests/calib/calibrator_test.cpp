@@ -124,7 +124,12 @@ TEST(Calibrator, EveryListedAngleHasABudgetThatAddsUpToItsSigma) {
   for (const AxisFit* a : {&r.pitch, &r.yaw}) {
     expect_budget_adds_up(*a);
     const std::vector<BudgetEntry>& b = a->angle_budget.back();
-    ASSERT_EQ(b.size(), 4u);
+    // The emulated bench's temperature ramps (0.002 C/s) and moves nothing: the fitted sensitivity
+    // is noise, and its entry says how large an effect the recording cannot exclude.
+    ASSERT_TRUE(a->temperature.known);
+    EXPECT_LT(std::abs(a->temperature.sensitivity_arcsec_per_c), 4 * a->temperature.sensitivity_sigma);
+    ASSERT_EQ(b.size(), 5u);
+    EXPECT_EQ(b[4].source.rfind("temperature", 0), 0u);
     EXPECT_EQ(b[0].source, "sensor noise");
     EXPECT_EQ(b[0].type, 'A');  // the count noise came from the within-dwell scatter
     EXPECT_TRUE(std::isfinite(b[0].dof));
@@ -153,7 +158,10 @@ TEST(Calibrator, EveryListedAngleHasABudgetThatAddsUpToItsSigma) {
     worst = std::max(worst, big_u);
   }
   EXPECT_EQ(u.at("expanded_uncertainty_max_arcsec").get<double>(), worst);
-  ASSERT_EQ(u.at("budget").size(), 4u);
+  ASSERT_EQ(u.at("budget").size(), 5u);
+  const auto& temp = u.at("temperature");
+  EXPECT_EQ(temp.at("reference_c").get<double>(), r.pitch.temperature.reference_c);
+  EXPECT_EQ(temp.at("sensitivity_arcsec_per_c").get<double>(), r.pitch.temperature.sensitivity_arcsec_per_c);
   for (const auto& e : u.at("budget")) {
     for (const char* key : {"source", "type", "u_arcsec"}) EXPECT_TRUE(e.contains(key)) << e.dump();
   }
@@ -176,14 +184,17 @@ TEST(Calibrator, AGivenCountNoiseIsTypeBAndTheReferencesTermsJoinTheBudget) {
   for (const AxisFit* a : {&r.pitch, &r.yaw}) {
     expect_budget_adds_up(*a);
     const std::vector<BudgetEntry>& b = a->angle_budget.back();
-    ASSERT_EQ(b.size(), 4u + 5u);  // the fit's four, then scale, non-orthogonality, zero, amplitude, phase
+    // The fit's four and the temperature (the bench's ramp), then scale, non-orthogonality, zero,
+    // amplitude, phase.
+    ASSERT_EQ(b.size(), 5u + 5u);
     EXPECT_EQ(b[0].type, 'B');
     EXPECT_FALSE(std::isfinite(b[0].dof));
-    EXPECT_EQ(b[4].source, "reference calibration: " + a->axis + " scale factor");
-    EXPECT_EQ(b[8].source, "reference calibration: " + a->axis + " cyclic harmonic 2 phase");
+    EXPECT_EQ(b[4].source.rfind("temperature", 0), 0u);
+    EXPECT_EQ(b[5].source, "reference calibration: " + a->axis + " scale factor");
+    EXPECT_EQ(b[9].source, "reference calibration: " + a->axis + " cyclic harmonic 2 phase");
     // 50 ppm of the largest angle (0.42 deg = 1512 arcsec) is 0.0756 arcsec.
-    EXPECT_NEAR(b[4].u, 50e-6 * std::abs(a->angle_sigma_arcsec.back()[0]), 1e-9);
-    for (size_t i = 4; i < b.size(); ++i) EXPECT_EQ(b[i].type, 'B');
+    EXPECT_NEAR(b[5].u, 50e-6 * std::abs(a->angle_sigma_arcsec.back()[0]), 1e-9);
+    for (size_t i = 5; i < b.size(); ++i) EXPECT_EQ(b[i].type, 'B');
   }
 }
 

@@ -220,5 +220,56 @@ TEST(Statistics, ARemainderTheModelCannotFitIsFlaggedAndTheSigmaScaledUp) {
   EXPECT_NE(summary_text(bad).find("MODEL REMAINDER"), std::string::npos);
 }
 
+// The sensor's temperature during the recording joins every listed angle's budget: the sensitivity
+// fitted from the residuals is the generator's, the entry's u is what the uncorrected temperature
+// moved the fit by, the budget still adds up to the sigma, and U covers the error against the truth
+// at the calibration's reference temperature. A recording without temperature has no entry.
+TEST(Statistics, TheSensorsTemperatureJoinsTheBudgetWithItsFittedSensitivity) {
+  test::TempDir dir("calib-statistics");
+  const CoefficientSet truth = load_published(kTruth);
+  mc::Design design;
+  design.temperature_amplitude_c = 3.0;
+  design.temperature_arcsec_per_c = 0.2;
+  const auto files = mc::generate(published_dir() / (kTruth + ".json"), dir / "rec", 4, 77, design);
+  CalibrationOptions o;
+  o.threads = 1;
+  size_t covered = 0, angles = 0;
+  double largest_entry = 0;
+  for (const auto& f : files) {
+    const CalibrationReport r = calibrate(read_samples_csv(f), o);
+    for (const auto& [a, t] : {std::pair{&r.pitch, &truth.alpha}, std::pair{&r.yaw, &truth.beta}}) {
+      const fit::TemperatureInfluence& temp = a->temperature;
+      ASSERT_TRUE(temp.known) << a->axis;
+      EXPECT_EQ(temp.dwells, a->dwells_fitted);
+      EXPECT_NEAR(temp.reference_c, 20.0, 3.0);
+      EXPECT_GT(temp.spread_c, 0.3);
+      ASSERT_GT(temp.sensitivity_sigma, 0.0);
+      EXPECT_NEAR(temp.sensitivity_arcsec_per_c, 0.2, 4 * temp.sensitivity_sigma) << a->axis;
+      const AxisModel true_model(*t);
+      for (size_t i = 0; i < a->angle_budget.size(); ++i) {
+        const auto& b = a->angle_budget[i];
+        ASSERT_EQ(b.size(), 5u);
+        EXPECT_EQ(b[4].source.rfind("temperature", 0), 0u) << b[4].source;
+        largest_entry = std::max(largest_entry, b[4].u);
+        const Combined c = combine(b);
+        EXPECT_NEAR(c.u, a->angle_sigma_arcsec[i][1], 1e-6 * c.u);
+        // The truth at the reference temperature: the counts of angle + K (T_ref - 20).
+        const double angle = a->angle_sigma_arcsec[i][0];
+        const double n = true_model.counts_for_angle(arcsec_to_rad(angle + 0.2 * (temp.reference_c - 20.0)));
+        covered += std::abs(rad_to_arcsec(transfer_angle(a->coeffs.data(), n)) - angle) <= c.U;
+        ++angles;
+      }
+    }
+  }
+  EXPECT_GT(largest_entry, 0.005);  // not a zero entry: a few tenths of a degree moved the fit
+  EXPECT_GE(static_cast<double>(covered) / static_cast<double>(angles), 0.85) << covered << " of " << angles;
+
+  design.temperature_amplitude_c = 0;
+  const auto plain = mc::generate(published_dir() / (kTruth + ".json"), dir / "plain", 1, 77, design);
+  const CalibrationReport r = calibrate(read_samples_csv(plain.at(0)), o);
+  EXPECT_FALSE(r.pitch.temperature.known);
+  EXPECT_EQ(r.pitch.angle_budget.back().size(), 4u);
+}
+
 }  // namespace
 }  // namespace fpss

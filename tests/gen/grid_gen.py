@@ -16,13 +16,19 @@ Usage:
   /usr/bin/python3 tests/gen/grid_gen.py --truth FILE --out-dir DIR --recordings K --seed S
       [--samples-per-dwell M] [--count-noise-counts 0.3] [--ref-noise-arcsec 0.05]
       [--extent-deg 0.45] [--step-deg 0.03] [--outlier-rate 0] [--frames-per-reading 1]
-      [--gimbal-errors REF.json]
+      [--gimbal-errors REF.json] [--temperature-amplitude-c A --temperature-arcsec-per-c K]
 Writes DIR/rec-0000.csv ... and prints one line per file.
 
 --gimbal-errors: a reference calibration file (docs/formats.md, "Reference calibration file"); for
 each recording every term is drawn from N(value, u) and the encoders read the true angle plus
 the errors: zero + scale_factor_ppm 1e-6 x own angle + sin(nonorthogonality) x the other axis's
 angle + sum of amplitude sin(harmonic x own angle in radians + phase). Written from that text.
+
+--temperature-amplitude-c A (> 0): the sensor's temperature is 20 + A sin(2 pi t / P + phi) C, P
+drawn per recording uniformly between 0.5 and 2 times the recording's length and phi uniformly;
+each frame carries it (`temperature_c`), and with --temperature-arcsec-per-c K the sensor's line of
+sight moves with it: a frame's counts are those of the true angle + K (T - 20) on both axes (a
+null shift of the sensor head, docs/calibration.md "temperature").
 """
 import argparse
 import json
@@ -77,17 +83,29 @@ def encoder_error(e, own, other):
     return err
 
 
-def recording(alpha, beta, dwells, m, count_noise, ref_noise, outlier_rate, rng, per_reading=1, errors=None):
+def recording(alpha, beta, dwells, m, count_noise, ref_noise, outlier_rate, rng, per_reading=1, errors=None,
+              temperature=None):
     rows = []
-    t = 0.0
     n_dw = len(dwells)
     pitch = np.array([d[1] for d in dwells]) * ARCSEC_PER_DEG
     yaw = np.array([d[2] for d in dwells]) * ARCSEC_PER_DEG
-    na = phys.counts_for_angle(alpha, pitch / phys.ARCSEC_PER_RAD)
-    nb = phys.counts_for_angle(beta, yaw / phys.ARCSEC_PER_RAD)
     shape = (n_dw, m)
-    ca = np.clip(np.rint(na[:, None] + rng.normal(0.0, count_noise, shape)), phys.COUNTS_MIN, phys.COUNTS_MAX)
-    cb = np.clip(np.rint(nb[:, None] + rng.normal(0.0, count_noise, shape)), phys.COUNTS_MIN, phys.COUNTS_MAX)
+    time = np.arange(n_dw * m, dtype=float).reshape(shape) * 0.1 + np.arange(n_dw)[:, None] * 2.0
+    temp_c = None
+    if temperature is not None:
+        amplitude, per_c = temperature
+        length = float(time[-1, -1])
+        period = length * rng.uniform(0.5, 2.0)
+        phi = rng.uniform(0.0, 2 * math.pi)
+        temp_c = 20.0 + amplitude * np.sin(2 * math.pi * time / period + phi)
+        shift = per_c * (temp_c - 20.0)
+        na = phys.counts_for_angle(alpha, (pitch[:, None] + shift) / phys.ARCSEC_PER_RAD)
+        nb = phys.counts_for_angle(beta, (yaw[:, None] + shift) / phys.ARCSEC_PER_RAD)
+    else:
+        na = phys.counts_for_angle(alpha, pitch / phys.ARCSEC_PER_RAD)[:, None]
+        nb = phys.counts_for_angle(beta, yaw / phys.ARCSEC_PER_RAD)[:, None]
+    ca = np.clip(np.rint(na + rng.normal(0.0, count_noise, shape)), phys.COUNTS_MIN, phys.COUNTS_MAX)
+    cb = np.clip(np.rint(nb + rng.normal(0.0, count_noise, shape)), phys.COUNTS_MIN, phys.COUNTS_MAX)
     if outlier_rate > 0:
         # Isolated spikes: a frame's count off by 20..200 counts (a bit error, a glint).
         hit = rng.random(shape) < outlier_rate
@@ -101,11 +119,14 @@ def recording(alpha, beta, dwells, m, count_noise, ref_noise, outlier_rate, rng,
     if per_reading > 1:
         first = (np.arange(m) // per_reading) * per_reading  # each frame's reading: the block's first
         rp, ry = rp[:, first], ry[:, first]
-    time = np.arange(n_dw * m, dtype=float).reshape(shape) * 0.1 + np.arange(n_dw)[:, None] * 2.0
+    header = "time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha,counts_beta"
     for k, d in enumerate(dwells):
         for i in range(m):
-            rows.append("%.3f,%s,%d,%.6f,%.6f,%d,%d" % (time[k, i], d[0], k + 1, rp[k, i], ry[k, i], ca[k, i], cb[k, i]))
-    return "time_s,phase,step,ref_pitch_arcsec,ref_yaw_arcsec,counts_alpha,counts_beta\n" + "\n".join(rows) + "\n"
+            row = "%.3f,%s,%d,%.6f,%.6f,%d,%d" % (time[k, i], d[0], k + 1, rp[k, i], ry[k, i], ca[k, i], cb[k, i])
+            rows.append(row if temp_c is None else row + ",%.4f" % temp_c[k, i])
+    if temp_c is not None:
+        header += ",temperature_c"
+    return header + "\n" + "\n".join(rows) + "\n"
 
 
 def main():
@@ -122,6 +143,8 @@ def main():
     ap.add_argument("--outlier-rate", type=float, default=0.0)
     ap.add_argument("--frames-per-reading", type=int, default=1)
     ap.add_argument("--gimbal-errors", default="")
+    ap.add_argument("--temperature-amplitude-c", type=float, default=0.0)
+    ap.add_argument("--temperature-arcsec-per-c", type=float, default=0.0)
     a = ap.parse_args()
     spec = json.load(open(a.gimbal_errors)) if a.gimbal_errors else None
     alpha, beta = phys.load_coefficients(a.truth)
@@ -130,8 +153,9 @@ def main():
     os.makedirs(a.out_dir, exist_ok=True)
     for r in range(a.recordings):
         errors = draw_errors(spec, rng) if spec else None
+        temperature = (a.temperature_amplitude_c, a.temperature_arcsec_per_c) if a.temperature_amplitude_c > 0 else None
         text = recording(alpha, beta, dwells, a.samples_per_dwell, a.count_noise_counts, a.ref_noise_arcsec,
-                         a.outlier_rate, rng, a.frames_per_reading, errors)
+                         a.outlier_rate, rng, a.frames_per_reading, errors, temperature)
         path = os.path.join(a.out_dir, "rec-%04d.csv" % r)
         with open(path, "w") as f:
             f.write(text)

@@ -274,6 +274,39 @@ TEST(AcceptanceJudge, EachCriterionCarriesItsBudgetAndExpandedUncertainty) {
   EXPECT_EQ(criterion(j, "verification_points").combined.U, 0.0);
 }
 
+// Where the recording has temperatures and the calibration a fitted sensitivity to them, the
+// accuracy criteria carry a temperature entry: the points' offset from the calibration's temperature
+// times the sensitivity with its sigma (the calibration does not correct for it).
+TEST(AcceptanceJudge, TheAccuracyCriteriaCarryTheTemperatureWhereTheRecordingHasIt) {
+  AcceptanceData data = record_unit(default_bench_config());
+  const Judgement plain = judge(data, limits());
+  SampleTable warm;
+  warm.origin = data.samples.origin;
+  warm.add_numeric_column("temperature_c");
+  for (size_t i = 0; i < data.samples.size(); ++i) warm.push_back(data.samples.row(i), std::vector<double>{21.5});
+  data.samples = std::move(warm);
+  auto& un = data.calibration->extra["uncertainties"];
+  un["pitch"]["temperature"] = {{"reference_c", 20.0}, {"spread_c", 0.1}, {"dwells", 121},
+                                {"sensitivity_arcsec_per_c", 0.1}, {"sensitivity_sigma_arcsec_per_c", 0.02}};
+  const Judgement j = judge(data, limits());
+  const double u_kappa = std::hypot(0.1, 0.02);
+  const Criterion& rms = criterion(j, "accuracy_3sigma_pitch");
+  ASSERT_EQ(rms.budget.size(), 2u);
+  EXPECT_EQ(rms.budget[1].source.rfind("temperature", 0), 0u) << rms.budget[1].source;
+  EXPECT_NEAR(rms.budget[1].sensitivity, 3 * 1.5, 1e-9);
+  EXPECT_NEAR(rms.budget[1].u, 3 * 1.5 * u_kappa, 1e-9);
+  EXPECT_GT(rms.combined.U, criterion(plain, "accuracy_3sigma_pitch").combined.U);
+  for (const char* id : {"accuracy_worst_point_pitch", "accuracy_centre_pitch"}) {
+    const Criterion& c = criterion(j, id);
+    ASSERT_FALSE(c.budget.empty());
+    EXPECT_NEAR(c.budget.back().u, 1.5 * u_kappa, 1e-9) << id;
+    EXPECT_EQ(c.budget.size(), criterion(plain, id).budget.size() + 1) << id;
+  }
+  // Yaw's calibration says nothing of temperature: no entry.
+  EXPECT_EQ(criterion(j, "accuracy_3sigma_yaw").budget.size(), 1u);
+  EXPECT_EQ(*criterion(j, "accuracy_3sigma_pitch").measured, *criterion(plain, "accuracy_3sigma_pitch").measured);
+}
+
 // The demonstration: a value within U of its limit passes the simple rule, is conditional under
 // the guarded and the risk rules, and the certificate says why.
 TEST(AcceptanceJudge, AValueWithinUOfItsLimitPassesSimpleAndIsConditionalGuarded) {

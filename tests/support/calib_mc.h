@@ -26,6 +26,9 @@ struct Design {
   double outlier_rate = 0;  // fraction of frames whose alpha count is off by 20..200 counts
   int frames_per_reading = 1;  // consecutive frames that share one encoder reading
   fs::path gimbal_errors;      // a reference calibration file whose terms are drawn per recording ("": none)
+  // A sensor temperature 20 + A sin(...) C in every frame, moving its line of sight by K (T - 20)
+  // arcsec (A = 0: no temperature column).
+  double temperature_amplitude_c = 0, temperature_arcsec_per_c = 0;
 
   // The angle (arcsec) of every dwell along one axis, in recording order (the other axis's offsets
   // are dwells at 0 along this one).
@@ -55,7 +58,8 @@ inline std::vector<fs::path> generate(const fs::path& truth, const fs::path& dir
        std::to_string(d.count_noise_counts), "--ref-noise-arcsec", std::to_string(d.ref_noise_arcsec),
        "--extent-deg", std::to_string(d.extent_deg), "--step-deg", std::to_string(d.step_deg), "--outlier-rate",
        std::to_string(d.outlier_rate), "--frames-per-reading", std::to_string(d.frames_per_reading),
-       "--gimbal-errors", d.gimbal_errors.string()},
+       "--gimbal-errors", d.gimbal_errors.string(), "--temperature-amplitude-c",
+       std::to_string(d.temperature_amplitude_c), "--temperature-arcsec-per-c", std::to_string(d.temperature_arcsec_per_c)},
       dir, "grid_gen");
   if (r.code != 0) throw std::runtime_error("grid_gen.py failed: " + r.err);
   std::vector<fs::path> files;
