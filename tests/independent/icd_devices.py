@@ -19,6 +19,18 @@ Nothing here comes from fixtures/ or drivers/: only the standard library and num
 
 prints one JSON line when both devices serve ({"modbus_port", "gimbal_endpoint", "sensor_pty",
 "sensor_endpoint", ...}) and runs until SIGTERM or SIGINT (or stdin closes, with --stop-on-stdin-eof).
+
+Several sensor units on the one gimbal (docs/icd.md section 2, "Several sensors on one stand"):
+
+    icd_devices.py --sensor FPSS1-IND:a-6-fpss1 --sensor FPSS2-IND:a-6-fpss2:alpha=-yaw,beta=pitch
+                   [--sensor-silent 2:80] [--sensor-unplug 2:80]
+
+serves one pty per unit, each with its own truth, mount, serial, seq and noise stream (unit 1
+seeded by --seed, unit K by "SEED/K"); nothing couples them but the gimbal they all see. The ready
+line keeps the keys above for the first unit and adds "sensors": [{"serial", "sensor_pty",
+"sensor_endpoint", "coefficients", "mount"}, ...] in --sensor order. --sensor-silent K:T makes unit
+K say nothing more (no frames, no replies, its line open) from T bench seconds after its first
+START; --sensor-unplug K:T closes its pty then. Noise and glitch options apply to every unit.
 """
 
 import argparse
@@ -137,6 +149,7 @@ class GimbalModel:
         self.rest_seen_us = None  # first reading at rest since the last move began
         self.moves_made = 0
         self.last_request_us = t
+        self.log_refusals = False  # --log-refusals: say on stderr why a command 6 was refused
 
     # -- registers --
     def get32(self, addr, signed=True):
@@ -282,6 +295,13 @@ class GimbalModel:
             elif cmd == 6:
                 move_at = self.get64(13)
                 if move_at <= t or self.fault or cur.kind == "rate":
+                    if self.log_refusals:
+                        sys.stderr.write(
+                            "icd_devices: command 6 refused at bench %.6f s: move_at %.6f s (%s), "
+                            "fault %d, %s\n" % (t / 1e6, move_at / 1e6,
+                                                "%.1f ms in the past" % ((t - move_at) / 1e3)
+                                                if move_at <= t else "in the future",
+                                                self.fault, cur.kind))
                     return 3
                 self.pending = (targets, move_at)
                 self._update(t)
@@ -458,13 +478,18 @@ class TransferFunction:
 
 
 class Sensor:
-    def __init__(self, clock, gimbal, args):
+    """One sensor unit on a pty of its own. `serial`, `coefficients`, `mount` and `seed` default to
+    the single sensor's options (--serial, --coefficients, --mount, --seed); several units each get
+    their own (--sensor), and all see the one gimbal (docs/icd.md section 2, several sensors)."""
+
+    def __init__(self, clock, gimbal, args, serial=None, coefficients=None, mount=None, seed=None,
+                 silent_after_s=None, unplug_after_s=None):
         self.clock = clock
         self.gimbal = gimbal
-        self.serial = args.serial
+        self.serial = args.serial if serial is None else serial
         self.rate_hz = 50
         self.streaming = False
-        self.rng = random.Random(args.seed)
+        self.rng = random.Random(args.seed if seed is None else seed)
         self.noise = args.sensor_noise
         self.glitch_rate = args.sensor_glitch_rate
         self.glitch_counts = args.sensor_glitch_counts
@@ -472,16 +497,30 @@ class Sensor:
         self.block_left = 0
         self.glitch_at = 0
         self.half_fov_rad = args.sensor_half_fov_deg * 3600 * RAD_PER_ARCSEC
-        with open(args.coefficients) as f:
+        self.coefficients = args.coefficients if coefficients is None else coefficients
+        with open(self.coefficients) as f:
             coeffs = json.load(f)
         self.tf = {"alpha": TransferFunction(coeffs["alpha"]),
                    "beta": TransferFunction(coeffs["beta"])}
         # --mount: which gimbal axis (and sign) each sensor axis sees
+        self.mount_text = args.mount if mount is None else mount
         self.mount = {}
-        for part in args.mount.split(","):
+        for part in self.mount_text.split(","):
             axis, src = part.split(":")
             sign = -1.0 if src.startswith("-") else 1.0
             self.mount[axis] = (src.lstrip("+-"), sign)
+        if set(self.mount) != {"alpha", "beta"} or any(
+                src not in ("pitch", "yaw") for src, _ in self.mount.values()):
+            raise ValueError("mount %r: want alpha:[+-]pitch|yaw,beta:[+-]pitch|yaw" % self.mount_text)
+        # --sensor-silent / --sensor-unplug: this many bench seconds after the first START the unit
+        # says nothing more (its line stays open, input is read and dropped), or its line goes away
+        # (pty closed). The bench times are set at that START.
+        self.silent_after_s = silent_after_s
+        self.unplug_after_s = unplug_after_s
+        self.silent_after_us = None
+        self.unplug_after_us = None
+        self.silenced = False
+        self.unplugged = False
         self.seq = self.rng.randrange(65536)
         self.next_us = None
         self.frames_sent = 0
@@ -521,6 +560,10 @@ class Sensor:
                 if not self.streaming:
                     self.streaming = True
                     self.next_us = self.clock.now_us()
+                    if self.silent_after_s is not None and self.silent_after_us is None:
+                        self.silent_after_us = self.next_us + int(self.silent_after_s * 1e6)
+                    if self.unplug_after_s is not None and self.unplug_after_us is None:
+                        self.unplug_after_us = self.next_us + int(self.unplug_after_s * 1e6)
             return "OK"
         if cmd == "STOP" and len(words) == 1:
             with self.lock:
@@ -584,8 +627,50 @@ class Sensor:
                 self.frames_sent += 1
                 self.next_us += period
 
+    def go_quiet(self):
+        """--sensor-silent: streaming state and seq go on (a cable cut, not a sensor stopped), but
+        nothing reaches the line: no frames, no replies."""
+        with self.lock:
+            now = self.clock.now_us()
+            if self.streaming and self.next_us <= now:
+                period = 1e6 / self.rate_hz
+                n = int((now - self.next_us) // period) + 1
+                self.seq = (self.seq + n) & 0xFFFF
+                self.next_us += n * period
+            self.out.clear()
+
+    def unplug(self):
+        """--sensor-unplug: the line goes away: both ends of the pty closed (its path vanishes)."""
+        self.unplugged = True
+        for fd in (self.master, self.slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
     def run(self, stop):
         while not stop.is_set():
+            timed = self.unplug_after_us is not None or self.silent_after_us is not None
+            now_us = self.clock.now_us() if timed else 0
+            if self.unplug_after_us is not None and now_us >= self.unplug_after_us:
+                self.unplug()
+                sys.stderr.write("icd_devices: sensor %s unplugged at bench %.3f s\n"
+                                 % (self.serial, now_us / 1e6))
+                return
+            if self.silent_after_us is not None and now_us >= self.silent_after_us:
+                if not self.silenced:
+                    self.silenced = True
+                    sys.stderr.write("icd_devices: sensor %s silent from bench %.3f s\n"
+                                     % (self.serial, now_us / 1e6))
+                r, _, _ = select.select([self.master], [], [], 0.05)
+                if r:
+                    try:
+                        os.read(self.master, 4096)
+                    except OSError:
+                        pass
+                self.inbuf.clear()
+                self.go_quiet()
+                continue
             with self.lock:
                 wake = (self.clock.wall_of(self.next_us) if self.streaming else time.monotonic() + 0.05)
             timeout = max(0.0, min(0.05, wake - time.monotonic()))
@@ -622,6 +707,42 @@ class Sensor:
 # ---------------------------------------------------------------------------------------------
 
 
+def published(name):
+    """A coefficient file: a path, or the name of a published set (`a-6-fpss2`: calib/data)."""
+    if os.path.sep in name or name.endswith(".json"):
+        return name
+    return os.path.join(SOURCE, "calib/data/published", name + ".json")
+
+
+def parse_sensor(text):
+    """--sensor SERIAL:COEFFICIENTS[:MOUNT] -> (serial, coefficients file, mount or None).
+
+    SERIAL holds no ':' (nor ',', docs/icd.md: ID?); COEFFICIENTS is a file or a published set's
+    name (a-6-fpss1); MOUNT is written with '=' where --mount has ':' (alpha=-yaw,beta=pitch), so a
+    last field with '=' is the mount and everything between is the file."""
+    serial, sep, rest = text.partition(":")
+    if not sep or not serial or "," in serial or not rest:
+        raise argparse.ArgumentTypeError(
+            "--sensor %r: want SERIAL:COEFFICIENTS[:MOUNT], e.g. FPSS2-IND:a-6-fpss2:alpha=-yaw,beta=pitch"
+            % text)
+    mount = None
+    head, sep, last = rest.rpartition(":")
+    if sep and "=" in last:
+        rest, mount = head, last.replace("=", ":")
+    return serial, published(rest), mount
+
+
+def parse_unit_time(text):
+    """K:T -> (unit K, 1-based, bench seconds T after the devices start)."""
+    k, sep, t = text.partition(":")
+    try:
+        if not sep or int(k) < 1 or float(t) < 0:
+            raise ValueError
+        return int(k), float(t)
+    except ValueError:
+        raise argparse.ArgumentTypeError("%r: want K:T (unit K from 1, T bench seconds)" % text)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--port", type=int, default=0, help="Modbus TCP port (0: any free one)")
@@ -632,6 +753,20 @@ def main(argv=None):
                    default=os.path.join(SOURCE, "calib/data/published/a-6-fpss1.json"))
     p.add_argument("--mount", default="alpha:pitch,beta:yaw",
                    help="which gimbal axis each sensor axis sees, e.g. alpha:-yaw,beta:pitch")
+    p.add_argument("--sensor", action="append", type=parse_sensor, default=[],
+                   metavar="SERIAL:COEFFICIENTS[:MOUNT]",
+                   help="several units on the one gimbal, one pty each, in this order (repeatable; "
+                        "replaces --serial/--coefficients/--mount). COEFFICIENTS: a file or a "
+                        "published set's name (a-6-fpss2); MOUNT as --mount with '=' for ':' "
+                        "(alpha=-yaw,beta=pitch; default alpha=pitch,beta=yaw). Unit 1's noise "
+                        "stream is --seed's, as the single sensor's; unit K's is seeded by "
+                        "'SEED/K', independent of the others")
+    p.add_argument("--sensor-silent", action="append", type=parse_unit_time, default=[],
+                   metavar="K:T", help="unit K says nothing more (no frames, no replies; its line "
+                                       "stays open) from T bench seconds after its first START")
+    p.add_argument("--sensor-unplug", action="append", type=parse_unit_time, default=[],
+                   metavar="K:T", help="unit K's pty is closed (its line vanishes) T bench seconds "
+                                       "after its first START")
     p.add_argument("--sensor-noise", type=float, default=0.3, help="count noise, 1 sigma")
     p.add_argument("--sensor-half-fov-deg", type=float, default=0.95)
     p.add_argument("--sensor-glitch-rate", type=float, default=0.0)
@@ -640,15 +775,47 @@ def main(argv=None):
                    default="stratified")
     p.add_argument("--clock-start-us", type=int, default=0,
                    help="the bench clock's reading at start (near 2**32 puts a sensor wrap early)")
-    p.add_argument("--sensor-link", help="also name the sensor's pty by this symbolic link")
+    p.add_argument("--sensor-link", help="also name the (first) sensor's pty by this symbolic link")
+    p.add_argument("--log-refusals", action="store_true",
+                   help="say on stderr why the gimbal refused a scheduled move (command 6)")
     p.add_argument("--stop-on-stdin-eof", action="store_true",
                    help="also stop when stdin closes (a parent that dies takes the devices along)")
     args = p.parse_args(argv)
+    several = bool(args.sensor)
+    n_units = len(args.sensor) if several else 1
+    serials = [spec[0] for spec in args.sensor]
+    if len(set(serials)) != len(serials):
+        p.error("--sensor: two units with one serial")
+    for opt, given in (("--sensor-silent", args.sensor_silent),
+                       ("--sensor-unplug", args.sensor_unplug)):
+        for k, _ in given:
+            if k > n_units:
+                p.error("%s: unit %d of %d" % (opt, k, n_units))
 
     clock = BenchClock(args.speed, args.clock_start_us)
     gimbal = GimbalModel(clock)
+    gimbal.log_refusals = args.log_refusals
     server = GimbalServer(args.port, gimbal)
-    sensor = Sensor(clock, gimbal, args)
+
+    def after(given, k):
+        times = [t for unit, t in given if unit == k]
+        return min(times) if times else None
+
+    sensors = []
+    for k in range(1, n_units + 1):
+        timing = {"silent_after_s": after(args.sensor_silent, k),
+                  "unplug_after_s": after(args.sensor_unplug, k)}
+        if not several:
+            sensors.append(Sensor(clock, gimbal, args, **timing))
+            continue
+        serial, coefficients, mount = args.sensor[k - 1]
+        try:
+            sensors.append(Sensor(clock, gimbal, args, serial=serial, coefficients=coefficients,
+                                  mount=mount or "alpha:pitch,beta:yaw",
+                                  seed=args.seed if k == 1 else "%d/%d" % (args.seed, k), **timing))
+        except (OSError, ValueError, KeyError) as e:
+            p.error("--sensor %s: %s" % (serial, e))
+    sensor = sensors[0]
     if args.sensor_link:
         if os.path.lexists(args.sensor_link):
             os.unlink(args.sensor_link)
@@ -657,8 +824,8 @@ def main(argv=None):
     stop = threading.Event()
     threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05},
                      daemon=True).start()
-    sensor_thread = threading.Thread(target=sensor.run, args=(stop,), daemon=True)
-    sensor_thread.start()
+    for unit in sensors:
+        threading.Thread(target=unit.run, args=(stop,), daemon=True).start()
 
     def finish(*_):
         stop.set()
@@ -666,9 +833,14 @@ def main(argv=None):
     signal.signal(signal.SIGTERM, finish)
     signal.signal(signal.SIGINT, finish)
     port = server.server_address[1]
-    print(json.dumps({"modbus_port": port, "gimbal_endpoint": "modbus-tcp:127.0.0.1:%d" % port,
-                      "sensor_pty": sensor.path, "sensor_endpoint": "pty:" + sensor.path,
-                      "serial": args.serial, "speed": args.speed, "seed": args.seed}), flush=True)
+    ready = {"modbus_port": port, "gimbal_endpoint": "modbus-tcp:127.0.0.1:%d" % port,
+             "sensor_pty": sensor.path, "sensor_endpoint": "pty:" + sensor.path,
+             "serial": sensor.serial, "speed": args.speed, "seed": args.seed}
+    if several:  # every unit's line, in --sensor order (the first one's also as above)
+        ready["sensors"] = [{"serial": u.serial, "sensor_pty": u.path,
+                             "sensor_endpoint": "pty:" + u.path, "coefficients": u.coefficients,
+                             "mount": u.mount_text} for u in sensors]
+    print(json.dumps(ready), flush=True)
 
     def watch_stdin():
         try:
@@ -684,8 +856,9 @@ def main(argv=None):
         pass
     server.shutdown()
     server.server_close()
-    sys.stderr.write("icd_devices: %d frames sent, %d glitch frames\n"
-                     % (sensor.frames_sent, sensor.glitches))
+    for unit in sensors:
+        sys.stderr.write("icd_devices: %s%d frames sent, %d glitch frames\n"
+                         % (unit.serial + ": " if several else "", unit.frames_sent, unit.glitches))
     return 0
 
 
