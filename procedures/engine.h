@@ -34,6 +34,7 @@ struct EngineUnit {
   int id = 0;
   Sensor* sensor = nullptr;  // borrowed
   AxisMapping axes;          // how it sits on the gimbal
+  std::string serial;        // as it reported itself ("": unknown), for the messages that name it
 };
 // A unit dropped from the run: why, and at which point (0-based; -1 before the first).
 struct UnitLoss {

@@ -56,12 +56,17 @@ std::vector<size_t> EngineIo::followers() const {
   return out;
 }
 
+std::string EngineIo::unit_name(size_t i) const {
+  const EngineUnit& u = units_[i];
+  return u.serial.empty() ? std::to_string(u.id + 1) : fmt::format("{} ({})", u.id + 1, u.serial);
+}
+
 bool EngineIo::can_lose_lead() const { return !followers().empty(); }
 
 bool EngineIo::lose(size_t i, LossCause cause, const std::string& reason, int64_t point) {
   if (lost_[i]) return true;
   lost_[i] = true;
-  const std::string msg = fmt::format("unit {} lost ({}): {}; the other units go on", units_[i].id + 1, to_string(cause), reason);
+  const std::string msg = fmt::format("unit {} lost ({}): {}; the other units go on", unit_name(i), to_string(cause), reason);
   log_.error("{}", msg);
   events_.publish(Fault{Fault::Level::fault, point, msg, {}});
   if (on_lost_) on_lost_(UnitLoss{units_[i].id, cause, reason, point});
@@ -78,7 +83,7 @@ bool EngineIo::lose(size_t i, LossCause cause, const std::string& reason, int64_
     for (size_t k = 0; k < units_.size(); ++k) {
       if (!lost_[k]) {
         lead_ = k;
-        log_.warn("unit {} leads from here", units_[k].id + 1);
+        log_.warn("unit {} leads from here", unit_name(k));
         return true;
       }
     }

@@ -42,6 +42,8 @@ class EngineIo {
   // Drops unit i for the rest of the run (a Fault event says so); the lead's place passes to the
   // next unit still read. False when it was the last.
   bool lose(size_t i, LossCause cause, const std::string& reason, int64_t point);
+  // "K (SERIAL)", K 1-based: how messages name unit i.
+  std::string unit_name(size_t i) const;
   // Another unit could take the lead's place.
   bool can_lose_lead() const;
   void on_lost(std::function<void(const UnitLoss&)> f) { on_lost_ = std::move(f); }

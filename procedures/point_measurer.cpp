@@ -142,7 +142,7 @@ void PointMeasurer::with_remeasure(const Action& a, const std::function<void(int
       return;
     } catch (const PointFailure& e) {
       if (!e.sensor_side || !a.is_point() || !io_.can_lose_lead()) throw;
-      const LossCause cause = loss_cause(crc_errors(lead) - crc0, a, e.cause == StopCause::sensor_invalid);
+      const LossCause cause = loss_cause(lead, crc_errors(lead) - crc0, a, e.cause == StopCause::sensor_invalid);
       io_.lose(lead, cause, e.what(), a.point);
       flush_followers();
     }

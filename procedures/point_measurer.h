@@ -89,9 +89,10 @@ class PointMeasurer {
   // A follower gave no rows at a point: its stream restarted, or it is dropped after too many in a row.
   void follower_failed(const Action& a, size_t unit, const std::string& why, int invalid);
   void follower_ok(size_t unit);
-  // Why a unit is dropped: more bad CRCs since its last good point than the point's frames is a CRC
-  // storm; else invalid frames when some came; else silence.
-  static LossCause loss_cause(uint64_t new_crc_errors, const Action& a, bool invalid);
+  // Why a unit is dropped: a line its driver gave up reopening is link_failed; more bad CRCs since
+  // its last good point than the point's frames is a CRC storm; else invalid frames when some
+  // came; else silence.
+  LossCause loss_cause(size_t unit, uint64_t new_crc_errors, const Action& a, bool invalid) const;
   uint64_t crc_errors(size_t unit) const;  // its driver's count so far (0 when it cannot say)
   std::vector<uint64_t> crc_seen_;  // per unit: its driver's CRC errors at its last good point
 

@@ -19,7 +19,7 @@ void PointMeasurer::flush_followers() {
       Timed t(stats_.device_s);
       io_.unit(u).sensor->flush();
     } catch (const DeviceError& e) {
-      log_.warn("unit {}: flush failed: {}", io_.unit(u).id + 1, e.what());
+      log_.warn("unit {}: flush failed: {}", io_.unit_name(u), e.what());
     }
   }
 }
@@ -32,7 +32,7 @@ std::vector<std::vector<SensorSample>> PointMeasurer::drain_followers() {
       Timed t(stats_.device_s);
       while (auto f = io_.unit(u).sensor->next_sample(0.0)) out.back().push_back(*f);
     } catch (const DeviceError& e) {
-      log_.warn("unit {}: {}", io_.unit(u).id + 1, e.what());
+      log_.warn("unit {}: {}", io_.unit_name(u), e.what());
     }
   }
   return out;
@@ -101,7 +101,9 @@ std::vector<RecordedRow> PointMeasurer::follower_dwell(const Action& a, size_t u
   return rows;
 }
 
-LossCause PointMeasurer::loss_cause(uint64_t new_crc_errors, const Action& a, bool invalid) {
+LossCause PointMeasurer::loss_cause(size_t unit, uint64_t new_crc_errors, const Action& a, bool invalid) const {
+  // A line that went away and could not be reopened is not a silent unit: the driver gave up on it.
+  if (!io_.unit(unit).sensor->connected()) return LossCause::link_failed;
   if (new_crc_errors > static_cast<uint64_t>(a.frames)) return LossCause::crc_storm;
   return invalid ? LossCause::invalid_frames : LossCause::silence;
 }
@@ -129,10 +131,10 @@ void PointMeasurer::follower_failed(const Action& a, size_t ui, const std::strin
   // row and the unit is dropped. Its stream is restarted once, at the first (a stopped stream comes
   // back; a silent unit costs its command timeouts only once).
   if (++io_.strikes(ui) > std::max(1, b_.max_remeasure)) {
-    io_.lose(ui, loss_cause(new_crc, a, invalid > 0), fmt::format("{} at {} points in a row, the last {}", why, io_.strikes(ui), a.describe()), a.point);
+    io_.lose(ui, loss_cause(ui, new_crc, a, invalid > 0), fmt::format("{} at {} points in a row, the last {}", why, io_.strikes(ui), a.describe()), a.point);
     return;
   }
-  io_.warn(&a, fmt::format("unit {}: {} at {}{}", u.id + 1, why, a.describe(),
+  io_.warn(&a, fmt::format("unit {}: {} at {}{}", io_.unit_name(ui), why, a.describe(),
                            io_.strikes(ui) == 1 ? "; restarting its stream" : ""));
   if (io_.strikes(ui) > 1) return;
   try {
@@ -141,7 +143,7 @@ void PointMeasurer::follower_failed(const Action& a, size_t ui, const std::strin
     u.sensor->flush();
     u.sensor->start();
   } catch (const DeviceError& e) {
-    log_.warn("unit {} not answering while restarting: {}", u.id + 1, e.what());
+    log_.warn("unit {} not answering while restarting: {}", io_.unit_name(ui), e.what());
   }
 }
 

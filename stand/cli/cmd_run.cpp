@@ -115,6 +115,13 @@ int run_command(const RunArgs& a) {
                 static_cast<long long>(r.points_total), dir.c_str());
     if (r.points_done < r.points_total) std::printf("resume with: fpss-stand run --resume %s\n", dir.c_str());
   }
+  // A lost unit makes the exit 1 with the run completed: say which, --quiet or not.
+  for (const auto& u : r.units) {
+    if (!u.loss) continue;
+    std::printf("unit %s: lost (%s)%s: %s\n", u.serial.c_str(), to_string(u.loss->cause),
+                u.loss->point >= 0 ? fmt::format(" at point {}", u.loss->point + 1).c_str() : " before the first point",
+                u.loss->reason.c_str());
+  }
   if (!r.catalogue_error.empty()) {
     std::fprintf(stderr,
                  "fpss-stand run: %s\nfpss-stand run: the run folder %s is complete; re-index it with: fpss-stand "

@@ -544,7 +544,7 @@ SessionResult Session::run() {
     }
     std::vector<EngineUnit> live;
     for (size_t i = 0; i < units_.size(); ++i) {
-      if (!units_[i].loss) live.push_back(EngineUnit{static_cast<int>(i), units_[i].sensor.get(), units_[i].cfg.axes});
+      if (!units_[i].loss) live.push_back(EngineUnit{static_cast<int>(i), units_[i].sensor.get(), units_[i].cfg.axes, units_[i].serial});
     }
     Engine engine(*gimbal_, *live.front().sensor, stand_.bench, plan_, bus_, *log_, control, hooks, rec_->resume_point());
     if (multi()) engine.set_units(live);
