@@ -191,13 +191,13 @@ std::pair<double, double> stand_angles(const AxisMapping& mount, int sensor_axis
                           : mount.stand_from_sensor(other_arcsec, angle_arcsec);
 }
 
+}  // namespace
+
 std::vector<BudgetEntry> reference_terms_at(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
                                             double angle_arcsec, double other_arcsec) {
   const auto [p, y] = stand_angles(mount, sensor_axis, angle_arcsec, other_arcsec);
   return sees_pitch(mount, sensor_axis) ? axis_terms(r.pitch, "pitch", p, y) : axis_terms(r.yaw, "yaw", y, p);
 }
-
-}  // namespace
 
 double reference_worst_other_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
                                     double angle_arcsec, double other_extent_arcsec) {

@@ -59,6 +59,9 @@ void correct_reference_angles(const ReferenceCalibration& r, const AxisMapping& 
 // +-other_extent (its two ends and zero): one entry per term, "reference calibration: pitch zero".
 std::vector<BudgetEntry> reference_budget(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
                                           double angle_arcsec, double other_extent_arcsec);
+// The same at a known position of the other sensor axis (`other_arcsec`): a measured point's.
+std::vector<BudgetEntry> reference_terms_at(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
+                                            double angle_arcsec, double other_arcsec);
 // That worst position of the other sensor axis (arcsec).
 double reference_worst_other_arcsec(const ReferenceCalibration& r, const AxisMapping& mount, int sensor_axis,
                                     double angle_arcsec, double other_extent_arcsec);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 
 #include "base/errors.h"
 #include "calib/compare.h"
@@ -197,6 +198,75 @@ double rms_temperature_offset(const std::vector<const DwellStats*>& dwells, cons
     ++n;
   }
   return n > 0 ? std::sqrt(ss / static_cast<double>(n)) : std::numeric_limits<double>::quiet_NaN();
+}
+
+// The reference's terms: what the unit's true errors have (its calibration inherits the reference's
+// error) and its measured ones, taken against the same reference, lack. A worst-of-n figure's true
+// dwell is not the one the noise picked, so the terms are those of the dwell of the set where the
+// reference's u is largest.
+void add_reference_terms(std::vector<BudgetEntry>& b, const AcceptanceData& data,
+                         const std::vector<const DwellStats*>& dwells, int ax) {
+  if (!data.reference || dwells.empty()) return;
+  std::vector<BudgetEntry> worst;
+  double worst_u = -1;
+  for (const DwellStats* d : dwells) {
+    auto terms = reference_terms_at(*data.reference, data.mount, ax, d->ref[ax], d->ref[1 - ax]);
+    if (const double u = root_sum_square(terms); u > worst_u) {
+      worst_u = u;
+      worst = std::move(terms);
+    }
+  }
+  b.insert(b.end(), worst.begin(), worst.end());
+}
+
+// The 3-sigma accuracy over `points` is an RMS of errors each measured with its dwell's standard error
+// se: the noise adds to the RMS in quadrature (E m^2 = t^2 + se^2), so the measured RMS exceeds the
+// unit's by RMS - sqrt(RMS^2 - mean se^2), an effect the value is not corrected for (GUM F.2.4.5).
+// The reference's own u enters the unit's true errors as the calibration inherits it: its RMS over
+// the points.
+void add_rms_terms(std::vector<BudgetEntry>& b, const AcceptanceData& data,
+                   const std::vector<const DwellStats*>& points, int ax, double rms) {
+  double se2 = 0, ref2 = 0;
+  for (const DwellStats* d : points) {
+    se2 += d->se[ax] * d->se[ax];
+    if (data.reference) {
+      const double u = root_sum_square(reference_terms_at(*data.reference, data.mount, ax, d->ref[ax], d->ref[1 - ax]));
+      ref2 += u * u;
+    }
+  }
+  const double n = static_cast<double>(points.size());
+  const double inflation = rms - std::sqrt(std::max(0.0, rms * rms - se2 / n));
+  b.push_back({"dwell-mean noise in the points' errors (it inflates the RMS)", 'A', 3.0, 3.0 * inflation, n});
+  if (data.reference) {
+    b.push_back({"reference calibration (RMS of its u over the points)", 'B', 3.0, 3.0 * std::sqrt(ref2 / n),
+                 std::numeric_limits<double>::infinity()});
+  }
+}
+
+// A worst-of-n figure is the largest |error| over dwells each measured with its standard error se:
+// the noise lifts a maximum (the largest of n noisy values sits above the largest true one). The
+// lift is estimated by drawing the noise again about the measured errors (a parametric bootstrap,
+// seeded: the same recording gives the same budget) and is not corrected for (GUM F.2.4.5).
+constexpr int kLiftDraws = 1000;
+double worst_selection_lift(const std::vector<const DwellStats*>& dwells, int ax) {
+  if (dwells.size() < 2) return 0.0;
+  std::mt19937_64 rng(0x5eedf00dULL + dwells.size());
+  std::normal_distribution<double> z;
+  double measured = 0;
+  for (const DwellStats* d : dwells) measured = std::max(measured, std::abs(d->mean[ax] - d->ref[ax]));
+  double sum = 0;
+  for (int k = 0; k < kLiftDraws; ++k) {
+    double worst = 0;
+    for (const DwellStats* d : dwells) worst = std::max(worst, std::abs(d->mean[ax] - d->ref[ax] + d->se[ax] * z(rng)));
+    sum += worst;
+  }
+  return std::max(0.0, sum / kLiftDraws - measured);
+}
+
+void add_selection_lift(std::vector<BudgetEntry>& b, const std::vector<const DwellStats*>& dwells, int ax) {
+  if (dwells.size() < 2) return;
+  b.push_back({fmt::format("selection of the worst of {} noisy dwells (the noise's lift of a maximum)", dwells.size()),
+               'B', 1.0, worst_selection_lift(dwells, ax), std::numeric_limits<double>::infinity()});
 }
 
 const char* axis_label(int ax) { return ax == 0 ? "pitch (alpha)" : "yaw (beta)"; }
@@ -445,12 +515,15 @@ void Judging::accuracy_criteria() {
         const double v3 = 3.0 * std::sqrt(ss / n);
         // An RMS about zero (the reference), not about its own mean: n degrees of freedom.
         std::vector<BudgetEntry> rms_budget{{"scatter of the verification errors (RMS / sqrt(2n))", 'A', 3.0, v3 / std::sqrt(2.0 * n), n}};
+        add_rms_terms(rms_budget, data, ver_in, ax, v3 / 3.0);
         add_temperature(rms_budget, temp, rms_temperature_offset(ver_in, temp), 3.0, "RMS of the points' temperatures");
         settle(rms3, v3, rms_budget,
                fmt::format("{} verification points within {} arcmin; error = calibrated angle - reference, "
                            "mean over each dwell's frames{}",
                            ver_in.size(), L.accuracy_radius_arcmin.value, left_out(ver_in)));
         std::vector<BudgetEntry> worst_budget = dwell_budget(*at, ax);
+        add_selection_lift(worst_budget, ver_in, ax);
+        add_reference_terms(worst_budget, data, ver_in, ax);
         add_temperature(worst_budget, temp, temperature_offset(*at, temp), 1.0, "the point's temperature");
         settle(worst, w, worst_budget,
                fmt::format("{:+.3f} arcsec at {}{}", at->mean[ax] - at->ref[ax], where_text(*at), left_out({at})));
@@ -460,6 +533,8 @@ void Judging::accuracy_criteria() {
       } else {
         const auto [at, w] = worst_dwell(ver_null, error_size);
         std::vector<BudgetEntry> centre_budget = dwell_budget(*at, ax);
+        add_selection_lift(centre_budget, ver_null, ax);
+        add_reference_terms(centre_budget, data, ver_null, ax);
         add_temperature(centre_budget, temp, temperature_offset(*at, temp), 1.0, "the dwell's temperature");
         settle(centre, w, centre_budget,
                fmt::format("{} null dwells after the calibration; worst {:+.3f} arcsec at step {}{}", ver_null.size(),

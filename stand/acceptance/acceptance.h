@@ -9,8 +9,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include "calib/axis_mapping.h"
 #include "calib/coefficients.h"
 #include "calib/reduction.h"
+#include "calib/reference_calibration.h"
 #include "calib/samples.h"
 #include "calib/uncertainty.h"
 #include "procedures/plan.h"
@@ -78,6 +80,11 @@ struct AcceptanceData {
   std::string previous_name;                 // how to name it in the certificate
   bool run_completed = true;
   std::string run_reason;                    // why the run stopped early
+  // The reference's own calibration (the stand file's `reference:`), which the engine applied to the
+  // readings: its u is in the accuracy criteria's budgets (the calibration inherits the reference's
+  // error, and a verification against the same reference cannot see it). None: no such entries.
+  std::optional<ReferenceCalibration> reference;
+  AxisMapping mount;                         // how the unit sits on the gimbal (the reference's terms)
 };
 
 struct Criterion {

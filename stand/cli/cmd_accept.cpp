@@ -232,6 +232,11 @@ UnitAcceptance accept_unit(const AcceptancePlan& p, const SessionResult& r, RunF
   data.run_reason = r.reason;
   data.samples = std::move(recording);  // the session's recording: samples.csv is not read again
   if (calibration && fs::exists(*calibration)) data.calibration = load_coefficients(*calibration);
+  data.reference = p.req.stand.bench.reference;
+  data.mount = p.req.stand.bench.axes;
+  for (const StandUnit& su : p.req.stand.units) {
+    if (su.serial == unit) data.mount = su.axes;
+  }
   const std::string cat_url = p.req.catalogue;
   const std::string run_id = run.id_or(r.run_dir);
   find_reference(data, cat_url, unit, run_id);

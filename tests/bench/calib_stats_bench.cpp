@@ -19,11 +19,6 @@
 namespace fpss {
 namespace {
 
-int env_int(const char* name, int fallback) {
-  const char* v = std::getenv(name);
-  return v && *v ? std::atoi(v) : fallback;
-}
-
 struct Variant {
   const char* name;
   CalibrationOptions opts;
@@ -33,8 +28,8 @@ struct Variant {
 };
 
 void BM_CalibrationStatistics(benchmark::State& state, const std::string& truth_name) {
-  const int recordings = env_int("FPSS_MC_RECORDINGS", 200);
-  const int long_recordings = env_int("FPSS_MC_LONG", 2);
+  const int recordings = test::mc::env_int("FPSS_MC_RECORDINGS", 200);
+  const int long_recordings = test::mc::env_int("FPSS_MC_LONG", 2);
   const auto truth_path = published_dir() / (truth_name + ".json");
   const CoefficientSet truth = load_published(truth_name);
   test::mc::Design design;
@@ -134,7 +129,7 @@ BENCHMARK_CAPTURE(BM_CalibrationStatistics, a5_fpss2, std::string("a-5-fpss2"))-
 // sight by 0.03 arcsec per C (about the dwell means' noise) (the generator's --temperature-*): the error is taken against the truth
 // at the calibration's reference temperature (temperature.reference_c).
 void BM_ExpandedUncertaintyCoverage(benchmark::State& state, bool with_reference, bool with_temperature) {
-  const int recordings = env_int("FPSS_MC_RECORDINGS", 200);
+  const int recordings = test::mc::env_int("FPSS_MC_RECORDINGS", 200);
   const std::string truth_name = "a-6-fpss1";
   const CoefficientSet truth = load_published(truth_name);
   test::mc::Design design;

@@ -17,6 +17,7 @@ Usage:
       [--samples-per-dwell M] [--count-noise-counts 0.3] [--ref-noise-arcsec 0.05]
       [--extent-deg 0.45] [--step-deg 0.03] [--outlier-rate 0] [--frames-per-reading 1]
       [--gimbal-errors REF.json] [--temperature-amplitude-c A --temperature-arcsec-per-c K]
+      [--verification]
 Writes DIR/rec-0000.csv ... and prints one line per file.
 
 --gimbal-errors: a reference calibration file (docs/formats.md, "Reference calibration file"); for
@@ -29,6 +30,10 @@ drawn per recording uniformly between 0.5 and 2 times the recording's length and
 each frame carries it (`temperature_c`), and with --temperature-arcsec-per-c K the sensor's line of
 sight moves with it: a frame's counts are those of the true angle + K (T - 20) on both axes (a
 null shift of the sensor head, docs/calibration.md "temperature").
+
+--verification: after the grid, the same recording goes on with verification dwells between the
+grid's offsets (+-(i - 1/2) step along pitch, then yaw, each followed by a null), on the same drawn
+gimbal errors: an acceptance's verification (docs/acceptance.md), the grid's steps its calibration.
 """
 import argparse
 import json
@@ -53,13 +58,21 @@ def offsets_deg(extent, step):
     return out
 
 
-def plan(extent, step):
-    """(phase, pitch_deg, yaw_deg) per dwell: null, off, null, off, ..., null; pitch offsets, then yaw."""
+def plan(extent, step, verification=False):
+    """(phase, pitch_deg, yaw_deg) per dwell: null, off, null, off, ..., null; pitch offsets, then yaw;
+    with verification, then the midpoints the same way."""
     dwells = [("null", 0.0, 0.0)]
     for axis in ("pitch", "yaw"):
         for o in offsets_deg(extent, step):
             dwells.append(("offset", o, 0.0) if axis == "pitch" else ("offset", 0.0, o))
             dwells.append(("null", 0.0, 0.0))
+    if verification:
+        k = int(math.floor(extent / step + 1e-9))
+        mids = [s * (i - 0.5) * step for i in range(1, k + 1) for s in (1, -1)]
+        for axis in ("pitch", "yaw"):
+            for o in mids:
+                dwells.append(("offset", o, 0.0) if axis == "pitch" else ("offset", 0.0, o))
+                dwells.append(("null", 0.0, 0.0))
     return dwells
 
 
@@ -145,10 +158,11 @@ def main():
     ap.add_argument("--gimbal-errors", default="")
     ap.add_argument("--temperature-amplitude-c", type=float, default=0.0)
     ap.add_argument("--temperature-arcsec-per-c", type=float, default=0.0)
+    ap.add_argument("--verification", action="store_true")
     a = ap.parse_args()
     spec = json.load(open(a.gimbal_errors)) if a.gimbal_errors else None
     alpha, beta = phys.load_coefficients(a.truth)
-    dwells = plan(a.extent_deg, a.step_deg)
+    dwells = plan(a.extent_deg, a.step_deg, a.verification)
     rng = np.random.default_rng(a.seed)
     os.makedirs(a.out_dir, exist_ok=True)
     for r in range(a.recordings):

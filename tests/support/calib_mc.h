@@ -5,7 +5,9 @@
 #pragma once
 #include <Eigen/Dense>
 
+#include <array>
 #include <cmath>
+#include <cstdlib>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -16,6 +18,12 @@
 #include "tests/support/test_support.h"
 
 namespace fpss::test::mc {
+
+// A benchmark's size from the environment (FPSS_MC_RECORDINGS, ...), else the fallback.
+inline int env_int(const char* name, int fallback) {
+  const char* v = std::getenv(name);
+  return v && *v ? std::atoi(v) : fallback;
+}
 
 // The grid the generator records: offsets +-step .. +-extent along pitch, then yaw, each between
 // two null dwells.
@@ -29,6 +37,29 @@ struct Design {
   // A sensor temperature 20 + A sin(...) C in every frame, moving its line of sight by K (T - 20)
   // arcsec (A = 0: no temperature column).
   double temperature_amplitude_c = 0, temperature_arcsec_per_c = 0;
+  // After the grid, verification dwells at the midpoints between its offsets (an acceptance's).
+  bool verification = false;
+
+  // The (pitch, yaw) true angles (arcsec) of every dwell in recording order, step k + 1 at index
+  // k: the grid's, then with `verification` the midpoints' (grid_gen.py plan()).
+  std::vector<std::array<double, 2>> step_angles_arcsec() const {
+    std::vector<std::array<double, 2>> out{{0.0, 0.0}};
+    const int k = static_cast<int>(std::floor(extent_deg / step_deg + 1e-9));
+    for (double shift : verification ? std::vector<double>{0.0, 0.5} : std::vector<double>{0.0}) {
+      for (int axis = 0; axis < 2; ++axis) {
+        for (int i = 1; i <= k; ++i) {
+          for (double sgn : {1.0, -1.0}) {
+            const double o = sgn * (i - shift) * step_deg * kArcsecPerDeg;
+            out.push_back(axis == 0 ? std::array<double, 2>{o, 0.0} : std::array<double, 2>{0.0, o});
+            out.push_back({0.0, 0.0});
+          }
+        }
+      }
+    }
+    return out;
+  }
+  // How many of those steps are the grid's (the rest verify).
+  size_t grid_steps() const { return 1 + 8 * static_cast<size_t>(std::floor(extent_deg / step_deg + 1e-9)); }
 
   // The angle (arcsec) of every dwell along one axis, in recording order (the other axis's offsets
   // are dwells at 0 along this one).
@@ -51,16 +82,17 @@ struct Design {
 inline std::vector<fs::path> generate(const fs::path& truth, const fs::path& dir, int recordings, uint64_t seed,
                                       const Design& d) {
   fs::create_directories(dir);
-  const CommandResult r = run_command(
-      {"/usr/bin/python3", (source_dir() / "tests/gen/grid_gen.py").string(), "--truth", truth.string(), "--out-dir",
-       dir.string(), "--recordings", std::to_string(recordings), "--seed", std::to_string(seed),
-       "--samples-per-dwell", std::to_string(d.samples_per_dwell), "--count-noise-counts",
-       std::to_string(d.count_noise_counts), "--ref-noise-arcsec", std::to_string(d.ref_noise_arcsec),
-       "--extent-deg", std::to_string(d.extent_deg), "--step-deg", std::to_string(d.step_deg), "--outlier-rate",
-       std::to_string(d.outlier_rate), "--frames-per-reading", std::to_string(d.frames_per_reading),
-       "--gimbal-errors", d.gimbal_errors.string(), "--temperature-amplitude-c",
-       std::to_string(d.temperature_amplitude_c), "--temperature-arcsec-per-c", std::to_string(d.temperature_arcsec_per_c)},
-      dir, "grid_gen");
+  std::vector<std::string> argv{
+      "/usr/bin/python3", (source_dir() / "tests/gen/grid_gen.py").string(), "--truth", truth.string(), "--out-dir",
+      dir.string(), "--recordings", std::to_string(recordings), "--seed", std::to_string(seed),
+      "--samples-per-dwell", std::to_string(d.samples_per_dwell), "--count-noise-counts",
+      std::to_string(d.count_noise_counts), "--ref-noise-arcsec", std::to_string(d.ref_noise_arcsec),
+      "--extent-deg", std::to_string(d.extent_deg), "--step-deg", std::to_string(d.step_deg), "--outlier-rate",
+      std::to_string(d.outlier_rate), "--frames-per-reading", std::to_string(d.frames_per_reading),
+      "--gimbal-errors", d.gimbal_errors.string(), "--temperature-amplitude-c",
+      std::to_string(d.temperature_amplitude_c), "--temperature-arcsec-per-c", std::to_string(d.temperature_arcsec_per_c)};
+  if (d.verification) argv.push_back("--verification");
+  const CommandResult r = run_command(argv, dir, "grid_gen");
   if (r.code != 0) throw std::runtime_error("grid_gen.py failed: " + r.err);
   std::vector<fs::path> files;
   std::istringstream lines(r.out);

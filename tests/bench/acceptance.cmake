@@ -1,0 +1,8 @@
+# acceptance statistics: coverage of the accuracy criteria's expanded uncertainty U on recordings of
+# the independent generator (tests/gen/grid_gen.py --verification), with and without reference
+# errors drawn from a reference file's u. Run: build/tests/bench/fpss_bench_acceptance
+add_executable(fpss_bench_acceptance ${CMAKE_CURRENT_SOURCE_DIR}/acceptance_bench.cpp)
+target_link_libraries(fpss_bench_acceptance PRIVATE fpss_stand_acceptance fpss_calib fmt::fmt benchmark::benchmark_main)
+target_include_directories(fpss_bench_acceptance PRIVATE ${PROJECT_SOURCE_DIR})
+target_compile_definitions(fpss_bench_acceptance PRIVATE FPSS_SOURCE_DIR="${FPSS_SOURCE_DIR}"
+                           FPSS_BINARY_DIR="${CMAKE_BINARY_DIR}")
