@@ -78,19 +78,38 @@ class Backends : public ::testing::TestWithParam<Backend> {
       pg().psql(db_, fmt::format("UPDATE schema_version SET version = {}", v));
     }
   }
-  // A catalogue made by a binary that knew only schema version 1.
-  void make_version_1() {
+  // A catalogue made by a binary that knew only schema version `v`, holding unit OLD-1 and what
+  // `sql` adds (SQL both dialects read alike).
+  void make_version(int v, const std::string& sql = "") {
+    const auto dialect = GetParam() == Backend::sqlite ? schema::Dialect::sqlite : schema::Dialect::postgres;
+    std::string all;
+    for (int step = 0; step < v; ++step) all += schema::migration(step, dialect);
+    all += "INSERT INTO units VALUES('OLD-1', '2024-01-01T00:00:00Z');" + sql;
     if (GetParam() == Backend::sqlite) {
       SQLite::Database d(dir_.path() / "stand.db", SQLite::OPEN_READWRITE | SQLite::OPEN_CREATE);
-      d.exec(schema::migration(0, schema::Dialect::sqlite));
-      d.exec("PRAGMA user_version = 1");
-      d.exec("INSERT INTO units VALUES('OLD-1', '2024-01-01T00:00:00Z')");
+      d.exec(all);
+      d.exec(fmt::format("PRAGMA user_version = {}", v));
     } else {
-      pg().psql(db_, schema::migration(0, schema::Dialect::postgres) +
-                         "CREATE TABLE schema_version (version INTEGER NOT NULL);"
-                         "INSERT INTO schema_version VALUES (1);"
-                         "INSERT INTO units VALUES('OLD-1', '2024-01-01T00:00:00Z');");
+      pg().psql(db_, fmt::format("CREATE TABLE schema_version (version INTEGER NOT NULL);"
+                                 "INSERT INTO schema_version VALUES ({});",
+                                 v) +
+                         all);
     }
+  }
+  void make_version_1() { make_version(1); }
+  // Whether the catalogue's `table` has `column`, as the database itself lists them.
+  bool has_column(const std::string& table, const std::string& column) {
+    if (GetParam() == Backend::sqlite) {
+      SQLite::Database d(dir_.path() / "stand.db", SQLite::OPEN_READONLY);
+      SQLite::Statement q(d, "SELECT count(*) FROM pragma_table_info(?) WHERE name = ?");
+      q.bind(1, table);
+      q.bind(2, column);
+      return q.executeStep() && q.getColumn(0).getInt() == 1;
+    }
+    return pg().psql(db_, fmt::format("SELECT count(*) FROM information_schema.columns WHERE table_name = '{}' "
+                                      "AND column_name = '{}'",
+                                      table, column))
+               .rfind("1", 0) == 0;
   }
 
   test::TempDir dir_;
@@ -224,6 +243,59 @@ TEST_P(Backends, MigratesAnOlderSchemaAndRefusesANewerOne) {
   }
 }
 
+// A catalogue of schema version 2 (no operators) gains the operator column on runs, calibrations and
+// acceptances; what it held names none until the run's operator is recorded (as a rebuild does from
+// run.json), and records made since carry theirs.
+TEST_P(Backends, AVersion2CatalogueGainsTheOperatorOfEachRecord) {
+  std::string coefficients = calibration_json("OLD-1", 0.3).dump();
+  for (size_t at = coefficients.find('\''); at != std::string::npos; at = coefficients.find('\'', at + 2)) {
+    coefficients.insert(at, "'");  // SQL's quote within a string
+  }
+  make_version(2, fmt::format(
+                      "INSERT INTO runs(run_id, unit, procedure, procedure_hash, started_utc, outcome, run_dir, emulated, "
+                      "stand, software_version) VALUES('old-run', 'OLD-1', 'discrete_grid', 'sha256:0', "
+                      "'2024-01-01T00:00:00Z', 'completed', '/runs/old-run', (1 = 0), 'stand-A', '0.9');"
+                      "INSERT INTO calibrations(unit, source, run_id, source_ref, date_utc, recorded_utc, method, "
+                      "coefficients_json, stand) VALUES('OLD-1', 'run', 'old-run', 'old-run', '2024-01-01T01:00:00Z', "
+                      "'2024-01-01T01:00:00Z', 'differences', '{}', 'stand-A');"
+                      "INSERT INTO acceptances(unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand) "
+                      "VALUES('OLD-1', 'old-run', (1 = 1), '2024-01-01T02:00:00Z', '2024-01-01T02:00:00Z', '{{}}', "
+                      "'stand-A');",
+                      coefficients));
+  for (const char* table : {"runs", "calibrations", "acceptances"}) EXPECT_FALSE(has_column(table, "operator")) << table;
+  auto c = open();
+  EXPECT_EQ(c->schema_version(), 3);
+  for (const char* table : {"runs", "calibrations", "acceptances"}) EXPECT_TRUE(has_column(table, "operator")) << table;
+  EXPECT_EQ(c->find_run("old-run")->operator_name, "");
+  EXPECT_EQ(c->unit_history("OLD-1").at(0).operator_name, "");
+  EXPECT_EQ(c->unit_acceptances("OLD-1").at(0).operator_name, "");
+  EXPECT_EQ(c->unit_history("OLD-1").at(0).stand, "stand-A");  // what was there stays
+  // The run, its calibration and its acceptance: three records named; again, nothing changes.
+  EXPECT_EQ(c->record_run_operator("old-run", "A. Ann"), 3);
+  EXPECT_EQ(c->record_run_operator("old-run", "A. Ann"), 0);
+  EXPECT_THROW(c->record_run_operator("no-such-run", "A. Ann"), std::invalid_argument);
+  EXPECT_EQ(c->find_run("old-run")->operator_name, "A. Ann");
+  EXPECT_EQ(c->unit_history("OLD-1").at(0).operator_name, "A. Ann");
+  EXPECT_EQ(c->unit_acceptances("OLD-1").at(0).operator_name, "A. Ann");
+  // New records carry theirs; a resume names whoever resumed it; a calibration already named keeps its operator.
+  RunStart run = make_run("new-run", "OLD-1", "2024-02-01T00:00:00Z");
+  run.operator_name = "B. Bo";
+  c->record_run_start(run);
+  EXPECT_EQ(c->find_run("new-run")->operator_name, "B. Bo");
+  auto cal = CalibrationRecord::from_calibration_json(calibration_json("OLD-1", 0.3), "x");
+  cal.source = "run";
+  cal.run_id = "new-run";
+  cal.date_utc = "2024-02-01T01:00:00Z";
+  cal.operator_name = "B. Bo";
+  c->record_calibration(cal);
+  run.operator_name = "C. Cy";
+  c->record_run_start(run);
+  EXPECT_EQ(c->find_run("new-run")->operator_name, "C. Cy");
+  EXPECT_EQ(c->find_run("new-run")->resumes, 1);
+  EXPECT_EQ(c->record_run_operator("new-run", "C. Cy"), 0);  // the run has it; the calibration names B. Bo
+  EXPECT_EQ(c->unit_history("OLD-1").at(1).operator_name, "B. Bo");
+}
+
 TEST_P(Backends, ReadOnlyRefusesWhatIsNoCatalogue) {
   if (GetParam() == Backend::postgresql) {
     const std::string msg = test::error_of<InputError>([&] { open(Catalogue::Mode::read_only); });
@@ -288,13 +360,16 @@ TEST_P(Backends, ConcurrentImportsOfOneFileRecordItOnce) {
 // copy to the other backend and back: everything arrives once, a second copy adds nothing.
 TEST_P(Backends, CopiesToTheOtherBackendIdempotently) {
   auto src = open();
-  src->record_run_start(make_run("r1", "SN-1", "2024-05-01T10:00:00Z"));
+  RunStart r1_start = make_run("r1", "SN-1", "2024-05-01T10:00:00Z");
+  r1_start.operator_name = "A. Ann";
+  src->record_run_start(r1_start);
   src->record_run_end("r1", RunOutcome::completed, "2024-05-01T11:00:00Z");
   src->record_run_start(make_run("r2", "SN-1", "2024-05-02T10:00:00Z"));  // still running
   auto cal = CalibrationRecord::from_calibration_json(calibration_json("SN-1", 0.2), "x");
   cal.source = "run";
   cal.run_id = "r1";
   cal.date_utc = "2024-05-01T11:00:00Z";
+  cal.operator_name = "A. Ann";
   src->record_calibration(cal);
   auto imp = CalibrationRecord::from_calibration_json(calibration_json("SN-1", 0.4), "y");
   imp.source = "import";
@@ -306,6 +381,7 @@ TEST_P(Backends, CopiesToTheOtherBackendIdempotently) {
   a.run_id = "r1";
   a.passed = true;
   a.date_utc = "2024-05-01T11:00:00Z";
+  a.operator_name = "A. Ann";
   src->record_acceptance(a);
 
   static std::atomic<int> n{0};
@@ -325,13 +401,18 @@ TEST_P(Backends, CopiesToTheOtherBackendIdempotently) {
   const auto r1 = dst->find_run("r1").value();
   EXPECT_EQ(r1.ended_utc.value_or(""), "2024-05-01T11:00:00Z");
   EXPECT_EQ(r1.host, this_host());
+  EXPECT_EQ(r1.operator_name, "A. Ann");
+  EXPECT_EQ(dst->find_run("r2")->operator_name, "");
   EXPECT_TRUE(dst->find_run("r2")->running());
   const auto h = dst->unit_history("SN-1");
   ASSERT_EQ(h.size(), 2u);
   EXPECT_EQ(h[0].source, "import");
   EXPECT_EQ(h[1].run_id.value_or(""), "r1");
   EXPECT_EQ(h[1].coefficients, cal.coefficients);
+  EXPECT_EQ(h[1].operator_name, "A. Ann");
+  EXPECT_EQ(h[0].operator_name, "");
   EXPECT_EQ(dst->unit_acceptances("SN-1").size(), 1u);
+  EXPECT_EQ(dst->unit_acceptances("SN-1").at(0).operator_name, "A. Ann");
 }
 
 // The commands over either backend through --catalogue URL, its alias --db, and FPSS_CATALOGUE.
