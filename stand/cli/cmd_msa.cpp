@@ -112,38 +112,49 @@ void add_msa_plan(CLI::App* msa, Runner& run) {
 
 void add_msa(CLI::App& app, Runner& run) {
   struct Opts {
-    std::string db, runs_dir = "runs", units, stands, since, limits, out, report;
+    std::string db, runs_dir = "runs", units, stands, operators, appraisers = "stands", since, limits, out, report;
     FileOptions files;
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand(
-      "msa", "Measurement-system analysis across the fleet: units x stands x repeats from the catalogue, per "
-             "quantity (AIAG MSA, ANOVA): EV, AV, interaction, GRR, PV, %GRR of the tolerance and of TV, ndc");
+      "msa", "Measurement-system analysis across the fleet: units x stands (or operators) x repeats from the "
+             "catalogue, per quantity (AIAG MSA, ANOVA): EV, AV, interaction, GRR, PV, %GRR of the tolerance and of "
+             "TV, ndc");
   add_catalogue_option(sub, o->db);
   sub->add_option("--runs-dir", o->runs_dir, "runs folder; the default catalogue is its stand.db")->capture_default_str();
   sub->add_option("--units", o->units, "the units (parts), comma-separated (default: every unit)");
-  sub->add_option("--stands", o->stands, "the stands (appraisers), comma-separated (default: every stand; "
+  sub->add_option("--appraisers", o->appraisers, "what is crossed with the units: stands, or operators (the "
+                                                 "runs' operators, on whichever stands)")
+      ->check(CLI::IsMember({"stands", "operators"}))
+      ->capture_default_str();
+  sub->add_option("--stands", o->stands, "the stands, comma-separated (default: every stand; "
                                          "'emulator' for emulated runs without a stand file)");
+  sub->add_option("--operators", o->operators, "the operators, comma-separated (default: every operator; "
+                                               "'unnamed' for runs that named none)");
   sub->add_option("--since", o->since, "only records from this ISO 8601 date or time on");
   o->files.input(sub, "--limits", o->limits, "acceptance limits file: the tolerances (default: the shipped limits)");
   o->files.output(sub, "--out", o->out, "the study as JSON (MSA.json; required)");
   o->files.output(sub, "--report", o->report, "the study as a page (MSA.html)");
   examples(sub, {"fpss-stand msa --catalogue postgresql://fleet@db/fpss --out msa.json --report msa.html",
-                 "fpss-stand msa --runs-dir runs --units SN1,SN2,SN3 --stands S1,S2 --since 2026-01-01 --out msa.json"});
+                 "fpss-stand msa --runs-dir runs --units SN1,SN2,SN3 --appraisers operators --operators Ann,Bo "
+                 "--stands S1 --since 2026-01-01 --out msa.json"});
   add_msa_plan(sub, run);
   sub->callback([o, sub, &run] {
     if (sub->get_subcommands().size() > 0) return;  // msa plan set the runner
     run = [o] {
       if (o->out.empty()) throw InputError("msa: --out MSA.json is required");
       o->files.check();
-      MsaSelection sel{split_list(o->units, "--units"), split_list(o->stands, "--stands"), o->since};
+      MsaSelection sel{split_list(o->units, "--units"), split_list(o->stands, "--stands"), o->since,
+                       split_list(o->operators, "--operators"),
+                       o->appraisers == "operators" ? MsaAppraisers::operators : MsaAppraisers::stands};
       const AcceptanceLimits limits = load_acceptance_limits(o->limits.empty() ? default_limits_path() : std::filesystem::path(o->limits));
       const std::string url = catalogue_url(o->db, o->runs_dir);
       const auto cat = open_catalogue(url, Catalogue::Mode::read_only);
       const MsaStudy s = msa_study(*cat, sel, tolerances_from(limits));
       write_text_atomic(o->out, s.to_json(url, sel).dump(1) + "\n");
       if (!o->report.empty()) write_text_atomic(o->report, msa_html(s, url));
-      std::printf("%zu units x %zu stands x %zu repeats\n", s.units.size(), s.stands.size(), s.repeats);
+      std::printf("%zu units x %zu %s x %zu repeats\n", s.units.size(), s.appraisers.size(), to_string(s.appraised_by),
+                  s.repeats);
       for (const MsaQuantity& q : s.quantities) std::printf("%-34s %s\n", q.name.c_str(), msa_verdict(q.result).c_str());
       for (const auto& [q, why] : s.skipped) std::printf("%-34s not studied: %s\n", q.c_str(), why.c_str());
       std::printf("wrote %s\n", o->out.c_str());

@@ -483,6 +483,9 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
   ASSERT_EQ(r.code, 0) << r.err;
   const auto m = nlohmann::json::parse(test::read_file(out));
   EXPECT_EQ(m["format"], "fpss-stand msa/1");
+  EXPECT_EQ(m["appraisers"], "stands");  // the default
+  EXPECT_FALSE(m.contains("operators"));
+  EXPECT_EQ(m["selection"]["operators"], nlohmann::json::array());
   EXPECT_EQ(m["units"], nlohmann::json({"SN-0", "SN-1", "SN-2"}));
   EXPECT_EQ(m["stands"], nlohmann::json({"stand-A", "stand-B"}));
   EXPECT_EQ(m["repeats"], 3);
@@ -526,6 +529,107 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
   r = test::run_stand({"msa", "--catalogue", url_, "--stands", "stand-A", "--out", out.string()}, dir_.path(), "one");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("at least two units and two stands"), std::string::npos) << r.err;
+}
+
+// The operators as the appraisers: three units x two operators x three repeats, each operator on
+// both stands alike, operator Bo reading 0.5 arcsec more than Ann; one record names no operator.
+TEST_P(Backends, MsaStudiesUnitsByOperatorsFromEitherBackend) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  const char* const operators[] = {"Ann", "Bo"};
+  GaugeStudy expected;  // [unit][operator][repeat]
+  {
+    auto cat = open();
+    expected.y.assign(3, std::vector<std::vector<double>>(2));
+    const auto record = [&](int u, const std::string& op, const std::string& stand, const std::string& date, double c1) {
+      const std::string unit = fmt::format("SN-{}", u);
+      auto j = calibration_json(unit, 0.3 + 0.01 * noise(rng));
+      j["alpha"][0] = c1 / 206264.80624709636;
+      auto cal = CalibrationRecord::from_calibration_json(j, "msa");
+      cal.unit = unit;
+      cal.source = "import";
+      cal.source_ref = fmt::format("msa-{}-{}-{}.json", u, op, date);
+      cal.stand = stand;
+      cal.operator_name = op;
+      cal.date_utc = date;
+      cat->record_calibration(cal);
+    };
+    for (int u = 0; u < 3; ++u) {
+      for (int o = 0; o < 2; ++o) {
+        for (int k = 0; k < 3; ++k) {
+          const double c1_arcsec = 2.0 * u + 0.5 * o + noise(rng);
+          record(u, operators[o], k % 2 == 0 ? "stand-A" : "stand-B", fmt::format("2026-02-0{}T00:00:00Z", k + 1),
+                 c1_arcsec);
+          expected.y[u][o].push_back(c1_arcsec);
+        }
+      }
+    }
+    record(0, "", "stand-A", "2026-03-01T00:00:00Z", 0.0);  // a run that named no operator
+  }
+  const fs::path out = dir_.path() / "msa-ops.json", page = dir_.path() / "msa-ops.html";
+  // Every operator: the one record naming none makes operator "unnamed", whose cells are short.
+  auto r = test::run_stand({"msa", "--catalogue", url_, "--appraisers", "operators", "--out", out.string()},
+                           dir_.path(), "msa-unnamed");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("at least two calibrations by every operator"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("SN-0 by operator unnamed (1); SN-1 by operator unnamed (0)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("catalogue rebuild"), std::string::npos) << r.err;
+  r = test::run_stand({"msa", "--catalogue", url_, "--appraisers", "operators", "--operators", "Ann,Bo", "--out",
+                       out.string(), "--report", page.string()},
+                      dir_.path(), "msa-ops");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("3 units x 2 operators x 3 repeats"), std::string::npos) << r.out;
+  const auto m = nlohmann::json::parse(test::read_file(out));
+  EXPECT_EQ(m["appraisers"], "operators");
+  EXPECT_EQ(m["operators"], nlohmann::json({"Ann", "Bo"}));
+  EXPECT_FALSE(m.contains("stands"));
+  EXPECT_EQ(m["selection"]["operators"], nlohmann::json({"Ann", "Bo"}));
+  EXPECT_EQ(m["repeats"], 3);
+  EXPECT_EQ(m["records_used"], 18);
+  EXPECT_EQ(m["records_left_out"], 1);  // the unnamed one
+  const auto& q = m["quantities"]["angle_pitch_at_+0.0deg_arcsec"];
+  ASSERT_EQ(q["values"].size(), 3u);
+  ASSERT_EQ(q["values"][0].size(), 2u);  // [unit][operator][repeat]
+  const GaugeRr want = gauge_rr(expected, 10.0);
+  EXPECT_NEAR(q["sd"]["ev"].get<double>(), want.ev, 1e-6);
+  EXPECT_NEAR(q["sd"]["av"].get<double>(), want.av, 1e-6);
+  EXPECT_NEAR(q["grr_percent_tolerance"].get<double>(), *want.grr_percent_tolerance, 1e-4);
+  EXPECT_EQ(q["ndc"], want.ndc);
+  EXPECT_GT(want.av, 0.2);  // the 0.5 arcsec between operators (two of them: 0.35) shows as reproducibility
+  // Bo's mean minus Ann's, over units and repeats: the offset put in, within the noise.
+  double d = 0;
+  for (int u = 0; u < 3; ++u) {
+    for (int k = 0; k < 3; ++k) d += (q["values"][u][1][k].get<double>() - q["values"][u][0][k].get<double>()) / 9;
+  }
+  EXPECT_NEAR(d, 0.5, 0.15);
+  const std::string html = test::read_file(page);
+  EXPECT_NE(html.find("2 operators (Ann, Bo)"), std::string::npos);
+  EXPECT_NE(html.find("the appraisers are the operators"), std::string::npos);
+  // The same records with the stands as the appraisers: each stand saw both operators, so the
+  // operators' offset is no stand effect; it is scatter within the cells (repeatability) instead.
+  const fs::path by_stands = dir_.path() / "msa-stands.json";
+  r = test::run_stand({"msa", "--catalogue", url_, "--operators", "Ann,Bo", "--out", by_stands.string()}, dir_.path(),
+                      "msa-stands");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto st = nlohmann::json::parse(test::read_file(by_stands));
+  EXPECT_EQ(st["appraisers"], "stands");
+  EXPECT_EQ(st["stands"], nlohmann::json({"stand-A", "stand-B"}));
+  const auto& sq = st["quantities"]["angle_pitch_at_+0.0deg_arcsec"];
+  EXPECT_LT(sq["sd"]["av"].get<double>(), 0.5 * want.av);
+  EXPECT_GT(sq["sd"]["ev"].get<double>(), want.ev + 0.1);
+  std::printf("by operators: EV %.4f AV %.4f %%GRR of the tolerance %.2f (the ANOVA of the values: EV %.4f AV %.4f "
+              "%.2f); Bo - Ann %.3f arcsec; by stands: EV %.4f AV %.4f\n",
+              q["sd"]["ev"].get<double>(), q["sd"]["av"].get<double>(), q["grr_percent_tolerance"].get<double>(), want.ev,
+              want.av, *want.grr_percent_tolerance, d, sq["sd"]["ev"].get<double>(), sq["sd"]["av"].get<double>());
+  // One operator is no crossed study: exit 2 naming the operators.
+  r = test::run_stand({"msa", "--catalogue", url_, "--appraisers", "operators", "--operators", "Bo", "--out",
+                       out.string()},
+                      dir_.path(), "msa-one");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("at least two units and two operators; the selection has 3 unit(s) (SN-0, SN-1, SN-2) and 1 "
+                       "operator(s) (Bo)"),
+            std::string::npos)
+      << r.err;
 }
 
 INSTANTIATE_TEST_SUITE_P(Catalogue, Backends, ::testing::Values(Backend::sqlite, Backend::postgresql),
