@@ -512,6 +512,7 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
   ASSERT_EQ(r.code, 0) << r.err;
   const auto p = nlohmann::json::parse(test::read_file(plan));
   EXPECT_EQ(p["runs"], 18);
+  EXPECT_FALSE(p.contains("operators_jobs"));
   ASSERT_EQ(p["stands_jobs"].size(), 2u);
   for (const auto& st : p["stands_jobs"]) {
     ASSERT_EQ(st["jobs"].size(), 9u);
@@ -630,6 +631,45 @@ TEST_P(Backends, MsaStudiesUnitsByOperatorsFromEitherBackend) {
                        "operator(s) (Bo)"),
             std::string::npos)
       << r.err;
+  // The plan of such a study: per operator every unit once per round, each job naming its operator.
+  const fs::path plan = dir_.path() / "plan-ops.json";
+  r = test::run_stand({"msa", "plan", "--units", "SN-0,SN-1,SN-2", "--operators", "Ann,Bo", "--repeats", "3", "--out",
+                       plan.string()},
+                      dir_.path(), "plan-ops");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("18 runs: 9 per operator"), std::string::npos) << r.out;
+  const auto p = nlohmann::json::parse(test::read_file(plan));
+  EXPECT_EQ(p["runs"], 18);
+  EXPECT_EQ(p["operators"], nlohmann::json({"Ann", "Bo"}));
+  EXPECT_FALSE(p.contains("stands_jobs"));
+  ASSERT_EQ(p["operators_jobs"].size(), 2u);
+  for (size_t o = 0; o < 2; ++o) {
+    const auto& entry = p["operators_jobs"][o];
+    EXPECT_EQ(entry["operator"], operators[o]);
+    ASSERT_EQ(entry["jobs"].size(), 9u);
+    for (size_t round = 0; round < 3; ++round) {
+      std::set<std::string> seen;
+      for (size_t k = 0; k < 3; ++k) {
+        const auto& job = entry["jobs"][round * 3 + k];
+        seen.insert(job["unit"].get<std::string>());
+        EXPECT_EQ(job["operator"], operators[o]);
+        EXPECT_EQ(job["kind"], "run");
+      }
+      EXPECT_EQ(seen.size(), 3u) << "round " << round;
+    }
+  }
+  // Stands or operators: one of them.
+  r = test::run_stand({"msa", "plan", "--units", "SN-0,SN-1", "--stands", "S1,S2", "--operators", "Ann,Bo", "--out",
+                       plan.string()},
+                      dir_.path(), "plan-both");
+  EXPECT_EQ(r.code, 2) << r.err;
+  r = test::run_stand({"msa", "plan", "--units", "SN-0,SN-1", "--out", plan.string()}, dir_.path(), "plan-neither");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--stands or --operators"), std::string::npos) << r.err;
+  r = test::run_stand({"msa", "plan", "--units", "SN-0,SN-1", "--operators", "Ann", "--out", plan.string()},
+                      dir_.path(), "plan-one");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--units and --operators need at least two names each"), std::string::npos) << r.err;
 }
 
 INSTANTIATE_TEST_SUITE_P(Catalogue, Backends, ::testing::Values(Backend::sqlite, Backend::postgresql),
