@@ -27,7 +27,8 @@ nlohmann::json run_json(const RunRecord& r) {
           {"software_version", r.software_version},
           {"resumes", r.resumes},
           {"pid", r.pid},
-          {"host", r.host}};
+          {"host", r.host},
+          {"operator", r.operator_name}};
 }
 
 nlohmann::json calibration_json(const CalibrationRecord& c) {
@@ -44,6 +45,7 @@ nlohmann::json calibration_json(const CalibrationRecord& c) {
           {"yaw", c.yaw ? c.yaw->to_json() : nlohmann::json()},
           {"stand", c.stand},
           {"host", c.host},
+          {"operator", c.operator_name},
           {"coefficients", c.coefficients}};
 }
 
@@ -56,6 +58,7 @@ nlohmann::json acceptance_json(const AcceptanceRecord& a) {
           {"recorded_utc", a.recorded_utc},
           {"stand", a.stand},
           {"host", a.host},
+          {"operator", a.operator_name},
           {"certificate", a.certificate}};
 }
 

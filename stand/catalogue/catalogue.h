@@ -46,6 +46,7 @@ struct RunStart {
   bool emulated = false;
   std::string stand;               // stand identity (stand file or name); "" when emulated
   std::string software_version = FPSS_VERSION;
+  std::string operator_name;       // who runs it (run.json's `operator`); "" when nobody was named
 };
 
 // The catalogue's text for a run's state: "running" until record_run_end gives it an outcome.
@@ -66,6 +67,7 @@ struct RunRecord {
   int64_t resumes = 0;  // how many times the run was resumed
   int64_t pid = 0;      // process that last started or resumed it
   std::string host;     // and its host name: with run_dir, where the run folder lives
+  std::string operator_name;  // who ran it (run.json's `operator`); "" when nobody was named
   // True when the run says `running` but its process is gone from this host (killed run): the
   // run folder's lock is not held (run_folder_owned), or, without the folder here, no process has
   // its pid. A run of another host is never called stale from here: its pid means nothing on this one.
@@ -101,6 +103,7 @@ struct CalibrationRecord {
   std::optional<AxisResidualStats> pitch, yaw;
   std::string stand;                   // the stand that recorded it ("" when emulated without a stand file)
   std::string host;                    // the host that recorded it (set by the catalogue when empty)
+  std::string operator_name;           // the operator of its run (run.json's `operator`); "" when none
 
   // Fills coefficients, method and the residual stats from a calibration.json's content.
   static CalibrationRecord from_calibration_json(const nlohmann::json& cal, const std::string& origin);
@@ -117,6 +120,7 @@ struct AcceptanceRecord {
   nlohmann::json certificate = nlohmann::json::object();  // acceptance.json's content
   std::string stand;                   // the stand that judged it
   std::string host;                    // its host (set by the catalogue when empty)
+  std::string operator_name;           // the operator of its run (run.json's `operator`); "" when none
 };
 
 struct RunFilter {
@@ -137,7 +141,7 @@ class Catalogue {
  public:
   enum class Mode { read_write, read_only };
   // The schema version this software reads and writes; both backends number their migrations alike.
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
 
   virtual ~Catalogue() = default;
 
@@ -157,6 +161,11 @@ class Catalogue {
   // Sets the end time (empty: now) and outcome. Throws std::invalid_argument for an unknown run.
   virtual void record_run_end(const std::string& run_id, RunOutcome outcome,
                               const std::string& ended_utc = "") = 0;
+  // Names the run's operator once it is known (an acceptance's prompt answers it after the run
+  // started; a rebuild fills what an older schema did not keep): the run's, and that of its
+  // calibrations and acceptances that name none. Returns how many records changed. Throws
+  // std::invalid_argument for an unknown run.
+  virtual int64_t record_run_operator(const std::string& run_id, const std::string& operator_name) = 0;
   // A whole run record as another catalogue holds it (catalogue copy): inserted when its id is
   // new, left as it is otherwise. Returns true when it was new.
   virtual bool copy_run(const RunRecord& run) = 0;

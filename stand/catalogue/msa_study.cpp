@@ -18,11 +18,12 @@ namespace {
 
 // One measurement of every quantity it has, from one record.
 struct Observation {
-  std::string unit, stand, date;
+  std::string unit, stand, operator_name, date;
   std::map<std::string, double> values;
 };
 
-std::string stand_name(const std::string& s) { return s.empty() ? "emulated" : s; }
+std::string stand_name(const std::string& s) { return s.empty() ? kNoStandName : s; }
+std::string shown_operator(const std::string& s) { return s.empty() ? kNoOperatorName : s; }
 
 constexpr double kSetPointsDeg[] = {-0.4, -0.2, 0.0, 0.2, 0.4};
 
@@ -33,7 +34,7 @@ void add_number(Observation& o, const std::string& name, const nlohmann::json& v
 }
 
 Observation from_calibration(const CalibrationRecord& c) {
-  Observation o{c.unit, stand_name(c.stand), c.date_utc, {}};
+  Observation o{c.unit, stand_name(c.stand), shown_operator(c.operator_name), c.date_utc, {}};
   const nlohmann::json& j = c.coefficients;
   for (const auto& [axis, key] : {std::pair{"pitch", "alpha"}, std::pair{"yaw", "beta"}}) {
     if (j.contains("residuals") && j["residuals"].contains(axis)) {
@@ -57,7 +58,7 @@ Observation from_calibration(const CalibrationRecord& c) {
 }
 
 Observation from_acceptance(const AcceptanceRecord& a) {
-  Observation o{a.unit, stand_name(a.stand), a.date_utc, {}};
+  Observation o{a.unit, stand_name(a.stand), shown_operator(a.operator_name), a.date_utc, {}};
   if (!a.certificate.contains("criteria") || !a.certificate["criteria"].is_array()) return o;
   for (const auto& k : a.certificate["criteria"]) {
     for (const char* axis : {"pitch", "yaw"}) {
@@ -73,26 +74,36 @@ bool selected(const std::vector<std::string>& list, const std::string& v) {
   return list.empty() || std::find(list.begin(), list.end(), v) != list.end();
 }
 
-// The cells' observations, latest last; the study's units and stands.
+// How the cells are named: "on stand S" or "by operator O", and in a list "U on S" or "U by operator O".
+std::string cell_name(MsaAppraisers by, const std::string& unit, const std::string& appraiser, bool in_list) {
+  if (by == MsaAppraisers::operators) return fmt::format("{}{} by operator {}", in_list ? "" : "unit ", unit, appraiser);
+  return fmt::format("{}{} on {}{}", in_list ? "" : "unit ", unit, in_list ? "" : "stand ", appraiser);
+}
+
+// The cells' observations, latest last; the study's units and appraisers.
 struct Cells {
-  std::vector<std::string> units, stands;
+  MsaAppraisers by = MsaAppraisers::stands;
+  std::vector<std::string> units, appraisers;
   std::map<std::pair<std::string, std::string>, std::vector<Observation>> cell;
 };
 
 Cells sort_into_cells(std::vector<Observation> obs, const MsaSelection& sel, size_t& left_out) {
   Cells c;
-  std::set<std::string> units, stands;
+  c.by = sel.appraisers;
+  std::set<std::string> units, appraisers;
   for (Observation& o : obs) {
-    if (!selected(sel.units, o.unit) || !selected(sel.stands, o.stand) || (!sel.since.empty() && o.date < sel.since)) {
+    if (!selected(sel.units, o.unit) || !selected(sel.stands, o.stand) || !selected(sel.operators, o.operator_name) ||
+        (!sel.since.empty() && o.date < sel.since)) {
       ++left_out;
       continue;
     }
     units.insert(o.unit);
-    stands.insert(o.stand);
-    c.cell[{o.unit, o.stand}].push_back(std::move(o));
+    const std::string& appraiser = c.by == MsaAppraisers::operators ? o.operator_name : o.stand;
+    appraisers.insert(appraiser);
+    c.cell[{o.unit, appraiser}].push_back(std::move(o));
   }
   c.units.assign(units.begin(), units.end());
-  c.stands.assign(stands.begin(), stands.end());
+  c.appraisers.assign(appraisers.begin(), appraisers.end());
   for (auto& [k, v] : c.cell) {
     std::stable_sort(v.begin(), v.end(), [](const Observation& a, const Observation& b) { return a.date < b.date; });
   }
@@ -104,7 +115,7 @@ std::optional<GaugeStudy> study_of(const Cells& c, const std::string& q, size_t 
   GaugeStudy s;
   for (const std::string& u : c.units) {
     s.y.emplace_back();
-    for (const std::string& st : c.stands) {
+    for (const std::string& st : c.appraisers) {
       std::vector<double> ys;
       const auto it = c.cell.find({u, st});
       if (it != c.cell.end()) {
@@ -113,7 +124,7 @@ std::optional<GaugeStudy> study_of(const Cells& c, const std::string& q, size_t 
         }
       }
       if (ys.size() < repeats) {
-        why = fmt::format("unit {} on stand {}: {} record(s) with it, {} needed", u, st, ys.size(), repeats);
+        why = fmt::format("{}: {} record(s) with it, {} needed", cell_name(c.by, u, st, false), ys.size(), repeats);
         return std::nullopt;
       }
       s.y.back().emplace_back(ys.end() - static_cast<std::ptrdiff_t>(repeats), ys.end());
@@ -135,30 +146,40 @@ MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const MsaToler
     for (const AcceptanceRecord& r : cat.unit_acceptances(u)) acc_obs.push_back(from_acceptance(r));
   }
   MsaStudy out;
+  out.appraised_by = sel.appraisers;
   const Cells cals = sort_into_cells(std::move(cal_obs), sel, out.records_left_out);
   const Cells accs = sort_into_cells(std::move(acc_obs), sel, out.records_left_out);
   out.units = cals.units;
-  out.stands = cals.stands;
-  if (out.units.size() < 2 || out.stands.size() < 2) {
-    throw InputError(fmt::format("msa: a crossed study needs at least two units and two stands; the selection has "
-                                 "{} unit(s) ({}) and {} stand(s) ({})",
-                                 out.units.size(), fmt::join(out.units, ", "), out.stands.size(), fmt::join(out.stands, ", ")));
+  out.appraisers = cals.appraisers;
+  const bool by_operators = sel.appraisers == MsaAppraisers::operators;
+  const char* const who = by_operators ? "operator" : "stand";
+  // Records of runs that named no operator, or indexed by a catalogue that kept none (before schema version 3).
+  const bool unnamed = by_operators && std::count(out.appraisers.begin(), out.appraisers.end(), kNoOperatorName) > 0;
+  const std::string hint = unnamed ? fmt::format(" ({}: records naming no operator; `fpss-stand catalogue rebuild` "
+                                                 "names those of an older catalogue from their run.json)",
+                                                 kNoOperatorName)
+                                   : "";
+  if (out.units.size() < 2 || out.appraisers.size() < 2) {
+    throw InputError(fmt::format("msa: a crossed study needs at least two units and two {}s; the selection has "
+                                 "{} unit(s) ({}) and {} {}(s) ({}){}",
+                                 who, out.units.size(), fmt::join(out.units, ", "), out.appraisers.size(), who,
+                                 fmt::join(out.appraisers, ", "), hint));
   }
   // Repeats: as many as every cell has (balanced, the latest of each), at least two.
   size_t repeats = SIZE_MAX;
   std::vector<std::string> thin;
   for (const std::string& u : out.units) {
-    for (const std::string& st : out.stands) {
+    for (const std::string& st : out.appraisers) {
       const auto it = cals.cell.find({u, st});
       const size_t n = it == cals.cell.end() ? 0 : it->second.size();
       repeats = std::min(repeats, n);
-      if (n < 2) thin.push_back(fmt::format("{} on {} ({})", u, st, n));
+      if (n < 2) thin.push_back(fmt::format("{} ({})", cell_name(sel.appraisers, u, st, true), n));
     }
   }
   if (!thin.empty()) {
-    throw InputError(fmt::format("msa: every unit needs at least two calibrations on every stand (repeatability is "
-                                 "their scatter); short: {}",
-                                 fmt::join(thin, "; ")));
+    throw InputError(fmt::format("msa: every unit needs at least two calibrations {} every {} (repeatability is "
+                                 "their scatter); short: {}{}",
+                                 by_operators ? "by" : "on", who, fmt::join(thin, "; "), hint));
   }
   out.repeats = repeats;
   for (const auto& [k, v] : cals.cell) out.records_used += std::min(v.size(), repeats);
@@ -182,7 +203,7 @@ MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const MsaToler
   // Accuracy comes from acceptances: a study of its own cells, when they are crossed too.
   Cells crossed = accs;
   crossed.units = out.units;
-  crossed.stands = out.stands;
+  crossed.appraisers = out.appraisers;
   for (const char* axis : {"pitch", "yaw"}) {
     add(crossed, fmt::format("accuracy_3sigma_{}_arcsec", axis), 2, tolerances.accuracy, "acceptances: ");
   }
@@ -196,14 +217,18 @@ std::string msa_verdict(const GaugeRr& r) {
   return fmt::format("{} (%GRR {:.1f} % {}; ndc {}{})", word, pct, of, r.ndc, r.ndc >= 5 ? "" : ", below 5");
 }
 
+const char* to_string(MsaAppraisers a) { return a == MsaAppraisers::operators ? "operators" : "stands"; }
+
 nlohmann::ordered_json MsaStudy::to_json(const std::string& catalogue, const MsaSelection& sel) const {
   nlohmann::ordered_json j;
   j["format"] = "fpss-stand msa/1";
   j["method"] = "AIAG MSA 4th edition, ANOVA method (crossed, the interaction kept)";
   j["catalogue"] = catalogue;
-  j["selection"] = {{"units", sel.units}, {"stands", sel.stands}, {"since", sel.since.empty() ? nlohmann::json() : nlohmann::json(sel.since)}};
+  j["appraisers"] = to_string(appraised_by);
+  j["selection"] = {{"units", sel.units}, {"stands", sel.stands}, {"operators", sel.operators},
+                    {"since", sel.since.empty() ? nlohmann::json() : nlohmann::json(sel.since)}};
   j["units"] = units;
-  j["stands"] = stands;
+  j[to_string(appraised_by)] = appraisers;  // "stands" or "operators"
   j["repeats"] = repeats;
   j["records_used"] = records_used;
   j["records_left_out"] = records_left_out;
@@ -216,7 +241,7 @@ nlohmann::ordered_json MsaStudy::to_json(const std::string& catalogue, const Msa
     const nlohmann::ordered_json r = q.result.to_json();
     for (const auto& [k, v] : r.items()) e[k] = v;
     e["verdict"] = msa_verdict(q.result);
-    e["values"] = q.study.y;  // [unit][stand][repeat], in the order of `units` and `stands`
+    e["values"] = q.study.y;  // [unit][appraiser][repeat], in the order of `units` and `stands` (or `operators`)
     qs[q.name] = std::move(e);
   }
   j["quantities"] = qs;

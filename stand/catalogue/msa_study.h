@@ -1,4 +1,5 @@
-// The fleet's measurement-system analysis: crossed studies (units x stands x repeats) taken from the catalogue, per quantity.
+// The fleet's measurement-system analysis: crossed studies (units x stands, or operators, x repeats)
+// taken from the catalogue, per quantity.
 #pragma once
 #include <map>
 #include <optional>
@@ -12,11 +13,26 @@
 
 namespace fpss {
 
+// What is crossed with the units: the stands (each record's stand) or the operators (each record's
+// run's operator, on whichever stand).
+enum class MsaAppraisers { stands, operators };
+
+// The appraisers' name in messages and files: "stands" or "operators".
+const char* to_string(MsaAppraisers a);
+
+// The records a study takes: those of the selected units, stands and operators (whichever are the
+// appraisers), from `since` on.
 struct MsaSelection {
   std::vector<std::string> units;   // empty: every unit with records
   std::vector<std::string> stands;  // empty: every stand with records (an empty stand is named "emulated")
   std::string since;                // ISO 8601 date or time; records before it are left out ("": all)
+  std::vector<std::string> operators;  // empty: every operator (a record naming none is "unnamed")
+  MsaAppraisers appraisers = MsaAppraisers::stands;
 };
+
+// What a study calls a record's stand and operator when the record names none.
+inline constexpr const char* kNoStandName = "emulated";
+inline constexpr const char* kNoOperatorName = "unnamed";
 
 // A quantity's tolerance (the width the acceptance limits allow: a one-sided limit with a natural
 // zero is its value, a two-sided one twice it) and where it comes from.
@@ -32,7 +48,7 @@ struct MsaTolerances {
   std::optional<MsaTolerance> accuracy;         // accuracy_3sigma_<axis>_arcsec
 };
 
-// One quantity's study: y[unit][stand][repeat], the latest `repeats` records of each cell.
+// One quantity's study: y[unit][appraiser][repeat], the latest `repeats` records of each cell.
 struct MsaQuantity {
   std::string name, unit;  // "residual_mean_pitch_arcsec", "arcsec"
   std::optional<MsaTolerance> tolerance;
@@ -41,7 +57,8 @@ struct MsaQuantity {
 };
 
 struct MsaStudy {
-  std::vector<std::string> units, stands;
+  MsaAppraisers appraised_by = MsaAppraisers::stands;
+  std::vector<std::string> units, appraisers;  // appraisers: the stands or the operators, as appraised_by says
   size_t repeats = 0, records_used = 0, records_left_out = 0;
   std::vector<MsaQuantity> quantities;
   std::map<std::string, std::string> skipped;  // quantity -> why it could not be studied
@@ -53,7 +70,7 @@ struct MsaStudy {
 // nominal scale factor puts there; +0.0: at zero counts, the whole transfer function, not C1,
 // which trades with the sinusoids' phases); of each acceptance record:
 // accuracy_3sigma_<axis>_arcsec. InputError (exit 2) when the selection cannot make a crossed study:
-// fewer than two units or stands, a unit x stand cell without two records (naming the cells).
+// fewer than two units or appraisers, a unit x appraiser cell without two records (naming the cells).
 MsaStudy msa_study(const Catalogue& cat, const MsaSelection& sel, const MsaTolerances& tolerances);
 
 // AIAG's reading of %GRR (of the tolerance, else of the total variation): under 10 % acceptable,

@@ -28,6 +28,7 @@ RunStart run_start_of(const RunFile& run, const fs::path& dir) {
   rs.emulated = run.emulated;
   if (run.stand && run.stand->settings.is_object()) rs.stand = run.stand->settings.value("stand", "");
   if (run.software) rs.software_version = run.software->version;
+  rs.operator_name = run.operator_name.value_or("");
   return rs;
 }
 
@@ -66,6 +67,11 @@ void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
     cat.record_run_end(rs.run_id, *outcome, ended_utc);
     ++r.runs_updated;
   }
+  // A run indexed before the catalogue kept operators (or before its prompt named one) takes run.json's.
+  if (known && !rs.operator_name.empty() && known->operator_name != rs.operator_name &&
+      cat.record_run_operator(rs.run_id, rs.operator_name) > 0) {
+    ++r.operators_named;
+  }
   std::set<std::string> have;
   for (const auto& c : cat.run_calibrations(rs.run_id)) have.insert(c.coefficients.dump());
   // One unit: the run folder's files; several: each unit's folder, under its serial.
@@ -88,6 +94,7 @@ void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
       cr.source_ref = rs.run_id;
       cr.date_utc = cr.coefficients.value("calibrated_at", run.ended_utc.value_or(rs.started_utc));
       cr.stand = rs.stand;
+      cr.operator_name = rs.operator_name;
       cat.record_calibration(cr);
       have.insert(cr.coefficients.dump());
       ++r.calibrations_added;
@@ -104,6 +111,7 @@ void index_run_folder(Catalogue& cat, const fs::path& dir, RebuildReport& r) {
     rec.date_utc = cert.value("date_utc", ended_utc);
     rec.certificate = cert;
     rec.stand = rs.stand;
+    rec.operator_name = !rs.operator_name.empty() ? rs.operator_name : cert.value("operator", "");
     cat.record_acceptance(rec);
     ++r.acceptances_added;
   }

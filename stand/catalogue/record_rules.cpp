@@ -74,7 +74,7 @@ std::string stat_columns(const char* format) {
 const std::string& calibration_columns() {
   static const std::string columns =
       "id, unit, source, run_id, source_ref, label, date_utc, recorded_utc, method, coefficients_json, stand, "
-      "host, " +
+      "host, operator, " +
       stat_columns();
   return columns;
 }

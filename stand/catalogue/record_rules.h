@@ -40,10 +40,10 @@ std::string stat_columns(const char* format = "{}_{}");
 // The columns each record is selected with, in the order of the record's fields.
 inline constexpr const char* kRunColumns =
     "run_id, unit, procedure, procedure_hash, started_utc, ended_utc, outcome, run_dir, emulated, "
-    "stand, software_version, resumes, pid, host";
+    "stand, software_version, resumes, pid, host, operator";
 const std::string& calibration_columns();
 inline constexpr const char* kAcceptanceColumns =
-    "id, unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, host";
+    "id, unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, host, operator";
 
 // The records read from one row of a result. `Row` reads a column by name, as a backend's types
 // give it: text(c), opt_text(c), integer(c), opt_integer(c), opt_real(c) and flag(c) (a boolean).
@@ -63,7 +63,7 @@ RunRecord run_of_row(const Row& r) {
   return RunRecord{r.text("run_id"),      r.text("unit"),          r.text("procedure"),        r.text("procedure_hash"),
                    r.text("started_utc"), r.opt_text("ended_utc"), RunRecord::outcome_of(r.text("outcome"), "catalogue runs.outcome"), r.text("run_dir"),
                    r.flag("emulated"),    r.text("stand"),         r.text("software_version"), r.integer("resumes"),
-                   r.integer("pid"),      r.text("host")};
+                   r.integer("pid"),      r.text("host"),          r.text("operator")};
 }
 
 template <typename Row>
@@ -74,7 +74,8 @@ CalibrationRecord calibration_of_row(const Row& r) {
                            r.text("date_utc"),       r.text("recorded_utc"),
                            r.text("method"),         nlohmann::json::parse(r.text("coefficients_json")),
                            stats_of_row(r, "pitch"), stats_of_row(r, "yaw"),
-                           r.text("stand"),          r.text("host")};
+                           r.text("stand"),          r.text("host"),
+                           r.text("operator")};
 }
 
 template <typename Row>
@@ -87,7 +88,8 @@ AcceptanceRecord acceptance_of_row(const Row& r) {
                           r.text("recorded_utc"),
                           nlohmann::json::parse(r.text("certificate_json")),
                           r.text("stand"),
-                          r.text("host")};
+                          r.text("host"),
+                          r.text("operator")};
 }
 
 }  // namespace fpss

@@ -87,6 +87,13 @@ ALTER TABLE acceptances {add_column} stand TEXT NOT NULL DEFAULT '';
 ALTER TABLE acceptances {add_column} host TEXT NOT NULL DEFAULT '';
 CREATE INDEX IF NOT EXISTS runs_by_stand ON runs(stand, started_utc);
 )sql",
+    // 2 -> 3: every run, calibration and acceptance names its operator (run.json's `operator`; '' when
+    // none was named), so that operators can be a measurement-system study's appraisers.
+    R"sql(
+ALTER TABLE runs {add_column} operator TEXT NOT NULL DEFAULT '';
+ALTER TABLE calibrations {add_column} operator TEXT NOT NULL DEFAULT '';
+ALTER TABLE acceptances {add_column} operator TEXT NOT NULL DEFAULT '';
+)sql",
 };
 static_assert(std::size(kMigrations) == Catalogue::kSchemaVersion);
 

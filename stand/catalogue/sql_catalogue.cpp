@@ -35,29 +35,33 @@ std::string insert_if_new(Dialect d, const std::string& table_columns, const std
 // A run started again (resumed) keeps its start and counts the resume. SQLite names its parameters.
 const char* const kSqliteStartRun = R"sql(
         INSERT INTO runs(run_id, unit, procedure, procedure_hash, started_utc, outcome, run_dir,
-                         emulated, stand, software_version, pid, host)
+                         emulated, stand, software_version, pid, host, operator)
         VALUES(:run_id, :unit, :procedure, :hash, :started, 'running', :dir, :emulated, :stand,
-               :version, :pid, :host)
+               :version, :pid, :host, :operator)
         ON CONFLICT(run_id) DO UPDATE SET
           outcome = 'running', ended_utc = NULL, resumes = resumes + 1,
-          pid = excluded.pid, host = excluded.host, software_version = excluded.software_version)sql";
+          pid = excluded.pid, host = excluded.host, software_version = excluded.software_version,
+          operator = excluded.operator)sql";
 const char* const kPostgresStartRun = R"sql(
       INSERT INTO runs(run_id, unit, procedure, procedure_hash, started_utc, outcome, run_dir,
-                       emulated, stand, software_version, pid, host)
-      VALUES($1, $2, $3, $4, $5, 'running', $6, $7, $8, $9, $10, $11)
+                       emulated, stand, software_version, pid, host, operator)
+      VALUES($1, $2, $3, $4, $5, 'running', $6, $7, $8, $9, $10, $11, $12)
       ON CONFLICT (run_id) DO UPDATE SET
         outcome = 'running', ended_utc = NULL, resumes = runs.resumes + 1,
-        pid = excluded.pid, host = excluded.host, software_version = excluded.software_version)sql";
+        pid = excluded.pid, host = excluded.host, software_version = excluded.software_version,
+        operator = excluded.operator)sql";
 
 const char* const kSqliteInsertAcceptance = R"sql(
-        INSERT INTO acceptances(unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, host)
-        VALUES(?, ?, ?, ?, ?, ?, ?, ?))sql";
+        INSERT INTO acceptances(unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, host,
+                                operator)
+        VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?))sql";
 const char* const kPostgresInsertAcceptance =
     "INSERT INTO acceptances(unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand, "
-    "host) VALUES($1, $2, $3, $4, $5, $6, $7, $8) RETURNING id";
+    "host, operator) VALUES($1, $2, $3, $4, $5, $6, $7, $8, $9) RETURNING id";
 
 const std::string kSqliteCalibrationParams =
-    ":unit, :source, :run_id, :source_ref, :label, :date, :recorded, :method, :coefficients, :stand, :host, ";
+    ":unit, :source, :run_id, :source_ref, :label, :date, :recorded, :method, :coefficients, :stand, :host, "
+    ":operator, ";
 
 template <typename T>
 SqlValue or_null(const std::optional<T>& v) {
@@ -124,7 +128,7 @@ int64_t insert_calibration(SqlSession& s, Dialect d, const CalibrationRecord& gi
   const CalibrationRecord cal = as_recorded(given);
   std::vector<SqlValue> p{cal.unit,     cal.source,       or_null(cal.run_id), cal.source_ref,          cal.label,
                           cal.date_utc, cal.recorded_utc, cal.method,          cal.coefficients.dump(), cal.stand,
-                          cal.host};
+                          cal.host,     cal.operator_name};
   add_stats(p, cal.pitch);
   add_stats(p, cal.yaw);
   // SQLite's statement names its parameters, in the same order as the values.
@@ -132,7 +136,7 @@ int64_t insert_calibration(SqlSession& s, Dialect d, const CalibrationRecord& gi
                                                   : params(d, static_cast<int>(p.size()));
   return s.insert(
       fmt::format("INSERT INTO calibrations(unit, source, run_id, source_ref, label, date_utc, recorded_utc, "
-                  "method, coefficients_json, stand, host, {}) VALUES({}){}",
+                  "method, coefficients_json, stand, host, operator, {}) VALUES({}){}",
                   stat_columns(), values, d == Dialect::sqlite ? "" : " RETURNING id"),
       p);
 }
@@ -167,7 +171,8 @@ void SqlCatalogue::record_run_start(const RunStart& start) {
     const RunStart run = as_recorded(start);
     s.exec(dialect_ == Dialect::sqlite ? kSqliteStartRun : kPostgresStartRun,
            {run.run_id, run.unit, run.procedure, run.procedure_hash, run.started_utc, run.run_dir.string(),
-            run.emulated, run.stand, run.software_version, static_cast<int64_t>(::getpid()), this_host()});
+            run.emulated, run.stand, run.software_version, static_cast<int64_t>(::getpid()), this_host(),
+            run.operator_name});
   });
 }
 
@@ -181,15 +186,34 @@ void SqlCatalogue::record_run_end(const std::string& run_id, RunOutcome outcome,
   });
 }
 
+int64_t SqlCatalogue::record_run_operator(const std::string& run_id, const std::string& operator_name) {
+  int64_t changed = 0;
+  transact("record the operator of run " + run_id, [&](SqlSession& s) {
+    if (!run_exists(s, dialect_, run_id)) {
+      throw std::invalid_argument(fmt::format("record_run_operator: no run {}", run_id));
+    }
+    const std::string p1 = param(dialect_, 1), p2 = param(dialect_, 2);
+    changed = s.exec(fmt::format("UPDATE runs SET operator = {} WHERE run_id = {} AND operator <> {}", p1, p2,
+                                 param(dialect_, 3)),
+                     {operator_name, run_id, operator_name});
+    // What the run recorded before its operator was known names none: it was the same operator's.
+    for (const char* table : {"calibrations", "acceptances"}) {
+      changed += s.exec(fmt::format("UPDATE {} SET operator = {} WHERE run_id = {} AND operator = ''", table, p1, p2),
+                        {operator_name, run_id});
+    }
+  });
+  return changed;
+}
+
 bool SqlCatalogue::copy_run(const RunRecord& r) {
   require_unit(r.unit);
   bool copied = false;
   transact("copy run " + r.run_id, [&](SqlSession& s) {
     insert_unit(s, dialect_, r.unit);
-    const auto sql = insert_if_new(dialect_, fmt::format("runs({})", kRunColumns), "run_id", 14);
-    copied =
-        s.exec(sql, {r.run_id, r.unit, r.procedure, r.procedure_hash, r.started_utc, or_null(r.ended_utc), r.outcome_name(),
-                     r.run_dir, r.emulated, r.stand, r.software_version, r.resumes, r.pid, r.host}) == 1;
+    const auto sql = insert_if_new(dialect_, fmt::format("runs({})", kRunColumns), "run_id", 15);
+    copied = s.exec(sql, {r.run_id, r.unit, r.procedure, r.procedure_hash, r.started_utc, or_null(r.ended_utc),
+                          r.outcome_name(), r.run_dir, r.emulated, r.stand, r.software_version, r.resumes, r.pid,
+                          r.host, r.operator_name}) == 1;
   });
   return copied;
 }
@@ -230,7 +254,7 @@ int64_t SqlCatalogue::record_acceptance(const AcceptanceRecord& given) {
     const AcceptanceRecord acc = as_recorded(given);
     id = s.insert(dialect_ == Dialect::sqlite ? kSqliteInsertAcceptance : kPostgresInsertAcceptance,
                   {acc.unit, or_null(acc.run_id), acc.passed, acc.date_utc, acc.recorded_utc, acc.certificate.dump(),
-                   acc.stand, acc.host});
+                   acc.stand, acc.host, acc.operator_name});
   });
   return id;
 }

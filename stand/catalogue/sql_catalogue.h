@@ -50,6 +50,7 @@ class SqlCatalogue : public Catalogue {
   bool add_unit(const std::string& serial) final;
   void record_run_start(const RunStart& run) final;
   void record_run_end(const std::string& run_id, RunOutcome outcome, const std::string& ended_utc = "") final;
+  int64_t record_run_operator(const std::string& run_id, const std::string& operator_name) final;
   bool copy_run(const RunRecord& run) final;
   int64_t record_calibration(const CalibrationRecord& cal) final;
   std::pair<int64_t, bool> record_import_once(const CalibrationRecord& cal) final;

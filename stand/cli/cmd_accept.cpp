@@ -282,6 +282,7 @@ UnitAcceptance accept_unit(const AcceptancePlan& p, const SessionResult& r, RunF
     rec.date_utc = info.date_utc;
     rec.certificate = nlohmann::json::parse(out.cert.dump());
     rec.stand = p.req.stand.stand_id;
+    rec.operator_name = run.operator_name.value_or(out.cert.value("operator", ""));
     out.acc_id = cat->record_acceptance(rec);
   } catch (const std::exception& e) {
     // The folder holds the verdict; its mark lets the next run or `catalogue rebuild` index it.

@@ -84,6 +84,7 @@ nlohmann::json run_json(const RunRecord& r) {
           {"started_utc", r.started_utc}, {"ended_utc", text_or_null(r.ended_utc)},
           {"outcome", r.outcome_name()}, {"stale", r.stale()},
           {"run_dir", r.run_dir}, {"emulated", r.emulated}, {"stand", r.stand}, {"host", r.host},
+          {"operator", r.operator_name},
           {"software_version", r.software_version}, {"resumes", r.resumes}};
 }
 
@@ -301,13 +302,16 @@ int rebuild(const DbOpts& o) {
   if (o.json) {
     const nlohmann::json j{{"catalogue", cat.location()}, {"folders", r.folders},
                            {"runs_added", r.runs_added}, {"runs_updated", r.runs_updated},
+                           {"operators_named", r.operators_named},
                            {"calibrations_added", r.calibrations_added}, {"acceptances_added", r.acceptances_added},
                            {"skipped", r.skipped}};
     std::printf("%s\n", j.dump(1).c_str());
   } else {
-    std::printf("%s: %d run folders; added %d runs, %d calibrations, %d acceptances; updated %d runs; skipped %zu\n",
+    std::printf("%s: %d run folders; added %d runs, %d calibrations, %d acceptances; updated %d runs%s; skipped %zu\n",
                 cat.location().c_str(), r.folders, r.runs_added, r.calibrations_added, r.acceptances_added,
-                r.runs_updated, r.skipped.size());
+                r.runs_updated,
+                r.operators_named ? fmt::format("; named the operator of {} runs", r.operators_named).c_str() : "",
+                r.skipped.size());
   }
   return r.skipped.empty() ? 0 : 1;
 }

@@ -44,14 +44,17 @@ std::vector<std::string> split_list(const std::string& s, const char* option) {
   return out;
 }
 
-// The study's runs, per stand: every unit once per round, `repeats` rounds, each round's order
-// drawn anew (seeded) so that a drift of the stand over the day does not follow the units (AIAG:
-// randomise the order of measurement). Each job is a body of the console's POST /api/jobs, the
-// list one of POST /api/jobs/batch.
-nlohmann::ordered_json msa_plan(const std::vector<std::string>& units, const std::vector<std::string>& stands,
-                                int repeats, const std::string& procedure, uint64_t seed) {
-  if (units.size() < 2 || stands.size() < 2) {
-    throw InputError("msa plan: --units and --stands need at least two names each (a crossed study)");
+// The study's runs, per stand (or per operator): every unit once per round, `repeats` rounds, each
+// round's order drawn anew (seeded) so that a drift of the stand over the day does not follow the
+// units (AIAG: randomise the order of measurement). Each job is a body of the console's POST
+// /api/jobs, the list one of POST /api/jobs/batch; an operator's jobs name the operator, so their
+// runs record who made them.
+nlohmann::ordered_json msa_plan(const std::vector<std::string>& units, const std::vector<std::string>& appraisers,
+                                MsaAppraisers by, int repeats, const std::string& procedure, uint64_t seed) {
+  const bool by_operators = by == MsaAppraisers::operators;
+  if (units.size() < 2 || appraisers.size() < 2) {
+    throw InputError(fmt::format("msa plan: --units and --{} need at least two names each (a crossed study)",
+                                 to_string(by)));
   }
   if (repeats < 2 || repeats > 10) throw InputError(fmt::format("--repeats {}: expected 2 to 10", repeats));
   if (units.size() * static_cast<size_t>(repeats) > 100) {
@@ -59,50 +62,62 @@ nlohmann::ordered_json msa_plan(const std::vector<std::string>& units, const std
                                  units.size(), repeats));
   }
   std::mt19937_64 rng(seed);
-  nlohmann::ordered_json per_stand = nlohmann::ordered_json::array();
-  for (const std::string& st : stands) {
+  nlohmann::ordered_json per_appraiser = nlohmann::ordered_json::array();
+  for (const std::string& st : appraisers) {
     nlohmann::ordered_json jobs = nlohmann::ordered_json::array();
     for (int k = 1; k <= repeats; ++k) {
       std::vector<std::string> order = units;
       std::shuffle(order.begin(), order.end(), rng);
       for (const std::string& u : order) {
         jobs.push_back({{"kind", "run"}, {"procedure", procedure}, {"unit", u},
-                        {"operator", fmt::format("msa plan: round {} of {} on {}", k, repeats, st)}});
+                        {"operator", by_operators ? st : fmt::format("msa plan: round {} of {} on {}", k, repeats, st)}});
       }
     }
-    per_stand.push_back({{"stand", st}, {"jobs", jobs}});
+    per_appraiser.push_back({{by_operators ? "operator" : "stand", st}, {"jobs", jobs}});
   }
-  return {{"format", "fpss-stand msa-plan/1"}, {"units", units}, {"stands", stands}, {"repeats", repeats},
-          {"procedure", procedure}, {"seed", seed}, {"runs", units.size() * stands.size() * static_cast<size_t>(repeats)},
-          {"stands_jobs", per_stand}};
+  const std::string list = to_string(by);  // "stands" or "operators"
+  return {{"format", "fpss-stand msa-plan/1"}, {"units", units}, {list, appraisers}, {"repeats", repeats},
+          {"procedure", procedure}, {"seed", seed}, {"runs", units.size() * appraisers.size() * static_cast<size_t>(repeats)},
+          {list + "_jobs", per_appraiser}};
 }
 
 void add_msa_plan(CLI::App* msa, Runner& run) {
   struct Opts {
-    std::string units, stands, procedure = "discrete_grid.yaml", out;
+    std::string units, stands, operators, procedure = "discrete_grid.yaml", out;
     int repeats = 3;
     uint64_t seed = 1;
     FileOptions files;
   };
   auto o = std::make_shared<Opts>();
-  auto* sub = msa->add_subcommand("plan", "Write a crossed study's runs (units x stands x repeats) as console jobs, "
-                                          "per stand, in a randomised order per round");
+  auto* sub = msa->add_subcommand("plan", "Write a crossed study's runs (units x stands, or operators, x repeats) as "
+                                          "console jobs, per stand or operator, in a randomised order per round");
   sub->add_option("--units", o->units, "the units, comma-separated")->required();
-  sub->add_option("--stands", o->stands, "the stands, comma-separated")->required();
+  auto* stands = sub->add_option("--stands", o->stands, "the stands, comma-separated");
+  sub->add_option("--operators", o->operators, "instead of --stands: the operators, comma-separated (each job names "
+                                               "its operator)")
+      ->excludes(stands);
   sub->add_option("--repeats", o->repeats, "calibrations of each unit on each stand (2 to 10)")->capture_default_str();
   sub->add_option("--procedure", o->procedure, "the procedure each run does (a file of the console's procedures folder)")
       ->capture_default_str();
   sub->add_option("--seed", o->seed, "the order's seed")->capture_default_str();
   o->files.output(sub, "--out", o->out, "the plan (JSON): per stand, the jobs for POST /api/jobs/batch")->required();
-  examples(sub, {"fpss-stand msa plan --units SN1,SN2,SN3 --stands S1,S2 --repeats 3 --out plan.json"});
+  examples(sub, {"fpss-stand msa plan --units SN1,SN2,SN3 --stands S1,S2 --repeats 3 --out plan.json",
+                 "fpss-stand msa plan --units SN1,SN2,SN3 --operators Ann,Bo --repeats 2 --out plan.json"});
   sub->callback([o, &run] {
     run = [o] {
       o->files.check();
-      const auto plan = msa_plan(split_list(o->units, "--units"), split_list(o->stands, "--stands"), o->repeats,
+      const bool by_operators = !o->operators.empty();
+      if (!by_operators && o->stands.empty()) throw InputError("msa plan: --stands or --operators is required");
+      const auto plan = msa_plan(split_list(o->units, "--units"),
+                                 by_operators ? split_list(o->operators, "--operators") : split_list(o->stands, "--stands"),
+                                 by_operators ? MsaAppraisers::operators : MsaAppraisers::stands, o->repeats,
                                  o->procedure, o->seed);
       write_text_atomic(o->out, plan.dump(1) + "\n");
-      std::printf("%zu runs: %zu per stand; queue a stand's list with POST /api/jobs/batch (docs/console.md)\nwrote %s\n",
-                  plan["runs"].get<size_t>(), plan["runs"].get<size_t>() / plan["stands"].size(), o->out.c_str());
+      std::printf("%zu runs: %zu per %s; queue %s list with POST /api/jobs/batch (docs/console.md)\nwrote %s\n",
+                  plan["runs"].get<size_t>(),
+                  plan["runs"].get<size_t>() / plan[by_operators ? "operators" : "stands"].size(),
+                  by_operators ? "operator" : "stand",
+                  by_operators ? "an operator's" : "a stand's", o->out.c_str());
       return 0;
     };
   });
@@ -112,38 +127,49 @@ void add_msa_plan(CLI::App* msa, Runner& run) {
 
 void add_msa(CLI::App& app, Runner& run) {
   struct Opts {
-    std::string db, runs_dir = "runs", units, stands, since, limits, out, report;
+    std::string db, runs_dir = "runs", units, stands, operators, appraisers = "stands", since, limits, out, report;
     FileOptions files;
   };
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand(
-      "msa", "Measurement-system analysis across the fleet: units x stands x repeats from the catalogue, per "
-             "quantity (AIAG MSA, ANOVA): EV, AV, interaction, GRR, PV, %GRR of the tolerance and of TV, ndc");
+      "msa", "Measurement-system analysis across the fleet: units x stands (or operators) x repeats from the "
+             "catalogue, per quantity (AIAG MSA, ANOVA): EV, AV, interaction, GRR, PV, %GRR of the tolerance and of "
+             "TV, ndc");
   add_catalogue_option(sub, o->db);
   sub->add_option("--runs-dir", o->runs_dir, "runs folder; the default catalogue is its stand.db")->capture_default_str();
   sub->add_option("--units", o->units, "the units (parts), comma-separated (default: every unit)");
-  sub->add_option("--stands", o->stands, "the stands (appraisers), comma-separated (default: every stand; "
+  sub->add_option("--appraisers", o->appraisers, "what is crossed with the units: stands, or operators (the "
+                                                 "runs' operators, on whichever stands)")
+      ->check(CLI::IsMember({"stands", "operators"}))
+      ->capture_default_str();
+  sub->add_option("--stands", o->stands, "the stands, comma-separated (default: every stand; "
                                          "'emulator' for emulated runs without a stand file)");
+  sub->add_option("--operators", o->operators, "the operators, comma-separated (default: every operator; "
+                                               "'unnamed' for runs that named none)");
   sub->add_option("--since", o->since, "only records from this ISO 8601 date or time on");
   o->files.input(sub, "--limits", o->limits, "acceptance limits file: the tolerances (default: the shipped limits)");
   o->files.output(sub, "--out", o->out, "the study as JSON (MSA.json; required)");
   o->files.output(sub, "--report", o->report, "the study as a page (MSA.html)");
   examples(sub, {"fpss-stand msa --catalogue postgresql://fleet@db/fpss --out msa.json --report msa.html",
-                 "fpss-stand msa --runs-dir runs --units SN1,SN2,SN3 --stands S1,S2 --since 2026-01-01 --out msa.json"});
+                 "fpss-stand msa --runs-dir runs --units SN1,SN2,SN3 --appraisers operators --operators Ann,Bo "
+                 "--stands S1 --since 2026-01-01 --out msa.json"});
   add_msa_plan(sub, run);
   sub->callback([o, sub, &run] {
     if (sub->get_subcommands().size() > 0) return;  // msa plan set the runner
     run = [o] {
       if (o->out.empty()) throw InputError("msa: --out MSA.json is required");
       o->files.check();
-      MsaSelection sel{split_list(o->units, "--units"), split_list(o->stands, "--stands"), o->since};
+      MsaSelection sel{split_list(o->units, "--units"), split_list(o->stands, "--stands"), o->since,
+                       split_list(o->operators, "--operators"),
+                       o->appraisers == "operators" ? MsaAppraisers::operators : MsaAppraisers::stands};
       const AcceptanceLimits limits = load_acceptance_limits(o->limits.empty() ? default_limits_path() : std::filesystem::path(o->limits));
       const std::string url = catalogue_url(o->db, o->runs_dir);
       const auto cat = open_catalogue(url, Catalogue::Mode::read_only);
       const MsaStudy s = msa_study(*cat, sel, tolerances_from(limits));
       write_text_atomic(o->out, s.to_json(url, sel).dump(1) + "\n");
       if (!o->report.empty()) write_text_atomic(o->report, msa_html(s, url));
-      std::printf("%zu units x %zu stands x %zu repeats\n", s.units.size(), s.stands.size(), s.repeats);
+      std::printf("%zu units x %zu %s x %zu repeats\n", s.units.size(), s.appraisers.size(), to_string(s.appraised_by),
+                  s.repeats);
       for (const MsaQuantity& q : s.quantities) std::printf("%-34s %s\n", q.name.c_str(), msa_verdict(q.result).c_str());
       for (const auto& [q, why] : s.skipped) std::printf("%-34s not studied: %s\n", q.c_str(), why.c_str());
       std::printf("wrote %s\n", o->out.c_str());

@@ -13,11 +13,15 @@ std::string msa_html(const MsaStudy& s, const std::string& catalogue) {
       "</title>\n<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
       "td,th{border:1px solid #ccc;padding:.25em .5em;text-align:right}th.l,td.l{text-align:left}</style>\n"
       "</head>\n<body>\n<h1>Measurement-system analysis</h1>\n";
+  const bool by_operators = s.appraised_by == MsaAppraisers::operators;
   h += fmt::format("<p>AIAG MSA 4th edition, ANOVA method (crossed, the interaction kept), from the catalogue {}: "
-                   "{} units ({}) &times; {} stands ({}) &times; {} repeats (the latest of each unit on each stand); "
+                   "{} units ({}) &times; {} {} ({}) &times; {} repeats (the latest of each unit {}); "
                    "{} calibrations used, {} records left out by the selection.</p>\n",
                    html_escape(catalogue), s.units.size(), html_escape(fmt::format("{}", fmt::join(s.units, ", "))),
-                   s.stands.size(), html_escape(fmt::format("{}", fmt::join(s.stands, ", "))), s.repeats,
+                   s.appraisers.size(), to_string(s.appraised_by),
+                   html_escape(fmt::format("{}", fmt::join(s.appraisers, ", "))), s.repeats,
+                   by_operators ? "by each operator, on whichever stand: the appraisers are the operators"
+                                : "on each stand",
                    s.records_used, s.records_left_out);
   h += "<table id=\"msa\">\n<tr><th class=\"l\">quantity</th><th>EV</th><th>AV</th><th>interaction</th><th>GRR</th>"
        "<th>PV</th><th>TV</th><th>tolerance</th><th>%GRR of tolerance</th><th>%GRR of TV</th><th>ndc</th>"

@@ -239,16 +239,11 @@ void Session::start_catalogue_record() {
                    : resuming_            ? (res_.run_dir.parent_path() / "stand.db").string()
                                           : Catalogue::default_path(req_.runs_dir).string();
   with_catalogue("run start", [&](Catalogue& cat) {
-    RunStart rs;
-    rs.run_id = run_id_;
-    rs.unit = unit_;
-    rs.procedure = req_.procedure.name;
-    rs.procedure_hash = run_.procedure.sha256;
-    rs.started_utc = run_.started_utc;
-    rs.run_dir = fs::absolute(res_.run_dir);
-    rs.emulated = req_.emulator.has_value();
-    rs.stand = !stand_.stand_id.empty() ? stand_.stand_id : req_.emulator ? "" : stand_.origin;
-    cat.record_run_start(rs);
+    cat.record_run_start({.run_id = run_id_, .unit = unit_, .procedure = req_.procedure.name,
+                          .procedure_hash = run_.procedure.sha256, .started_utc = run_.started_utc,
+                          .run_dir = fs::absolute(res_.run_dir), .emulated = req_.emulator.has_value(),
+                          .stand = !stand_.stand_id.empty() ? stand_.stand_id : req_.emulator ? "" : stand_.origin,
+                          .operator_name = run_.operator_name.value_or("")});
   });
 }
 
@@ -377,6 +372,7 @@ void Session::calibrate_unit(const Action& a, SessionUnit& u) {
     cr.source_ref = run_id_;
     cr.date_utc = utc_now_iso();
     cr.stand = !stand_.stand_id.empty() ? stand_.stand_id : req_.emulator ? "" : stand_.origin;
+    cr.operator_name = run_.operator_name.value_or("");
     cat.record_calibration(cr);
   });
 }
@@ -479,6 +475,9 @@ void Session::ask_prompts(ControlPoller& poller, RunControl& control) {
   if (res_.answers.count("operator")) run_.operator_name = res_.answers["operator"];
   run_.signed_off_utc = res_.signed_off_utc;
   write_run_file(res_.run_dir, run_);
+  if (res_.answers.count("operator")) {  // the run's catalogue entry started without it
+    with_catalogue("operator", [&](Catalogue& cat) { cat.record_run_operator(run_id_, *run_.operator_name); });
+  }
 }
 
 SessionResult Session::run() {

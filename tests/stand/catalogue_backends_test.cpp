@@ -78,19 +78,38 @@ class Backends : public ::testing::TestWithParam<Backend> {
       pg().psql(db_, fmt::format("UPDATE schema_version SET version = {}", v));
     }
   }
-  // A catalogue made by a binary that knew only schema version 1.
-  void make_version_1() {
+  // A catalogue made by a binary that knew only schema version `v`, holding unit OLD-1 and what
+  // `sql` adds (SQL both dialects read alike).
+  void make_version(int v, const std::string& sql = "") {
+    const auto dialect = GetParam() == Backend::sqlite ? schema::Dialect::sqlite : schema::Dialect::postgres;
+    std::string all;
+    for (int step = 0; step < v; ++step) all += schema::migration(step, dialect);
+    all += "INSERT INTO units VALUES('OLD-1', '2024-01-01T00:00:00Z');" + sql;
     if (GetParam() == Backend::sqlite) {
       SQLite::Database d(dir_.path() / "stand.db", SQLite::OPEN_READWRITE | SQLite::OPEN_CREATE);
-      d.exec(schema::migration(0, schema::Dialect::sqlite));
-      d.exec("PRAGMA user_version = 1");
-      d.exec("INSERT INTO units VALUES('OLD-1', '2024-01-01T00:00:00Z')");
+      d.exec(all);
+      d.exec(fmt::format("PRAGMA user_version = {}", v));
     } else {
-      pg().psql(db_, schema::migration(0, schema::Dialect::postgres) +
-                         "CREATE TABLE schema_version (version INTEGER NOT NULL);"
-                         "INSERT INTO schema_version VALUES (1);"
-                         "INSERT INTO units VALUES('OLD-1', '2024-01-01T00:00:00Z');");
+      pg().psql(db_, fmt::format("CREATE TABLE schema_version (version INTEGER NOT NULL);"
+                                 "INSERT INTO schema_version VALUES ({});",
+                                 v) +
+                         all);
     }
+  }
+  void make_version_1() { make_version(1); }
+  // Whether the catalogue's `table` has `column`, as the database itself lists them.
+  bool has_column(const std::string& table, const std::string& column) {
+    if (GetParam() == Backend::sqlite) {
+      SQLite::Database d(dir_.path() / "stand.db", SQLite::OPEN_READONLY);
+      SQLite::Statement q(d, "SELECT count(*) FROM pragma_table_info(?) WHERE name = ?");
+      q.bind(1, table);
+      q.bind(2, column);
+      return q.executeStep() && q.getColumn(0).getInt() == 1;
+    }
+    return pg().psql(db_, fmt::format("SELECT count(*) FROM information_schema.columns WHERE table_name = '{}' "
+                                      "AND column_name = '{}'",
+                                      table, column))
+               .rfind("1", 0) == 0;
   }
 
   test::TempDir dir_;
@@ -224,6 +243,59 @@ TEST_P(Backends, MigratesAnOlderSchemaAndRefusesANewerOne) {
   }
 }
 
+// A catalogue of schema version 2 (no operators) gains the operator column on runs, calibrations and
+// acceptances; what it held names none until the run's operator is recorded (as a rebuild does from
+// run.json), and records made since carry theirs.
+TEST_P(Backends, AVersion2CatalogueGainsTheOperatorOfEachRecord) {
+  std::string coefficients = calibration_json("OLD-1", 0.3).dump();
+  for (size_t at = coefficients.find('\''); at != std::string::npos; at = coefficients.find('\'', at + 2)) {
+    coefficients.insert(at, "'");  // SQL's quote within a string
+  }
+  make_version(2, fmt::format(
+                      "INSERT INTO runs(run_id, unit, procedure, procedure_hash, started_utc, outcome, run_dir, emulated, "
+                      "stand, software_version) VALUES('old-run', 'OLD-1', 'discrete_grid', 'sha256:0', "
+                      "'2024-01-01T00:00:00Z', 'completed', '/runs/old-run', (1 = 0), 'stand-A', '0.9');"
+                      "INSERT INTO calibrations(unit, source, run_id, source_ref, date_utc, recorded_utc, method, "
+                      "coefficients_json, stand) VALUES('OLD-1', 'run', 'old-run', 'old-run', '2024-01-01T01:00:00Z', "
+                      "'2024-01-01T01:00:00Z', 'differences', '{}', 'stand-A');"
+                      "INSERT INTO acceptances(unit, run_id, passed, date_utc, recorded_utc, certificate_json, stand) "
+                      "VALUES('OLD-1', 'old-run', (1 = 1), '2024-01-01T02:00:00Z', '2024-01-01T02:00:00Z', '{{}}', "
+                      "'stand-A');",
+                      coefficients));
+  for (const char* table : {"runs", "calibrations", "acceptances"}) EXPECT_FALSE(has_column(table, "operator")) << table;
+  auto c = open();
+  EXPECT_EQ(c->schema_version(), 3);
+  for (const char* table : {"runs", "calibrations", "acceptances"}) EXPECT_TRUE(has_column(table, "operator")) << table;
+  EXPECT_EQ(c->find_run("old-run")->operator_name, "");
+  EXPECT_EQ(c->unit_history("OLD-1").at(0).operator_name, "");
+  EXPECT_EQ(c->unit_acceptances("OLD-1").at(0).operator_name, "");
+  EXPECT_EQ(c->unit_history("OLD-1").at(0).stand, "stand-A");  // what was there stays
+  // The run, its calibration and its acceptance: three records named; again, nothing changes.
+  EXPECT_EQ(c->record_run_operator("old-run", "A. Ann"), 3);
+  EXPECT_EQ(c->record_run_operator("old-run", "A. Ann"), 0);
+  EXPECT_THROW(c->record_run_operator("no-such-run", "A. Ann"), std::invalid_argument);
+  EXPECT_EQ(c->find_run("old-run")->operator_name, "A. Ann");
+  EXPECT_EQ(c->unit_history("OLD-1").at(0).operator_name, "A. Ann");
+  EXPECT_EQ(c->unit_acceptances("OLD-1").at(0).operator_name, "A. Ann");
+  // New records carry theirs; a resume names whoever resumed it; a calibration already named keeps its operator.
+  RunStart run = make_run("new-run", "OLD-1", "2024-02-01T00:00:00Z");
+  run.operator_name = "B. Bo";
+  c->record_run_start(run);
+  EXPECT_EQ(c->find_run("new-run")->operator_name, "B. Bo");
+  auto cal = CalibrationRecord::from_calibration_json(calibration_json("OLD-1", 0.3), "x");
+  cal.source = "run";
+  cal.run_id = "new-run";
+  cal.date_utc = "2024-02-01T01:00:00Z";
+  cal.operator_name = "B. Bo";
+  c->record_calibration(cal);
+  run.operator_name = "C. Cy";
+  c->record_run_start(run);
+  EXPECT_EQ(c->find_run("new-run")->operator_name, "C. Cy");
+  EXPECT_EQ(c->find_run("new-run")->resumes, 1);
+  EXPECT_EQ(c->record_run_operator("new-run", "C. Cy"), 0);  // the run has it; the calibration names B. Bo
+  EXPECT_EQ(c->unit_history("OLD-1").at(1).operator_name, "B. Bo");
+}
+
 TEST_P(Backends, ReadOnlyRefusesWhatIsNoCatalogue) {
   if (GetParam() == Backend::postgresql) {
     const std::string msg = test::error_of<InputError>([&] { open(Catalogue::Mode::read_only); });
@@ -288,13 +360,16 @@ TEST_P(Backends, ConcurrentImportsOfOneFileRecordItOnce) {
 // copy to the other backend and back: everything arrives once, a second copy adds nothing.
 TEST_P(Backends, CopiesToTheOtherBackendIdempotently) {
   auto src = open();
-  src->record_run_start(make_run("r1", "SN-1", "2024-05-01T10:00:00Z"));
+  RunStart r1_start = make_run("r1", "SN-1", "2024-05-01T10:00:00Z");
+  r1_start.operator_name = "A. Ann";
+  src->record_run_start(r1_start);
   src->record_run_end("r1", RunOutcome::completed, "2024-05-01T11:00:00Z");
   src->record_run_start(make_run("r2", "SN-1", "2024-05-02T10:00:00Z"));  // still running
   auto cal = CalibrationRecord::from_calibration_json(calibration_json("SN-1", 0.2), "x");
   cal.source = "run";
   cal.run_id = "r1";
   cal.date_utc = "2024-05-01T11:00:00Z";
+  cal.operator_name = "A. Ann";
   src->record_calibration(cal);
   auto imp = CalibrationRecord::from_calibration_json(calibration_json("SN-1", 0.4), "y");
   imp.source = "import";
@@ -306,6 +381,7 @@ TEST_P(Backends, CopiesToTheOtherBackendIdempotently) {
   a.run_id = "r1";
   a.passed = true;
   a.date_utc = "2024-05-01T11:00:00Z";
+  a.operator_name = "A. Ann";
   src->record_acceptance(a);
 
   static std::atomic<int> n{0};
@@ -325,13 +401,18 @@ TEST_P(Backends, CopiesToTheOtherBackendIdempotently) {
   const auto r1 = dst->find_run("r1").value();
   EXPECT_EQ(r1.ended_utc.value_or(""), "2024-05-01T11:00:00Z");
   EXPECT_EQ(r1.host, this_host());
+  EXPECT_EQ(r1.operator_name, "A. Ann");
+  EXPECT_EQ(dst->find_run("r2")->operator_name, "");
   EXPECT_TRUE(dst->find_run("r2")->running());
   const auto h = dst->unit_history("SN-1");
   ASSERT_EQ(h.size(), 2u);
   EXPECT_EQ(h[0].source, "import");
   EXPECT_EQ(h[1].run_id.value_or(""), "r1");
   EXPECT_EQ(h[1].coefficients, cal.coefficients);
+  EXPECT_EQ(h[1].operator_name, "A. Ann");
+  EXPECT_EQ(h[0].operator_name, "");
   EXPECT_EQ(dst->unit_acceptances("SN-1").size(), 1u);
+  EXPECT_EQ(dst->unit_acceptances("SN-1").at(0).operator_name, "A. Ann");
 }
 
 // The commands over either backend through --catalogue URL, its alias --db, and FPSS_CATALOGUE.
@@ -402,6 +483,9 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
   ASSERT_EQ(r.code, 0) << r.err;
   const auto m = nlohmann::json::parse(test::read_file(out));
   EXPECT_EQ(m["format"], "fpss-stand msa/1");
+  EXPECT_EQ(m["appraisers"], "stands");  // the default
+  EXPECT_FALSE(m.contains("operators"));
+  EXPECT_EQ(m["selection"]["operators"], nlohmann::json::array());
   EXPECT_EQ(m["units"], nlohmann::json({"SN-0", "SN-1", "SN-2"}));
   EXPECT_EQ(m["stands"], nlohmann::json({"stand-A", "stand-B"}));
   EXPECT_EQ(m["repeats"], 3);
@@ -428,6 +512,7 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
   ASSERT_EQ(r.code, 0) << r.err;
   const auto p = nlohmann::json::parse(test::read_file(plan));
   EXPECT_EQ(p["runs"], 18);
+  EXPECT_FALSE(p.contains("operators_jobs"));
   ASSERT_EQ(p["stands_jobs"].size(), 2u);
   for (const auto& st : p["stands_jobs"]) {
     ASSERT_EQ(st["jobs"].size(), 9u);
@@ -445,6 +530,146 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
   r = test::run_stand({"msa", "--catalogue", url_, "--stands", "stand-A", "--out", out.string()}, dir_.path(), "one");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("at least two units and two stands"), std::string::npos) << r.err;
+}
+
+// The operators as the appraisers: three units x two operators x three repeats, each operator on
+// both stands alike, operator Bo reading 0.5 arcsec more than Ann; one record names no operator.
+TEST_P(Backends, MsaStudiesUnitsByOperatorsFromEitherBackend) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  const char* const operators[] = {"Ann", "Bo"};
+  GaugeStudy expected;  // [unit][operator][repeat]
+  {
+    auto cat = open();
+    expected.y.assign(3, std::vector<std::vector<double>>(2));
+    const auto record = [&](int u, const std::string& op, const std::string& stand, const std::string& date, double c1) {
+      const std::string unit = fmt::format("SN-{}", u);
+      auto j = calibration_json(unit, 0.3 + 0.01 * noise(rng));
+      j["alpha"][0] = c1 / 206264.80624709636;
+      auto cal = CalibrationRecord::from_calibration_json(j, "msa");
+      cal.unit = unit;
+      cal.source = "import";
+      cal.source_ref = fmt::format("msa-{}-{}-{}.json", u, op, date);
+      cal.stand = stand;
+      cal.operator_name = op;
+      cal.date_utc = date;
+      cat->record_calibration(cal);
+    };
+    for (int u = 0; u < 3; ++u) {
+      for (int o = 0; o < 2; ++o) {
+        for (int k = 0; k < 3; ++k) {
+          const double c1_arcsec = 2.0 * u + 0.5 * o + noise(rng);
+          record(u, operators[o], k % 2 == 0 ? "stand-A" : "stand-B", fmt::format("2026-02-0{}T00:00:00Z", k + 1),
+                 c1_arcsec);
+          expected.y[u][o].push_back(c1_arcsec);
+        }
+      }
+    }
+    record(0, "", "stand-A", "2026-03-01T00:00:00Z", 0.0);  // a run that named no operator
+  }
+  const fs::path out = dir_.path() / "msa-ops.json", page = dir_.path() / "msa-ops.html";
+  // Every operator: the one record naming none makes operator "unnamed", whose cells are short.
+  auto r = test::run_stand({"msa", "--catalogue", url_, "--appraisers", "operators", "--out", out.string()},
+                           dir_.path(), "msa-unnamed");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("at least two calibrations by every operator"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("SN-0 by operator unnamed (1); SN-1 by operator unnamed (0)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("catalogue rebuild"), std::string::npos) << r.err;
+  r = test::run_stand({"msa", "--catalogue", url_, "--appraisers", "operators", "--operators", "Ann,Bo", "--out",
+                       out.string(), "--report", page.string()},
+                      dir_.path(), "msa-ops");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("3 units x 2 operators x 3 repeats"), std::string::npos) << r.out;
+  const auto m = nlohmann::json::parse(test::read_file(out));
+  EXPECT_EQ(m["appraisers"], "operators");
+  EXPECT_EQ(m["operators"], nlohmann::json({"Ann", "Bo"}));
+  EXPECT_FALSE(m.contains("stands"));
+  EXPECT_EQ(m["selection"]["operators"], nlohmann::json({"Ann", "Bo"}));
+  EXPECT_EQ(m["repeats"], 3);
+  EXPECT_EQ(m["records_used"], 18);
+  EXPECT_EQ(m["records_left_out"], 1);  // the unnamed one
+  const auto& q = m["quantities"]["angle_pitch_at_+0.0deg_arcsec"];
+  ASSERT_EQ(q["values"].size(), 3u);
+  ASSERT_EQ(q["values"][0].size(), 2u);  // [unit][operator][repeat]
+  const GaugeRr want = gauge_rr(expected, 10.0);
+  EXPECT_NEAR(q["sd"]["ev"].get<double>(), want.ev, 1e-6);
+  EXPECT_NEAR(q["sd"]["av"].get<double>(), want.av, 1e-6);
+  EXPECT_NEAR(q["grr_percent_tolerance"].get<double>(), *want.grr_percent_tolerance, 1e-4);
+  EXPECT_EQ(q["ndc"], want.ndc);
+  EXPECT_GT(want.av, 0.2);  // the 0.5 arcsec between operators (two of them: 0.35) shows as reproducibility
+  // Bo's mean minus Ann's, over units and repeats: the offset put in, within the noise.
+  double d = 0;
+  for (int u = 0; u < 3; ++u) {
+    for (int k = 0; k < 3; ++k) d += (q["values"][u][1][k].get<double>() - q["values"][u][0][k].get<double>()) / 9;
+  }
+  EXPECT_NEAR(d, 0.5, 0.15);
+  const std::string html = test::read_file(page);
+  EXPECT_NE(html.find("2 operators (Ann, Bo)"), std::string::npos);
+  EXPECT_NE(html.find("the appraisers are the operators"), std::string::npos);
+  // The same records with the stands as the appraisers: each stand saw both operators, so the
+  // operators' offset is no stand effect; it is scatter within the cells (repeatability) instead.
+  const fs::path by_stands = dir_.path() / "msa-stands.json";
+  r = test::run_stand({"msa", "--catalogue", url_, "--operators", "Ann,Bo", "--out", by_stands.string()}, dir_.path(),
+                      "msa-stands");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto st = nlohmann::json::parse(test::read_file(by_stands));
+  EXPECT_EQ(st["appraisers"], "stands");
+  EXPECT_EQ(st["stands"], nlohmann::json({"stand-A", "stand-B"}));
+  const auto& sq = st["quantities"]["angle_pitch_at_+0.0deg_arcsec"];
+  EXPECT_LT(sq["sd"]["av"].get<double>(), 0.5 * want.av);
+  EXPECT_GT(sq["sd"]["ev"].get<double>(), want.ev + 0.1);
+  std::printf("by operators: EV %.4f AV %.4f %%GRR of the tolerance %.2f (the ANOVA of the values: EV %.4f AV %.4f "
+              "%.2f); Bo - Ann %.3f arcsec; by stands: EV %.4f AV %.4f\n",
+              q["sd"]["ev"].get<double>(), q["sd"]["av"].get<double>(), q["grr_percent_tolerance"].get<double>(), want.ev,
+              want.av, *want.grr_percent_tolerance, d, sq["sd"]["ev"].get<double>(), sq["sd"]["av"].get<double>());
+  // One operator is no crossed study: exit 2 naming the operators.
+  r = test::run_stand({"msa", "--catalogue", url_, "--appraisers", "operators", "--operators", "Bo", "--out",
+                       out.string()},
+                      dir_.path(), "msa-one");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("at least two units and two operators; the selection has 3 unit(s) (SN-0, SN-1, SN-2) and 1 "
+                       "operator(s) (Bo)"),
+            std::string::npos)
+      << r.err;
+  // The plan of such a study: per operator every unit once per round, each job naming its operator.
+  const fs::path plan = dir_.path() / "plan-ops.json";
+  r = test::run_stand({"msa", "plan", "--units", "SN-0,SN-1,SN-2", "--operators", "Ann,Bo", "--repeats", "3", "--out",
+                       plan.string()},
+                      dir_.path(), "plan-ops");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("18 runs: 9 per operator"), std::string::npos) << r.out;
+  const auto p = nlohmann::json::parse(test::read_file(plan));
+  EXPECT_EQ(p["runs"], 18);
+  EXPECT_EQ(p["operators"], nlohmann::json({"Ann", "Bo"}));
+  EXPECT_FALSE(p.contains("stands_jobs"));
+  ASSERT_EQ(p["operators_jobs"].size(), 2u);
+  for (size_t o = 0; o < 2; ++o) {
+    const auto& entry = p["operators_jobs"][o];
+    EXPECT_EQ(entry["operator"], operators[o]);
+    ASSERT_EQ(entry["jobs"].size(), 9u);
+    for (size_t round = 0; round < 3; ++round) {
+      std::set<std::string> seen;
+      for (size_t k = 0; k < 3; ++k) {
+        const auto& job = entry["jobs"][round * 3 + k];
+        seen.insert(job["unit"].get<std::string>());
+        EXPECT_EQ(job["operator"], operators[o]);
+        EXPECT_EQ(job["kind"], "run");
+      }
+      EXPECT_EQ(seen.size(), 3u) << "round " << round;
+    }
+  }
+  // Stands or operators: one of them.
+  r = test::run_stand({"msa", "plan", "--units", "SN-0,SN-1", "--stands", "S1,S2", "--operators", "Ann,Bo", "--out",
+                       plan.string()},
+                      dir_.path(), "plan-both");
+  EXPECT_EQ(r.code, 2) << r.err;
+  r = test::run_stand({"msa", "plan", "--units", "SN-0,SN-1", "--out", plan.string()}, dir_.path(), "plan-neither");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--stands or --operators"), std::string::npos) << r.err;
+  r = test::run_stand({"msa", "plan", "--units", "SN-0,SN-1", "--operators", "Ann", "--out", plan.string()},
+                      dir_.path(), "plan-one");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--units and --operators need at least two names each"), std::string::npos) << r.err;
 }
 
 INSTANTIATE_TEST_SUITE_P(Catalogue, Backends, ::testing::Values(Backend::sqlite, Backend::postgresql),

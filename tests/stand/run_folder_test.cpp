@@ -1,9 +1,11 @@
 // A run folder end to end: one owner at a time, one run whatever the spelling of its path, a catalogue
 // that cannot record ends in exit 1 with the folder complete and `catalogue rebuild` restoring the
-// index, and events.jsonl telling the run as it happened.
+// index (the run's operator too), and events.jsonl telling the run as it happened.
 #include <fmt/format.h>
 
 #include <unistd.h>
+
+#include <SQLiteCpp/SQLiteCpp.h>
 
 #include <sstream>
 
@@ -68,7 +70,7 @@ TEST(RunFolder, ACatalogueThatCannotRecordExitsOneThenRebuildIndexesTheFolder) {
   test::write_file(tmp / "not-a-folder", "a file where the catalogue's folder should be\n");
   const fs::path bad_catalogue = tmp / "not-a-folder" / "stand.db";
   const auto r = run_stand({"run", (tmp / "grid.yaml").string(), "--emulate", "--runs-dir", runs.string(),
-                            "--catalogue", bad_catalogue.string(), "--quiet"},
+                            "--catalogue", bad_catalogue.string(), "--operator", "T. Tester", "--quiet"},
                            tmp.path(), "run");
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("catalogue"), std::string::npos) << r.err;
@@ -134,11 +136,30 @@ TEST(RunFolder, ACatalogueThatCannotRecordExitsOneThenRebuildIndexesTheFolder) {
   j = nlohmann::json::parse(rb.out);
   EXPECT_EQ(j["runs_added"], 0);
   EXPECT_EQ(j["calibrations_added"], 0);
+  EXPECT_EQ(j["operators_named"], 0);
+  {
+    SqliteCatalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
+    const auto rec = cat.find_run(run_id_of(run));
+    ASSERT_TRUE(rec);
+    EXPECT_EQ(rec->outcome, RunOutcome::completed);
+    EXPECT_EQ(rec->operator_name, "T. Tester");  // run.json's operator
+    ASSERT_EQ(cat.run_calibrations(run_id_of(run)).size(), 1u);
+    EXPECT_EQ(cat.run_calibrations(run_id_of(run))[0].operator_name, "T. Tester");
+  }
+  // A catalogue that indexed the run before it kept operators (schema version 2, migrated: every
+  // operator ''): a rebuild names the run's operator, on the run and on its calibration.
+  {
+    SQLite::Database d(runs / "stand.db", SQLite::OPEN_READWRITE);
+    d.exec("UPDATE runs SET operator = ''; UPDATE calibrations SET operator = ''");
+  }
+  rb = run_stand({"catalogue", "rebuild", "--runs-dir", runs.string(), "--json"}, tmp.path(), "rebuild3");
+  ASSERT_EQ(rb.code, 0) << rb.err;
+  j = nlohmann::json::parse(rb.out);
+  EXPECT_EQ(j["operators_named"], 1);
+  EXPECT_EQ(j["calibrations_added"], 0);
   SqliteCatalogue cat(runs / "stand.db", Catalogue::Mode::read_only);
-  const auto rec = cat.find_run(run_id_of(run));
-  ASSERT_TRUE(rec);
-  EXPECT_EQ(rec->outcome, RunOutcome::completed);
-  EXPECT_EQ(cat.run_calibrations(run_id_of(run)).size(), 1u);
+  EXPECT_EQ(cat.find_run(run_id_of(run))->operator_name, "T. Tester");
+  EXPECT_EQ(cat.run_calibrations(run_id_of(run)).at(0).operator_name, "T. Tester");
 }
 
 }  // namespace
