@@ -61,7 +61,7 @@ void Engine::prepare() {
     if (io_->lost(i)) continue;
     Sensor& s = *io_->unit(i).sensor;
     try {
-      s.set_rate(static_cast<int>(std::lround(b_.sample_rate_hz)));
+      s.set_rate(static_cast<int>(std::lround(io_->rate_hz(i))));
       s.start();
     } catch (const DeviceError& e) {
       // One unit: its failure is the run's. Several: it is dropped unless it was the last.

@@ -35,6 +35,12 @@ struct EngineUnit {
   Sensor* sensor = nullptr;  // borrowed
   AxisMapping axes;          // how it sits on the gimbal
   std::string serial;        // as it reported itself ("": unknown), for the messages that name it
+  // Its own sensor options (the stand file's sensors entry; NaN: the engine's settings). The lead's
+  // rate paces the dwells: a unit that takes the lead is set to the first unit's rate.
+  double sample_rate_hz = std::numeric_limits<double>::quiet_NaN();
+  double frame_timeout_s = std::numeric_limits<double>::quiet_NaN();
+  double sensor_time_offset_s = std::numeric_limits<double>::quiet_NaN();
+  bool rate_set_to_pace = false;  // it took the lead and runs at the first unit's rate
 };
 // A unit dropped from the run: why, and at which point (0-based; -1 before the first).
 struct UnitLoss {

@@ -52,10 +52,10 @@ double EngineClock::bench_now_at(double host_s) const {
   return last_bench_s_ + std::max(0.0, host_s - last_bench_host_s_) * b_.time_scale;
 }
 
-double EngineClock::sensor_clock_s(const SensorSample& f) const {
+double EngineClock::sensor_clock_s(const SensorSample& f, double offset_s) const {
   const double t = b_.clock == ClockSync::shared ? unwrap_near(f.sensor_time_us, last_gimbal_time_s_)
                                                  : f.sensor_time_s;
-  return std::round((t + b_.sensor_time_offset_s) * 1e6) / 1e6;
+  return std::round((t + offset_s) * 1e6) / 1e6;
 }
 
 double EngineClock::stand_time(double sensor_time_s) {

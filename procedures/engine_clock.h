@@ -15,7 +15,7 @@ namespace fpss {
 // the engine waits for is in bench time, which the host can only estimate between two stamps.
 class EngineClock {
  public:
-  explicit EngineClock(const EngineSettings& bench) : b_(bench) {}
+  explicit EngineClock(const EngineSettings& bench) : b_(bench), sensor_offset_s_(bench.sensor_time_offset_s) {}
 
   // A session's start: stand time goes on from a resumed run's last time, and from the time the
   // run was down (at the bench's pace).
@@ -41,7 +41,11 @@ class EngineClock {
     const double t = sensor_t0_ ? time_base_ + (sensor_time_s - *sensor_t0_) : last_time_;
     return std::round(t * 1e6) / 1e6;
   }
-  double sensor_clock_s(const SensorSample& f) const;
+  // A frame's time on the device clock: the lead's offset (set_sensor_offset_s), or another unit's.
+  double sensor_clock_s(const SensorSample& f) const { return sensor_clock_s(f, sensor_offset_s_); }
+  double sensor_clock_s(const SensorSample& f, double offset_s) const;
+  void set_sensor_offset_s(double s) { sensor_offset_s_ = s; }
+  double sensor_offset_s() const { return sensor_offset_s_; }
 
   // A frame's time (shared clock): the sensor's frames come on a grid of its period from it.
   bool frame_grid_known() const { return std::isfinite(frame_grid_s_); }
@@ -64,6 +68,7 @@ class EngineClock {
 
  private:
   const EngineSettings& b_;
+  double sensor_offset_s_;  // the lead's clock offset (stand file clock.sensor_offset_s, or its own)
   double host_t0_ = 0;
   std::optional<double> sensor_t0_;
   double time_base_ = 0, last_time_ = 0;

@@ -56,6 +56,31 @@ std::vector<size_t> EngineIo::followers() const {
   return out;
 }
 
+// The lead paces the dwells at the first unit's rate (the plan's frames), and its frames' times
+// carry its own clock offset.
+void EngineIo::take_lead(size_t k) {
+  clock_.set_sensor_offset_s(sensor_offset_s(k));
+  if (std::abs(rate_hz(k) - b_.sample_rate_hz) < 1e-9) return;
+  try {
+    Timed t(stats_.device_s);
+    units_[k].sensor->set_rate(static_cast<int>(std::lround(b_.sample_rate_hz)));  // taken while streaming (ICD)
+    units_[k].rate_set_to_pace = true;
+  } catch (const DeviceError& e) {
+    log_.warn("unit {}: could not set the pacing rate {} Hz: {}", unit_name(k), b_.sample_rate_hz, e.what());
+  }
+}
+
+double EngineIo::rate_hz(size_t i) const {
+  if (units_[i].rate_set_to_pace) return b_.sample_rate_hz;
+  return std::isfinite(units_[i].sample_rate_hz) ? units_[i].sample_rate_hz : b_.sample_rate_hz;
+}
+double EngineIo::frame_timeout_s(size_t i) const {
+  return std::isfinite(units_[i].frame_timeout_s) ? units_[i].frame_timeout_s : b_.frame_timeout_s;
+}
+double EngineIo::sensor_offset_s(size_t i) const {
+  return std::isfinite(units_[i].sensor_time_offset_s) ? units_[i].sensor_time_offset_s : b_.sensor_time_offset_s;
+}
+
 std::string EngineIo::unit_name(size_t i) const {
   const EngineUnit& u = units_[i];
   return u.serial.empty() ? std::to_string(u.id + 1) : fmt::format("{} ({})", u.id + 1, u.serial);
@@ -84,6 +109,7 @@ bool EngineIo::lose(size_t i, LossCause cause, const std::string& reason, int64_
       if (!lost_[k]) {
         lead_ = k;
         log_.warn("unit {} leads from here", unit_name(k));
+        take_lead(k);
         return true;
       }
     }

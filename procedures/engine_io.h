@@ -42,8 +42,14 @@ class EngineIo {
   // Drops unit i for the rest of the run (a Fault event says so); the lead's place passes to the
   // next unit still read. False when it was the last.
   bool lose(size_t i, LossCause cause, const std::string& reason, int64_t point);
+  // Unit i's own sensor options, else the engine's.
+  double rate_hz(size_t i) const;
+  double frame_timeout_s(size_t i) const;
+  double sensor_offset_s(size_t i) const;
   // "K (SERIAL)", K 1-based: how messages name unit i.
   std::string unit_name(size_t i) const;
+  // Unit k leads from here: the first unit's rate and its own clock offset.
+  void take_lead(size_t k);
   // Another unit could take the lead's place.
   bool can_lose_lead() const;
   void on_lost(std::function<void(const UnitLoss&)> f) { on_lost_ = std::move(f); }

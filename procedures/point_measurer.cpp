@@ -358,7 +358,7 @@ void PointMeasurer::slew_times(const std::vector<SensorSample>& frames, const st
       auto it = std::lower_bound(fixes.begin(), fixes.end(), frames[i].host_time_s,
                                  [](const GimbalFix& f, double h) { return f.host_time_s < h; });
       const double ref = (it == fixes.end() ? fixes.back() : *it).gimbal_time_s;
-      s_times[i] = std::round((unwrap_near(frames[i].sensor_time_us, ref) + b_.sensor_time_offset_s) * 1e6) / 1e6;
+      s_times[i] = std::round((unwrap_near(frames[i].sensor_time_us, ref) + clock_.sensor_offset_s()) * 1e6) / 1e6;
       g_times[i] = s_times[i];
     }
   } else {
@@ -373,7 +373,7 @@ void PointMeasurer::slew_times(const std::vector<SensorSample>& frames, const st
     }
     const double cs = clock_offset(hs, ds, b_.time_scale), cg = clock_offset(hg, dg, b_.time_scale);
     for (size_t i = 0; i < frames.size(); ++i) {
-      s_times[i] = frames[i].sensor_time_s + b_.sensor_time_offset_s;
+      s_times[i] = frames[i].sensor_time_s + clock_.sensor_offset_s();
       g_times[i] = s_times[i] + cs - cg;
     }
   }

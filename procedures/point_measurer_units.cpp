@@ -44,16 +44,21 @@ std::vector<RecordedRow> PointMeasurer::follower_dwell(const Action& a, size_t u
                                                        int session) {
   const EngineUnit& u = io_.unit(ui);
   const bool shared = b_.clock == ClockSync::shared;
-  const double period_s = 1.0 / b_.sample_rate_hz;
+  // Its own rate, timeout and clock offset; the dwell's window is the lead's.
+  const double period_s = 1.0 / io_.rate_hz(ui), offset_s = io_.sensor_offset_s(ui);
+  const double lead_period_s = 1.0 / b_.sample_rate_hz;
   // One clock for every device: the frames' stamps say when they were sampled; else their receipt.
-  auto when = [&](const SensorSample& f) { return shared ? clock_.sensor_clock_s(f) : f.host_time_s; };
+  auto when = [&](const SensorSample& f) { return shared ? clock_.sensor_clock_s(f, offset_s) : f.host_time_s; };
+  auto lead_when = [&](const SensorSample& f) { return shared ? clock_.sensor_clock_s(f) : f.host_time_s; };
   const double lo = shared ? d.settled_bench_s : d.settled_host_s;
-  const double hi = when(d.frames.back()) + (shared ? 0.5 * period_s : b_.wall(0.5 * period_s));
+  const double hi = lead_when(d.frames.back()) + (shared ? 0.5 * lead_period_s : b_.wall(0.5 * lead_period_s));
+  // As many frames as its rate puts in the lead's dwell (the lead's count at the lead's rate).
+  const int wanted = std::max(1, static_cast<int>(std::lround(a.frames * lead_period_s / period_s)));
   std::vector<SensorSample> frames;
   int invalid = 0;
   std::string failure;
-  const auto deadline = Clock::now() + std::chrono::duration<double>(b_.wall(period_s) + b_.frame_timeout_s);
-  while (static_cast<int>(frames.size()) < a.frames) {
+  const auto deadline = Clock::now() + std::chrono::duration<double>(b_.wall(period_s) + io_.frame_timeout_s(ui));
+  while (static_cast<int>(frames.size()) < wanted) {
     const double left = std::chrono::duration<double>(deadline - Clock::now()).count();
     if (left <= 0) break;
     std::optional<SensorSample> f;
@@ -82,7 +87,7 @@ std::vector<RecordedRow> PointMeasurer::follower_dwell(const Action& a, size_t u
   follower_ok(ui);
   const double temp = io_.read_temperature_c(a, *u.sensor);
   std::vector<double> lead_t;
-  for (const auto& f : d.frames) lead_t.push_back(when(f));
+  for (const auto& f : d.frames) lead_t.push_back(lead_when(f));
   std::vector<RecordedRow> rows;
   for (const auto& f : frames) {
     // The lead frame nearest in time gives the gimbal reading (and, off a shared clock, the time).
@@ -91,7 +96,7 @@ std::vector<RecordedRow> PointMeasurer::follower_dwell(const Action& a, size_t u
     if (j == lead_t.size() || (j > 0 && t - lead_t[j - 1] < lead_t[j] - t)) j = j == 0 ? 0 : j - 1;
     const GimbalState& g = d.refs[d.ref_of[j]];
     const GimbalRef ref{static_cast<double>(g.sample_time_us) / 1e6, g.pitch_arcsec, g.yaw_arcsec, g.status};
-    const double ts = shared ? clock_.sensor_clock_s(f) : f.sensor_time_s + b_.sensor_time_offset_s;
+    const double ts = shared ? clock_.sensor_clock_s(f, offset_s) : f.sensor_time_s + offset_s;
     const double stand_s = shared ? clock_.stand_time_of(ts)
                                   : std::round((lead_rows[j].sample.time_s + (t - lead_t[j]) * b_.time_scale) * 1e6) / 1e6;
     rows.push_back(make_row(a, a.phase, f, ts, stand_s, ref, temp, attempt, session, u));

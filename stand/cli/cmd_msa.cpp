@@ -69,8 +69,11 @@ nlohmann::ordered_json msa_plan(const std::vector<std::string>& units, const std
       std::vector<std::string> order = units;
       std::shuffle(order.begin(), order.end(), rng);
       for (const std::string& u : order) {
-        jobs.push_back({{"kind", "run"}, {"procedure", procedure}, {"unit", u},
-                        {"operator", by_operators ? st : fmt::format("msa plan: round {} of {} on {}", k, repeats, st)}});
+        // A stand's job leaves the operator to whoever runs it (the catalogue records it); `round`
+        // is for the reader (the console ignores other keys).
+        nlohmann::ordered_json job{{"kind", "run"}, {"procedure", procedure}, {"unit", u}, {"round", k}};
+        if (by_operators) job["operator"] = st;
+        jobs.push_back(std::move(job));
       }
     }
     per_appraiser.push_back({{by_operators ? "operator" : "stand", st}, {"jobs", jobs}});

@@ -137,14 +137,14 @@ static void read_units(MapReader& top, const YAML::Node& root, StandConfig& c, D
         if (auto v = r.string("unit", true)) u.serial = *v;
         EngineSettings mine = common;
         read_sensor_options(r, u.sensor, mine);
+        // Its own rate and timeout; the first unit's pace the dwells (the engine's).
+        if (list[i]["sample_rate_hz"]) u.sample_rate_hz = mine.sample_rate_hz;
+        if (list[i]["frame_timeout_s"]) u.frame_timeout_s = mine.frame_timeout_s;
         if (i == 0) {
           b.sample_rate_hz = mine.sample_rate_hz;
           b.frame_timeout_s = mine.frame_timeout_s;
-        } else if (mine.sample_rate_hz != b.sample_rate_hz || mine.frame_timeout_s != b.frame_timeout_s) {
-          const YAML::Node at = list[i]["sample_rate_hz"] ? list[i]["sample_rate_hz"] : list[i]["frame_timeout_s"];
-          d.error(at, fmt::format("{}: sample_rate_hz and frame_timeout_s are the engine's: every unit must give "
-                                  "the same", where));
         }
+        if (auto v = r.number("sensor_offset_s")) u.sensor_offset_s = *v;
         read_axes(r.node("axes"), where + ".axes", u.axes, d);
         r.finish();
         for (const StandUnit& o : c.units) {

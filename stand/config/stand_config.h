@@ -1,6 +1,7 @@
 // Stand files (YAML): endpoints, unit serial, soft limits, timeouts, retries, axis mapping and sample rate of a bench.
 #pragma once
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -18,6 +19,9 @@ struct StandUnit {
   std::string serial;   // expected serial; "" accepts whatever the sensor reports
   SensorOptions sensor;
   AxisMapping axes;     // how it sits on the gimbal
+  // Its own engine-side options when its sensors entry gives them (none: the stand's): its RATE,
+  // how late its frames may be, its clock's known offset (else clock.sensor_offset_s).
+  std::optional<double> sample_rate_hz, frame_timeout_s, sensor_offset_s;
 };
 
 // A stand as a stand file describes it: the devices' options and what the engine needs.

@@ -541,10 +541,7 @@ SessionResult Session::run() {
       });
       progress_->note("keys: p pause, r resume, a abort to the safe state; Ctrl-C interrupts");
     }
-    std::vector<EngineUnit> live;
-    for (size_t i = 0; i < units_.size(); ++i) {
-      if (!units_[i].loss) live.push_back(EngineUnit{static_cast<int>(i), units_[i].sensor.get(), units_[i].cfg.axes, units_[i].serial});
-    }
+    const std::vector<EngineUnit> live = engine_units(units_);
     Engine engine(*gimbal_, *live.front().sensor, stand_.bench, plan_, bus_, *log_, control, hooks, rec_->resume_point());
     if (multi()) engine.set_units(live);
     er = engine.run(session_);

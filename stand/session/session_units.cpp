@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <limits>
+
 #include "base/errors.h"
 #include "calib/reduction.h"
 #include "calib/unit_alignment.h"
@@ -66,6 +68,19 @@ std::vector<SessionUnit> connect_units(const StandConfig& stand, spdlog::logger&
     }
   }
   return units;
+}
+
+std::vector<EngineUnit> engine_units(const std::vector<SessionUnit>& units) {
+  constexpr double kEngines = std::numeric_limits<double>::quiet_NaN();  // the engine's setting
+  std::vector<EngineUnit> live;
+  for (size_t i = 0; i < units.size(); ++i) {
+    if (units[i].loss) continue;
+    const StandUnit& cfg = units[i].cfg;
+    live.push_back(EngineUnit{static_cast<int>(i), units[i].sensor.get(), cfg.axes, units[i].serial,
+                              cfg.sample_rate_hz.value_or(kEngines), cfg.frame_timeout_s.value_or(kEngines),
+                              cfg.sensor_offset_s.value_or(kEngines)});
+  }
+  return live;
 }
 
 std::string units_name(const std::vector<SessionUnit>& units) {

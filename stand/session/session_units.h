@@ -35,6 +35,8 @@ struct SessionUnit {
 // DeviceError go up. Several: a unit that cannot be reached or reports another serial is dropped
 // (`loss`, logged) and the others go on; InputError when none is left or two report one serial.
 std::vector<SessionUnit> connect_units(const StandConfig& stand, spdlog::logger& log);
+// The units not lost before the run, as the engine reads them (each with its own sensor options).
+std::vector<EngineUnit> engine_units(const std::vector<SessionUnit>& units);
 // The run's name for its units: the serial, or the serials joined with '+'.
 std::string units_name(const std::vector<SessionUnit>& units);
 

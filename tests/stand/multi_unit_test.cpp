@@ -132,6 +132,29 @@ TEST_F(MultiUnit, OnHostClocksEachUnitIsWithinATenthOfItsTruth) {
   expect_fit_near_truth("U2", "a-5-fpss2");
 }
 
+// Each unit its own sensor options: unit 2 streams at twice the lead's rate, with its own frame
+// timeout and clock offset; the lead's rate paces the dwells, unit 2's dwells hold about twice the
+// frames over the same dwells, and both fits hold.
+TEST_F(MultiUnit, EachUnitStreamsAtItsOwnRate) {
+  const fs::path stand = dir_.write("rates.yaml",
+                                    "gimbal: {endpoint: \"modbus-tcp:127.0.0.1:1\"}\n"
+                                    "sensors:\n"
+                                    "  - {unit: U1, endpoint: \"pty:/nonexistent/1\", sample_rate_hz: 50}\n"
+                                    "  - {unit: U2, endpoint: \"pty:/nonexistent/2\", sample_rate_hz: 100,"
+                                    " frame_timeout_s: 0.5, sensor_offset_s: 0}\n");
+  const auto r = run(bench_yaml({{"U1", "a-6-fpss1"}, {"U2", "a-5-fpss2"}}), {"--stand", stand.string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  expect_fit_near_truth("U1", "a-6-fpss1");
+  expect_fit_near_truth("U2", "a-5-fpss2");
+  const SampleTable a = read_samples_csv(unit_dir("U1") / "samples.csv");
+  const SampleTable b = read_samples_csv(unit_dir("U2") / "samples.csv");
+  ASSERT_FALSE(a.empty());
+  EXPECT_EQ(a.step.back(), b.step.back());
+  const double ratio = static_cast<double>(b.size()) / static_cast<double>(a.size());
+  EXPECT_GT(ratio, 1.8);
+  EXPECT_LT(ratio, 2.2);
+}
+
 TEST_F(MultiUnit, FourUnitsOfDifferentTruthsAndARolledBiasedOne) {
   const auto r = run(bench_yaml({{"U1", "a-6-fpss1"},
                                  {"U2", "a-6-fpss2"},

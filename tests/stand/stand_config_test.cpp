@@ -77,6 +77,23 @@ TEST(StandConfig, SeveralUnitsEachWithItsSerialEndpointAndAxes) {
   EXPECT_EQ(c.units[1].axes.describe(), "pitch = +beta, yaw = -alpha");
   EXPECT_DOUBLE_EQ(c.units[1].sensor.command_timeout_s, 2);
   EXPECT_DOUBLE_EQ(c.bench.sample_rate_hz, 20);
+  // Each unit's own rate, timeout and clock offset; none given: the stand's.
+  EXPECT_EQ(c.units[1].sample_rate_hz, 20.0);
+  EXPECT_FALSE(c.units[1].frame_timeout_s);
+  Diagnostics d2("s2.yaml");
+  const StandConfig two = parse_stand(
+      "gimbal: {endpoint: 'modbus-tcp:127.0.0.1:1502'}\nclock: {sensor_offset_s: 0.001}\n"
+      "sensors:\n"
+      "  - {unit: FPSS1, endpoint: 'pty:/dev/pts/1', sample_rate_hz: 50}\n"
+      "  - {unit: FPSS2, endpoint: 'pty:/dev/pts/2', sample_rate_hz: 100, frame_timeout_s: 0.5, sensor_offset_s: 0.004}\n",
+      "s2.yaml", d2);
+  ASSERT_TRUE(d2.empty()) << d2.text();
+  EXPECT_DOUBLE_EQ(two.bench.sample_rate_hz, 50);  // the first unit's paces the dwells
+  EXPECT_EQ(two.units[1].sample_rate_hz, 100.0);
+  EXPECT_EQ(two.units[1].frame_timeout_s, 0.5);
+  EXPECT_EQ(two.units[1].sensor_offset_s, 0.004);
+  EXPECT_FALSE(two.units[0].sensor_offset_s);  // clock.sensor_offset_s
+  EXPECT_DOUBLE_EQ(two.bench.sensor_time_offset_s, 0.001);
   // The first unit is also the single-unit fields.
   EXPECT_EQ(c.unit_serial, "FPSS1");
   EXPECT_EQ(c.sensor.endpoint, "pty:/dev/pts/1");
