@@ -8,7 +8,7 @@
 
 namespace fpss {
 
-std::optional<Dwell> DwellBuilder::add(const Sample& s, OutlierAxes outlier) {
+std::optional<Dwell> DwellBuilder::add(const Sample& s, OutlierAxes outlier, double temperature_c) {
   if (s.phase != Phase::null && s.phase != Phase::offset) return std::nullopt;
   std::optional<Dwell> done;
   if (open_ && s.step != step_) done = close();
@@ -26,6 +26,10 @@ std::optional<Dwell> DwellBuilder::add(const Sample& s, OutlierAxes outlier) {
         origin_.empty() ? "samples" : origin_, s.step));
   }
   sums_.t1 = s.time_s;
+  if (std::isfinite(temperature_c)) {
+    sums_.temp_sum += temperature_c;
+    sums_.temp_n += 1;
+  }
   if (outlier.any()) {
     ++sums_.skipped;
     sums_.skipped_axis[0] += outlier.alpha ? 1 : 0;
@@ -100,6 +104,7 @@ std::optional<Dwell> DwellBuilder::close() {
   d.samples = static_cast<size_t>(n);
   d.t_start_s = sums_.t0;
   d.t_end_s = sums_.t1;
+  if (sums_.temp_n > 0) d.temperature_c = sums_.temp_sum / sums_.temp_n;
   d.counts_alpha = mean[0];
   d.counts_beta = mean[1];
   d.ref_pitch_arcsec = mean[2];
@@ -157,7 +162,8 @@ std::vector<Dwell> average_dwells(const FrameColumns& f, const std::vector<Outli
   std::vector<Dwell> out;
   DwellBuilder b(f.origin);
   for (size_t i = 0; i < f.size(); ++i) {
-    if (auto d = b.add(f.row(i), i < skip.size() ? skip[i] : OutlierAxes{})) out.push_back(*d);
+    const double temp = f.temperature_c ? (*f.temperature_c)[i] : std::numeric_limits<double>::quiet_NaN();
+    if (auto d = b.add(f.row(i), i < skip.size() ? skip[i] : OutlierAxes{}, temp)) out.push_back(*d);
   }
   if (auto d = b.flush()) out.push_back(*d);
   return out;

@@ -43,7 +43,7 @@ struct Dwell {
   size_t outliers = 0;  // frames left out of the means (calib/outliers.h): rejected on either axis
   size_t outliers_alpha = 0, outliers_beta = 0;  // ... rejected on that axis's counts
   // The sensor's mean temperature over the step's rows, C (samples.csv `temperature_c`, its
-  // finite values); NaN when the recording has none (calib/reduction.cpp fills it).
+  // finite values); NaN when the recording has none.
   double temperature_c = std::numeric_limits<double>::quiet_NaN();
   size_t frames() const { return samples + outliers; }  // every frame of the step
 };
@@ -63,7 +63,10 @@ class DwellBuilder {
   // Returns the dwell that the previous step completed, when this row starts a new one.
   // A row rejected on either axis opens and closes steps like any other but stays out of the
   // dwell's means (counted in Dwell::outliers and per axis).
-  std::optional<Dwell> add(const Sample& s, OutlierAxes outlier = {});
+  // `temperature_c`: the row's sensor temperature (NaN: none); the dwell's is the mean of its
+  // rows' finite ones, outliers included (a glitch corrupts counts, not the temperature reading).
+  std::optional<Dwell> add(const Sample& s, OutlierAxes outlier = {},
+                           double temperature_c = std::numeric_limits<double>::quiet_NaN());
   // The dwell still open (end of data).
   std::optional<Dwell> flush();
 
@@ -80,6 +83,7 @@ class DwellBuilder {
     bool whole[2] = {true, true};
     size_t skipped = 0, skipped_axis[2] = {0, 0};
     bool origin_set = false;
+    double temp_sum = 0, temp_n = 0;
   };
   void add_reference(const double* ref);
   std::optional<Dwell> close();

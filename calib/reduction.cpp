@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <unordered_map>
 
 #include "base/errors.h"
 #include "calib/outliers.h"
@@ -116,28 +115,13 @@ std::optional<double> scatter_noise(const std::vector<Dwell>& dwells) {
   return estimate_count_noise(sc.data(), sc.size());
 }
 
-// Each dwell's mean temperature over its step's rows that carry one (an empty or implausible
-// reading is NaN in the table and left out).
-void add_temperatures(std::vector<Dwell>& dwells, const std::vector<int64_t>& step, const std::vector<double>& temp_c) {
-  std::unordered_map<int64_t, std::pair<double, size_t>> sums;
-  for (size_t i = 0; i < step.size() && i < temp_c.size(); ++i) {
-    if (!std::isfinite(temp_c[i])) continue;
-    auto& [sum, n] = sums[step[i]];
-    sum += temp_c[i];
-    ++n;
-  }
-  for (Dwell& d : dwells) {
-    const auto it = sums.find(d.step);
-    if (it != sums.end()) d.temperature_c = it->second.first / static_cast<double>(it->second.second);
-  }
-}
-
 }  // namespace
 
 Reduction reduce(const SampleTable& t, const ReductionOptions& opts) {
-  Reduction r = reduce(t.frames(), opts);
-  if (t.has_column("temperature_c")) add_temperatures(r.dwells, t.step, t.numeric_column("temperature_c"));
-  return r;
+  FrameColumns f = t.frames();
+  const std::vector<double> temp = t.has_column("temperature_c") ? t.numeric_column("temperature_c") : std::vector<double>{};
+  if (!temp.empty()) f.temperature_c = &temp;
+  return reduce(f, opts);
 }
 
 Reduction reduce(const FrameColumns& t, const ReductionOptions& opts) {

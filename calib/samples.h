@@ -45,6 +45,8 @@ struct FrameColumns {
   const std::vector<double>& ref_yaw_arcsec;
   const std::vector<double>& counts_alpha;
   const std::vector<double>& counts_beta;
+  // The sensor's temperature per row (samples.csv `temperature_c`, NaN where none); null: none.
+  const std::vector<double>* temperature_c = nullptr;
   size_t size() const { return time_s.size(); }
   Sample row(size_t i) const {
     return Sample{time_s[i], phase[i], step[i], ref_pitch_arcsec[i], ref_yaw_arcsec[i], counts_alpha[i], counts_beta[i]};

@@ -153,17 +153,28 @@ namespace {
 bool is_dwell_row(const Sample& s) { return s.phase == Phase::null || s.phase == Phase::offset; }
 
 // The null/offset rows of a file, a step at a time (its rows in order; a step is short, so only
-// one is held): on_step(rows). Returns the rows of the file.
-size_t each_dwell_step(const std::filesystem::path& path, const std::function<void(const std::vector<Sample>&)>& on_step) {
+// one is held): on_step(rows, their temperatures, NaN where none). Returns the rows of the file.
+using StepRows = std::function<void(const std::vector<Sample>&, const std::vector<double>&)>;
+size_t each_dwell_step(const std::filesystem::path& path, const StepRows& on_step) {
   std::vector<Sample> rows;
-  const size_t n = for_each_sample_csv(path, [&](const Sample& s) {
-    if (!rows.empty() && (!is_dwell_row(s) || s.step != rows.back().step)) {
-      on_step(rows);
-      rows.clear();
+  std::vector<double> temps;
+  size_t n = 0;
+  for_each_sample_chunk(path, [&](const SampleTable& chunk, size_t first_new, double) {
+    const std::vector<double> temp =
+        chunk.has_column("temperature_c") ? chunk.numeric_column("temperature_c") : std::vector<double>{};
+    for (size_t i = first_new; i < chunk.size(); ++i, ++n) {
+      const Sample s = chunk.row(i);
+      if (!rows.empty() && (!is_dwell_row(s) || s.step != rows.back().step)) {
+        on_step(rows, temps);
+        rows.clear();
+        temps.clear();
+      }
+      if (!is_dwell_row(s)) continue;
+      rows.push_back(s);
+      temps.push_back(temp.empty() ? std::numeric_limits<double>::quiet_NaN() : temp[i]);
     }
-    if (is_dwell_row(s)) rows.push_back(s);
   });
-  if (!rows.empty()) on_step(rows);
+  if (!rows.empty()) on_step(rows, temps);
   return n;
 }
 
@@ -183,22 +194,22 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
   StepOutlierScreen screen[2] = {StepOutlierScreen(count_outlier_rule(count_outlier_floor(std::nullopt))),
                                  StepOutlierScreen(count_outlier_rule(count_outlier_floor(std::nullopt)))};
   if (opts.reject_outliers) {
-    each_dwell_step(path, [&](const std::vector<Sample>& rows) {
+    each_dwell_step(path, [&](const std::vector<Sample>& rows, const std::vector<double>&) {
       screen[0].pool_step(counts_of(rows, true));
       screen[1].pool_step(counts_of(rows, false));
     });
   }
   // A later pass: a step's frames judged by the rule at the pooled sigma (a step's frames are all
   // it takes), each row with its flags.
-  auto judged = [&](const std::function<void(const Sample&, OutlierAxes)>& on_row) {
-    return each_dwell_step(path, [&](const std::vector<Sample>& rows) {
+  auto judged = [&](const std::function<void(const Sample&, OutlierAxes, double)>& on_row) {
+    return each_dwell_step(path, [&](const std::vector<Sample>& rows, const std::vector<double>& temps) {
       std::vector<bool> f[2];
       if (opts.reject_outliers) {
         f[0] = screen[0].judge(counts_of(rows, true));
         f[1] = screen[1].judge(counts_of(rows, false));
       }
       for (size_t q = 0; q < rows.size(); ++q) {
-        on_row(rows[q], opts.reject_outliers ? OutlierAxes{f[0][q], f[1][q]} : OutlierAxes{});
+        on_row(rows[q], opts.reject_outliers ? OutlierAxes{f[0][q], f[1][q]} : OutlierAxes{}, temps[q]);
       }
     });
   };
@@ -216,7 +227,7 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
         est.add(two[0]);
         est.add(two[1]);
       };
-      judged([&](const Sample& s, OutlierAxes o) {
+      judged([&](const Sample& s, OutlierAxes o, double) {
         if (auto d = b.add(s, o)) take(*d);
       });
       if (auto d = b.flush()) take(*d);
@@ -231,13 +242,13 @@ CalibrationReport calibrate_csv(const std::filesystem::path& path, const Calibra
   // Pass 3: the dwells, into the streaming calibrator.
   StreamingCalibrator cal(opts, origin);
   DwellBuilder b(origin);
-  const size_t rows = judged([&](const Sample& row, OutlierAxes o) {
+  const size_t rows = judged([&](const Sample& row, OutlierAxes o, double temp_c) {
     Sample s = row;
     // A raw recording: the reference's errors come off its angles before they enter a dwell.
     if (opts.reference && opts.correct_reference) {
       correct_reference_angles(*opts.reference, opts.mount, s.ref_pitch_arcsec, s.ref_yaw_arcsec);
     }
-    if (auto d = b.add(s, o)) cal.add_dwell(*d);
+    if (auto d = b.add(s, o, temp_c)) cal.add_dwell(*d);
   });
   if (auto d = b.flush()) cal.add_dwell(*d);
   cal.set_samples(rows);

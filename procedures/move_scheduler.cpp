@@ -109,12 +109,27 @@ GimbalState MoveScheduler::move_and_wait(double pitch, double yaw, double timeou
   double arrival = 0;         // when the profile says the gimbal arrives (bench clock): the next look
   double arrival_latest = 0;  // the same from the latest instant the motion can have started
   double on_its_way_s = 0;    // the last instant known to be before the arrival
+  // Already sent there and arrived (a move step, then a settle, then a dwell at the same place): when
+  // a reading finds it still there, nothing is sent and the arrival stays the move's, so the time
+  // since the move and the settle count from it; else it is sent there again.
+  bool stay = !homing && arrived_target_ && (*arrived_target_)[0] == pitch && (*arrived_target_)[1] == yaw;
+  if (stay && !pending_) {
+    const GimbalState st = io_.read_gimbal();
+    const double tol = b_.in_position_tolerance_arcsec;
+    if (st.has(kInPosition) && !st.has(kMoving) && st.fault == GimbalFault::none && !st.has(kFault) &&
+        std::fabs(st.pitch_arcsec - pitch) <= tol && std::fabs(st.yaw_arcsec - yaw) <= tol) {
+      note_motion(entry_pitch, entry_yaw, st.pitch_arcsec, st.yaw_arcsec);
+      return st;
+    }
+    stay = false;
+  }
   if (!homing && pending_ && pending_->pitch_arcsec == pitch && pending_->yaw_arcsec == yaw) {
     arrival = pending_->arrival_s;  // commanded, or scheduled, while the last point was measured
     arrival_latest = pending_->arrival_latest_s;
     on_its_way_s = pending_->start_s;
   } else {
     drop_moves_ahead();  // the command below cancels any scheduled move
+    arrived_target_.reset();
     // From the latest device time stamp (no later than the command): the first look may come
     // early, never late.
     const double from_p = io_.last_pitch_arcsec(), from_y = io_.last_yaw_arcsec(), t0 = clock_.last_bench_s();
@@ -149,7 +164,9 @@ GimbalState MoveScheduler::move_and_wait(double pitch, double yaw, double timeou
       // frame, a round trip or a busy host, would lengthen every settle): the profile's arrival
       // from a known start (a scheduled move's) or from a reading in motion (its position and
       // speed), within what the readings bracket; without either, the reading that found it there.
-      arrived_s_ = std::min(std::max(arrival_latest, on_its_way_s), clock_.last_gimbal_s());
+      if (!stay) arrived_s_ = std::min(std::max(arrival_latest, on_its_way_s), clock_.last_gimbal_s());
+      if (homing) arrived_target_.reset();
+      else arrived_target_ = std::array<double, 2>{pitch, yaw};
       note_motion(entry_pitch, entry_yaw, st.pitch_arcsec, st.yaw_arcsec);
       return st;
     }
@@ -189,6 +206,7 @@ void MoveScheduler::drop_moves_ahead() {
 
 void MoveScheduler::call_off_moves_ahead() {
   drop_moves_ahead();
+  arrived_target_.reset();  // a move begun stops where it is
   try {
     Timed t(stats_.device_s);
     io_.gimbal().stop();
@@ -200,6 +218,10 @@ void MoveScheduler::call_off_moves_ahead() {
 }
 
 void MoveScheduler::set_pending(const Action& n, double start_lo_s, double dur_s, double start_hi_s, bool scheduled) {
+  // Sent elsewhere (or there again): the gimbal is no longer known to rest where it arrived.
+  if (!arrived_target_ || (*arrived_target_)[0] != n.pitch_arcsec || (*arrived_target_)[1] != n.yaw_arcsec) {
+    arrived_target_.reset();
+  }
   io_.targets_written(n.pitch_arcsec, n.yaw_arcsec);
   io_.mark_moved();
   pending_ = PendingMove{n.pitch_arcsec, n.yaw_arcsec, start_lo_s + dur_s, start_hi_s + dur_s, start_lo_s, scheduled};

@@ -1,5 +1,6 @@
 // The engine's moves and waits on bench time: a move and its arrival, the next moves commanded or scheduled ahead of the dwell that ends.
 #pragma once
+#include <array>
 #include <utility>
 #include <cstddef>
 #include <cstdint>
@@ -101,6 +102,8 @@ class MoveScheduler {
   bool queue_refused_ = false;        // the same for a scheduled move behind one under way
   bool late_for_schedule_ = false;
   double arrived_s_ = 0;  // the last move's arrival (bench clock), however late a reading saw it
+  // Where that move was sent: a later move there is none (nothing sent, the arrival stands).
+  std::optional<std::array<double, 2>> arrived_target_;
   double rest_[2] = {0, 0};  // where the gimbal last came to rest (stand frame, its readings)
   bool rest_known_ = false;
   int dir_[2] = {0, 0};

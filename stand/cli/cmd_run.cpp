@@ -20,6 +20,7 @@
 #include "stand/cli/help.h"
 #include "stand/cli/emulated_bench.h"
 #include "stand/config/stand_config.h"
+#include "stand/investigate/followup_design.h"
 #include "stand/session/session.h"
 
 namespace fpss::cli {
@@ -42,6 +43,8 @@ int run_command(const RunArgs& a) {
   req.quiet = a.quiet;
   if (::isatty(STDIN_FILENO)) req.keys_fd = STDIN_FILENO;  // p pause, r resume, a abort
   req.operator_name = a.operator_name;
+  // A diagnose step's look-alikes get the run that would tell them apart, as `diagnose` gives them.
+  req.predict_followups = [](Diagnosis& d, const CoefficientSet& model) { predict_best_followups(d, model); };
 
   if (!a.resume.empty()) {
     if (!a.procedure.empty() || !a.stand_file.empty() || a.emulate || a.dry_run) {

@@ -11,13 +11,15 @@
 namespace fpss {
 
 DiagnoseStepResult run_diagnose_step(const SampleTable& recording, int64_t last_step, const DiagnoseStep& step,
-                                     const std::filesystem::path& run_dir, int nth, const std::filesystem::path& model_file) {
+                                     const std::filesystem::path& run_dir, int nth, const std::filesystem::path& model_file,
+                                     const FollowupPredictor& predict) {
   const std::filesystem::path model_path = model_file.empty() ? step.model : model_file;
   const CoefficientSet model = load_coefficients(model_path);
   DiagnosisOptions opts;
   opts.settle_s = step.settle_s;
   DiagnosisFigures figures;
-  const Diagnosis d = diagnose(DiagnosisColumns::of(recording.up_to_step(last_step)), model, opts, &figures);
+  Diagnosis d = diagnose(DiagnosisColumns::of(recording.up_to_step(last_step)), model, opts, &figures);
+  if (predict && !d.ambiguous.empty()) predict(d, model);
   const std::string stem = nth == 1 ? "GAP" : fmt::format("GAP-{}", nth);
   DiagnoseStepResult r{run_dir / (stem + ".json"), run_dir / (stem + ".html"), d.verdict, d.verdict_sentence,
                        d.cause, d.incomplete_recording()};
@@ -46,7 +48,7 @@ std::filesystem::path write_joint_diagnosis(const std::vector<std::pair<std::str
 
 std::filesystem::path diagnose_units(const std::vector<SessionUnit>& units, int64_t last_step, const DiagnoseStep& step,
                                      const std::filesystem::path& run_dir, int nth, const std::string& run_id,
-                                     spdlog::logger& log) {
+                                     spdlog::logger& log, const FollowupPredictor& predict) {
   namespace fs = std::filesystem;
   const bool several = units.size() > 1;
   std::vector<std::pair<std::string, Diagnosis>> diagnosed;
@@ -59,7 +61,7 @@ std::filesystem::path diagnose_units(const std::vector<SessionUnit>& units, int6
       log.warn("diagnosis: unit {} has no model in the step's models: not diagnosed", u.serial);
       continue;
     }
-    DiagnoseStepResult r = run_diagnose_step(u.recorded, last_step, step, u.dir, nth, model);
+    DiagnoseStepResult r = run_diagnose_step(u.recorded, last_step, step, u.dir, nth, model, predict);
     log.info("{}diagnosis -> {}, {}: verdict {}, cause {}: {}", several ? "unit " + u.serial + ": " : "",
              fs::relative(r.json, run_dir).string(), r.html.filename().string(), r.verdict, r.cause, r.sentence);
     if (r.incomplete && !step.partial) {

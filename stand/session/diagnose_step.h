@@ -2,6 +2,7 @@
 #pragma once
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include <spdlog/logger.h>
@@ -11,6 +12,7 @@
 
 #include "calib/diagnosis/diagnosis.h"
 #include "calib/samples.h"
+#include "stand/session/session.h"
 #include "stand/session/session_units.h"
 #include "procedures/procedure.h"
 
@@ -30,7 +32,7 @@ struct DiagnoseStepResult {
 // `model`: the step's model, or (several units) this unit's.
 DiagnoseStepResult run_diagnose_step(const SampleTable& recording, int64_t last_step, const DiagnoseStep& step,
                                      const std::filesystem::path& run_dir, int nth,
-                                     const std::filesystem::path& model = {});
+                                     const std::filesystem::path& model = {}, const FollowupPredictor& predict = {});
 
 // Several units: what is the stand's and what each unit's (calib/diagnosis/joint.h), as
 // `diagnose --run ... --out` writes it.
@@ -46,6 +48,6 @@ std::filesystem::path write_joint_diagnosis(const std::vector<std::pair<std::str
 // run.json names (the single unit's GAP.json, or the attribution); empty when nothing was diagnosed.
 std::filesystem::path diagnose_units(const std::vector<SessionUnit>& units, int64_t last_step, const DiagnoseStep& step,
                                      const std::filesystem::path& run_dir, int nth, const std::string& run_id,
-                                     spdlog::logger& log);
+                                     spdlog::logger& log, const FollowupPredictor& predict = {});
 
 }  // namespace fpss

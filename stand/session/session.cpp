@@ -381,7 +381,8 @@ void Session::on_diagnose(const Action& a) {
   progress_->clear();
   // The rows in memory hold every column samples.csv does (the provenance as numbers): the
   // diagnosis reads the same ones `fpss-stand diagnose --data` would, up to the last point before.
-  const fs::path gap = diagnose_units(units_, points_before(a), *a.diagnose, res_.run_dir, ++diagnoses_, run_id_, *log_);
+  const fs::path gap =
+      diagnose_units(units_, points_before(a), *a.diagnose, res_.run_dir, ++diagnoses_, run_id_, *log_, req_.predict_followups);
   if (diagnoses_ == 1 && !gap.empty()) run_.files.gap = gap.filename().string();
 }
 

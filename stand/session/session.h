@@ -2,6 +2,7 @@
 #pragma once
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -19,6 +20,12 @@
 #include "calib/samples.h"
 
 namespace fpss {
+
+struct Diagnosis;
+struct CoefficientSet;
+// Fills a diagnosis's ambiguous sets' best_followup (stand/investigate's designer, which builds on
+// sessions: the command line hands it in); empty: they stay null.
+using FollowupPredictor = std::function<void(Diagnosis&, const CoefficientSet&)>;
 
 struct SessionRequest {
   Procedure procedure;
@@ -40,6 +47,8 @@ struct SessionRequest {
   // false: the caller draws report.html itself, once, with what it adds (accept: the certificate),
   // from SessionResult::recording.
   bool write_report = true;
+  // A diagnose step's ambiguous sets get their best_followup from it (the command line's designer).
+  FollowupPredictor predict_followups;
 };
 
 struct SessionResult {

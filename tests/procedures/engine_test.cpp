@@ -503,6 +503,37 @@ TEST(Engine, DwellRowsCarryTheirTimeSinceTheGimbalsArrival) {
   ASSERT_TRUE(t.has_column("time_since_move_s"));
 }
 
+// A move, a settle, then a sample at the same place: the sample is no new move (nothing is sent,
+// the gimbal rings on from the move), so its rows' time since the move counts from the move's
+// arrival, past the settle's 1.5 s, not from the sample's own settle.
+TEST(Engine, ASampleAfterAMoveAndASettleCountsFromTheMovesArrival) {
+  TempDir tmp("engine-move-settle-sample");
+  EngineSettings b = virtual_clock_settings();
+  VirtualBench v(1000, tmp / "run");
+  Diagnostics d("mss.yaml");
+  const Procedure proc = parse_procedure(
+      "steps:\n  - home\n  - move: {pitch_deg: 0.1, yaw_deg: 0}\n  - settle: {duration_s: 1.5}\n"
+      "  - sample: {frames: 4, settle_s: 0.2}\n",
+      "mss.yaml", d);
+  ASSERT_TRUE(d.empty()) << d.text();
+  const Plan plan = plan_of(proc, b);
+  double first_since_s = -1, arrival_s = -1, first_time_s = -1;
+  v.bus.subscribe([&](const Event& e) {
+    if (const auto* p = std::get_if<PointDone>(&e); p && p->rows && !p->rows->empty() && first_since_s < 0) {
+      first_since_s = p->rows->front().time_since_move_s;
+      first_time_s = p->rows->front().sensor_time_s;
+      arrival_s = v.fake.bench().last_arrival_s();
+    }
+  });
+  Engine engine = v.engine(b, plan);
+  const EngineResult r = engine.run();
+  ASSERT_EQ(r.outcome, RunOutcome::completed) << r.reason;
+  ASSERT_GE(first_since_s, 0);
+  EXPECT_GE(first_since_s, 1.5);
+  // Against the bench's own arrival, within the profile's model error.
+  EXPECT_NEAR(first_since_s, first_time_s - arrival_s, 0.025);
+}
+
 // Waiting for the predicted arrival, the settle and the frames sends nothing to the gimbal: with
 // its watchdog on (0.3 bench seconds here, shorter than the grid's moves and settles), readings
 // cut the long waits and it never trips.

@@ -47,6 +47,30 @@ TEST(DiagnoseStep, WritesTheGapFilesIntoTheRunFolder) {
   EXPECT_EQ(run["outcome"], "completed");
 }
 
+// A dwells-only grid on a bench that drifts while its temperature ramps (0.05 C/s: the temperature
+// follows time): the drift is named with the temperature beside it (a look-alike this recording
+// cannot score), and the run's own diagnose step gives that set its follow-up, as `diagnose` does.
+TEST(DiagnoseStep, ALookAlikeSetGetsItsFollowUpInTheRunsOwnDiagnosis) {
+  TempDir tmp("diagnose-step-followup");
+  test::write_file(tmp / "p.yaml", procedure(kModel));
+  test::write_file(tmp / "bench.yaml", "temperature: {ramp_c_per_s: 0.05}\n");
+  const auto r = run_stand({"run", (tmp / "p.yaml").string(), "--emulate", "--bench", (tmp / "bench.yaml").string(),
+                            "--speed", "50", "--runs-dir", (tmp / "runs").string(), "--no-progress", "--effect",
+                            "drift:pitch_arcsec_per_s=0.02,yaw_arcsec_per_s=0"},
+                           tmp.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto dirs = test::run_dirs(tmp / "runs");
+  ASSERT_EQ(dirs.size(), 1u);
+  const auto gap = nlohmann::json::parse(test::read_file(dirs.front() / "GAP.json"));
+  ASSERT_FALSE(gap["ambiguous"].empty()) << gap.dump(1);
+  EXPECT_EQ(gap["ambiguous"][0]["members"], nlohmann::json::array({"drift", "temperature"}));
+  for (const auto& set : gap["ambiguous"]) {
+    ASSERT_TRUE(set.contains("best_followup")) << set.dump(1);
+    EXPECT_TRUE(set["best_followup"].is_object()) << set.dump(1);
+    EXPECT_TRUE(set["best_followup"].contains("moves")) << set.dump(1);
+  }
+}
+
 // The shipped sim_to_real.yaml on the emulator with a backlash and a time shift: its slews reverse
 // inside their segments, and its own diagnose step (no `partial`) finds both with nothing
 // unobservable that every diagnosis needs. Bench time ~4 min, ~50 s wall at speed-up 5: a slew frame
