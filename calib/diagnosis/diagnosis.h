@@ -250,4 +250,8 @@ struct DiagnosisFigures {
 DiagnosisFigures diagnosis_figures(const SampleTable& data, const CoefficientSet& model, const Diagnosis& d,
                                    const DiagnosisOptions& opts = {});
 
+// Writes a GAP.json (a diagnosis, a joint one, an investigation's last) atomically: the one layout
+// every writer uses, so that two files of the same diagnosis are the same bytes.
+void write_gap_file(const std::filesystem::path& path, const nlohmann::ordered_json& j);
+
 }  // namespace fpss

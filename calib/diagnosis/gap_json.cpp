@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "base/text_file.h"
 #include "calib/diagnosis/diagnosis.h"
 #include "calib/diagnosis/internal.h"
 
@@ -130,6 +131,10 @@ ojson Diagnosis::to_json() const {
   j["recording"] = recording;
   j["warnings"] = warnings;
   return j;
+}
+
+void write_gap_file(const std::filesystem::path& path, const nlohmann::ordered_json& j) {
+  write_text_atomic(path, j.dump(1) + "\n");
 }
 
 }  // namespace fpss

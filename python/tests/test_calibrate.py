@@ -57,9 +57,15 @@ def test_dataframe_equals_the_path(recording, cli_calibration):
 def test_numpy_arrays_equal_the_path(recording, cli_calibration):
     _, cli = cli_calibration
     df = fs.read_samples(recording)
-    arrays = {c: df[c].to_numpy() for c in fs.REQUIRED_COLUMNS}
-    cal = fs.calibrate(arrays)
+    # The columns the calibration reads: the required ones and the sensor's temperature (its
+    # budget entry, docs/calibration.md); without the temperature there is no such entry.
+    columns = [c for c in (*fs.REQUIRED_COLUMNS, "temperature_c") if c in df.columns]
+    assert "temperature_c" in columns
+    cal = fs.calibrate({c: df[c].to_numpy() for c in columns})
     assert without_time(cal.json) == dict(without_time(cli), source="arrays")
+    bare = fs.calibrate({c: df[c].to_numpy() for c in fs.REQUIRED_COLUMNS})
+    assert bare.json["uncertainties"]["pitch"]["temperature"] is None
+    assert cal.json["uncertainties"]["pitch"]["temperature"]["dwells"] > 0
 
 
 def test_a_bad_file_names_the_file_and_line(tmp_path):

@@ -31,10 +31,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-void write_json_file(const std::string& path, const nlohmann::ordered_json& j) {
-  write_text_atomic(path, j.dump(1) + '\n');
-}
-
 // diagnose --run: each unit's recording against its model (units/SERIAL/GAP.json and GAP.html),
 // then what is the stand's and what each unit's (`out`). Exit 2 for a unit the run does not have.
 int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models, const std::string& out,
@@ -66,7 +62,7 @@ int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models
     const fs::path dir = (run_dir / *unit->samples).parent_path();
     nlohmann::ordered_json j = d.to_json();
     j["model"] = file;
-    write_json_file((dir / "GAP.json").string(), j);
+    write_gap_file(dir / "GAP.json", j);
     write_diagnosis_page((dir / "GAP.html").string(), d, figures);
     std::printf("unit %s: verdict %s, cause %s", serial.c_str(), d.verdict.c_str(), d.cause.c_str());
     for (size_t k = 1; k < d.causes.size(); ++k) std::printf(", then %s", d.causes[k].name.c_str());
@@ -75,7 +71,7 @@ int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models
     diagnosed.emplace_back(serial, std::move(d));
   }
   const nlohmann::ordered_json j = joint_diagnosis_json(diagnosed, run.id_or(run_dir));
-  write_json_file(out, j);  // the same content a run's diagnose step writes
+  write_gap_file(out, j);  // the same content a run's diagnose step writes
   for (const auto& s : j["stand_effects"]) {
     std::printf("stand: %s %s\n", s["name"].get<std::string>().c_str(), s["params"].dump().c_str());
   }
@@ -166,7 +162,7 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
       predict_best_followups(d, model);
       nlohmann::ordered_json j = d.to_json();
       j["model"] = model_path;
-      write_json_file(o->out, j);
+      write_gap_file(o->out, j);
       if (!o->emit_bench.empty()) write_emitted_bench(o->emit_bench, d, model_path);
       if (!o->report.empty()) write_diagnosis_page(o->report, d, figures);
       std::printf("verdict: %s\n%s\ncause: %s", d.verdict.c_str(), d.verdict_sentence.c_str(), d.cause.c_str());

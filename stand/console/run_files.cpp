@@ -115,6 +115,21 @@ nlohmann::json runs_json(const fs::path& runs_dir, const std::string& catalogue_
   return out;
 }
 
+// The files a run's page links (a unit's folder has the same but the run's own two).
+constexpr const char* kUnitFiles[] = {"report.html", "GAP.html", "certificate.txt", "acceptance.json", "samples.csv",
+                                      "calibration.json"};
+constexpr const char* kRunOnlyFiles[] = {"events.jsonl", "run.json"};
+
+// Those of `names` present under `rel_dir` of the run's folder, by name, as the console serves them.
+static nlohmann::json served_files(const RunRef& r, const std::string& rel_dir, const auto& names) {
+  nlohmann::json out = nlohmann::json::object();
+  for (const char* f : names) {
+    const std::string rel = rel_dir.empty() ? std::string(f) : rel_dir + "/" + f;
+    if (run_file(r.dir, rel)) out[f] = "/runs/" + r.run_id + "/" + rel;
+  }
+  return out;
+}
+
 nlohmann::json run_json(const RunRef& r) {
   const std::optional<RunFile> run = read_run(r.dir);
   const nlohmann::json doc = run ? to_json(*run) : nlohmann::json::object();
@@ -124,26 +139,16 @@ nlohmann::json run_json(const RunRef& r) {
     if (doc.contains(k)) j[k] = doc[k];
   }
   if (j.contains("procedure") && j["procedure"].is_object()) j["procedure"].erase("text");
-  nlohmann::json files = nlohmann::json::object();
-  for (const char* f : {"report.html", "GAP.html", "certificate.txt", "acceptance.json", "samples.csv", "calibration.json",
-                        "events.jsonl", "run.json"}) {
-    if (run_file(r.dir, f)) files[f] = "/runs/" + r.run_id + "/" + f;
-  }
+  nlohmann::json files = served_files(r, "", kUnitFiles);
+  files.update(served_files(r, "", kRunOnlyFiles));
   j["files"] = files;
   if (run && run->units) {
     // Several units: each one's outcome, verdict and files (units/<SERIAL>/...), and its pose.
     j["units"] = nlohmann::json::array();
     for (const RunFileUnit& u : *run->units) {
       nlohmann::json e = to_json(u);
-      nlohmann::json uf = nlohmann::json::object();
-      if (u.samples) {
-        const std::string dir = fs::path(*u.samples).parent_path().string();
-        for (const char* f : {"report.html", "GAP.html", "certificate.txt", "acceptance.json", "samples.csv", "calibration.json"}) {
-          const std::string rel = dir + "/" + f;
-          if (run_file(r.dir, rel)) uf[f] = "/runs/" + r.run_id + "/" + rel;
-        }
-      }
-      e["files"] = uf;
+      e["files"] = u.samples ? served_files(r, fs::path(*u.samples).parent_path().string(), kUnitFiles)
+                             : nlohmann::json::object();
       j["units"].push_back(e);
     }
   }

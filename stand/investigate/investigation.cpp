@@ -95,7 +95,7 @@ Investigation investigate(const std::filesystem::path& first_procedure, const In
     inv.steps.push_back(step);
     inv.final = std::move(d);
     inv.final_json = gap;
-    write_text_atomic(opts.out_dir / "GAP.json", gap.dump(1) + "\n");
+    write_gap_file(opts.out_dir / "GAP.json", gap);
 
     if (investigation_ended(inv.final)) {
       inv.stop_reason = "ended";

@@ -25,7 +25,7 @@ DiagnoseStepResult run_diagnose_step(const SampleTable& recording, int64_t last_
                        d.cause, d.incomplete_recording()};
   nlohmann::ordered_json j = d.to_json();
   j["model"] = model_path.string();
-  write_text_atomic(r.json, j.dump(2) + "\n");
+  write_gap_file(r.json, j);
   write_diagnosis_page(r.html.string(), d, figures);
   r.diagnosis = d;
   return r;
@@ -42,7 +42,7 @@ std::filesystem::path write_joint_diagnosis(const std::vector<std::pair<std::str
                                             const std::filesystem::path& run_dir, int nth, const std::string& run_id) {
   const nlohmann::ordered_json j = joint_diagnosis_json(units, run_id);
   const std::filesystem::path out = run_dir / (nth == 1 ? std::string("GAP.json") : fmt::format("GAP-{}.json", nth));
-  write_text_atomic(out, j.dump(2) + "\n");
+  write_gap_file(out, j);
   return out;
 }
 

@@ -8,7 +8,6 @@ the binary.
 
 import json
 import os
-import select
 import subprocess
 import sys
 import tempfile
@@ -16,43 +15,20 @@ import time
 
 import pytest
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from devices_process import DevicesProcess  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-DEVICES = os.path.join(HERE, "icd_devices.py")
 STAND = os.environ.get("FPSS_STAND", os.path.join(HERE, "..", "..", "build", "stand", "fpss-stand"))
 SERIAL = "FPSS1-IND"
 SPEED = 20  # bench seconds per wall second: the shipped acceptance's 5 min in about 15 s
 
 
-class Devices:
-    """The two devices in a child process, ready when its JSON line has come (bounded wait)."""
+class Devices(DevicesProcess):
+    """The two devices, one sensor of serial SERIAL."""
 
-    def __init__(self, *args, timeout_s=20):
-        self.proc = subprocess.Popen(
-            [sys.executable, DEVICES, "--port", "0", "--speed", str(SPEED), "--serial", SERIAL,
-             "--stop-on-stdin-eof", *args],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        os.set_blocking(self.proc.stdout.fileno(), False)
-        deadline = time.monotonic() + timeout_s
-        line = ""
-        while not line.endswith("\n"):
-            if self.proc.poll() is not None:
-                raise RuntimeError("icd_devices.py exited: " + self.proc.stderr.read())
-            if time.monotonic() > deadline:
-                self.close()
-                raise RuntimeError("icd_devices.py not ready within %d s" % timeout_s)
-            select.select([self.proc.stdout], [], [], 0.1)
-            line += self.proc.stdout.readline() or ""
-        self.info = json.loads(line)
-
-    def close(self):
-        if self.proc.poll() is None:
-            self.proc.stdin.close()  # --stop-on-stdin-eof: it stops by itself
-            try:
-                self.proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        return self.proc.stderr.read()
+    def __init__(self, *args):
+        super().__init__(SPEED, "--serial", SERIAL, *args)
 
 
 def stand_file(folder, info):

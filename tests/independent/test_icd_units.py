@@ -13,7 +13,6 @@ import csv
 import json
 import math
 import os
-import select
 import subprocess
 import sys
 import tempfile
@@ -22,9 +21,11 @@ import time
 import numpy as np
 import pytest
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from devices_process import DevicesProcess  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 SOURCE = os.path.dirname(os.path.dirname(HERE))
-DEVICES = os.path.join(HERE, "icd_devices.py")
 STAND = os.environ.get("FPSS_STAND", os.path.join(SOURCE, "build", "stand", "fpss-stand"))
 PROCEDURE = os.path.join(SOURCE, "procedures", "discrete_grid.yaml")
 SPEED = 20  # bench seconds per wall second: the grid's ~3 min of bench time in about 10 s
@@ -55,39 +56,16 @@ UNITS = [
 ]
 
 
-class Devices:
-    """The devices in a child process, ready when its JSON line has come (bounded wait)."""
+class Devices(DevicesProcess):
+    """The devices with one sensor per unit."""
 
-    def __init__(self, units, *args, timeout_s=20):
-        cmd = [sys.executable, DEVICES, "--port", "0", "--speed", str(SPEED), "--stop-on-stdin-eof"]
+    def __init__(self, units, *args):
+        sensors = []
         for u in units:
-            cmd += ["--sensor", "%s:%s:%s" % (u.serial, u.truth, u.mount)]
-        self.proc = subprocess.Popen([*cmd, *args], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True)
-        os.set_blocking(self.proc.stdout.fileno(), False)
-        deadline = time.monotonic() + timeout_s
-        line = ""
-        while not line.endswith("\n"):
-            if self.proc.poll() is not None:
-                raise RuntimeError("icd_devices.py exited: " + self.proc.stderr.read())
-            if time.monotonic() > deadline:
-                self.close()
-                raise RuntimeError("icd_devices.py not ready within %d s" % timeout_s)
-            select.select([self.proc.stdout], [], [], 0.1)
-            line += self.proc.stdout.readline() or ""
-        self.info = json.loads(line)
+            sensors += ["--sensor", "%s:%s:%s" % (u.serial, u.truth, u.mount)]
+        super().__init__(SPEED, *sensors, *args)
         assert [s["serial"] for s in self.info["sensors"]] == [u.serial for u in units]
         assert self.info["sensor_endpoint"] == self.info["sensors"][0]["sensor_endpoint"]
-
-    def close(self):
-        if self.proc.poll() is None:
-            self.proc.stdin.close()  # --stop-on-stdin-eof: it stops by itself
-            try:
-                self.proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        return self.proc.stderr.read()
 
 
 def stand_file(folder, info, units, max_remeasure=3):
@@ -228,22 +206,11 @@ def folder():
         yield d
 
 
-def test_two_units_each_calibrated_to_its_own_truth(folder):
-    units = UNITS[:2]
+@pytest.mark.parametrize("count,seed", [(2, "21"), (4, "22")], ids=["two", "four"])
+def test_units_each_calibrated_to_its_own_truth(folder, count, seed):
+    units = UNITS[:count]
     started = time.monotonic()
-    dev = Devices(units, "--seed", "21")
-    try:
-        r, run_dir, run_json, _ = run(folder, dev.info, units)
-    finally:
-        log = dev.close()
-    check_all_completed(r, run_dir, run_json, units, log)
-    print("case took %.1f s wall" % (time.monotonic() - started))
-
-
-def test_four_units_each_calibrated_to_its_own_truth(folder):
-    units = UNITS
-    started = time.monotonic()
-    dev = Devices(units, "--seed", "22")
+    dev = Devices(units, "--seed", seed)
     try:
         r, run_dir, run_json, _ = run(folder, dev.info, units)
     finally:
