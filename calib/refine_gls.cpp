@@ -322,8 +322,8 @@ TemperatureInfluence temperature_influence(const Linear& lin, double sigma_scale
   t.spread_c = std::sqrt(sxx / sw);
   double srx = 0, sx2 = 0;
   for (size_t k = 0; k < g.size(); ++k) {
-    if (!lin.weights(k, a, gt)) continue;
     const LevelSums& ls = lin.p.lv[g.level_of(k)];
+    if (!(ls.w > 0)) continue;
     const double r = g.ref_arcsec(k) - angle_and_gradient(lin.u, g.counts[k], gt) - ls.we / ls.w;
     gt -= ls.wg / ls.w;
     const double xp = x(k) - level_wx[g.level_of(k)] / ls.w - gt.dot(t.shift_scaled.tail<7>());

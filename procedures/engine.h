@@ -40,7 +40,6 @@ struct EngineUnit {
   double sample_rate_hz = std::numeric_limits<double>::quiet_NaN();
   double frame_timeout_s = std::numeric_limits<double>::quiet_NaN();
   double sensor_time_offset_s = std::numeric_limits<double>::quiet_NaN();
-  bool rate_set_to_pace = false;  // it took the lead and runs at the first unit's rate
 };
 // A unit dropped from the run: why, and at which point (0-based; -1 before the first).
 struct UnitLoss {

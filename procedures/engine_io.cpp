@@ -64,14 +64,13 @@ void EngineIo::take_lead(size_t k) {
   try {
     Timed t(stats_.device_s);
     units_[k].sensor->set_rate(static_cast<int>(std::lround(b_.sample_rate_hz)));  // taken while streaming (ICD)
-    units_[k].rate_set_to_pace = true;
+    units_[k].sample_rate_hz = b_.sample_rate_hz;
   } catch (const DeviceError& e) {
     log_.warn("unit {}: could not set the pacing rate {} Hz: {}", unit_name(k), b_.sample_rate_hz, e.what());
   }
 }
 
 double EngineIo::rate_hz(size_t i) const {
-  if (units_[i].rate_set_to_pace) return b_.sample_rate_hz;
   return std::isfinite(units_[i].sample_rate_hz) ? units_[i].sample_rate_hz : b_.sample_rate_hz;
 }
 double EngineIo::frame_timeout_s(size_t i) const {
