@@ -530,8 +530,13 @@ TEST(Engine, ASampleAfterAMoveAndASettleCountsFromTheMovesArrival) {
   ASSERT_EQ(r.outcome, RunOutcome::completed) << r.reason;
   ASSERT_GE(first_since_s, 0);
   EXPECT_GE(first_since_s, 1.5);
-  // Against the bench's own arrival, within the profile's model error.
-  EXPECT_NEAR(first_since_s, first_time_s - arrival_s, 0.025);
+  // Against the bench's own arrival, as the test above: never before it, late by no more than the
+  // profile's model error (25 ms). The bench times here run to hundreds of seconds (bench time goes
+  // on at the virtual bench's pace while the host waits), so the difference carries their rounding:
+  // 1e-9 s allows for it (measured: 0.025 + 3e-14).
+  const double true_since_s = first_time_s - arrival_s;
+  EXPECT_GE(true_since_s - first_since_s, -1e-6);
+  EXPECT_LE(true_since_s - first_since_s, 0.025 + 1e-9);
 }
 
 // Waiting for the predicted arrival, the settle and the frames sends nothing to the gimbal: with
