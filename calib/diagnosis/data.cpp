@@ -429,11 +429,40 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
 
 namespace fpss {
 
+namespace {
+
+// gimbal_time_s - time_s at the first row from `from` with both finite (NaN when none has).
+double bench_clock_of(const SampleTable& t, size_t from) {
+  const std::vector<double> g = t.numeric_column("gimbal_time_s");
+  for (size_t i = from; i < t.size(); ++i) {
+    if (std::isfinite(g[i]) && std::isfinite(t.time_s[i])) return g[i] - t.time_s[i];
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+// The shift of each recording onto the first one's bench clock, or empty when they cannot share
+// it: a recording without the gimbal's clock, or a gimbal clock that went back (restarted).
+std::vector<double> bench_clock_shifts(const std::vector<DiagnosisColumns>& parts) {
+  std::vector<double> shift;
+  double last_end = -std::numeric_limits<double>::infinity();
+  for (const auto& c : parts) {
+    if (!std::isfinite(c.bench_clock_s) || c.time_s.empty()) return {};
+    const double start = c.bench_clock_s + c.time_s.front(), end = c.bench_clock_s + c.time_s.back();
+    if (start < last_end) return {};
+    last_end = end;
+    shift.push_back(c.bench_clock_s - parts.front().bench_clock_s);
+  }
+  return shift;
+}
+
+}  // namespace
+
 DiagnosisColumns DiagnosisColumns::of(const SampleTable& t) {
   // The optional columns are filled below, where the table has them.
   DiagnosisColumns c{t.origin, t.time_s, t.ref_pitch_arcsec, t.ref_yaw_arcsec, t.counts_alpha, t.counts_beta,
                      t.step, /*temperature_c=*/{}, /*time_since_move_s=*/{}, /*approach_pitch=*/{},
                      /*approach_yaw=*/{}, /*parts=*/{}};
+  if (t.has_column("gimbal_time_s")) c.bench_clock_s = bench_clock_of(t, 0);
   for (auto [name, out] : {std::pair{"temperature_c", &c.temperature_c}, {"time_since_move_s", &c.time_since_move_s},
                            {"approach_pitch", &c.approach_pitch}, {"approach_yaw", &c.approach_yaw}}) {
     if (!t.has_column(name)) continue;
@@ -459,7 +488,9 @@ DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts) {
   const bool temp = std::any_of(parts.begin(), parts.end(), [](const DiagnosisColumns& c) {
     return !c.temperature_c.empty();
   });
+  const std::vector<double> shift = bench_clock_shifts(parts);
   DiagnosisColumns j;
+  j.bench_clock_s = parts.front().bench_clock_s;
   std::vector<std::string> names;
   for (size_t k = 0; k < parts.size(); ++k) {
     DiagnosisColumns& c = parts[k];
@@ -472,6 +503,7 @@ DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts) {
       }
     }
     auto append = [](auto& to, auto& from) { to.insert(to.end(), from.begin(), from.end()); diag::release(from); };
+    if (!shift.empty()) for (double& t : c.time_s) t += shift[k];
     append(j.time_s, c.time_s);
     append(j.ref_pitch_arcsec, c.ref_pitch_arcsec);
     append(j.ref_yaw_arcsec, c.ref_yaw_arcsec);
@@ -488,7 +520,7 @@ DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts) {
       append(j.approach_pitch, c.approach_pitch);
       append(j.approach_yaw, c.approach_yaw);
     }
-    j.parts.emplace_back(c.origin, n);
+    j.parts.push_back({c.origin, n, shift.empty() ? std::numeric_limits<double>::quiet_NaN() : shift[k]});
     names.push_back(c.origin);
   }
   j.origin = fmt::format("{}", fmt::join(names, " + "));
@@ -505,6 +537,7 @@ DiagnosisColumns read_diagnosis_columns(const std::filesystem::path& path, int64
         if (done) return;
         const bool temp = t.has_column("temperature_c"), since = t.has_column("time_since_move_s");
         const bool side = t.has_column("approach_pitch") && t.has_column("approach_yaw");
+        if (!std::isfinite(c.bench_clock_s) && t.has_column("gimbal_time_s")) c.bench_clock_s = bench_clock_of(t, from);
         if (first && t.size() > from) {
           // Reserve once from the first chunk's share of the file (plus a margin), so that growing
           // the columns never holds two copies of them.

@@ -128,6 +128,44 @@ struct Observability {
   }
 };
 
+// How a recording's temperature readings sit against time, one reading per step (the engine reads
+// the temperature once per point, so a step's rows share its reading: the per-row hold is not a
+// departure from time). A reading quantised to q departs from any line by about q / sqrt(12) RMS
+// however the true temperature runs, so a departure within twice that says nothing a drift could
+// not: the temperature follows time as far as the readings can tell.
+struct TemperatureVsTime {
+  double span_c = 0, rho = 0, off_line_rms_c = 0, quantum_c = 0;
+  double rounding_rms_c() const { return quantum_c / std::sqrt(12.0); }
+  bool follows_time() const { return std::abs(rho) > 0.995 || off_line_rms_c <= 2.0 * rounding_rms_c(); }
+};
+
+TemperatureVsTime temperature_vs_time(const Recording& r) {
+  std::vector<std::pair<double, double>> tT;  // (time of the step's first row, its reading)
+  tT.reserve(r.steps.size());
+  for (const auto& s : r.steps) {
+    if (s.end > s.begin && std::isfinite(r.temp[s.begin])) tT.emplace_back(r.t[s.begin], r.temp[s.begin]);
+  }
+  TemperatureVsTime out;
+  if (tT.size() < 3) return out;
+  double n = 0, st = 0, sT = 0, stt = 0, sTT = 0, stT = 0;
+  for (const auto& [t, T] : tT) { n += 1; st += t; sT += T; stt += t * t; sTT += T * T; stT += t * T; }
+  const double vt = stt - st * st / n, vT = sTT - sT * sT / n, c = stT - st * sT / n;
+  out.rho = vt > 0 && vT > 0 ? c / std::sqrt(vt * vT) : 0.0;
+  // What the best line in time leaves: vT (1 - rho^2) over the readings.
+  out.off_line_rms_c = std::sqrt(std::max(0.0, vT * (1.0 - out.rho * out.rho)) / n);
+  std::vector<double> levels;
+  levels.reserve(tT.size());
+  for (const auto& p : tT) levels.push_back(p.second);
+  std::sort(levels.begin(), levels.end());
+  out.span_c = levels.back() - levels.front();
+  out.quantum_c = std::numeric_limits<double>::infinity();
+  for (size_t i = 1; i < levels.size(); ++i) {
+    if (const double d = levels[i] - levels[i - 1]; d > 1e-9) out.quantum_c = std::min(out.quantum_c, d);
+  }
+  if (!std::isfinite(out.quantum_c)) out.quantum_c = 0;
+  return out;
+}
+
 Observability observability(const Recording& r) {
   Observability o;
   auto add = [&](std::string name, std::string reason, bool incomplete) {
@@ -191,25 +229,15 @@ Observability observability(const Recording& r) {
   // Temperature: present, varying, and not a linear function of time (else it is drift).
   if (!r.has_temperature) {
     add("temperature", "the recording has no temperature_c column", false);
-  } else {
-    double n = 0, st = 0, sT = 0, stt = 0, sTT = 0, stT = 0, lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (size_t i = 0; i < r.n; ++i) {
-      const double T = r.temp[i];
-      if (!std::isfinite(T)) continue;
-      n += 1; st += r.t[i]; sT += T; stt += r.t[i] * r.t[i]; sTT += T * T; stT += r.t[i] * T;
-      lo = std::min(lo, T); hi = std::max(hi, T);
-    }
-    const double vt = stt - st * st / n, vT = sTT - sT * sT / n, c = stT - st * sT / n;
-    const double rho = vt > 0 && vT > 0 ? c / std::sqrt(vt * vT) : 0.0;
-    if (!(hi - lo >= 0.05)) {
-      add("temperature", fmt::format("temperature_c varies by only {:.3f} C", hi - lo), false);
-    } else if (std::abs(rho) > 0.995) {
-      add("temperature",
-          fmt::format("temperature_c follows time linearly (correlation {:.4f}): a temperature coefficient cannot be "
-                      "told apart from drift, which stands for both; vary the temperature non-monotonically",
-                      rho),
-          false);
-    }
+  } else if (const TemperatureVsTime tt = temperature_vs_time(r); !(tt.span_c >= 0.05)) {
+    add("temperature", fmt::format("temperature_c varies by only {:.3f} C", tt.span_c), false);
+  } else if (tt.follows_time()) {
+    add("temperature",
+        fmt::format("temperature_c follows time linearly (correlation {:.4f}; it leaves a straight line in time by "
+                    "{:.4f} C RMS, against {:.4f} C from its reading's {:.3g} C steps): a temperature coefficient "
+                    "cannot be told apart from drift, which stands for both; vary the temperature non-monotonically",
+                    tt.rho, tt.off_line_rms_c, tt.rounding_rms_c(), tt.quantum_c),
+        false);
   }
   return o;
 }
@@ -306,12 +334,13 @@ void Diagnoser::fit_singles() {
     const Contribution* settling = c ? &*c : nullptr;
     d.noise_floor_arcsec = noise_floor(r, sig, settling);
     // Each recording's own floor (its nuisance level): one entry for a single recording.
-    const std::vector<std::pair<std::string, size_t>> one{{r.origin, r.n}};
+    const std::vector<JointPart> one{{r.origin, r.n, 0.0}};
     size_t from = 0;
-    for (const auto& [origin, rows] : r.parts.empty() ? one : r.parts) {
+    for (const auto& [origin, rows, shift] : r.parts.empty() ? one : r.parts) {
       Diagnosis::Part p;
       p.source = origin;
       p.rows = rows;
+      p.time_shift_s = shift;
       p.step_offset = static_cast<int64_t>(d.recordings.size()) * (r.parts.empty() ? 0 : kJointStepStride);
       p.time_span_s[0] = r.t[from];
       p.time_span_s[1] = r.t[from + rows - 1];
@@ -512,6 +541,12 @@ void Diagnoser::judge_candidates() {
 }
 
 void Diagnoser::warn() {
+  if (r.parts.size() > 1 && !std::isfinite(r.parts.back().time_shift_s)) {
+    d.warnings.push_back(
+        "the recordings do not share the gimbal's clock (a recording without gimbal_time_s, or a clock that went back "
+        "between them): each runs on its own clock from its time_s = 0, so a drift or a temperature that went on "
+        "between runs shows as a step between recordings that no candidate models");
+  }
   if (r.parts.size() > 1 && !r.has_since_move) {
     d.warnings.push_back("not every recording has a time_since_move_s column: none is used (arrivals assumed settle_s "
                          "before each dwell's first row in all of them)");

@@ -130,7 +130,8 @@ struct Diagnosis {
     std::string source;
     size_t rows = 0;
     int64_t step_offset = 0;
-    double time_span_s[2] = {0, 0};
+    double time_span_s[2] = {0, 0};  // on the joint clock
+    double time_shift_s = std::numeric_limits<double>::quiet_NaN();  // onto the bench clock; NaN: own clock
     double noise_floor_arcsec = 0;
   };
   std::vector<Part> recordings;
@@ -166,6 +167,14 @@ struct Diagnosis {
   nlohmann::ordered_json to_json() const;
 };
 
+// One recording of a joint diagnosis as joined: where it came from, its rows, and the shift that
+// put its time_s on the first recording's bench clock (NaN: it runs on its own clock).
+struct JointPart {
+  std::string origin;
+  size_t rows = 0;
+  double time_shift_s = std::numeric_limits<double>::quiet_NaN();
+};
+
 // The columns the diagnosis reads, column-major and nothing else (about 60 bytes a row): the
 // samples file's required columns but `phase` (labels are not trusted), and temperature_c,
 // time_since_move_s and approach_pitch/approach_yaw (the side each axis last came from, in the
@@ -176,9 +185,12 @@ struct DiagnosisColumns {
   std::vector<int64_t> step;
   std::vector<float> temperature_c, time_since_move_s;
   std::vector<float> approach_pitch, approach_yaw;  // +1, -1, 0 (no motion yet), NaN (moving)
-  // The recordings joined into these columns (join_recordings), in order: each one's origin and
-  // rows; empty for a single recording.
-  std::vector<std::pair<std::string, size_t>> parts;
+  // The recordings joined into these columns (join_recordings), in order; empty for a single one.
+  std::vector<JointPart> parts;
+  // The bench's (gimbal's) clock at this recording's time_s = 0: gimbal_time_s - time_s at its
+  // first row with both (NaN without a gimbal_time_s column). A joint diagnosis puts recordings
+  // on one bench clock with it.
+  double bench_clock_s = std::numeric_limits<double>::quiet_NaN();
   size_t size() const { return time_s.size(); }
   static DiagnosisColumns of(const SampleTable& t);  // a copy of the columns the diagnosis reads
 };
@@ -199,8 +211,11 @@ inline constexpr double kAmbiguityMargin = 10.0;
 
 // Several recordings of one unit diagnosed as one (diagnose --data A --data B ...): one effect
 // with one set of parameters must explain every recording, and each keeps its own nuisance
-// levels: its own clock (drift and the temperature's reference start from its own time origin, as
-// a restarted bench does), its own arrival clock and its own noise floor (GAP.json `recordings`).
+// levels: its own arrival clock and its own noise floor (GAP.json `recordings`). Time runs on one
+// bench clock when every recording has gimbal_time_s and the gimbal's clock went on between them
+// (recording k's time_s shifted by its bench_clock_s less the first's: drift and temperature then
+// see the time between runs, as a bench whose environment goes on does); otherwise each recording
+// runs on its own clock from its own time_s = 0 (a warning says so).
 // Recording k's (0-based) step ids are offset by k x kJointStepStride so that steps of different
 // recordings never merge; the held-out split runs over the joined steps in order, so it spans the
 // recordings. At most kMaxJointRecordings. A time_since_move_s column is used only when every

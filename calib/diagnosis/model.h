@@ -34,7 +34,7 @@ struct Step {
 struct Recording {
   std::string origin;
   size_t n = 0;
-  std::vector<std::pair<std::string, size_t>> parts;  // a joint diagnosis's recordings (origin, rows)
+  std::vector<JointPart> parts;  // a joint diagnosis's recordings
   std::vector<double> t;
   std::vector<double> ref[2];
   std::vector<float> counts[2];  // for the transfer-function refit (whole counts are exact in float)

@@ -144,6 +144,7 @@ int run_followup_design(const DesignArgs& a) {
   FollowupBench fb = followup_bench(a.stand_file, a.bench_file);
   r.settings = fb.settings;
   r.bench = std::move(fb.bench);
+  if (a.emulate) r.start_s = 0;  // `run --emulate` starts a fresh emulated bench, its clock at zero
   const FollowupDesign d = design_followup(r);
   if (d.found || d.useful) write_text_atomic(a.out, d.procedure_text);
   if (a.json) {

@@ -22,6 +22,7 @@
 #include "stand/investigate/followup_design.h"
 #include "stand/investigate/investigation.h"
 #include "stand/report/investigation_page.h"
+#include "stand/session/emulator_process.h"
 #include "stand/session/session.h"
 
 namespace fpss::cli {
@@ -36,9 +37,11 @@ struct InvestigateArgs : BenchChoiceArgs {
   bool quiet = false;
 };
 
-// One run of the loop through the stand's session (a fresh emulator child for each on --emulate,
-// its seed stepped so that runs do not share noise).
-InvestigationRun run_on_stand(const InvestigateArgs& a, const fs::path& procedure, int index) {
+// One run of the loop through the stand's session; on --emulate every run is on the one emulated
+// bench the investigation started (`bench`), whose clock, temperature and drift go on between runs
+// as a real bench's do.
+InvestigationRun run_on_stand(const InvestigateArgs& a, const EmulatorProcess* bench, const fs::path& procedure,
+                              int index) {
   SessionRequest req;
   req.runs_dir = a.runs_dir;
   req.quiet = a.quiet;
@@ -53,10 +56,9 @@ InvestigationRun run_on_stand(const InvestigateArgs& a, const fs::path& procedur
   all.merge(dp);
   all.throw_if_any();
   if (a.emulate) {
-    EmulatedBenchArgs emu = a.emu;
-    emu.seed = a.emu.seed + static_cast<uint64_t>(index);
-    req.emulator = emulator_spec(emu, "");
+    req.emulator = emulator_spec(a.emu, "");
     req.emulator->exe = this_binary();
+    req.running_bench = bench;
   }
   req.catalogue = chosen_catalogue(a.catalogue, req.stand.catalogue);
   const SessionResult r = run_session(req);
@@ -91,7 +93,21 @@ int investigate_command(const InvestigateArgs& a) {
   o.out_dir = a.out.empty() ? fs::path(a.runs_dir) / fmt::format("investigation-{:%Y%m%dT%H%M%SZ}",
                                                                      fmt::gmtime(std::time(nullptr)))
                             : fs::path(a.out);
-  const Investigation inv = investigate(procedure, o, [&](const fs::path& p, int k) { return run_on_stand(a, p, k); });
+  // One emulated bench for every run, its log beside INVESTIGATION.json.
+  std::unique_ptr<EmulatorProcess> bench;
+  if (a.emulate) {
+    fs::create_directories(o.out_dir);
+    EmulatorLaunch l;
+    l.exe = this_binary();
+    l.args = emulator_spec(a.emu, "").args();
+    l.log = o.out_dir / "emulator.log";
+    bench = std::make_unique<EmulatorProcess>(l);
+    bench->start();
+  }
+  const Investigation inv = investigate(procedure, o, [&](const fs::path& p, int k) {
+    return run_on_stand(a, bench.get(), p, k);
+  });
+  if (bench) bench->stop();
   const nlohmann::ordered_json j = inv.to_json();
   write_text_atomic(o.out_dir / "INVESTIGATION.json", j.dump(1) + "\n");
   write_investigation_page(o.out_dir / "INVESTIGATION.html", j);
@@ -116,7 +132,7 @@ void add_investigate(CLI::App& app, Runner& run) {
       "investigate", "Run, diagnose, and design and run follow-ups until every candidate effect is named or bounded");
   expect_file(sub, sub->add_option("--model", a->model, "the sim model: a coefficient file (JSON)")->required(),
               a->model, FileKind::coefficients);
-  add_bench_choice_options(sub, *a, "Stand file (YAML) of the real bench", "Run on emulated benches (a child per run)");
+  add_bench_choice_options(sub, *a, "Stand file (YAML) of the real bench", "Run on one emulated bench (a child that serves every run, its clock going on between them)");
   expect_file(sub,
               sub->add_option("--procedure", a->procedure, "the first run (default: procedures/sim_to_real.yaml)"),
               a->procedure, FileKind::procedure);

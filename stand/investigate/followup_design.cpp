@@ -222,7 +222,7 @@ Evaluation evaluate(const FollowupRequest& r, const BenchConfig& quiet, const Go
   const Plan plan = expand(proc, r.settings, d);
   if (!d.empty() || plan.points == 0) return e;
   e.bench_s = plan.physical_s;
-  const SampleTable t = simulate_plan(plan, r.settings, quiet);
+  const SampleTable t = simulate_plan(plan, r.settings, quiet, std::isfinite(r.start_s) ? r.start_s : followup_start_s(r.gap));
   if (t.size() < 10) return e;
   std::optional<PlannedRun> run;
   try {
@@ -260,6 +260,14 @@ double number(const ojson& j, const char* key) {
 }
 
 }  // namespace
+
+double followup_start_s(const ojson& gap) {
+  if (!gap.contains("recordings") || !gap["recordings"].is_array() || gap["recordings"].empty()) return 0;
+  const ojson& last = gap["recordings"].back();
+  if (last.value("clock", std::string("own")) != "bench") return 0;
+  const ojson span = last.value("time_span_s", ojson::array());
+  return span.is_array() && span.size() == 2 && span[1].is_number() ? std::max(0.0, span[1].get<double>()) : 0.0;
+}
 
 double recorded_bench_s(const ojson& gap) {
   double s = 0;

@@ -2,6 +2,7 @@
 // (`fpss-stand design --discriminate/--observe`): moves sized to the bench-time budget, each
 // candidate procedure simulated on the bench and judged by calib/diagnosis/followup.h.
 #pragma once
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,10 @@ struct FollowupRequest {
   EngineSettings settings;     // the stand's or the emulated bench's
   BenchConfig bench;           // the bench a planned run is simulated on (effects cleared)
   double max_bench_s = 0;      // 0: half the bench time of the recordings behind `gap`
+  // Where on the bench clock the planned run starts (drift and temperature run on it). NaN: where
+  // the recordings behind `gap` end, on a bench whose clock goes on (a stand, investigate's one
+  // emulated bench), or 0 when they ran on their own clocks; 0 for a fresh emulated bench.
+  double start_s = std::numeric_limits<double>::quiet_NaN();
   bool discriminate = true;    // separate the ambiguous sets
   bool observe = false;        // bound the unbounded candidates below the materiality
   std::string name = "followup";
@@ -75,6 +80,10 @@ void predict_best_followups(Diagnosis& d, const CoefficientSet& model, const Eng
                             const BenchConfig& bench);
 // The same on the default emulated bench (what `diagnose` writes; `design` predicts for a stand).
 void predict_best_followups(Diagnosis& d, const CoefficientSet& model);
+
+// Where a follow-up of the recordings behind a GAP.json starts on their clock: the last one's end
+// when they share the bench's clock, else 0.
+double followup_start_s(const nlohmann::ordered_json& gap);
 
 // The recorded bench time behind a GAP.json: the sum of its recordings' time spans.
 double recorded_bench_s(const nlohmann::ordered_json& gap);

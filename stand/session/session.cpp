@@ -204,10 +204,11 @@ void Session::write_start_record() {
   sess.started_utc = now_utc;
   sess.first_point = rec_->next_point() + 1;
   sess.pid = ::getpid();
-  if (bench_.emu) {
-    sess.emulator = nlohmann::json{{"command", bench_.emu->command()}, {"gimbal", stand_.gimbal.endpoint},
+  if (const EmulatorProcess* bench = bench_.bench()) {
+    sess.emulator = nlohmann::json{{"command", bench->command()}, {"gimbal", stand_.gimbal.endpoint},
                                    {"sensor", stand_.sensor.endpoint}};
-    if (multi()) sess.emulator->operator[]("sensors") = bench_.emu->sensor_endpoints();
+    if (bench_.borrowed) sess.emulator->operator[]("shared") = true;  // the bench went on before and after
+    if (multi()) sess.emulator->operator[]("sensors") = bench->sensor_endpoints();
   }
   run_.sessions.push_back(sess);
   write_run_file(res_.run_dir, run_);

@@ -22,6 +22,7 @@
 namespace fpss {
 
 struct Diagnosis;
+class EmulatorProcess;
 struct CoefficientSet;
 // Fills a diagnosis's ambiguous sets' best_followup (stand/investigate's designer, which builds on
 // sessions: the command line hands it in); empty: they stay null.
@@ -31,6 +32,9 @@ struct SessionRequest {
   Procedure procedure;
   StandConfig stand;
   std::optional<EmulatorSpec> emulator;
+  // Borrowed: an emulated bench already serving (investigate keeps one bench, its clock and its
+  // environment going, across its runs); `emulator` then says how it was started, for the record.
+  const EmulatorProcess* running_bench = nullptr;
   std::filesystem::path runs_dir = "runs";
   std::filesystem::path resume_dir;  // set: continue this run
   std::string catalogue;             // catalogue URL; "" : <runs_dir>/stand.db (a resume: the run folder's parent)

@@ -96,6 +96,76 @@ TEST(AmbiguousSets, ADriftWhoseTemperatureFollowsTimeIsASetWithTheTemperatureAnd
   EXPECT_EQ(candidate(d, "temperature")->at("status"), "ambiguous");
 }
 
+// Two runs on one bench whose drift goes on between them, each recorded as `run` writes it: its
+// time_s from zero, the gimbal's clock beside it (bench_clock_s).
+std::vector<DiagnosisColumns> two_runs_on_one_bench(const BenchConfig& cfg, bool with_gimbal_clock) {
+  Bench b(cfg);
+  std::vector<DiagnosisColumns> runs;
+  for (const char* name : {"first.csv", "second.csv"}) {
+    SampleTable t = record_session(b, plan(true, false));
+    t.origin = name;
+    DiagnosisColumns c = DiagnosisColumns::of(t);
+    const double start = c.time_s.front();
+    for (double& v : c.time_s) v -= start;
+    if (with_gimbal_clock) c.bench_clock_s = start;
+    runs.push_back(std::move(c));
+    b.advance_to(b.time_s() + 300.0);  // diagnosing and designing between runs
+  }
+  return runs;
+}
+
+TEST(JointDiagnosis, RunsOnTheGimbalsClockShareOneBenchClockAndADriftBetweenThemIsOneDrift) {
+  BenchConfig cfg = bench(71, {"drift:pitch_arcsec_per_s=0.004,yaw_arcsec_per_s=-0.003"});
+  cfg.temperature.amplitude_c = 0;
+  cfg.temperature.ramp_c_per_s = 0;  // drift alone changes with time
+  std::vector<DiagnosisColumns> runs = two_runs_on_one_bench(cfg, true);
+  const double second_start = runs[1].bench_clock_s, first_start = runs[0].bench_clock_s;
+  const Diagnosis d = diagnose(std::move(runs), cfg.truth, options());
+  ASSERT_EQ(d.recordings.size(), 2u);
+  EXPECT_DOUBLE_EQ(d.recordings[0].time_shift_s, 0.0);
+  EXPECT_NEAR(d.recordings[1].time_shift_s, second_start - first_start, 1e-9);
+  EXPECT_GT(d.recordings[1].time_span_s[0], d.recordings[0].time_span_s[1] + 299.0);  // on the bench clock
+  EXPECT_EQ(d.to_json()["recordings"][1]["clock"], "bench");
+  EXPECT_EQ(d.cause, "drift");
+  EXPECT_EQ(d.verdict, "explained");
+  ASSERT_FALSE(d.causes.empty());
+  EXPECT_NEAR(d.causes[0].params["pitch_arcsec_per_s"].get<double>(), 0.004, 0.0004);
+  for (const auto& w : d.warnings) EXPECT_EQ(w.find("do not share the gimbal's clock"), std::string::npos) << w;
+
+  // Without the gimbal's clock each run starts again at zero: the diagnosis says so.
+  const Diagnosis own = diagnose(two_runs_on_one_bench(cfg, false), cfg.truth, options());
+  EXPECT_EQ(own.to_json()["recordings"][1]["clock"], "own");
+  EXPECT_TRUE(std::isnan(own.recordings[1].time_shift_s));
+  EXPECT_TRUE(std::any_of(own.warnings.begin(), own.warnings.end(), [](const std::string& w) {
+    return w.find("do not share the gimbal's clock") != std::string::npos;
+  }));
+}
+
+TEST(AmbiguousSets, ATemperatureReadToTwoDecimalsOnASlowRampIsStillALookAlikeOfDrift) {
+  // The emulator's default ramp (0.002 C/s) read once per point as `TEMP` gives it (two decimals):
+  // what leaves a straight line in time is the reading's rounding, which a drift cannot be told
+  // from; scoring it would prefer the smooth drift over the rounded readings, a confident wrong cause.
+  BenchConfig cfg = bench(62, {"temperature:pitch_arcsec_per_c=5.0,yaw_arcsec_per_c=5.0"});
+  cfg.temperature.amplitude_c = 0;
+  cfg.temperature.ramp_c_per_s = 0.002;
+  DiagnosisColumns c = record(cfg, plan(true, false), "ramp_read.csv");
+  size_t first = 0;
+  for (size_t i = 0; i < c.size(); ++i) {
+    if (i > 0 && c.step[i] != c.step[i - 1]) first = i;
+    c.temperature_c[i] = static_cast<float>(std::round(c.temperature_c[first] * 100.0) / 100.0);
+  }
+  const Diagnosis d = diagnose(std::move(c), cfg.truth, options());
+  EXPECT_EQ(d.cause, "drift");
+  ASSERT_EQ(d.ambiguous.size(), 1u);
+  EXPECT_EQ(d.ambiguous[0].members, (std::vector<std::string>{"drift", "temperature"}));
+  const auto* t = candidate(d, "temperature");
+  ASSERT_NE(t, nullptr);
+  EXPECT_EQ(t->at("status"), "ambiguous");
+  bool said = false;
+  for (const auto& m : d.not_observable) said = said || (m.name == "temperature" && m.reason.find("0.01 C steps") != std::string::npos);
+  EXPECT_TRUE(said) << "the reason names the reading's resolution";
+}
+
 TEST(AmbiguousSets, AClearCauseOnAFullRecordingHasNoSetAndBoundsWhatItCouldSee) {
   const BenchConfig cfg = bench(7, {"backlash:width_arcsec=1.5"});
   const Diagnosis d = diagnose(record(cfg, plan(true, true), "full.csv"), cfg.truth, options());

@@ -140,6 +140,44 @@ TEST(Investigate, OnTheEmulatedBenchTheLoopRunsFollowUpsIntoTheCatalogueAndWrite
   EXPECT_THAT(listed.out, HasSubstr("FOLLOWUP-1"));
 }
 
+// The confident wrong answer: a dwells-only grid on a bench whose temperature follows a
+// slow sine reads as a drift. On one emulated bench, whose clock and temperature go on between
+// runs, the follow-up tells the two apart either way round.
+TEST(Investigate, OnOneEmulatedBenchADriftAndATemperatureSineAreToldApart) {
+  TempDir tmp("investigate-drift-temperature");
+  const std::map<std::string, std::string> truths = {
+      {"temperature", "{name: temperature, pitch_arcsec_per_c: 1.0, yaw_arcsec_per_c: 1.0}"},
+      {"drift", "{name: drift, pitch_arcsec_per_s: 0.002, yaw_arcsec_per_s: 0.002}"}};
+  for (const auto& [cause, effect] : truths) {
+    SCOPED_TRACE(cause);
+    const fs::path bench = tmp / (cause + ".yaml"), out = tmp / ("inv-" + cause);
+    test::write_file(bench, "temperature: {t0_c: 20, ramp_c_per_s: 0, amplitude_c: 2, period_s: 1200}\neffects:\n  - " +
+                                effect + "\n");
+    const auto r = run_stand({"investigate", "--model", kModel, "--emulate", "--bench", bench.string(), "--procedure",
+                              (test::source_dir() / "procedures/discrete_grid.yaml").string(), "--speed", "20",
+                              "--runs-dir", (tmp / ("runs-" + cause)).string(), "--out", out.string(), "--quiet"},
+                             tmp.path(), "investigate", 600);
+    ASSERT_EQ(r.code, 0) << r.out << r.err;
+    const auto inv = nlohmann::json::parse(test::read_file(out / "INVESTIGATION.json"));
+    EXPECT_EQ(inv["cause"], cause) << inv.dump(1);
+    EXPECT_EQ(inv["verdict"], "explained");
+    const char* key = cause == "drift" ? "pitch_arcsec_per_s" : "pitch_arcsec_per_c";
+    const double truth = cause == "drift" ? 0.002 : 1.0;
+    EXPECT_NEAR(inv["causes"][0]["params"][key].get<double>(), truth, 0.1 * truth);
+    EXPECT_LE(inv["bench_time_s"]["followups_ratio"].get<double>(), 1.0);
+    ASSERT_GE(inv["runs"].size(), 2u);
+    EXPECT_THAT(inv["steps"][1]["why"].get<std::string>(), HasSubstr("drift from temperature"));
+    // Every run on the one bench: its clock went on, and the joint diagnosis ran on it.
+    for (size_t k = 1; k < inv["recordings"].size(); ++k) {
+      const auto& rec = inv["recordings"][k];
+      EXPECT_EQ(rec["clock"], "bench");
+      EXPECT_GT(rec["time_span_s"][0].get<double>(), inv["recordings"][k - 1]["time_span_s"][1].get<double>());
+      const auto run = nlohmann::json::parse(test::read_file(fs::path(inv["runs"][k].get<std::string>()) / "run.json"));
+      EXPECT_EQ(run["sessions"][0]["emulator"]["shared"], true) << run.dump(1);
+    }
+  }
+}
+
 TEST(Investigate, ConfusableCasesAreToldApartWithinTheBudget) {
   TempDir tmp("confusable");
   const ConfusableReport rep = run_confusable_cases(1, 2, tmp.path());
