@@ -489,6 +489,12 @@ DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts) {
     return !c.temperature_c.empty();
   });
   const std::vector<double> shift = bench_clock_shifts(parts);
+  // Without the gimbal's clock: do the times as recorded already go on from one recording to the next?
+  bool on_one = true;
+  for (size_t k = 1; k < parts.size(); ++k) {
+    on_one = on_one && !parts[k].time_s.empty() && !parts[k - 1].time_s.empty() &&
+             parts[k].time_s.front() >= parts[k - 1].time_s.back();
+  }
   DiagnosisColumns j;
   j.bench_clock_s = parts.front().bench_clock_s;
   std::vector<std::string> names;
@@ -520,7 +526,8 @@ DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts) {
       append(j.approach_pitch, c.approach_pitch);
       append(j.approach_yaw, c.approach_yaw);
     }
-    j.parts.push_back({c.origin, n, shift.empty() ? std::numeric_limits<double>::quiet_NaN() : shift[k]});
+    j.parts.push_back({c.origin, n, shift.empty() ? (on_one ? 0.0 : std::numeric_limits<double>::quiet_NaN()) : shift[k],
+                       !shift.empty() ? "bench" : on_one ? "recorded" : "own"});
     names.push_back(c.origin);
   }
   j.origin = fmt::format("{}", fmt::join(names, " + "));

@@ -334,13 +334,14 @@ void Diagnoser::fit_singles() {
     const Contribution* settling = c ? &*c : nullptr;
     d.noise_floor_arcsec = noise_floor(r, sig, settling);
     // Each recording's own floor (its nuisance level): one entry for a single recording.
-    const std::vector<JointPart> one{{r.origin, r.n, 0.0}};
+    const std::vector<JointPart> one{{r.origin, r.n, 0.0, "recorded"}};
     size_t from = 0;
-    for (const auto& [origin, rows, shift] : r.parts.empty() ? one : r.parts) {
+    for (const auto& [origin, rows, shift, clock] : r.parts.empty() ? one : r.parts) {
       Diagnosis::Part p;
       p.source = origin;
       p.rows = rows;
       p.time_shift_s = shift;
+      p.clock = clock;
       p.step_offset = static_cast<int64_t>(d.recordings.size()) * (r.parts.empty() ? 0 : kJointStepStride);
       p.time_span_s[0] = r.t[from];
       p.time_span_s[1] = r.t[from + rows - 1];
@@ -541,10 +542,10 @@ void Diagnoser::judge_candidates() {
 }
 
 void Diagnoser::warn() {
-  if (r.parts.size() > 1 && !std::isfinite(r.parts.back().time_shift_s)) {
+  if (r.parts.size() > 1 && r.parts.back().clock == "own") {
     d.warnings.push_back(
-        "the recordings do not share the gimbal's clock (a recording without gimbal_time_s, or a clock that went back "
-        "between them): each runs on its own clock from its time_s = 0, so a drift or a temperature that went on "
+        "the recordings share no clock (no gimbal_time_s in every one, or a gimbal clock that went back, and times "
+        "as recorded that start again): each runs on its own clock from its time_s = 0, so a drift or a temperature that went on "
         "between runs shows as a step between recordings that no candidate models");
   }
   if (r.parts.size() > 1 && !r.has_since_move) {

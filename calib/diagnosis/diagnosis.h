@@ -132,6 +132,7 @@ struct Diagnosis {
     int64_t step_offset = 0;
     double time_span_s[2] = {0, 0};  // on the joint clock
     double time_shift_s = std::numeric_limits<double>::quiet_NaN();  // onto the bench clock; NaN: own clock
+    std::string clock = "recorded";  // JointPart::clock
     double noise_floor_arcsec = 0;
   };
   std::vector<Part> recordings;
@@ -167,12 +168,15 @@ struct Diagnosis {
   nlohmann::ordered_json to_json() const;
 };
 
-// One recording of a joint diagnosis as joined: where it came from, its rows, and the shift that
-// put its time_s on the first recording's bench clock (NaN: it runs on its own clock).
+// One recording of a joint diagnosis as joined: where it came from, its rows, and the clock its
+// time_s runs on: "bench" (shifted by time_shift_s onto the first recording's gimbal clock),
+// "recorded" (its time_s already goes on from the recording before, as one lab clock writes it),
+// or "own" (it starts again; time_shift_s NaN).
 struct JointPart {
   std::string origin;
   size_t rows = 0;
   double time_shift_s = std::numeric_limits<double>::quiet_NaN();
+  std::string clock = "own";
 };
 
 // The columns the diagnosis reads, column-major and nothing else (about 60 bytes a row): the
@@ -215,7 +219,8 @@ inline constexpr double kAmbiguityMargin = 10.0;
 // bench clock when every recording has gimbal_time_s and the gimbal's clock went on between them
 // (recording k's time_s shifted by its bench_clock_s less the first's: drift and temperature then
 // see the time between runs, as a bench whose environment goes on does); otherwise each recording
-// runs on its own clock from its own time_s = 0 (a warning says so).
+// runs on its time_s as recorded: one clock when each recording starts after the one before it
+// ended, else each its own from its own time_s = 0 (a warning says so).
 // Recording k's (0-based) step ids are offset by k x kJointStepStride so that steps of different
 // recordings never merge; the held-out split runs over the joined steps in order, so it spans the
 // recordings. At most kMaxJointRecordings. A time_since_move_s column is used only when every
