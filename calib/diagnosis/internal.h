@@ -1,5 +1,6 @@
 // The diagnosis's steps shared between its files: scoring, pairs, where, verdict.
 #pragma once
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -29,6 +30,15 @@ struct Scored {
     return c;
   }
 };
+
+// The candidates a recording cannot show, and why (observability.cpp).
+struct Observability {
+  std::vector<NotObservable> missing;
+  bool ok(const std::string& name) const {
+    return std::none_of(missing.begin(), missing.end(), [&](const NotObservable& m) { return m.name == name; });
+  }
+};
+Observability observability(const Recording& r);
 
 // Why two effects can look alike, for the ambiguity note.
 std::string why_alike(const std::string& a, const std::string& b);
