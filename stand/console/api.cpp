@@ -237,6 +237,30 @@ void add_control_routes(httplib::Server& s, Context& c) {
   });
 }
 
+// A file of a run or investigation folder (already checked by run_file), streamed in 64 KiB pieces:
+// a samples.csv of millions of rows is never held whole.
+void serve_file(httplib::Response& res, const std::optional<fs::path>& file) {
+  if (!file) return fail(res, 404, "no such file");
+  auto in = std::make_shared<std::ifstream>(*file, std::ios::binary);
+  std::error_code ec;
+  const auto size = fs::file_size(*file, ec);
+  if (!*in || ec) return fail(res, 404, "cannot read the file");
+  const std::string ext = file->extension().string();
+  const std::string type = ext == ".html" ? "text/html; charset=utf-8"
+                           : ext == ".json" || ext == ".jsonl" ? "application/json"
+                           : ext == ".svg" ? "image/svg+xml"
+                           : ext == ".png" ? "image/png"
+                           : ext == ".csv" ? "text/csv" : "text/plain; charset=utf-8";
+  if (ext == ".csv") res.set_header("Content-Disposition", "attachment; filename=\"" + file->filename().string() + "\"");
+  res.set_content_provider(static_cast<size_t>(size), type, [in](size_t offset, size_t length, httplib::DataSink& sink) {
+    std::vector<char> buf(std::min<size_t>(length, 64 * 1024));
+    in->seekg(static_cast<std::streamoff>(offset));
+    in->read(buf.data(), static_cast<std::streamsize>(buf.size()));
+    const auto n = in->gcount();
+    return n > 0 && sink.write(buf.data(), static_cast<size_t>(n));
+  });
+}
+
 void add_run_routes(httplib::Server& s, Context& c) {
   s.Get("/api/runs", [&c](const httplib::Request& req, httplib::Response& res) {
     size_t limit = 200;
@@ -268,27 +292,15 @@ void add_run_routes(httplib::Server& s, Context& c) {
   });
   s.Get(R"(/runs/([A-Za-z0-9._-]+)/(.+))", [&c](const httplib::Request& req, httplib::Response& res) {
     const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
-    const auto file = run ? run_file(run->dir, req.matches[2]) : std::nullopt;
-    if (!file) return fail(res, 404, "no such file");
-    // Streamed in 64 KiB pieces: a samples.csv of millions of rows is never held whole.
-    auto in = std::make_shared<std::ifstream>(*file, std::ios::binary);
-    std::error_code ec;
-    const auto size = fs::file_size(*file, ec);
-    if (!*in || ec) return fail(res, 404, "cannot read the file");
-    const std::string ext = file->extension().string();
-    const std::string type = ext == ".html" ? "text/html; charset=utf-8"
-                             : ext == ".json" || ext == ".jsonl" ? "application/json"
-                             : ext == ".svg" ? "image/svg+xml"
-                             : ext == ".png" ? "image/png"
-                             : ext == ".csv" ? "text/csv" : "text/plain; charset=utf-8";
-    if (ext == ".csv") res.set_header("Content-Disposition", "attachment; filename=\"" + file->filename().string() + "\"");
-    res.set_content_provider(static_cast<size_t>(size), type, [in](size_t offset, size_t length, httplib::DataSink& sink) {
-      std::vector<char> buf(std::min<size_t>(length, 64 * 1024));
-      in->seekg(static_cast<std::streamoff>(offset));
-      in->read(buf.data(), static_cast<std::streamsize>(buf.size()));
-      const auto n = in->gcount();
-      return n > 0 && sink.write(buf.data(), static_cast<size_t>(n));
-    });
+    serve_file(res, run ? run_file(run->dir, req.matches[2]) : std::nullopt);
+  });
+  // Investigations (investigate's folders in the runs folder): their list and their files.
+  s.Get("/api/investigations", [&c](const httplib::Request&, httplib::Response& res) {
+    reply(res, investigations_json(c.opt.runs_dir));
+  });
+  s.Get(R"(/investigations/([A-Za-z0-9._-]+)/(.+))", [&c](const httplib::Request& req, httplib::Response& res) {
+    const auto dir = investigation_dir(c.opt.runs_dir, req.matches[1]);
+    serve_file(res, dir ? run_file(*dir, req.matches[2]) : std::nullopt);
   });
 }
 

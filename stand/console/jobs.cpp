@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <csignal>
 #include <cstring>
 #include <chrono>
@@ -34,9 +35,20 @@ bool safe_name(const std::string& s, size_t max) {
   });
 }
 
+std::string Job::investigation() const {
+  if (kind != "investigate") return {};
+  std::string stamp;  // 2026-11-27T12:00:00Z -> 20261127T120000Z, as investigate names its own
+  for (char ch : created_utc.substr(0, 19)) {
+    if (std::isalnum(static_cast<unsigned char>(ch))) stamp += ch;
+  }
+  return "investigation-" + stamp + "Z-job" + std::to_string(id);
+}
+
 nlohmann::json Job::to_json() const {
+  const std::string inv = investigation();
   return {{"id", id},           {"kind", kind},         {"procedure", procedure}, {"model", model}, {"unit", unit},
           {"operator", operator_name}, {"state", state}, {"run_id", run_id.empty() ? nlohmann::json() : nlohmann::json(run_id)},
+          {"investigation", inv.empty() ? nlohmann::json() : nlohmann::json(inv)},
           {"pid", pid},         {"exit_code", exit_code}, {"message", message},   {"created_utc", created_utc}};
 }
 
@@ -194,7 +206,10 @@ std::vector<std::string> JobQueue::argv_of(const Job& j) const {
     if (!j.procedure.empty()) a.insert(a.end(), {"--procedure", (o_.procedures_dir / j.procedure).string()});
   }
   if (j.kind == "accept") a.push_back("--operator-prompts");
-  if (j.kind == "investigate") a.insert(a.end(), {"--model", (published_dir() / (j.model + ".json")).string()});
+  if (j.kind == "investigate") {
+    a.insert(a.end(), {"--model", (published_dir() / (j.model + ".json")).string(), "--out",
+                       (o_.runs_dir / j.investigation()).string()});
+  }
   a.insert(a.end(), {"--runs-dir", o_.runs_dir.string(), "--quiet"});
   if (j.kind != "investigate") a.push_back("--no-progress");
   if (!o_.catalogue.empty()) a.insert(a.end(), {"--catalogue", o_.catalogue});

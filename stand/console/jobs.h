@@ -42,6 +42,8 @@ struct Job {
   std::string message;           // why it failed to start
   std::string created_utc;
   std::string spawned_utc;       // when its child was started (its run starts then or later)
+  // An investigate job's folder in the runs folder: investigation-<created, UTC>-job<id> ("" otherwise).
+  std::string investigation() const;
   nlohmann::json to_json() const;
 };
 

@@ -8,6 +8,7 @@
 #include <memory>
 #include <utility>
 
+#include "base/json_file.h"
 #include "base/text_file.h"
 #include "base/unique_fd.h"
 #include "stand/catalogue/catalogue.h"
@@ -177,6 +178,62 @@ EventChunk read_events(const fs::path& run_dir, uint64_t offset, size_t max_byte
   if (c.lines.empty() && buf.size() == max_bytes) c.next = offset + buf.size();
   else c.next = offset + start;
   return c;
+}
+
+std::optional<fs::path> investigation_dir(const fs::path& runs_dir, const std::string& name) {
+  if (name.rfind("investigation-", 0) != 0 || !safe_name(name, 128)) return std::nullopt;
+  const fs::path p = runs_dir / name;
+  struct stat st {};
+  if (::lstat(p.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return std::nullopt;
+  return p;
+}
+
+nlohmann::json investigations_json(const fs::path& runs_dir, size_t limit) {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (fs::directory_iterator it(runs_dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string n = it->path().filename().string();
+    if (investigation_dir(runs_dir, n)) names.push_back(n);
+  }
+  std::sort(names.rbegin(), names.rend());
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& n : names) {
+    if (out.size() >= limit) break;
+    const fs::path dir = runs_dir / n;
+    if (!run_file(dir, "INVESTIGATION.json")) continue;
+    nlohmann::json inv;
+    try {
+      inv = read_json_file(dir / "INVESTIGATION.json", "INVESTIGATION.json");
+    } catch (const std::exception&) {
+      continue;
+    }
+    if (!inv.is_object()) continue;
+    nlohmann::json j{{"name", n}};
+    for (const char* k : {"stop_reason", "stop_sentence", "verdict", "verdict_sentence", "cause", "unbounded", "bench_time_s"}) {
+      if (inv.contains(k)) j[k] = inv[k];
+    }
+    nlohmann::json causes = nlohmann::json::array(), ambiguous = nlohmann::json::array(), runs = nlohmann::json::array();
+    for (const auto& c : inv.value("causes", nlohmann::json::array())) {
+      if (c.is_object()) causes.push_back({{"name", c.value("name", "")}, {"params", c.value("params", nlohmann::json::object())}});
+    }
+    for (const auto& a : inv.value("ambiguous", nlohmann::json::array())) {
+      if (a.is_object()) ambiguous.push_back(a.value("members", nlohmann::json::array()));
+    }
+    // The run folders by their ids (the folder's name is the run id), for the console's run pages.
+    for (const auto& r : inv.value("runs", nlohmann::json::array())) {
+      if (r.is_string()) runs.push_back(fs::path(r.get<std::string>()).filename().string());
+    }
+    j["causes"] = causes;
+    j["ambiguous"] = ambiguous;
+    j["runs"] = runs;
+    nlohmann::json files = nlohmann::json::object();
+    for (const char* f : {"INVESTIGATION.html", "INVESTIGATION.json", "GAP.json", "GAP.html"}) {
+      if (run_file(dir, f)) files[f] = "/investigations/" + n + "/" + f;
+    }
+    j["files"] = files;
+    out.push_back(std::move(j));
+  }
+  return out;
 }
 
 std::optional<fs::path> run_file(const fs::path& run_dir, const std::string& rel) {

@@ -259,6 +259,26 @@ def several_units(b):
     b.shot("7b-units")
 
 
+def investigations(b):
+    """Step 10: an investigation of this runs folder (the command line, one run) is listed on the
+    Investigations page with why it stopped and its run, and its report opens."""
+    src = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    subprocess.run([BIN, "investigate", "--model", os.path.join(src, "calib", "data", "published", "a-6-fpss1.json"),
+                    "--emulate", "--speed", "100", "--max-runs", "1", "--procedure",
+                    os.path.join(src, "procedures", "discrete_grid.yaml"), "--runs-dir", b.runs, "--quiet"],
+                   check=True, capture_output=True, timeout=300)
+    b.go("index.html#investigations")
+    rows = wait_for("the investigation's row", lambda: b.driver.find_elements(By.CSS_SELECTOR, "#investigations-table tr.investigation"))
+    assert len(rows) == 1 and "investigation-" in rows[0].text, [r.text for r in rows]
+    run_links = rows[0].find_elements(By.CSS_SELECTOR, "a[href^='#runs/']")
+    assert len(run_links) == 1, rows[0].text
+    link = rows[0].find_element(By.CSS_SELECTOR, "a.investigation-report").get_attribute("href")
+    b.shot("10-investigations")
+    b.driver.get(link)
+    wait_for("the investigation's report", lambda: "Sim-to-real investigation" in b.driver.page_source)
+    b.shot("10-investigation-report")
+
+
 def acceptance(b):
     """Step 8: an acceptance answering its prompts (a wrong serial first); then the unit's history."""
     job = b.queue("accept", "", "FPSS-B1", "")
@@ -341,6 +361,7 @@ def main():
         several_units(b)
         acc_run = acceptance(b)
         fleet(b, acc_run)
+        investigations(b)
         b.check_console()
     except BaseException:
         b.driver.save_screenshot(os.path.join(OUT, "failure.png"))

@@ -215,14 +215,36 @@ TEST(Console, AnInvestigationIsQueuedAsAJobAndWritesItsRecord) {
   }, 240)) << job.dump();
   EXPECT_EQ(job["exit_code"], 0) << read_file(t / "runs" / ".console" / ("job-" + std::to_string(id) + ".log"));
   EXPECT_EQ(job["kind"], "investigate");
-  fs::path record;
-  for (const auto& e : fs::directory_iterator(t / "runs")) {
-    if (e.path().filename().string().rfind("investigation-", 0) == 0) record = e.path() / "INVESTIGATION.json";
-  }
+  // The job names its investigation's folder, in the runs folder.
+  ASSERT_TRUE(job["investigation"].is_string()) << job.dump();
+  const std::string name = job["investigation"];
+  EXPECT_EQ(name.rfind("investigation-", 0), 0u) << name;
+  const fs::path record = t / "runs" / name / "INVESTIGATION.json";
   ASSERT_TRUE(fs::exists(record));
   const json inv = json::parse(read_file(record));
   EXPECT_EQ(inv["cause"], "time_skew") << inv.dump(1);
   EXPECT_GE(inv["runs"].size(), 2u);
+
+  // The console lists it with what it found and serves its report; nothing outside its folder.
+  const json list = json::parse(c.Get("/api/investigations")->body);
+  ASSERT_EQ(list.size(), 1u) << list.dump(1);
+  EXPECT_EQ(list[0]["name"], name);
+  EXPECT_EQ(list[0]["cause"], "time_skew");
+  EXPECT_EQ(list[0]["causes"][0]["name"], "time_skew");
+  EXPECT_EQ(list[0]["runs"].size(), inv["runs"].size());
+  EXPECT_EQ(list[0]["runs"][0], fs::path(inv["runs"][0].get<std::string>()).filename().string());
+  const std::string page = list[0]["files"]["INVESTIGATION.html"];
+  auto got = c.Get(page.c_str());
+  ASSERT_EQ(got->status, 200) << page;
+  EXPECT_EQ(got->get_header_value("Content-Type"), "text/html; charset=utf-8");
+  EXPECT_NE(got->body.find("time_skew"), std::string::npos);
+  fs::create_directory_symlink(t / "runs" / name, t / "runs" / "investigation-link");
+  for (const std::string& bad : std::vector<std::string>{"/investigations/investigation-link/INVESTIGATION.json",
+                                                         "/investigations/runs/INVESTIGATION.json",
+                                "/investigations/" + name + "/../stand.db", "/investigations/" + name + "/.hidden"}) {
+    EXPECT_EQ(c.Get(bad.c_str())->status, 404) << bad;
+  }
+  EXPECT_EQ(json::parse(c.Get("/api/investigations")->body).size(), 1u) << "a link is not an investigation";
 }
 
 TEST(Console, ARunOutlivesItsConsoleAndARestartedConsoleShowsItLive) {

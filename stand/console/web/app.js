@@ -48,6 +48,7 @@ function show() {
   if (page === 'runs') runsPage();
   if (page === 'units') unitsPage();
   if (page === 'fleet') every(2000, fleetPage);
+  if (page === 'investigations') every(5000, investigationsPage);
 }
 
 // ---- stand ----
@@ -72,7 +73,8 @@ async function queuePage() {
   const queued = jobs.filter((j) => j.state === 'queued');
   $('queue-table').innerHTML = '<tr><th>#</th><th>kind</th><th>procedure</th><th>unit</th><th>operator</th><th>state</th><th>run</th><th></th></tr>' +
     jobs.map((j) => '<tr><td>' + j.id + '</td><td>' + esc(j.kind) + '</td><td>' + esc(j.procedure) + '</td><td>' + esc(j.unit) + '</td><td>' + esc(j.operator) +
-      '</td><td class="job-state">' + esc(j.state) + (j.exit_code >= 0 ? ' (exit ' + j.exit_code + ')' : '') + '</td><td>' + (j.run_id ? '<a href="#runs/' + esc(j.run_id) + '">' + esc(j.run_id) + '</a>' : '') + '</td><td>' +
+      '</td><td class="job-state">' + esc(j.state) + (j.exit_code >= 0 ? ' (exit ' + j.exit_code + ')' : '') + '</td><td>' + (j.run_id ? '<a href="#runs/' + esc(j.run_id) + '">' + esc(j.run_id) + '</a>' : '') +
+      (j.investigation ? ' <a href="#investigations">investigation</a>' : '') + '</td><td>' +
       (j.state === 'queued' ? '<button data-up="' + j.id + '">up</button><button data-down="' + j.id + '">down</button><button data-rm="' + j.id + '">remove</button>' : '') + '</td></tr>').join('');
   $('queue-table').querySelectorAll('button').forEach((b) => b.onclick = async () => {
     const id = b.dataset.up || b.dataset.down || b.dataset.rm;
@@ -316,6 +318,18 @@ async function runsPage() {
         '</td></tr>').join('') + '</table>' : '');
 }
 $('runs-filter').onsubmit = (ev) => { ev.preventDefault(); runsPage(); };
+
+// ---- investigations ----
+async function investigationsPage() {
+  const list = await api('GET', '/api/investigations').catch(() => []);
+  $('investigations-table').innerHTML = '<tr><th>investigation</th><th>stopped</th><th>verdict</th><th>causes</th><th>still ambiguous</th>' +
+    '<th>neither named nor bounded</th><th>runs</th></tr>' +
+    list.map((i) => '<tr class="investigation"><td>' + (i.files['INVESTIGATION.html']
+      ? '<a class="investigation-report" target="_blank" href="' + esc(i.files['INVESTIGATION.html']) + '">' + esc(i.name) + '</a>' : esc(i.name)) +
+      '</td><td title="' + esc(i.stop_sentence || '') + '">' + esc(i.stop_reason || '') + '</td><td>' + esc(i.verdict || '') + '</td><td>' +
+      esc(i.causes.map((c) => c.name).join(', ')) + '</td><td>' + esc(i.ambiguous.map((m) => m.join(' / ')).join('; ')) + '</td><td>' +
+      esc((i.unbounded || []).join(', ')) + '</td><td>' + i.runs.map((r) => '<a href="#runs/' + esc(r) + '">' + esc(r) + '</a>').join('<br>') + '</td></tr>').join('');
+}
 
 // ---- unit history ----
 async function unitsPage() {
