@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -18,40 +19,79 @@ namespace {
 
 
 // How a recording's temperature readings sit against time, one reading per step (the engine reads
-// the temperature once per point, so a step's rows share its reading: the per-row hold is not a
-// departure from time). A reading quantised to q departs from any line by about q / sqrt(12) RMS
-// however the true temperature runs, so a departure within twice that says nothing a drift could
-// not: the temperature follows time as far as the readings can tell.
+// the temperature once per point, so a step's rows share its reading: the hold within a step is
+// not a departure from time). The temperature follows time as far as its readings can tell when
+// what a straight line in time leaves of them is no more than twice what the readings themselves
+// scatter: their rounding (a reading quantised to q departs from any line by about q / sqrt(12)
+// RMS however the true temperature runs) and their noise (from the second differences of
+// successive readings, which a smooth temperature hardly moves). Scored then, the rough readings
+// would lose to a smooth drift by more than the margin: a confident wrong cause. A departure
+// above that is the temperature's own shape, which the scores weigh.
 struct TemperatureVsTime {
-  double span_c = 0, rho = 0, off_line_rms_c = 0, quantum_c = 0;
+  double span_c = 0, rho = 0, off_line_rms_c = 0, quantum_c = 0, noise_c = 0, level_c = 0;
   double rounding_rms_c() const { return quantum_c / std::sqrt(12.0); }
-  bool follows_time() const { return std::abs(rho) > 0.995 || off_line_rms_c <= 2.0 * rounding_rms_c(); }
+  // What the readings scatter by themselves, with float storage's relative 1e-7 as the floor.
+  double reading_rms_c() const {
+    return std::max({std::hypot(rounding_rms_c(), noise_c), 1e-6 * std::abs(level_c), 1e-9});
+  }
+  bool follows_time() const { return off_line_rms_c <= 2.0 * reading_rms_c(); }
 };
 
-TemperatureVsTime temperature_vs_time(const Recording& r) {
-  std::vector<std::pair<double, double>> tT;  // (time of the step's first row, its reading)
-  tT.reserve(r.steps.size());
-  for (const auto& s : r.steps) {
-    if (s.end > s.begin && std::isfinite(r.temp[s.begin])) tT.emplace_back(r.t[s.begin], r.temp[s.begin]);
-  }
-  TemperatureVsTime out;
-  if (tT.size() < 3) return out;
-  double n = 0, st = 0, sT = 0, stt = 0, sTT = 0, stT = 0;
-  for (const auto& [t, T] : tT) { n += 1; st += t; sT += T; stt += t * t; sTT += T * T; stT += t * T; }
-  const double vt = stt - st * st / n, vT = sTT - sT * sT / n, c = stT - st * sT / n;
-  out.rho = vt > 0 && vT > 0 ? c / std::sqrt(vt * vT) : 0.0;
-  // What the best line in time leaves: vT (1 - rho^2) over the readings.
-  out.off_line_rms_c = std::sqrt(std::max(0.0, vT * (1.0 - out.rho * out.rho)) / n);
-  std::vector<double> levels;
-  levels.reserve(tT.size());
-  for (const auto& p : tT) levels.push_back(p.second);
+// The straight line's leftover RMS and the correlation of (x, y) pairs.
+std::pair<double, double> line_fit(const std::vector<std::pair<double, double>>& xy) {
+  double n = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  for (const auto& [x, y] : xy) { n += 1; sx += x; sy += y; sxx += x * x; syy += y * y; sxy += x * y; }
+  const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n, c = sxy - sx * sy / n;
+  const double rho = vx > 0 && vy > 0 ? c / std::sqrt(vx * vy) : 0.0;
+  return {std::sqrt(std::max(0.0, vy * (1.0 - rho * rho)) / n), rho};
+}
+
+// The readings' resolution: the smallest step between distinct readings when every step is a
+// whole number of it (to 5 %: float storage), else 0.
+double resolution(std::vector<double> levels) {
   std::sort(levels.begin(), levels.end());
-  out.span_c = levels.back() - levels.front();
-  out.quantum_c = std::numeric_limits<double>::infinity();
+  levels.erase(std::unique(levels.begin(), levels.end(), [](double a, double b) { return b - a <= 1e-9; }), levels.end());
+  if (levels.size() < 3) return 0;
+  double q = std::numeric_limits<double>::infinity();
+  for (size_t i = 1; i < levels.size(); ++i) q = std::min(q, levels[i] - levels[i - 1]);
   for (size_t i = 1; i < levels.size(); ++i) {
-    if (const double d = levels[i] - levels[i - 1]; d > 1e-9) out.quantum_c = std::min(out.quantum_c, d);
+    const double m = (levels[i] - levels[i - 1]) / q;
+    if (std::abs(m - std::round(m)) > 0.05) return 0;
   }
-  if (!std::isfinite(out.quantum_c)) out.quantum_c = 0;
+  return q;
+}
+
+TemperatureVsTime temperature_vs_time(const Recording& r) {
+  TemperatureVsTime out;
+  std::vector<std::pair<double, double>> steps;  // (time of the step's first row, its reading), in step order
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (size_t i = 0; i < r.n; ++i) {
+    if (std::isfinite(r.temp[i])) { lo = std::min<double>(lo, r.temp[i]); hi = std::max<double>(hi, r.temp[i]); }
+  }
+  for (const auto& s : r.steps) {
+    if (s.end > s.begin && std::isfinite(r.temp[s.begin])) steps.emplace_back(r.t[s.begin], r.temp[s.begin]);
+  }
+  if (steps.size() < 3) return out;
+  out.span_c = hi - lo;
+  std::tie(out.off_line_rms_c, out.rho) = line_fit(steps);
+  // Second differences of successive readings at uneven times (within a recording: a joint's
+  // recordings on their own clocks start again): T_i less the interpolation of its neighbours,
+  // whose variance is (1 + w^2 + (1-w)^2) sigma^2 for a reading noise sigma.
+  double s2 = 0, n2 = 0;
+  for (size_t i = 1; i + 1 < steps.size(); ++i) {
+    const double span = steps[i + 1].first - steps[i - 1].first;
+    if (!(steps[i - 1].first < steps[i].first && steps[i].first < steps[i + 1].first)) continue;
+    const double w = (steps[i].first - steps[i - 1].first) / span;
+    const double d = steps[i].second - ((1 - w) * steps[i - 1].second + w * steps[i + 1].second);
+    s2 += d * d / (1 + w * w + (1 - w) * (1 - w));
+    n2 += 1;
+  }
+  out.noise_c = n2 > 0 ? std::sqrt(s2 / n2) : 0.0;
+  std::vector<double> levels;
+  levels.reserve(steps.size());
+  for (const auto& p : steps) levels.push_back(p.second);
+  out.level_c = levels.front();
+  out.quantum_c = resolution(std::move(levels));
   return out;
 }
 
@@ -125,9 +165,10 @@ Observability observability(const Recording& r) {
   } else if (tt.follows_time()) {
     add("temperature",
         fmt::format("temperature_c follows time linearly (correlation {:.4f}; it leaves a straight line in time by "
-                    "{:.4f} C RMS, against {:.4f} C from its reading's {:.3g} C steps): a temperature coefficient "
+                    "{:.4f} C RMS, against {:.4f} C of the readings' own scatter{}): a temperature coefficient "
                     "cannot be told apart from drift, which stands for both; vary the temperature non-monotonically",
-                    tt.rho, tt.off_line_rms_c, tt.rounding_rms_c(), tt.quantum_c),
+                    tt.rho, tt.off_line_rms_c, tt.reading_rms_c(),
+                    tt.quantum_c > 0 ? fmt::format(", their {:.3g} C steps among it", tt.quantum_c) : std::string()),
         false);
   }
   return o;
