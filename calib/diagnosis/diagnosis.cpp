@@ -123,7 +123,7 @@ double noise_floor(const Recording& r, double* per_axis, const Contribution* set
 
 Scored fit_one(const Recording& r, const std::string& name, const Contribution& target, double ms0, double N) {
   Scored s;
-  s.cand = diag::make_candidate(name);
+  s.cand = diag::make_candidate(name, r);
   s.cand->fit(r, target, r.fit_rows);
   const Contribution c = s.contribution(r);
   s.result.name = name;
@@ -186,16 +186,24 @@ void Diagnoser::fit_singles() {
   d.not_observable = obs.missing;
 
   N = 2.0 * static_cast<double>(r.heldout_rows.size());
-  ms0 = mean_square(r, nullptr, r.heldout_rows);
-  d.gap_before_arcsec = std::sqrt(ms0);
   Contribution target;
   for (int a = 0; a < 2; ++a) target.v[a].assign(r.res[a].begin(), r.res[a].end());
-
   {
+    // The baseline: nothing, or each recording's own level where recordings do not share a clock.
     Scored none;
+    none.cand = diag::make_candidate("none", r);
+    std::optional<Contribution> c;
+    if (none.cand) {
+      none.cand->fit(r, target, r.fit_rows);
+      c = none.contribution(r);
+    }
+    const Contribution* k = c ? &*c : nullptr;
+    ms0 = mean_square(r, k, r.heldout_rows);
+    d.gap_before_arcsec = std::sqrt(ms0);
     none.result.name = "none";
     none.result.params = ojson::object();
-    none.result.fit_rms_arcsec = std::sqrt(mean_square(r, nullptr, r.fit_rows));
+    if (none.cand) none.result.notes = none.cand->notes();
+    none.result.fit_rms_arcsec = std::sqrt(mean_square(r, k, r.fit_rows));
     none.result.heldout_rms_arcsec = d.gap_before_arcsec;
     none.result.score = 0;
     all.push_back(std::move(none));

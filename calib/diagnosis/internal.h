@@ -31,6 +31,15 @@ struct Scored {
   }
 };
 
+// The rows of a joint diagnosis's recordings that keep a level of their own: every recording
+// after the first that runs on its own clock (JointPart::clock "own": a bench started again, whose
+// drift or temperature went on unseen between runs). Empty otherwise.
+std::vector<std::pair<size_t, size_t>> levelled_parts(const Recording& r);
+// The candidate `name` ("none": the levels alone) for this recording: with a level per axis for
+// each of levelled_parts(r), fitted with it, when there are any; make_candidate(name) otherwise
+// (null for none).
+std::unique_ptr<Candidate> make_candidate(const std::string& name, const Recording& r);
+
 // The candidates a recording cannot show, and why (observability.cpp).
 struct Observability {
   std::vector<NotObservable> missing;

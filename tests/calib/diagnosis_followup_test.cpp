@@ -132,13 +132,23 @@ TEST(JointDiagnosis, RunsOnTheGimbalsClockShareOneBenchClockAndADriftBetweenThem
   EXPECT_NEAR(d.causes[0].params["pitch_arcsec_per_s"].get<double>(), 0.004, 0.0004);
   for (const auto& w : d.warnings) EXPECT_EQ(w.find("share no clock"), std::string::npos) << w;
 
-  // Without the gimbal's clock each run starts again at zero: the diagnosis says so.
+  // Without the gimbal's clock each run starts again at zero: the diagnosis says so, and the
+  // second run keeps a level of its own (where the drift had got to when it started), so the one
+  // drift is still named from what each run shows.
   const Diagnosis own = diagnose(two_runs_on_one_bench(cfg, false), cfg.truth, options());
   EXPECT_EQ(own.to_json()["recordings"][1]["clock"], "own");
   EXPECT_TRUE(std::isnan(own.recordings[1].time_shift_s));
   EXPECT_TRUE(std::any_of(own.warnings.begin(), own.warnings.end(), [](const std::string& w) {
     return w.find("share no clock") != std::string::npos;
   }));
+  EXPECT_EQ(own.cause, "drift");
+  EXPECT_EQ(own.verdict, "explained");
+  ASSERT_FALSE(own.causes.empty());
+  EXPECT_NEAR(own.causes[0].params["pitch_arcsec_per_s"].get<double>(), 0.004, 0.0004);
+  // The level: the drift at the second run's start on the bench clock, 0.004 x its start.
+  const auto levels = own.causes[0].notes["recording_levels_arcsec"];
+  ASSERT_EQ(levels.size(), 1u) << own.causes[0].notes.dump();
+  EXPECT_NEAR(levels[0][0].get<double>(), 0.004 * (second_start - first_start), 0.15);
 }
 
 TEST(AmbiguousSets, ATemperatureReadToTwoDecimalsOnASlowRampIsStillALookAlikeOfDrift) {
