@@ -432,8 +432,8 @@ void Diagnoser::warn() {
   if (r.parts.size() > 1 && r.parts.back().clock == "own") {
     d.warnings.push_back(
         "the recordings share no clock (no gimbal_time_s in every one, or a gimbal clock that went back, and times "
-        "as recorded that start again): each runs on its own clock from its time_s = 0, so a drift or a temperature that went on "
-        "between runs shows as a step between recordings that no candidate models");
+        "as recorded that start again): each runs on its own clock from its time_s = 0 and keeps a level of its own "
+        "per axis (where a drift had got to when it started: what went on between runs is not seen)");
   }
   if (r.parts.size() > 1 && !r.has_since_move) {
     d.warnings.push_back("not every recording has a time_since_move_s column: none is used (arrivals assumed settle_s "
