@@ -102,6 +102,16 @@ ojson limit_for(const Recording& r, const EffectResult& e, double noise, double 
     Contribution k;
     k.resize(r.n);
     c->contribute(r, k);
+    // A recording that keeps a level of its own (levels.cpp) takes the effect's mean there.
+    for (const auto& [from, to] : levelled_parts(r)) {
+      for (int a = 0; a < 2; ++a) {
+        double s = 0, m = 0;
+        for (uint32_t i : r.heldout_rows) {
+          if (i >= from && i < to) { s += k.v[a][i]; m += 1; }
+        }
+        if (m > 0) for (size_t i = from; i < to; ++i) k.v[a][i] -= static_cast<float>(s / m);
+      }
+    }
     double g = 0, peak = 0;
     for (uint32_t i : r.heldout_rows) {
       g += k.v[0][i] * k.v[0][i] + k.v[1][i] * k.v[1][i];

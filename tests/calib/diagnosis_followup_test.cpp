@@ -149,6 +149,9 @@ TEST(JointDiagnosis, RunsOnTheGimbalsClockShareOneBenchClockAndADriftBetweenThem
   const auto levels = own.causes[0].notes["recording_levels_arcsec"];
   ASSERT_EQ(levels.size(), 1u) << own.causes[0].notes.dump();
   EXPECT_NEAR(levels[0][0].get<double>(), 0.004 * (second_start - first_start), 0.15);
+  // A bias shows in the first run only, where the second keeps its own level: a higher limit.
+  EXPECT_GT(candidate(own, "bias")->at("limit_arcsec").get<double>(),
+            1.2 * candidate(d, "bias")->at("limit_arcsec").get<double>());
 }
 
 TEST(AmbiguousSets, ATemperatureReadToTwoDecimalsOnASlowRampIsStillALookAlikeOfDrift) {
