@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <memory>
 #include <utility>
 
@@ -200,7 +201,14 @@ nlohmann::json investigations_json(const fs::path& runs_dir, size_t limit) {
   for (const auto& n : names) {
     if (out.size() >= limit) break;
     const fs::path dir = runs_dir / n;
-    if (!run_file(dir, "INVESTIGATION.json")) continue;
+    // A record is some kilobytes (a few runs and one diagnosis): a larger one is not read, so that a
+    // listing of up to `limit` of them stays bounded.
+    constexpr std::uintmax_t kMaxRecordBytes = std::uintmax_t{2} << 20;
+    std::error_code size_ec;
+    if (!run_file(dir, "INVESTIGATION.json") || fs::file_size(dir / "INVESTIGATION.json", size_ec) > kMaxRecordBytes ||
+        size_ec) {
+      continue;
+    }
     nlohmann::json inv;
     try {
       inv = read_json_file(dir / "INVESTIGATION.json", "INVESTIGATION.json");

@@ -58,8 +58,8 @@ std::optional<std::filesystem::path> run_file(const std::filesystem::path& run_d
 // The investigations of the runs folder (`investigate`'s default --out and the console's jobs put
 // them there: RUNS/investigation-*/INVESTIGATION.json), most recent first (their names carry the
 // UTC time), at most `limit`: name, stop reason, verdict, cause(s), still ambiguous, unbounded,
-// runs (ids), bench time and links to its files. A folder whose record is missing or unreadable
-// (being written) is left out.
+// runs (ids), bench time and links to its files. A folder whose record is missing, unreadable
+// (being written) or over 2 MiB is left out.
 nlohmann::json investigations_json(const std::filesystem::path& runs_dir, size_t limit = 200);
 // An investigation's folder by its name (investigation-[A-Za-z0-9._-]+, a real folder directly in
 // runs_dir, not a link); nullopt otherwise.

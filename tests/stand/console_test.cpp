@@ -245,6 +245,15 @@ TEST(Console, AnInvestigationIsQueuedAsAJobAndWritesItsRecord) {
     EXPECT_EQ(c.Get(bad.c_str())->status, 404) << bad;
   }
   EXPECT_EQ(json::parse(c.Get("/api/investigations")->body).size(), 1u) << "a link is not an investigation";
+  // Records that are not one: unreadable JSON, and one over 2 MiB, are left out of the list.
+  fs::create_directory(t / "runs" / "investigation-broken");
+  write_file(t / "runs" / "investigation-broken" / "INVESTIGATION.json", "{\"cause\": ");
+  fs::create_directory(t / "runs" / "investigation-huge");
+  write_file(t / "runs" / "investigation-huge" / "INVESTIGATION.json",
+             "{\"cause\": \"" + std::string(3u << 20, 'x') + "\"}");
+  const json after = json::parse(c.Get("/api/investigations")->body);
+  ASSERT_EQ(after.size(), 1u) << after.dump().substr(0, 300);
+  EXPECT_EQ(after[0]["name"], name);
 }
 
 TEST(Console, ARunOutlivesItsConsoleAndARestartedConsoleShowsItLive) {
