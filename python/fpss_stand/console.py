@@ -116,6 +116,23 @@ class Console:
         """run.json's key fields, ``live`` and ``files`` (links)."""
         return self._get(f"/api/runs/{self._name(run_id, 'run id')}")
 
+    def investigations(self, as_frame=False):
+        """The runs folder's sim-to-real investigations, most recent first: ``name``,
+        ``stop_reason``, ``verdict``, ``cause``, ``causes``, ``ambiguous``, ``unbounded``, ``runs``
+        (run ids), ``bench_time_s``, ``files`` (links). A list of dicts (``as_frame=True``: a
+        DataFrame)."""
+        rows = self._get("/api/investigations")
+        if not as_frame:
+            return rows
+        import pandas as pd
+        return pd.DataFrame(rows)
+
+    def investigation(self, name):
+        """An investigation's INVESTIGATION.json: ``runs``, ``steps`` and the final joint
+        diagnosis in GAP.json's fields (``verdict``, ``cause``, ``causes``, ``effects``,
+        ``ambiguous``)."""
+        return self._get(f"/investigations/{self._name(name, 'investigation')}/INVESTIGATION.json")
+
     def jobs(self):
         return self._get("/api/jobs")
 
@@ -123,12 +140,16 @@ class Console:
         return self._get(f"/api/jobs/{int(job_id)}")
 
     # --- the queue -------------------------------------------------------------------------------
-    def queue(self, procedure, unit, operator=None, kind="run"):
-        """Queues a run (``kind="accept"``: an acceptance) of a procedure file the console offers;
-        returns the job (``id``, ``state``)."""
+    def queue(self, procedure, unit, operator=None, kind="run", model=None):
+        """Queues a run (``kind="accept"``: an acceptance; ``kind="investigate"``: an
+        investigation, which needs ``model``, a published set's name such as ``"a-6-fpss1"``) of a
+        procedure file the console offers; returns the job (``id``, ``state``; an investigation's
+        ``investigation``, its folder's name)."""
         body = {"kind": kind, "procedure": procedure, "unit": unit}
         if operator is not None:
             body["operator"] = operator
+        if model is not None:
+            body["model"] = model
         return self._post("/api/jobs", body)
 
     def remove_job(self, job_id):

@@ -133,6 +133,26 @@ def test_pause_resume_and_abort(console):
     assert e.value.status == 409 and f"/api/runs/{run_id}/control" in str(e.value)
 
 
+def test_an_investigation_is_queued_and_read_back(console):
+    c, runs = console
+    job = c.queue("short_calibration.yaml", "", kind="investigate", model="a-6-fpss1")
+    name = job["investigation"]
+    assert name.startswith("investigation-") and name.endswith("-job%d" % job["id"])
+    done = c.wait_for_job(job["id"], timeout_s=240)
+    assert done["exit_code"] == 0, done
+    listed = [i for i in c.investigations() if i["name"] == name]
+    assert len(listed) == 1
+    record = c.investigation(name)
+    assert record["verdict"] == listed[0]["verdict"]
+    assert [r.split("/")[-1] for r in record["runs"]] == listed[0]["runs"]
+    assert record["steps"][0]["why"] == "the first run"
+    assert (runs / name / "INVESTIGATION.html").is_file()
+    frame = c.investigations(as_frame=True)
+    assert name in set(frame["name"])
+    with pytest.raises(ValueError):
+        c.investigation("../stand.db")
+
+
 def test_errors_name_the_url_and_status(console):
     c, _ = console
     with pytest.raises(fs.ConsoleError, match=r"404.*no such run|/api/runs/nothing.*404"):
