@@ -132,7 +132,8 @@ void add_investigate(CLI::App& app, Runner& run) {
       "investigate", "Run, diagnose, and design and run follow-ups until every candidate effect is named or bounded");
   expect_file(sub, sub->add_option("--model", a->model, "the sim model: a coefficient file (JSON)")->required(),
               a->model, FileKind::coefficients);
-  add_bench_choice_options(sub, *a, "Stand file (YAML) of the real bench", "Run on one emulated bench (a child that serves every run, its clock going on between them)");
+  add_bench_choice_options(sub, *a, "Stand file (YAML) of the real bench",
+                           "Run on one emulated bench (a child that serves every run, its clock going on between them)");
   expect_file(sub,
               sub->add_option("--procedure", a->procedure, "the first run (default: procedures/sim_to_real.yaml)"),
               a->procedure, FileKind::procedure);
