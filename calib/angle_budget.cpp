@@ -8,16 +8,13 @@
 namespace fpss::fit {
 namespace {
 
-// The temperature's entry at `counts`: the fit moved by kappa x shift, kappa not corrected for, so
-// its estimate counts with its sigma (GUM F.2.4.5: an uncorrected effect enlarges the uncertainty).
+// The temperature's entry at `counts`: the fit moved by kappa x shift (TemperatureInfluence).
 std::optional<BudgetEntry> temperature_entry(const AxisFit& out, double counts) {
   const fit::TemperatureInfluence& t = out.temperature;
   if (!t.known) return std::nullopt;
   const double sens = fit::angle_shift_arcsec(t.shift_scaled, out.coeffs, counts);
-  const double kappa_sigma = std::isfinite(t.sensitivity_sigma) ? t.sensitivity_sigma : 0.0;
-  const double u_kappa = std::hypot(t.sensitivity_arcsec_per_c, kappa_sigma);
   return BudgetEntry{"temperature (its spread over the recording, at the fitted sensitivity)", 'A', sens,
-                     std::abs(sens) * u_kappa, t.dof};
+                     std::abs(sens) * t.u_per_shift(), t.dof};
 }
 
 std::vector<BudgetEntry> fit_budget(const AxisFit& out, double counts) {
@@ -27,6 +24,13 @@ std::vector<BudgetEntry> fit_budget(const AxisFit& out, double counts) {
   }
   if (auto t = temperature_entry(out, counts)) b.push_back(*t);
   return b;
+}
+
+// The fit's angle sigma at `counts` with the temperature's entry beside it.
+double angle_sigma_with_temperature(const AxisFit& out, const Uncertainty& u, double counts) {
+  const double sig = angle_sigma_arcsec(u, out.coeffs, counts);
+  const auto t = temperature_entry(out, counts);
+  return t ? std::hypot(sig, t->u) : sig;
 }
 
 }  // namespace
@@ -49,11 +53,6 @@ std::vector<AxisFit::CovarianceSource> covariance_sources(const AxisFit& out, co
   };
 }
 
-double angle_sigma_with_temperature(const AxisFit& out, const Uncertainty& u, double counts) {
-  const double sig = angle_sigma_arcsec(u, out.coeffs, counts);
-  const auto t = temperature_entry(out, counts);
-  return t ? std::hypot(sig, t->u) : sig;
-}
 
 void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, int count,
                        const std::optional<std::array<double, 2>>& range_arcsec) {
@@ -82,6 +81,5 @@ void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, in
     out.angle_budget.push_back(std::move(budget));
   }
 }
-
 
 }  // namespace fpss::fit

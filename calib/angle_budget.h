@@ -15,9 +15,6 @@ namespace fpss::fit {
 // residuals' scatter (model and fit).
 std::vector<AxisFit::CovarianceSource> covariance_sources(const AxisFit& out, const Uncertainty& u, const AxisData& d);
 
-// The fit's angle sigma at `counts` with the temperature's entry beside it.
-double angle_sigma_with_temperature(const AxisFit& out, const Uncertainty& u, double counts);
-
 // `count` evenly spaced angles over the calibrated range (or `range_arcsec`), each with its sigma
 // and its budget (AxisFit::angle_sigma_arcsec, angle_budget).
 void list_angle_sigmas(AxisFit& out, const Uncertainty& u, const AxisData& d, int count,

@@ -372,15 +372,7 @@ AxisFit fit_axis(const AxisData& d, const FrequencyGram& gram, Axis axis, const 
     u = uncertainty(d, out.coeffs, ro);
   }
   out.sigma = u.sigma;
-  out.angle_sigma_max_arcsec = u.angle_sigma_max_arcsec;
-  if (out.temperature.known) {
-    // Over the same 201 counts as the fit's own maximum, with the temperature's entry.
-    constexpr int kSteps = 200;
-    for (int k = 0; k <= kSteps; ++k) {
-      const double n = d.counts_lo + (d.counts_hi - d.counts_lo) * k / kSteps;
-      out.angle_sigma_max_arcsec = std::max(out.angle_sigma_max_arcsec, angle_sigma_with_temperature(out, u, n));
-    }
-  }
+  out.angle_sigma_max_arcsec = u.angle_sigma_max_arcsec;  // the temperature's entry in it (refine_gls)
   out.covariance_pseudo_inverse = u.pseudo_inverse;
   out.covariance_note = u.note;
 

@@ -63,7 +63,7 @@ MonteCarloAxis check_axis(const AxisFit& a, int sensor_axis, const CalibrationRe
     double u, dof;
     std::optional<std::chi_squared_distribution<double>> chi2;
   };
-  // The temperature's entry follows the fit's sources (calibrator.cpp fit_budget); drawn the same
+  // The temperature's entry follows the fit's sources (angle_budget.cpp fit_budget); drawn the same
   // way, about zero: its u stands for an effect the fit did not correct.
   std::vector<Source> sources;
   const size_t drawn_entries = a.covariance_sources.size() + (a.temperature.known ? 1 : 0);

@@ -3,6 +3,7 @@
 #pragma once
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -44,13 +45,20 @@ struct TemperatureInfluence {
   double sensitivity_arcsec_per_c = 0;  // kappa: d(sensor angle - reference) / dT
   double sensitivity_sigma = 0;         // its 1-sigma (NaN: the temperatures did not vary)
   double dof = 0;
+  // The angle's standard uncertainty per arcsec of shift (angle_shift_arcsec of shift_scaled): kappa
+  // is not corrected for, so its estimate counts with its sigma (GUM F.2.4.5: an uncorrected effect
+  // enlarges the uncertainty).
+  double u_per_shift() const {
+    return std::hypot(sensitivity_arcsec_per_c, std::isfinite(sensitivity_sigma) ? sensitivity_sigma : 0.0);
+  }
 };
 
 struct Uncertainty {
   std::array<double, 8> sigma{};  // 1-sigma of C1..C8, in the coefficients' units
   Eigen::Matrix<double, 8, 8> covariance = Eigen::Matrix<double, 8, 8>::Zero();  // of C1..C8
   double residual_sigma_arcsec = 0;  // scale of the covariance: sqrt(sum r^2 / (m - p))
-  double angle_sigma_max_arcsec = 0;  // max over the count range of sqrt(J cov J^T)
+  // max over the count range of sqrt(J cov J^T), with the temperature's entry (known) beside it
+  double angle_sigma_max_arcsec = 0;
   double angle_sigma_at_counts = 0;  // where that max is
   bool pseudo_inverse = false;  // J^T J was rank deficient: Moore-Penrose pseudo-inverse
   std::string note;

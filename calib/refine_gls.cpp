@@ -416,7 +416,10 @@ GlsFit refine_gls(const GlsData& g, const AxisCoeffs& start, double counts_lo, d
   constexpr int kSteps = 200;
   for (int k = 0; k <= kSteps; ++k) {
     const double n = counts_lo + (counts_hi - counts_lo) * k / kSteps;
-    const double sig = angle_sigma_arcsec(un, out.coeffs, n);
+    double sig = angle_sigma_arcsec(un, out.coeffs, n);
+    if (un.temperature.known) {
+      sig = std::hypot(sig, angle_shift_arcsec(un.temperature.shift_scaled, out.coeffs, n) * un.temperature.u_per_shift());
+    }
     if (sig > un.angle_sigma_max_arcsec) {
       un.angle_sigma_max_arcsec = sig;
       un.angle_sigma_at_counts = n;
