@@ -28,6 +28,9 @@ std::vector<DwellStats> dwell_stats(const Reduction& reduced, const AcceptanceDa
     d.ref[0] = w.ref_pitch_arcsec;
     d.ref[1] = w.ref_yaw_arcsec;
     d.temperature_c = w.temperature_c;
+    for (int ax = 0; ax < 2 && data.reference; ++ax) {
+      d.reference_terms[ax] = reference_terms_at(*data.reference, data.mount, ax, d.ref[ax], d.ref[1 - ax]);
+    }
     for (int ax = 0; ax < 2 && cal; ++ax) {
       const AxisModel m = ax == 0 ? cal->alpha_model() : cal->beta_model();
       const double counts = ax == 0 ? w.counts_alpha : w.counts_beta;
@@ -47,8 +50,6 @@ std::vector<DwellStats> dwell_stats(const Reduction& reduced, const AcceptanceDa
   }
   return out;
 }
-
-
 
 // The error budget of one dwell's mean error: sensor noise (A), quantisation (B), reference noise (A).
 std::vector<BudgetEntry> dwell_budget(const DwellStats& d, int ax) {
@@ -114,16 +115,15 @@ double rms_temperature_offset(const std::vector<const DwellStats*>& dwells, cons
 void add_reference_terms(std::vector<BudgetEntry>& b, const AcceptanceData& data,
                          const std::vector<const DwellStats*>& dwells, int ax) {
   if (!data.reference || dwells.empty()) return;
-  std::vector<BudgetEntry> worst;
+  const DwellStats* worst = nullptr;
   double worst_u = -1;
   for (const DwellStats* d : dwells) {
-    auto terms = reference_terms_at(*data.reference, data.mount, ax, d->ref[ax], d->ref[1 - ax]);
-    if (const double u = root_sum_square(terms); u > worst_u) {
+    if (const double u = root_sum_square(d->reference_terms[ax]); u > worst_u) {
       worst_u = u;
-      worst = std::move(terms);
+      worst = d;
     }
   }
-  b.insert(b.end(), worst.begin(), worst.end());
+  b.insert(b.end(), worst->reference_terms[ax].begin(), worst->reference_terms[ax].end());
 }
 
 // The 3-sigma accuracy over `points` is an RMS of errors each measured with its dwell's standard error
@@ -136,10 +136,7 @@ void add_rms_terms(std::vector<BudgetEntry>& b, const AcceptanceData& data,
   double se2 = 0, ref2 = 0;
   for (const DwellStats* d : points) {
     se2 += d->se[ax] * d->se[ax];
-    if (data.reference) {
-      const double u = root_sum_square(reference_terms_at(*data.reference, data.mount, ax, d->ref[ax], d->ref[1 - ax]));
-      ref2 += u * u;
-    }
+    ref2 += sq(root_sum_square(d->reference_terms[ax]));
   }
   const double n = static_cast<double>(points.size());
   const double inflation = rms - std::sqrt(std::max(0.0, rms * rms - se2 / n));

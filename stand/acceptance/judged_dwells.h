@@ -32,6 +32,9 @@ struct DwellStats {
   size_t ref_readings = 0;
   double se[2] = {0, 0};
   double temperature_c = std::numeric_limits<double>::quiet_NaN();  // the sensor's, over the dwell
+  // The reference calibration's terms at the dwell (the stand's `reference:`), per sensor axis;
+  // empty without one.
+  std::vector<BudgetEntry> reference_terms[2];
 };
 
 inline double sq(double x) { return x * x; }
