@@ -457,6 +457,15 @@ std::vector<double> bench_clock_shifts(const std::vector<DiagnosisColumns>& part
 
 }  // namespace
 
+const char* to_string(JointClock c) {
+  switch (c) {
+    case JointClock::bench: return "bench";
+    case JointClock::recorded: return "recorded";
+    case JointClock::own: return "own";
+  }
+  return "own";
+}
+
 DiagnosisColumns DiagnosisColumns::of(const SampleTable& t) {
   // The optional columns are filled below, where the table has them.
   DiagnosisColumns c{t.origin, t.time_s, t.ref_pitch_arcsec, t.ref_yaw_arcsec, t.counts_alpha, t.counts_beta,
@@ -526,8 +535,12 @@ DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts) {
       append(j.approach_pitch, c.approach_pitch);
       append(j.approach_yaw, c.approach_yaw);
     }
-    j.parts.push_back({c.origin, n, shift.empty() ? (on_one ? 0.0 : std::numeric_limits<double>::quiet_NaN()) : shift[k],
-                       !shift.empty() ? "bench" : on_one ? "recorded" : "own"});
+    const JointClock clock = !shift.empty() ? JointClock::bench : on_one ? JointClock::recorded : JointClock::own;
+    j.parts.push_back({c.origin, n,
+                       clock == JointClock::bench      ? shift[k]
+                       : clock == JointClock::recorded ? 0.0
+                                                       : std::numeric_limits<double>::quiet_NaN(),
+                       clock});
     names.push_back(c.origin);
   }
   j.origin = fmt::format("{}", fmt::join(names, " + "));

@@ -221,7 +221,7 @@ void Diagnoser::fit_singles() {
     const Contribution* settling = c ? &*c : nullptr;
     d.noise_floor_arcsec = noise_floor(r, sig, settling);
     // Each recording's own floor (its nuisance level): one entry for a single recording.
-    const std::vector<JointPart> one{{r.origin, r.n, 0.0, "recorded"}};
+    const std::vector<JointPart> one{{r.origin, r.n, 0.0, JointClock::recorded}};
     size_t from = 0;
     for (const auto& [origin, rows, shift, clock] : r.parts.empty() ? one : r.parts) {
       Diagnosis::Part p;
@@ -429,7 +429,7 @@ void Diagnoser::judge_candidates() {
 }
 
 void Diagnoser::warn() {
-  if (r.parts.size() > 1 && r.parts.back().clock == "own") {
+  if (r.parts.size() > 1 && r.parts.back().clock == JointClock::own) {
     d.warnings.push_back(
         "the recordings share no clock (no gimbal_time_s in every one, or a gimbal clock that went back, and times "
         "as recorded that start again): each runs on its own clock from its time_s = 0 and keeps a level of its own "

@@ -82,6 +82,12 @@ struct NotObservable {
   bool incomplete_recording = false;  // the recording lacks a part every diagnosis recording should have
 };
 
+// The clock a joint diagnosis's recording runs on: `bench`, shifted by its time_shift_s onto the
+// first recording's gimbal clock; `recorded`, its time_s already going on from the recording before
+// (as one lab clock writes it); `own`, starting again (time_shift_s NaN; it keeps a level of its own).
+enum class JointClock { bench, recorded, own };
+const char* to_string(JointClock c);  // GAP.json `recordings[].clock`
+
 struct Diagnosis {
   std::string source;
   std::string cause = "none";
@@ -132,7 +138,7 @@ struct Diagnosis {
     int64_t step_offset = 0;
     double time_span_s[2] = {0, 0};  // on the joint clock
     double time_shift_s = std::numeric_limits<double>::quiet_NaN();  // onto the bench clock; NaN: own clock
-    std::string clock = "recorded";  // JointPart::clock
+    JointClock clock = JointClock::recorded;
     double noise_floor_arcsec = 0;
   };
   std::vector<Part> recordings;
@@ -168,15 +174,12 @@ struct Diagnosis {
   nlohmann::ordered_json to_json() const;
 };
 
-// One recording of a joint diagnosis as joined: where it came from, its rows, and the clock its
-// time_s runs on: "bench" (shifted by time_shift_s onto the first recording's gimbal clock),
-// "recorded" (its time_s already goes on from the recording before, as one lab clock writes it),
-// or "own" (it starts again; time_shift_s NaN).
+// One recording of a joint diagnosis as joined: where it came from, its rows, its clock.
 struct JointPart {
   std::string origin;
   size_t rows = 0;
   double time_shift_s = std::numeric_limits<double>::quiet_NaN();
-  std::string clock = "own";
+  JointClock clock = JointClock::own;
 };
 
 // The columns the diagnosis reads, column-major and nothing else (about 60 bytes a row): the

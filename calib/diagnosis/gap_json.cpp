@@ -102,7 +102,7 @@ ojson Diagnosis::to_json() const {
                      {"rows", p.rows},
                      {"step_offset", p.step_offset},
                      {"time_span_s", {p.time_span_s[0], p.time_span_s[1]}},
-                     {"clock", p.clock},
+                     {"clock", to_string(p.clock)},
                      {"time_shift_s", std::isfinite(p.time_shift_s) ? ojson(p.time_shift_s) : ojson()},
                      {"noise_floor_arcsec", std::isfinite(p.noise_floor_arcsec) ? ojson(p.noise_floor_arcsec) : ojson()}});
   }

@@ -6,12 +6,38 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Dense>
 #include <nlohmann/json.hpp>
 
 #include "calib/diagnosis/diagnosis.h"
 #include "calib/diagnosis/model.h"
 
 namespace fpss::diag {
+
+// Least squares over `rows` (both axes) of y ~ v . w for m columns: fill(i, a, v) writes row i's
+// column values on axis a into v[0..m) and returns its y. The columns are evaluated row by row as
+// the sums are made (no column arrays: a large recording's memory); a tiny ridge keeps a column that
+// is zero on every row (an effect silent there) from making the normal equations singular.
+template <typename Fill>
+Eigen::VectorXd solve_columns(const std::vector<uint32_t>& rows, int m, Fill&& fill) {
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(m, m);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
+  std::vector<double> v(static_cast<size_t>(m));
+  for (uint32_t i : rows) {
+    for (int a = 0; a < 2; ++a) {
+      const double y = fill(i, a, v.data());
+      for (int x = 0; x < m; ++x) {
+        const double vx = v[x];
+        if (vx == 0) continue;
+        b(x) += vx * y;
+        for (int z = 0; z <= x; ++z) G(x, z) += vx * v[z];
+      }
+    }
+  }
+  G = G.selfadjointView<Eigen::Lower>();
+  G.diagonal().array() += 1e-12 * (G.diagonal().maxCoeff() + 1e-30);
+  return G.ldlt().solve(b);
+}
 
 // Mean square over both axes of (residual - contribution) on `rows`.
 double mean_square(const Recording& r, const Contribution* c, const std::vector<uint32_t>& rows);
@@ -32,7 +58,7 @@ struct Scored {
 };
 
 // The rows of a joint diagnosis's recordings that keep a level of their own: every recording
-// after the first that runs on its own clock (JointPart::clock "own": a bench started again, whose
+// after the first that runs on its own clock (JointClock::own: a bench started again, whose
 // drift or temperature went on unseen between runs). Empty otherwise.
 std::vector<std::pair<size_t, size_t>> levelled_parts(const Recording& r);
 // The candidate `name` ("none": the levels alone) for this recording: with a level per axis for

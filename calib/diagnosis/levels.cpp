@@ -1,7 +1,5 @@
 // Each recording's own level in a joint diagnosis of recordings that do not share a clock: a
 // candidate with a constant per axis for every such recording after the first, fitted with it.
-#include <Eigen/Dense>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -117,23 +115,10 @@ class Levelled : public Candidate {
   // The inner candidate's columns and the levels in one least-squares solve on `rows`.
   void solve_linear(const Recording& r, const Contribution& target, const Rows& rows) {
     const int m = columns();
-    Eigen::MatrixXd G = Eigen::MatrixXd::Zero(m, m);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
-    std::vector<double> v(static_cast<size_t>(m));
-    for (uint32_t i : rows) {
-      for (int a = 0; a < 2; ++a) {
-        column_values(r, i, a, v.data());
-        const double y = target.at(a, i) - column_offset(r, i, a);
-        for (int x = 0; x < m; ++x) {
-          if (v[x] == 0) continue;
-          b(x) += v[x] * y;
-          for (int z = 0; z <= x; ++z) G(x, z) += v[x] * v[z];
-        }
-      }
-    }
-    G = G.selfadjointView<Eigen::Lower>();
-    G.diagonal().array() += 1e-12 * (G.diagonal().maxCoeff() + 1e-30);
-    const Eigen::VectorXd w = G.ldlt().solve(b);
+    const Eigen::VectorXd w = solve_columns(rows, m, [&](uint32_t i, int a, double* v) {
+      column_values(r, i, a, v);
+      return target.at(a, i) - column_offset(r, i, a);
+    });
     set_linear(std::vector<double>(w.data(), w.data() + m));
   }
 
@@ -148,7 +133,7 @@ std::vector<std::pair<size_t, size_t>> levelled_parts(const Recording& r) {
   Ranges out;
   size_t from = 0;
   for (size_t k = 0; k < r.parts.size(); ++k) {
-    if (k > 0 && r.parts[k].clock == "own") out.emplace_back(from, from + r.parts[k].rows);
+    if (k > 0 && r.parts[k].clock == JointClock::own) out.emplace_back(from, from + r.parts[k].rows);
     from += r.parts[k].rows;
   }
   return out;

@@ -42,32 +42,18 @@ double mean_square2(const Recording& r, const Contribution& k1, const Contributi
 }
 
 // One least-squares solve over the linear columns of both candidates (those that have them),
-// the other's contribution held; their contributions are then rewritten. The columns are
-// evaluated row by row as the sums are made (no column arrays: a large recording's memory).
+// the other's contribution held; their contributions are then rewritten.
 void joint_linear_step(const Recording& r, Candidate* c[2], Contribution* k[2]) {
   const int mq[2] = {c[0]->columns(), c[1]->columns()};
   const int m = mq[0] + mq[1];
   if (m == 0) return;
-  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(m, m);
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
-  std::vector<double> v(m);
-  for (uint32_t i : r.fit_rows) {
-    for (int a = 0; a < 2; ++a) {
-      double target = r.res[a][i];
-      for (int q = 0; q < 2; ++q) target -= mq[q] == 0 ? k[q]->v[a][i] : c[q]->column_offset(r, i, a);
-      if (mq[0] > 0) c[0]->column_values(r, i, a, v.data());
-      if (mq[1] > 0) c[1]->column_values(r, i, a, v.data() + mq[0]);
-      for (int x = 0; x < m; ++x) {
-        const double vx = v[x];
-        if (vx == 0) continue;
-        b(x) += vx * target;
-        for (int y = 0; y <= x; ++y) G(x, y) += vx * v[y];
-      }
-    }
-  }
-  G = G.selfadjointView<Eigen::Lower>();
-  G.diagonal().array() += 1e-12 * (G.diagonal().maxCoeff() + 1e-30);
-  const Eigen::VectorXd w = G.ldlt().solve(b);
+  const Eigen::VectorXd w = solve_columns(r.fit_rows, m, [&](uint32_t i, int a, double* v) {
+    double target = r.res[a][i];
+    for (int q = 0; q < 2; ++q) target -= mq[q] == 0 ? k[q]->v[a][i] : c[q]->column_offset(r, i, a);
+    if (mq[0] > 0) c[0]->column_values(r, i, a, v);
+    if (mq[1] > 0) c[1]->column_values(r, i, a, v + mq[0]);
+    return target;
+  });
   for (int q = 0, at = 0; q < 2; at += mq[q], ++q) {
     if (mq[q] == 0) continue;
     c[q]->set_linear(std::vector<double>(w.data() + at, w.data() + at + mq[q]));
