@@ -106,8 +106,8 @@ nlohmann::json parse_json_text(std::string_view text, const std::string& origin,
   }
 }
 
-nlohmann::json read_json_file(const std::filesystem::path& path, std::string_view what) {
-  return parse_json_text(read_text_file(path, what, kMaxConfigFileBytes), path.string());
+nlohmann::json read_json_file(const std::filesystem::path& path, std::string_view what, std::uintmax_t max_bytes) {
+  return parse_json_text(read_text_file(path, what, max_bytes), path.string());
 }
 
 }  // namespace fpss

@@ -117,17 +117,21 @@ nlohmann::json runs_json(const fs::path& runs_dir, const std::string& catalogue_
   return out;
 }
 
-// The files a run's page links (a unit's folder has the same but the run's own two).
+// The files a run's page links (a unit's folder has the same but the run's own two), and an
+// investigation's.
 constexpr const char* kUnitFiles[] = {"report.html", "GAP.html", "certificate.txt", "acceptance.json", "samples.csv",
                                       "calibration.json"};
 constexpr const char* kRunOnlyFiles[] = {"events.jsonl", "run.json"};
+constexpr const char* kInvestigationFiles[] = {"INVESTIGATION.html", "INVESTIGATION.json", "GAP.json", "GAP.html"};
 
-// Those of `names` present under `rel_dir` of the run's folder, by name, as the console serves them.
-static nlohmann::json served_files(const RunRef& r, const std::string& rel_dir, const auto& names) {
+// Those of `names` present under `rel_dir` of `dir`, by name, as the console serves them (`url`:
+// where it serves `dir`).
+static nlohmann::json served_files(const fs::path& dir, const std::string& url, const std::string& rel_dir,
+                                   const auto& names) {
   nlohmann::json out = nlohmann::json::object();
   for (const char* f : names) {
     const std::string rel = rel_dir.empty() ? std::string(f) : rel_dir + "/" + f;
-    if (run_file(r.dir, rel)) out[f] = "/runs/" + r.run_id + "/" + rel;
+    if (run_file(dir, rel)) out[f] = url + "/" + rel;
   }
   return out;
 }
@@ -141,15 +145,16 @@ nlohmann::json run_json(const RunRef& r) {
     if (doc.contains(k)) j[k] = doc[k];
   }
   if (j.contains("procedure") && j["procedure"].is_object()) j["procedure"].erase("text");
-  nlohmann::json files = served_files(r, "", kUnitFiles);
-  files.update(served_files(r, "", kRunOnlyFiles));
+  const std::string url = "/runs/" + r.run_id;
+  nlohmann::json files = served_files(r.dir, url, "", kUnitFiles);
+  files.update(served_files(r.dir, url, "", kRunOnlyFiles));
   j["files"] = files;
   if (run && run->units) {
     // Several units: each one's outcome, verdict and files (units/<SERIAL>/...), and its pose.
     j["units"] = nlohmann::json::array();
     for (const RunFileUnit& u : *run->units) {
       nlohmann::json e = to_json(u);
-      e["files"] = u.samples ? served_files(r, fs::path(*u.samples).parent_path().string(), kUnitFiles)
+      e["files"] = u.samples ? served_files(r.dir, url, fs::path(*u.samples).parent_path().string(), kUnitFiles)
                              : nlohmann::json::object();
       j["units"].push_back(e);
     }
@@ -204,14 +209,10 @@ nlohmann::json investigations_json(const fs::path& runs_dir, size_t limit) {
     // A record is some kilobytes (a few runs and one diagnosis): a larger one is not read, so that a
     // listing of up to `limit` of them stays bounded.
     constexpr std::uintmax_t kMaxRecordBytes = std::uintmax_t{2} << 20;
-    std::error_code size_ec;
-    if (!run_file(dir, "INVESTIGATION.json") || fs::file_size(dir / "INVESTIGATION.json", size_ec) > kMaxRecordBytes ||
-        size_ec) {
-      continue;
-    }
+    if (!run_file(dir, "INVESTIGATION.json")) continue;
     nlohmann::json inv;
     try {
-      inv = read_json_file(dir / "INVESTIGATION.json", "INVESTIGATION.json");
+      inv = read_json_file(dir / "INVESTIGATION.json", "INVESTIGATION.json", kMaxRecordBytes);
     } catch (const std::exception&) {
       continue;
     }
@@ -234,11 +235,7 @@ nlohmann::json investigations_json(const fs::path& runs_dir, size_t limit) {
     j["causes"] = causes;
     j["ambiguous"] = ambiguous;
     j["runs"] = runs;
-    nlohmann::json files = nlohmann::json::object();
-    for (const char* f : {"INVESTIGATION.html", "INVESTIGATION.json", "GAP.json", "GAP.html"}) {
-      if (run_file(dir, f)) files[f] = "/investigations/" + n + "/" + f;
-    }
-    j["files"] = files;
+    j["files"] = served_files(dir, "/investigations/" + n, "", kInvestigationFiles);
     out.push_back(std::move(j));
   }
   return out;

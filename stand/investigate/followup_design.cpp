@@ -264,7 +264,8 @@ double number(const ojson& j, const char* key) {
 double followup_start_s(const ojson& gap) {
   if (!gap.contains("recordings") || !gap["recordings"].is_array() || gap["recordings"].empty()) return 0;
   const ojson& last = gap["recordings"].back();
-  if (last.value("clock", std::string("own")) == "own") return 0;
+  const std::string own = to_string(JointClock::own);
+  if (last.value("clock", own) == own) return 0;
   const ojson span = last.value("time_span_s", ojson::array());
   return span.is_array() && span.size() == 2 && span[1].is_number() ? std::max(0.0, span[1].get<double>()) : 0.0;
 }
