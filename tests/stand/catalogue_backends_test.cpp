@@ -55,6 +55,21 @@ nlohmann::json calibration_json(const std::string& unit, double pitch_mean) {
   return j;
 }
 
+// An imported calibration of `unit` for an MSA study of the angle at zero counts: its C1 puts
+// `c1_arcsec` there; `pitch_mean` is its residuals' mean (calibration_json).
+CalibrationRecord msa_calibration(const std::string& unit, double c1_arcsec, double pitch_mean,
+                                  const std::string& source_ref, const std::string& stand, const std::string& date) {
+  auto j = calibration_json(unit, pitch_mean);
+  j["alpha"][0] = c1_arcsec / 206264.80624709636;
+  auto cal = CalibrationRecord::from_calibration_json(j, "msa");
+  cal.unit = unit;
+  cal.source = "import";
+  cal.source_ref = source_ref;
+  cal.stand = stand;
+  cal.date_utc = date;
+  return cal;
+}
+
 enum class Backend { sqlite, postgresql };
 
 class Backends : public ::testing::TestWithParam<Backend> {
@@ -462,15 +477,10 @@ TEST_P(Backends, MsaStudiesUnitsByStandsFromEitherBackend) {
       for (int st = 0; st < 2; ++st) {
         for (int k = -1; k < 3; ++k) {
           const double c1_arcsec = 2.0 * u + 0.3 * st + noise(rng);
-          auto j = calibration_json(unit, 0.3 + 0.01 * noise(rng));
-          j["alpha"][0] = c1_arcsec / 206264.80624709636;
-          auto cal = CalibrationRecord::from_calibration_json(j, "msa");
-          cal.unit = unit;
-          cal.source = "import";
-          cal.source_ref = fmt::format("msa-{}-{}-{}.json", u, st, k);
-          cal.stand = st == 0 ? "stand-A" : "stand-B";
-          cal.date_utc = k < 0 ? "2025-06-01T00:00:00Z" : fmt::format("2026-02-0{}T00:00:00Z", k + 1);
-          cat->record_calibration(cal);
+          const double pitch_mean = 0.3 + 0.01 * noise(rng);
+          cat->record_calibration(msa_calibration(
+              unit, c1_arcsec, pitch_mean, fmt::format("msa-{}-{}-{}.json", u, st, k), st == 0 ? "stand-A" : "stand-B",
+              k < 0 ? "2025-06-01T00:00:00Z" : fmt::format("2026-02-0{}T00:00:00Z", k + 1)));
           if (k >= 0) expected.y[u][st].push_back(c1_arcsec);
         }
       }
@@ -549,15 +559,9 @@ TEST_P(Backends, MsaStudiesUnitsByOperatorsFromEitherBackend) {
     expected.y.assign(3, std::vector<std::vector<double>>(2));
     const auto record = [&](int u, const std::string& op, const std::string& stand, const std::string& date, double c1) {
       const std::string unit = fmt::format("SN-{}", u);
-      auto j = calibration_json(unit, 0.3 + 0.01 * noise(rng));
-      j["alpha"][0] = c1 / 206264.80624709636;
-      auto cal = CalibrationRecord::from_calibration_json(j, "msa");
-      cal.unit = unit;
-      cal.source = "import";
-      cal.source_ref = fmt::format("msa-{}-{}-{}.json", u, op, date);
-      cal.stand = stand;
+      auto cal = msa_calibration(unit, c1, 0.3 + 0.01 * noise(rng), fmt::format("msa-{}-{}-{}.json", u, op, date), stand,
+                                 date);
       cal.operator_name = op;
-      cal.date_utc = date;
       cat->record_calibration(cal);
     };
     for (int u = 0; u < 3; ++u) {
