@@ -32,7 +32,7 @@ class Levelled : public Candidate {
     std::fill(level_.begin(), level_.end(), std::array<double, 2>{0.0, 0.0});
     Contribution own;  // the inner candidate's contribution (zero for none)
     own.resize(r.n);
-    if (!inner_) return set_levels(r, target, own, rows);
+    if (!inner_) return set_levels(target, own, rows);
     Contribution shifted = target;
     for (int pass = 0; pass < 3; ++pass) {
       for (size_t k = 0; k < parts_.size(); ++k) {
@@ -43,7 +43,7 @@ class Levelled : public Candidate {
       }
       inner_->fit(r, shifted, rows);
       inner_->contribute(r, own);
-      set_levels(r, target, own, rows);
+      set_levels(target, own, rows);
     }
     if (inner_->columns() > 0) solve_linear(r, target, rows);
   }
@@ -99,8 +99,9 @@ class Levelled : public Candidate {
   std::string degenerate() const override { return inner_ ? inner_->degenerate() : std::string(); }
 
  private:
-  // Each level: the mean over its rows among `rows` of what the inner candidate leaves.
-  void set_levels(const Recording& r, const Contribution& target, const Contribution& own, const Rows& rows) {
+  // Each level: the mean over its rows among `rows` (ascending, as the split makes them) of what the
+  // inner candidate leaves.
+  void set_levels(const Contribution& target, const Contribution& own, const Rows& rows) {
     for (size_t k = 0; k < parts_.size(); ++k) {
       const auto lo = std::lower_bound(rows.begin(), rows.end(), static_cast<uint32_t>(parts_[k].first));
       const auto hi = std::lower_bound(rows.begin(), rows.end(), static_cast<uint32_t>(parts_[k].second));
