@@ -17,7 +17,6 @@ namespace fpss::diag {
 
 namespace {
 
-
 // How a recording's temperature readings sit against time, one reading per step (the engine reads
 // the temperature once per point, so a step's rows share its reading: the hold within a step is
 // not a departure from time). The temperature follows time as far as its readings can tell when
@@ -30,7 +29,8 @@ namespace {
 struct TemperatureVsTime {
   double span_c = 0, rho = 0, off_line_rms_c = 0, quantum_c = 0, noise_c = 0, level_c = 0;
   double rounding_rms_c() const { return quantum_c / std::sqrt(12.0); }
-  // What the readings scatter by themselves, with float storage's relative 1e-7 as the floor.
+  // What the readings scatter by themselves, with 1e-6 of their level as the floor (a few ulps of
+  // float storage, whose relative step is about 1e-7).
   double reading_rms_c() const {
     return std::max({std::hypot(rounding_rms_c(), noise_c), 1e-6 * std::abs(level_c), 1e-9});
   }
