@@ -264,6 +264,11 @@ Refit refit_axis(const AxisCoeffs& model, const AxisRows& s) {
   return out;
 }
 
+// The sixths of the range as a list per axis, for GAP.json.
+ojson sections_json(const std::array<std::array<bool, kRangeSections>, 2>& s) {
+  return {{"alpha", s[0]}, {"beta", s[1]}};
+}
+
 class Coefficients : public NamedCandidate<Coefficients> {
  public:
   Coefficients() : NamedCandidate("coefficients", 16) {}
@@ -288,6 +293,10 @@ class Coefficients : public NamedCandidate<Coefficients> {
       }
       if (s.count > 0) { lo_[a] = s.lo; hi_[a] = s.hi; }
     }
+    std::vector<uint32_t> usable = r.fit_rows;
+    usable.insert(usable.end(), r.heldout_rows.begin(), r.heldout_rows.end());
+    sections_ = range_sections(r, usable);
+    half_range_arcsec_ = r.calibrated_range_arcsec;
     fitted_ = true;
   }
   // model(N) - refit(N); model(N) is the recording's measured angle (residual + reference), so
@@ -343,7 +352,11 @@ class Coefficients : public NamedCandidate<Coefficients> {
     if (!fitted_) return ojson::object();
     return {{"params", "the sensor's transfer function (paper eq. 1) refitted per axis on the fit rows: C1..C8, "
                        "radians and counts, as in a coefficient file (the emulator's coefficients effect)"},
-            {"counts_range", {{"alpha", {lo_[0], hi_[0]}}, {"beta", {lo_[1], hi_[1]}}}}};
+            {"counts_range", {{"alpha", {lo_[0], hi_[0]}}, {"beta", {lo_[1], hi_[1]}}}},
+            {"range_sections", sections_json(sections_)},
+            {"range_sections_note", fmt::format("the sixths of the calibrated range ±{:g} arcsec (pitch for alpha, yaw "
+                                                "for beta) the recordings' rows reach: the refit is measured there and "
+                                                "extrapolated elsewhere", half_range_arcsec_)}};
   }
 
  private:
@@ -357,11 +370,28 @@ class Coefficients : public NamedCandidate<Coefficients> {
   double lo_[2] = {0, 0}, hi_[2] = {0, 0};
   double model_amp_[2] = {0, 0};
   double variance_[2] = {0, 0};
+  std::array<std::array<bool, kRangeSections>, 2> sections_{};
+  double half_range_arcsec_ = 0;
   bool prior_kept_[2] = {false, false};
   bool fitted_ = false;
 };
 
 }  // namespace
+
+std::array<std::array<bool, kRangeSections>, 2> range_sections(const Recording& r, const std::vector<uint32_t>& rows) {
+  std::array<std::array<bool, kRangeSections>, 2> out{};
+  const double R = r.calibrated_range_arcsec, width = 2 * R / kRangeSections;
+  if (!(R > 0)) return out;
+  for (uint32_t i : rows) {
+    if (r.use[i] == Use::excluded || (!r.outlier.empty() && r.outlier[i])) continue;
+    for (int a = 0; a < 2; ++a) {
+      const double x = r.ref[a][i];
+      if (!(std::abs(x) <= R * (1 + 1e-9))) continue;
+      out[a][std::clamp(static_cast<int>(std::floor((x + R) / width)), 0, kRangeSections - 1)] = true;
+    }
+  }
+  return out;
+}
 
 std::unique_ptr<Candidate> make_coefficients_candidate() { return std::make_unique<Coefficients>(); }
 

@@ -368,6 +368,7 @@ void split_steps(Recording& r, const DiagnosisOptions& opts) {
   // Split by whole steps: one in `heldout_every` of each stratum is held out (a stratum with two
   // steps gives one to each side); the ends of slew segments are scored by nobody.
   r.guard_s = opts.max_skew_s;
+  r.calibrated_range_arcsec = opts.calibrated_range_arcsec;
   r.use.assign(n, Use::fit);
   size_t seen[5] = {0, 0, 0, 0, 0}, total[5] = {0, 0, 0, 0, 0};
   for (const Step& s : r.steps) ++total[split_stratum(r, s)];

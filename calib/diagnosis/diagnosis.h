@@ -40,6 +40,9 @@ struct DiagnosisOptions {
   // A second effect is looked for only while the first leaves more than this times the noise floor
   // (held out or on the fit rows).
   double second_effect_gap_ratio = 1.2;
+  // The calibrated half-range, arcsec (the paper's grid, ±0.42 deg): a refitted transfer function
+  // is pinned over it where its rows reach every sixth of it on both axes (docs/diagnosis.md).
+  double calibrated_range_arcsec = 1512;
   // What an investigation calls material (arcsec; docs/diagnosis.md, "Investigation"): 0 for the
   // noise floor of one dwell mean. Only the candidates' status uses it.
   double materiality_arcsec = 0;

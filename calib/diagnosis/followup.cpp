@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <utility>
 
 #include "base/errors.h"
 #include "calib/diagnosis/internal.h"
@@ -15,6 +17,47 @@
 namespace fpss {
 
 using ojson = nlohmann::ordered_json;
+
+namespace {
+
+// A refitted transfer function's C1..C8 per axis (GAP.json's params `alpha` and `beta`), each a
+// finite number no larger than a coefficient file's (calib/coefficients.h); none when absent.
+std::optional<CoefficientSet> refitted_set(const ojson& effect) {
+  const ojson& params = effect.value("params", ojson::object());
+  CoefficientSet s;
+  for (auto [key, axis] : {std::pair{"alpha", &s.alpha}, std::pair{"beta", &s.beta}}) {
+    const ojson& c = params.is_object() ? params.value(key, ojson()) : ojson();
+    if (!c.is_array() || c.size() != axis->size()) return std::nullopt;
+    for (size_t k = 0; k < axis->size(); ++k) {
+      if (!c[k].is_number() || !(std::abs(c[k].get<double>()) <= kMaxAbsCoefficient)) {
+        throw InputError(fmt::format("coefficients: params.{}[{}] is not a coefficient (a finite number of at most {:g})",
+                                     key, k, kMaxAbsCoefficient));
+      }
+      (*axis)[k] = c[k].get<double>();
+    }
+  }
+  return s;
+}
+
+// Why a named refit is not yet a measurement over the calibrated range (empty when it is): the
+// sixths of the range its rows miss on either axis (coefficients.cpp, range_sections).
+std::string partly_measured(const EffectResult& e) {
+  if (e.name != "coefficients" || !e.notes.contains("range_sections")) return {};
+  std::string missed;
+  for (const auto& [key, axis] : {std::pair{"alpha", "pitch"}, std::pair{"beta", "yaw"}}) {
+    const ojson& s = e.notes["range_sections"].value(key, ojson::array());
+    const auto reached = std::count(s.begin(), s.end(), true);
+    if (reached < static_cast<long>(s.size())) {
+      missed += fmt::format("{}{} reaches {} of {}", missed.empty() ? "" : ", ", axis, reached, s.size());
+    }
+  }
+  if (missed.empty()) return {};
+  return fmt::format("named over part of the calibrated range only ({} sixths): elsewhere the refit is the model's "
+                     "sinusoids changed as fitted here, an extrapolation; offsets over the whole range measure it",
+                     missed);
+}
+
+}  // namespace
 
 EffectParams effect_from_json(const ojson& effect) {
   EffectParams p;
@@ -31,6 +74,7 @@ EffectParams effect_from_json(const ojson& effect) {
       if (it.value().is_number()) p.params[it.key()] = it.value().get<double>();
     }
   }
+  if (p.name == "coefficients") p.coefficients = refitted_set(effect);
   return p;
 }
 
@@ -54,6 +98,9 @@ std::vector<CandidateStatus> candidate_status(const Diagnosis& d, double materia
     if (ambiguous) {
       s.status = "ambiguous";
       s.why = "in a set of look-alikes the recording cannot tell apart";
+    } else if (const std::string part = e != d.effects.end() ? partly_measured(*e) : ""; named && !part.empty()) {
+      s.status = "unbounded";
+      s.why = part;
     } else if (named) {
       s.status = "named";
     } else if (no != d.not_observable.end()) {
@@ -92,22 +139,58 @@ PlannedRun::PlannedRun(DiagnosisColumns planned, const CoefficientSet& model, co
 PlannedRun::~PlannedRun() = default;
 PlannedRun::PlannedRun(PlannedRun&&) noexcept = default;
 
+std::array<std::array<bool, 6>, 2> PlannedRun::range_sections() const {
+  static_assert(diag::kRangeSections == 6);
+  std::vector<uint32_t> rows = impl_->r.fit_rows;
+  rows.insert(rows.end(), impl_->r.heldout_rows.begin(), impl_->r.heldout_rows.end());
+  return diag::range_sections(impl_->r, rows);
+}
+
 size_t PlannedRun::rows() const { return impl_->r.n; }
 size_t PlannedRun::heldout_rows() const { return impl_->r.heldout_rows.size(); }
 
 double PlannedRun::expected_log_lr(const EffectParams& truth, const std::string& rival) const {
+  return expected_log_lr(truth, std::vector<std::string>{rival});
+}
+
+double PlannedRun::expected_log_lr(const EffectParams& truth, const std::vector<std::string>& rivals) const {
   const diag::Recording& r = impl_->r;
   auto t = diag::make_candidate(truth.name);
-  auto b = diag::make_candidate(rival);
-  if (!t || !b) throw InputError(fmt::format("no forward model for {} or {}", truth.name, rival));
+  if (!t) throw InputError(fmt::format("no forward model for {}", truth.name));
+  std::vector<std::unique_ptr<diag::Candidate>> b;
+  for (const std::string& name : rivals) {
+    b.push_back(diag::make_candidate(name));
+    if (!b.back()) throw InputError(fmt::format("no forward model for {}", name));
+  }
   t->set(truth);
   diag::Contribution target;
   target.resize(r.n);
   t->contribute(r, target);
-  b->fit(r, target, r.fit_rows);
-  diag::Contribution fitted;
+  // Several rivals together are fitted in turn, each to what the others leave (backfitting): the
+  // rivals a nested candidate is weighed against (a bias and a scale factor) are nearly orthogonal
+  // on a plan's rows, and a few passes settle them.
+  std::vector<diag::Contribution> each(b.size());
+  for (auto& c : each) c.resize(r.n);
+  diag::Contribution fitted, left;
   fitted.resize(r.n);
-  b->contribute(r, fitted);
+  left.resize(r.n);
+  const int passes = b.size() > 1 ? 5 : 1;
+  for (int pass = 0; pass < passes; ++pass) {
+    for (size_t k = 0; k < b.size(); ++k) {
+      for (int a = 0; a < 2; ++a) {
+        for (size_t i = 0; i < r.n; ++i) left.v[a][i] = target.v[a][i] - (fitted.v[a][i] - each[k].v[a][i]);
+      }
+      b[k]->restart();
+      b[k]->fit(r, left, r.fit_rows);
+      diag::Contribution mine;
+      mine.resize(r.n);
+      b[k]->contribute(r, mine);
+      for (int a = 0; a < 2; ++a) {
+        for (size_t i = 0; i < r.n; ++i) fitted.v[a][i] += mine.v[a][i] - each[k].v[a][i];
+      }
+      each[k] = std::move(mine);
+    }
+  }
   double ss = 0;
   for (uint32_t i : r.heldout_rows) {
     if (r.use[i] == diag::Use::excluded) continue;

@@ -1,6 +1,7 @@
 // The arithmetic of designing a follow-up run: how well a planned run would separate rival effects
 // (T-optimality) and how far it would bound the effects a recording could not see.
 #pragma once
+#include <array>
 #include <limits>
 #include <map>
 #include <memory>
@@ -15,8 +16,8 @@
 namespace fpss {
 
 // A fitted candidate from GAP.json's `effects[]` (name and numeric params); throws InputError for
-// an unknown name. The refitted transfer function (coefficients) has no such form: a design never
-// predicts with it.
+// an unknown name. A refitted transfer function (coefficients) carries its C1..C8 per axis from
+// params `alpha` and `beta`.
 EffectParams effect_from_json(const nlohmann::ordered_json& effect);
 
 // A candidate against the end state of an investigation (docs/diagnosis.md, "Investigation"):
@@ -45,11 +46,15 @@ class PlannedRun {
   // log-likelihood ratio (T-optimality, Atkinson and Fedorov 1975). Conservative: the rival may
   // take parameters here that the first recording would refuse.
   double expected_log_lr(const EffectParams& truth, const std::string& rival) const;
+  // Against several rivals at once (a pair of causes), fitted together.
+  double expected_log_lr(const EffectParams& truth, const std::vector<std::string>& rivals) const;
   // The smaller of the two directions: whichever of the two is true, how strongly the plan tells.
   double separation(const EffectParams& a, const EffectParams& b) const;
   // The candidate's limit_arcsec (EffectResult) when this plan's held-out rows join
   // `other_heldout_rows` held-out rows of earlier recordings that say nothing of the effect.
   double limit_arcsec(const std::string& effect, size_t other_heldout_rows) const;
+  // The sixths of the calibrated range the plan's rows reach on each axis (pitch, yaw).
+  std::array<std::array<bool, 6>, 2> range_sections() const;
   size_t rows() const;
   size_t heldout_rows() const;
 

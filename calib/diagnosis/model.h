@@ -2,6 +2,7 @@
 // clock, split) and the candidate effects' forward models with their least-squares fits.
 #pragma once
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -69,6 +70,7 @@ struct Recording {
   std::vector<uint32_t> fit_rows, heldout_rows;
   CoefficientSet model;
   double guard_s = 0;
+  double calibrated_range_arcsec = 1512;  // DiagnosisOptions'
   double reverse_arcsec = 0;  // the direction detector's hysteresis
   size_t dwells = 0, motions = 0, excluded_rows = 0;
   size_t beyond_fit_rows = 0;  // held-out rows at angles the fit rows do not reach (not judged)
@@ -77,6 +79,12 @@ struct Recording {
 // Builds the features from the columns (taken over: the recording is not copied). Throws
 // InputError/DataError when the data cannot be used at all.
 Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const DiagnosisOptions& opts);
+
+// The sixths of the calibrated range (±calibrated_range_arcsec) each axis's usable rows reach
+// (pitch, yaw): where a refitted transfer function is measured rather than extrapolated. A row on a
+// boundary counts for the sixth above it (the top end for the last).
+constexpr int kRangeSections = 6;
+std::array<std::array<bool, kRangeSections>, 2> range_sections(const Recording& r, const std::vector<uint32_t>& rows);
 
 // The residual (meas - ref) an effect adds, per axis and row, arcsec. Float: a contribution is a
 // small correction (float's 1e-7 relative is far below any noise), and a joint fit holds several.

@@ -96,6 +96,8 @@ double rel(double x, double t) { return std::abs(x - t) / std::max(std::abs(t), 
 
 double param(const ojson& j, const char* k) { return j.contains(k) ? j.at(k).get<double>() : 0.0; }
 
+}  // namespace
+
 // RMS over the counts the recording covers of (fitted - true) transfer function, relative to the
 // RMS of (true - model): how much of the coefficient change the refit got wrong.
 double coefficient_error(const AxisCoeffs& fitted, const AxisCoeffs& truth, const AxisCoeffs& model, double max_arcsec) {
@@ -112,8 +114,6 @@ double coefficient_error(const AxisCoeffs& fitted, const AxisCoeffs& truth, cons
   }
   return std::sqrt(e2 / std::max(d2, 1e-30));
 }
-
-}  // namespace
 
 std::vector<Effect> draw_effects(const std::string& cls, uint64_t seed, const BenchConfig& bench) {
   Draw d(seed);

@@ -30,6 +30,10 @@ DiagnosisOptions blindtest_diagnosis_options();
 // `cls` "none" gives no effect. Deterministic in `seed`.
 std::vector<Effect> draw_effects(const std::string& cls, uint64_t seed, const BenchConfig& bench);
 
+// RMS over +-max_arcsec of (fitted - true) transfer function, relative to the RMS of (true -
+// model): how much of a change of coefficients a refit got wrong.
+double coefficient_error(const AxisCoeffs& fitted, const AxisCoeffs& truth, const AxisCoeffs& model, double max_arcsec);
+
 struct BlindCase {
   int index = 0;
   std::string truth;                 // class drawn ("a+b" for a pair)

@@ -12,7 +12,7 @@
 namespace fpss {
 
 // The kinds: skew_behind_dwells, settling_behind_slews, backlash_one_side, skew_single_rate,
-// backlash_single_rate, temperature_sine_dwells, and unambiguous (one catalogued effect behind
+// backlash_single_rate, temperature_sine_dwells, coefficients_narrow, and unambiguous (one catalogued effect behind
 // procedures/sim_to_real.yaml).
 const std::vector<std::string>& confusable_kinds();
 
@@ -38,8 +38,10 @@ struct ConfusableReport {
   std::string to_text() const;
 };
 
-// `per_kind` cases of each kind (seeded); each case's runs and files go under `work`.
+// `per_kind` cases of each kind (seeded; of the kinds in `only` when it is not empty); each case's
+// runs and files go under `work`.
 ConfusableReport run_confusable_cases(int per_kind, uint64_t seed, const std::filesystem::path& work,
-                                      const std::function<void(const ConfusableCase&)>& progress = {});
+                                      const std::function<void(const ConfusableCase&)>& progress = {},
+                                      const std::vector<std::string>& only = {});
 
 }  // namespace fpss

@@ -99,7 +99,23 @@ Move repeated_nulls(int n, double gap_s) {
   return {fmt::format("{} null dwells {} s apart", n, num(gap_s)), y};
 }
 
-// The null-offset grid at a finer step (the whole range, both axes).
+// Offsets swept across the whole range along each axis, `n` points an axis, short dwells: a
+// transfer function's shape where a narrow recording saw none, at the least bench time (no null
+// between offsets).
+Move range_sweep(int n, int frames) {
+  std::string y;
+  for (int axis = 0; axis < 2; ++axis) {
+    for (int k = 0; k < n; ++k) {
+      const double o = -kExtentArcsec + 2 * kExtentArcsec * (k + 0.5) / n;  // one a section at n = 6
+      y += move_to(axis == 0 ? o : 0, axis == 1 ? o : 0) + fmt::format("  - sample: {{frames: {}, settle_s: 0.2}}\n", frames);
+    }
+  }
+  return {fmt::format("offsets across +-{} arcsec on each axis at {} points, {} frames a dwell", num(kExtentArcsec), n,
+                      frames),
+          y};
+}
+
+// The null-offset grid over the whole range on both axes at the paper's finer step.
 Move fine_grid(double step_arcsec) {
   return {fmt::format("null-offset grid at {} arcsec steps", num(step_arcsec)),
           fmt::format("  - null_offset_grid: {{axes: [pitch, yaw], extent_arcsec: {}, step_arcsec: {}, frames: {}, "
@@ -119,6 +135,8 @@ std::vector<Move> library(const EngineSettings& s) {
   m.push_back(slews({top / 4, top}, period, wide));
   m.push_back(slews({top / 4, top / 2, top}, period, wide));
   for (int n : {4, 8}) m.push_back(repeated_nulls(n, 30.0));
+  m.push_back(range_sweep(6, 5));
+  m.push_back(range_sweep(12, 10));
   m.push_back(fine_grid(108.0));
   return m;
 }
@@ -127,12 +145,18 @@ struct Goal {
   struct Pair {
     EffectParams a, b;
     bool both = true;  // b has fitted params: the smaller of the two directions
+    std::vector<std::string> rivals;  // nested: a against these together, one direction only
   };
   std::vector<Pair> pairs;
   std::vector<std::string> bound;  // candidates to bound
   std::vector<double> bound_first;  // their limit_arcsec in the recordings so far (+inf: unseen)
   std::vector<std::string> unreachable;
+  // A refitted transfer function to be measured over the whole calibrated range: the sixths the
+  // recordings reach so far (pitch, yaw), from its GAP.json notes.
+  bool cover = false;
+  std::array<std::array<bool, 6>, 2> covered{};
 };
+
 
 const ojson* find_effect(const ojson& gap, const std::string& name) {
   if (!gap.contains("effects") || !gap["effects"].is_array()) return nullptr;
@@ -140,6 +164,43 @@ const ojson* find_effect(const ojson& gap, const std::string& name) {
     if (e.is_object() && e.value("name", "") == name) return &e;
   }
   return nullptr;
+}
+
+// The sixths of the range the recordings' rows reach, from the coefficients entry's notes.
+void note_coverage(const ojson& gap, Goal& g) {
+  g.cover = true;
+  const ojson* fc = find_effect(gap, "coefficients");
+  const ojson s = fc ? fc->value("notes", ojson::object()).value("range_sections", ojson::object()) : ojson::object();
+  for (int a = 0; a < 2; ++a) {
+    const ojson& axis = s.value(a == 0 ? "alpha" : "beta", ojson::array());
+    for (size_t k = 0; k < g.covered[a].size() && k < axis.size(); ++k) g.covered[a][k] = axis[k] == true;
+  }
+}
+
+// A refitted transfer function against a simpler member of its set: the refit contains any bias
+// and scale, so only one direction can tell, the refit taken as the truth (its prediction beyond
+// the rows it was fitted on: the model's sinusoids, changed as the refit found) against the
+// simpler explanation, which is the recording's causes together when that member is the cause (a
+// bias and a scale factor as a pair).
+void add_nested_pair(const ojson& gap, const std::string& simpler, Goal& g) {
+  const ojson* fc = find_effect(gap, "coefficients");
+  const EffectParams refit = fc ? effect_from_json(*fc) : EffectParams{};
+  if (!refit.coefficients) {
+    g.unreachable.push_back(fmt::format("coefficients vs {}: the diagnosis has no refitted transfer function", simpler));
+    return;
+  }
+  Goal::Pair p;
+  p.a = refit;
+  p.both = false;
+  p.rivals = {simpler};
+  const ojson& causes = gap.value("causes", ojson::array());
+  if (gap.value("cause", "") == simpler && causes.is_array() && causes.size() > 1) {
+    p.rivals.clear();
+    for (const auto& c : causes) p.rivals.push_back(c.value("name", ""));
+  }
+  p.b.name = fmt::format("{}", fmt::join(p.rivals, "+"));
+  g.pairs.push_back(std::move(p));
+  note_coverage(gap, g);  // told apart, the refit must still be measured where it was extrapolated
 }
 
 Goal goals(const FollowupRequest& r) {
@@ -153,10 +214,12 @@ Goal goals(const FollowupRequest& r) {
       const ojson* fa = find_effect(gap, first);
       for (size_t k = 1; k < m.size(); ++k) {
         const std::string other = m[k].get<std::string>();
-        if (first == "coefficients" || other == "coefficients" || !fa) {
-          g.unreachable.push_back(fmt::format("{} vs {}: a refitted transfer function predicts nothing beyond the rows it "
-                                              "was fitted on",
-                                              first, other));
+        if (first == "coefficients" || other == "coefficients") {
+          add_nested_pair(gap, first == "coefficients" ? other : first, g);
+          continue;
+        }
+        if (!fa) {
+          g.unreachable.push_back(fmt::format("{} vs {}: {} has no fitted parameters", first, other, first));
           continue;
         }
         Goal::Pair p;
@@ -181,6 +244,8 @@ Goal goals(const FollowupRequest& r) {
       } else if (why.rfind("seen but not named", 0) == 0) {
         g.unreachable.push_back(name + ": " + why + " (a second effect the diagnosis could not pair; more of the same "
                                                     "data, not a new move)");
+      } else if (name == "coefficients" && why.rfind("named over part", 0) == 0) {
+        note_coverage(gap, g);
       } else if (name == "coefficients") {
         g.unreachable.push_back("coefficients: bounded by more offsets over the range (a longer grid), not planned here");
       } else {
@@ -200,6 +265,7 @@ struct Evaluation {
   std::string text;
   std::vector<PairPrediction> pairs;
   std::vector<BoundPrediction> bounds;
+  bool covered = false;  // the plan measures the refit over the rest of the range
 };
 
 std::string procedure_text(const FollowupRequest& r, const std::vector<const Move*>& moves) {
@@ -233,7 +299,10 @@ Evaluation evaluate(const FollowupRequest& r, const BenchConfig& quiet, const Go
   e.valid = true;
   e.all = true;
   for (const auto& p : g.pairs) {
-    PairPrediction pp{p.a.name, p.b.name, p.both ? run->separation(p.a, p.b) : run->expected_log_lr(p.a, p.b.name)};
+    const double lr = !p.rivals.empty() ? run->expected_log_lr(p.a, p.rivals)
+                      : p.both        ? run->separation(p.a, p.b)
+                                      : run->expected_log_lr(p.a, p.b.name);
+    PairPrediction pp{p.a.name, p.b.name, lr};
     pp.separated = pp.expected_log_lr >= kSeparatingLogLR;
     e.all = e.all && pp.separated;
     e.gain += std::min(1.0, pp.expected_log_lr / kSeparatingLogLR);
@@ -248,6 +317,19 @@ Evaluation evaluate(const FollowupRequest& r, const BenchConfig& quiet, const Go
     e.all = e.all && b.bounded;
     e.gain += std::isfinite(b.limit_arcsec) ? std::min(1.0, materiality / b.limit_arcsec) : 0.0;
     e.bounds.push_back(b);
+  }
+  if (g.cover) {
+    const auto planned = run->range_sections();
+    int missing = 0, added = 0;
+    for (int a = 0; a < 2; ++a) {
+      for (size_t k = 0; k < planned[a].size(); ++k) {
+        missing += !g.covered[a][k];
+        added += !g.covered[a][k] && planned[a][k];
+      }
+    }
+    e.covered = missing == added;
+    e.all = e.all && e.covered;
+    e.gain += missing > 0 ? static_cast<double>(added) / missing : 1.0;
   }
   return e;
 }
@@ -291,7 +373,7 @@ FollowupDesign design_followup(const FollowupRequest& r) {
   out.budget_s = r.max_bench_s > 0 ? r.max_bench_s : 0.5 * out.first_bench_s;
   const Goal g = goals(r);
   out.unreachable = g.unreachable;
-  if (g.pairs.empty() && g.bound.empty()) return out;
+  if (g.pairs.empty() && g.bound.empty() && !g.cover) return out;
 
   const std::vector<Move> lib = library(r.settings);
   BenchConfig quiet = r.bench;
@@ -301,9 +383,10 @@ FollowupDesign design_followup(const FollowupRequest& r) {
   Evaluation best;
   best.gain = 0;
   for (int round = 0; round < 4; ++round) {
-    std::optional<Evaluation> pick, cheapest_all;
+    std::optional<Evaluation> pick, cheapest_all, cheapest_cover;
     const Move* pick_move = nullptr;
     const Move* all_move = nullptr;
+    const Move* cover_move = nullptr;
     double pick_rate = 0;
     for (const Move& m : lib) {
       if (std::find(chosen.begin(), chosen.end(), &m) != chosen.end()) continue;
@@ -314,6 +397,10 @@ FollowupDesign design_followup(const FollowupRequest& r) {
       if (e.all && (!cheapest_all || e.bench_s < cheapest_all->bench_s)) {
         cheapest_all = e;
         all_move = &m;
+      }
+      if (g.cover && !best.covered && e.covered && (!cheapest_cover || e.bench_s < cheapest_cover->bench_s)) {
+        cheapest_cover = e;
+        cover_move = &m;
       }
       const double rate = (e.gain - best.gain) / std::max(1.0, e.bench_s - best.bench_s);
       if (e.gain > best.gain + 1e-6 && rate > pick_rate) {
@@ -327,6 +414,13 @@ FollowupDesign design_followup(const FollowupRequest& r) {
       best = *cheapest_all;
       break;
     }
+    // A refit extrapolated over most of the range is no measurement, whatever else is bounded:
+    // the cheapest move that measures it comes before the rest.
+    if (cheapest_cover) {
+      chosen.push_back(cover_move);
+      best = *cheapest_cover;
+      continue;
+    }
     if (!pick) break;
     chosen.push_back(pick_move);
     best = *pick;
@@ -339,6 +433,9 @@ FollowupDesign design_followup(const FollowupRequest& r) {
   for (size_t k = 0; k < best.bounds.size(); ++k) {
     out.useful = out.useful || (!std::isfinite(g.bound_first[k]) && std::isfinite(best.bounds[k].limit_arcsec));
   }
+  out.useful = out.useful || best.covered;
+  out.range_asked = g.cover;
+  out.range_measured = best.covered;
   out.found = best.all;
   out.bench_s = best.bench_s;
   out.pairs = best.pairs;
@@ -356,6 +453,10 @@ FollowupDesign design_followup(const FollowupRequest& r) {
   for (const auto& b : out.bounds) {
     head += fmt::format("# {}: would be seen from {:.4f} arcsec where it acts (materiality {:.4f})\n", b.name,
                         b.limit_arcsec, out.materiality_arcsec);
+  }
+  if (g.cover) {
+    head += fmt::format("# coefficients: {} over every sixth of the calibrated range +-{:g} arcsec\n",
+                        best.covered ? "measured" : "not measured", kExtentArcsec);
   }
   out.procedure_text = head + best.text;
   return out;
@@ -433,7 +534,8 @@ ojson FollowupDesign::to_json() const {
           {"separating_log_lr", kSeparatingLogLR},
           {"pairs", pj},
           {"bounds", bj},
-          {"unreachable", unreachable}};
+          {"unreachable", unreachable},
+          {"range", {{"asked", range_asked}, {"measured", range_measured}}}};
 }
 
 }  // namespace fpss

@@ -56,6 +56,9 @@ struct FollowupDesign {
   std::vector<PairPrediction> pairs;
   std::vector<BoundPrediction> bounds;
   std::vector<std::string> unreachable;  // asked for, but no move of the stand's can help
+  // A refitted transfer function was to be measured over the calibrated range (named or ambiguous
+  // over part of it): the plan's rows reach every sixth the recordings missed.
+  bool range_asked = false, range_measured = false;
   nlohmann::ordered_json to_json() const;
 };
 

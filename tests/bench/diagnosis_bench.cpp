@@ -4,9 +4,11 @@
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <initializer_list>
 #include <map>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -72,8 +74,20 @@ BENCHMARK(BM_BlindTest200)->Arg(7)->Iterations(1)->Unit(benchmark::kSecond)->Use
 void BM_ConfusableInvestigations(benchmark::State& state) {
   ConfusableReport rep;
   const auto work = std::filesystem::temp_directory_path() / "fpss-bench-confusable";
-  for (auto _ : state) rep = run_confusable_cases(static_cast<int>(state.range(0)), 2, work);
-  std::filesystem::remove_all(work);
+  // FPSS_CONFUSABLE_KINDS=K,K runs those kinds only; FPSS_CONFUSABLE_KEEP=1 keeps every case's
+  // procedures, recordings and GAP.json under the work folder. Each case is printed as it ends.
+  std::vector<std::string> only;
+  if (const char* k = std::getenv("FPSS_CONFUSABLE_KINDS")) {
+    std::stringstream ss(k);
+    for (std::string x; std::getline(ss, x, ',');) only.push_back(x);
+  }
+  for (auto _ : state) {
+    const auto progress = [](const ConfusableCase& c) {
+      std::fprintf(stderr, "%s %s\n", c.kind.c_str(), c.success() ? "OK" : "MISS");
+    };
+    rep = run_confusable_cases(static_cast<int>(state.range(0)), 2, work, progress, only);
+  }
+  if (!std::getenv("FPSS_CONFUSABLE_KEEP")) std::filesystem::remove_all(work);
   const auto s = rep.summary();
   state.counters["named_10pct"] = s["confusable_named_within_10_percent"].get<double>();
   state.counters["unambiguous_first"] = s["unambiguous_stopped_after_first_run"].get<double>();

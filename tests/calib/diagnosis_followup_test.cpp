@@ -270,5 +270,102 @@ TEST(PlannedRun, AnEffectFromGapJsonNeedsAKnownName) {
   EXPECT_THROW(effect_from_json(nlohmann::ordered_json::array()), InputError);
 }
 
+// The model's transfer function aged: each sinusoid's amplitude scaled by `amp` and phase moved by
+// `phase_rad` (alternating signs), both axes.
+BenchConfig aged_bench(uint64_t seed, double amp, double phase_rad) {
+  BenchConfig cfg = bench(seed, {});
+  Effect e{"coefficients", {}, {}};
+  CoefficientSet s = cfg.truth;
+  for (AxisCoeffs* c : {&s.alpha, &s.beta}) {
+    (*c)[2] *= 1 + amp;
+    (*c)[4] += phase_rad;
+    (*c)[5] *= 1 - amp;
+    (*c)[7] -= phase_rad;
+  }
+  e.coefficients = s;
+  cfg.effects = {e};
+  return cfg;
+}
+
+SessionPlan grid(double extent_deg, double step_deg) {
+  SessionPlan p = plan(true, false);
+  p.grids[0].extent_deg = extent_deg;
+  p.grids[0].step_deg = step_deg;
+  p.grids[0].samples_per_dwell = 25;
+  return p;
+}
+SessionPlan narrow_grid() { return grid(0.05, 0.01); }
+SessionPlan paper_grid() { return grid(0.42, 0.06); }
+
+TEST(AmbiguousSets, AnAgedTransferFunctionOverANarrowGridPassesForABiasAndAScaleUntilOffsetsSpanTheRange) {
+  const BenchConfig cfg = aged_bench(31, 0.05, 0.05);
+  const Diagnosis narrow = diagnose(record(cfg, narrow_grid(), "narrow.csv"), cfg.truth, options());
+  EXPECT_TRUE(std::none_of(narrow.causes.begin(), narrow.causes.end(),
+                           [](const EffectResult& c) { return c.name == "coefficients"; }))
+      << narrow.to_json()["causes"].dump();
+  ASSERT_FALSE(narrow.ambiguous.empty()) << narrow.to_json().dump(1);
+  const auto& set = narrow.ambiguous[0].members;
+  EXPECT_NE(std::find(set.begin(), set.end(), "coefficients"), set.end());
+  EXPECT_EQ(narrow.ambiguous[0].factor, "angle");
+  EXPECT_EQ(candidate(narrow, "coefficients")->at("status"), "ambiguous");
+
+  // The refit as GAP.json carries it predicts beyond its rows: offsets across the range would
+  // separate it from the bias and scale factor; more of the narrow grid would not.
+  const auto gap = narrow.to_json();
+  const nlohmann::ordered_json* refit = nullptr;
+  for (const auto& e : gap["effects"]) if (e["name"] == "coefficients") refit = &e;
+  ASSERT_NE(refit, nullptr);
+  const EffectParams aged = effect_from_json(*refit);
+  ASSERT_TRUE(aged.coefficients.has_value());
+  const BenchConfig quiet = bench(32, {});
+  const PlannedRun wide(record(quiet, paper_grid(), "wide.csv"), cfg.truth, options(), narrow.noise_floor_arcsec);
+  const PlannedRun same(record(quiet, narrow_grid(), "same.csv"), cfg.truth, options(), narrow.noise_floor_arcsec);
+  const std::vector<std::string> rivals = {"bias", "scale_factor"};
+  EXPECT_GT(wide.expected_log_lr(aged, rivals), 16.0);
+  EXPECT_GT(wide.expected_log_lr(aged, rivals), 10 * same.expected_log_lr(aged, rivals));
+  // The narrow grid reaches two sixths of the range on each axis, the paper's all six (its
+  // held-out steps beyond the fit rows' reach judge nothing, and do not count).
+  const auto reached = [](const std::array<std::array<bool, 6>, 2>& s) {
+    return std::count(s[0].begin(), s[0].end(), true) + std::count(s[1].begin(), s[1].end(), true);
+  };
+  EXPECT_EQ(reached(same.range_sections()), 4);
+  EXPECT_EQ(reached(wide.range_sections()), 12);
+
+  // Jointly with offsets over the range: the change of coefficients, measured where it acts.
+  std::vector<DiagnosisColumns> both;
+  both.push_back(record(cfg, narrow_grid(), "narrow.csv"));
+  both.push_back(record(aged_bench(33, 0.05, 0.05), paper_grid(), "wide.csv"));
+  const Diagnosis d = diagnose(std::move(both), cfg.truth, options());
+  EXPECT_EQ(d.cause, "coefficients") << d.to_json()["causes"].dump();
+  EXPECT_EQ(candidate(d, "coefficients")->at("status"), "named");
+}
+
+TEST(AmbiguousSets, ARefitNamedOverPartOfTheRangeIsNotYetAMeasurementOfIt) {
+  // Aged enough that the narrow grid sees the curvature: the refit is named, but it extrapolates
+  // over four sixths of the range on each axis.
+  const BenchConfig cfg = aged_bench(34, 0.25, 0.3);
+  const Diagnosis d = diagnose(record(cfg, narrow_grid(), "narrow.csv"), cfg.truth, options());
+  ASSERT_EQ(d.cause, "coefficients") << d.to_json()["causes"].dump();
+  const auto* c = candidate(d, "coefficients");
+  EXPECT_EQ(c->at("status"), "unbounded");
+  EXPECT_EQ(c->at("why").get<std::string>().rfind("named over part of the calibrated range only (pitch reaches 2 of 6", 0),
+            0u)
+      << c->dump();
+}
+
+TEST(PlannedRun, ARefitFromGapJsonCarriesItsCoefficientsWithinAFilesLimits) {
+  nlohmann::ordered_json e = {{"name", "coefficients"},
+                              {"params", {{"alpha", {1, 2, 3, 4, 5, 6, 7, 8}}, {"beta", {8, 7, 6, 5, 4, 3, 2, 1}}}}};
+  const EffectParams p = effect_from_json(e);
+  ASSERT_TRUE(p.coefficients.has_value());
+  EXPECT_EQ(p.coefficients->beta[0], 8.0);
+  e["params"]["beta"][3] = 1e9;
+  EXPECT_THROW(effect_from_json(e), InputError);
+  e["params"]["beta"][3] = "five";
+  EXPECT_THROW(effect_from_json(e), InputError);
+  e["params"]["beta"] = {1, 2};  // not a set: nothing to predict with
+  EXPECT_FALSE(effect_from_json(e).coefficients.has_value());
+}
+
 }  // namespace followup_test
 }  // namespace fpss

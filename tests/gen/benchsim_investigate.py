@@ -21,6 +21,10 @@ Kinds of case (parameters drawn per case from the seed):
   a single rate (300 arcsec/s) plus two null dwells;
 - temperature_sine: a slow temperature sine (2 deg C, period 400-1200 s, 1 arcsec/deg C on each axis,
   signs drawn) behind a dwells-only grid (it looks like a drift);
+- coefficients_narrow: an ageing of the transfer function (both sinusoids of each axis changed by
+  2-8 % in amplitude and 0.02-0.08 rad in phase, signs drawn) behind a narrow grid about the null
+  (+-0.05 deg at 0.01 deg steps), over which it is nearly a bias and a scale factor; judged by
+  the RMS over +-1500 arcsec of fitted minus true angle against the RMS of the change (within 10 %);
 - unambiguous: one catalogued effect at a time (benchsim.draw, "normal" size) behind the full
   first run procedures/sim_to_real.yaml;
 - backlash_settling_one_side_marked (only with --kinds): the one-sided grid with a 5-frame dwell
@@ -59,6 +63,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import benchsim as bs  # noqa: E402
 import benchsim_procedure as bp  # noqa: E402
+import fpss_physics as fp  # noqa: E402
 
 SIM_TO_REAL = os.path.join(bs.SRC, "procedures", "sim_to_real.yaml")
 MAX_FOLLOWUPS = 2
@@ -117,6 +122,11 @@ def one_sided_grid(overshoot=300.0, marked=False):
     return t
 
 
+def narrow_grid():
+    return ("name: narrow_grid\nsteps:\n  - home\n  - null_offset_grid: {axes: [pitch, yaw], extent_deg: 0.05, "
+            "step_deg: 0.01, frames: 25, settle_s: 0.2}\n")
+
+
 def sim_to_real():
     with open(SIM_TO_REAL) as f:
         return f.read()
@@ -150,6 +160,18 @@ def case_truth(kind, k, rng):
                 "phase_rad": u(0, 2 * np.pi)}
         return base_truth(rng, ["temperature"], {"temperature": {"pitch_arcsec_per_c": sg(), "yaw_arcsec_per_c": sg()}},
                           temperature=temp)
+    if kind == "coefficients_narrow":
+        ma, mb = fp.load_coefficients(bp.MODEL)
+        sg = lambda: float(rng.choice([-1.0, 1.0]))  # noqa: E731
+        aged = {}
+        for name, c in (("alpha", ma), ("beta", mb)):
+            c = c.copy()
+            c[2] *= 1 + sg() * u(0.02, 0.08)
+            c[4] += sg() * u(0.02, 0.08)
+            c[5] *= 1 + sg() * u(0.02, 0.08)
+            c[7] += sg() * u(0.02, 0.08)
+            aged[name] = [float(v) for v in c]
+        return base_truth(rng, ["coefficients"], {"coefficients": aged})
     if kind == "unambiguous":
         cls = bs.CATALOGUE[k % len(bs.CATALOGUE)]
         return bp.default_truth([cls], rng)
@@ -158,7 +180,7 @@ def case_truth(kind, k, rng):
 
 KINDS = {"skew_dwells": dwells_only, "settling_slews": lambda: slews_only([300, 600]),
          "backlash_settling_one_side": one_sided_grid, "skew_backlash_slews": lambda: slews_only([300]),
-         "temperature_sine": dwells_only, "unambiguous": sim_to_real,
+         "temperature_sine": dwells_only, "coefficients_narrow": narrow_grid, "unambiguous": sim_to_real,
          # not in the default set (not one of the issue's cases): the one-sided grid with each
          # approach's start recorded
          "backlash_settling_one_side_marked": lambda: one_sided_grid(250.0, marked=True)}
@@ -219,6 +241,19 @@ def needs_followup(gap):
 
 # ------------------------------------------------------------------ one case
 
+COEFF_RANGE_ARCSEC = 1500.0  # the calibrated range a change of coefficients is judged over
+
+
+def transfer_error(fitted, truth, model):
+    """RMS over +-COEFF_RANGE_ARCSEC of fitted - true angle, over the RMS of true - model angle."""
+    t = np.asarray(truth, float)
+    lo, hi = fp.counts_for_angle(t, np.array([-1.0, 1.0]) * COEFF_RANGE_ARCSEC / fp.ARCSEC_PER_RAD)
+    n = np.linspace(lo, hi, 401)
+    e = fp.angle_rad(np.asarray(fitted, float), n) - fp.angle_rad(t, n)
+    d = fp.angle_rad(t, n) - fp.angle_rad(np.asarray(model, float), n)
+    return float(np.sqrt(np.sum(e * e) / max(np.sum(d * d), 1e-30)))
+
+
 def param_error(truth, gap):
     """(named, the largest relative error of the main parameters or None)."""
     cls = truth["classes"][0]
@@ -226,6 +261,10 @@ def param_error(truth, gap):
     if cls not in named:
         return False, None
     fitted = gap["causes"][named.index(cls)]["params"]
+    if cls == "coefficients":
+        model = fp.load_coefficients(bp.MODEL)
+        return True, max(transfer_error(fitted[a], truth["params"]["coefficients"][a], model[i])
+                         for i, a in enumerate(("alpha", "beta")))
     errs = [abs(fitted[key] - truth["params"][cls][key]) / abs(truth["params"][cls][key]) for key in MAIN[cls]
             if key in fitted]
     return True, (max(errs) if errs else 0.0)

@@ -44,7 +44,9 @@ TEST(Investigate, ADesignFromADwellsOnlyDiagnosisAddsSlewsAndTheJointDiagnosisNa
   EXPECT_NE(gap["cause"], "time_skew");
   ASSERT_TRUE(gap.contains("candidates"));
   for (const auto& c : gap["candidates"]) {
-    if (c["name"] == "time_skew") EXPECT_EQ(c["status"], "unbounded") << c.dump();
+    if (c["name"] == "time_skew") {
+      EXPECT_EQ(c["status"], "unbounded") << c.dump();
+    }
   }
   // Within a budget nothing fits in: exit 1, no file.
   r = run_stand({"design", "--observe", (tmp / "gap.json").string(), "--emulate", "--out",
@@ -79,6 +81,62 @@ TEST(Investigate, ADesignFromADwellsOnlyDiagnosisAddsSlewsAndTheJointDiagnosisNa
   EXPECT_NEAR(gap["causes"][0]["params"]["skew_s"].get<double>(), 0.004, 0.0004);
   ASSERT_EQ(gap["recordings"].size(), 2u);
   EXPECT_THAT(gap["recordings"][1]["source"].get<std::string>(), HasSubstr("followup.csv"));
+}
+
+TEST(Investigate, ANarrowGridsBiasAndScaleAgainstAnAgedTransferFunctionIsSettledByOffsetsAcrossTheRange) {
+  TempDir tmp("investigate-coefficients");
+  // The model's transfer function aged a little: each sinusoid 5 % in amplitude, 0.05 rad in phase.
+  auto aged = nlohmann::json::parse(test::read_file(kModel));
+  for (const char* axis : {"alpha", "beta"}) {
+    aged[axis][2] = aged[axis][2].get<double>() * 1.05;
+    aged[axis][4] = aged[axis][4].get<double>() + 0.05;
+    aged[axis][5] = aged[axis][5].get<double>() * 0.95;
+    aged[axis][7] = aged[axis][7].get<double>() - 0.05;
+  }
+  test::write_file(tmp / "aged.json", aged.dump());
+  test::write_file(tmp / "aged.yaml", "effects:\n  - {name: coefficients, file: aged.json}\n");
+  ASSERT_EQ(run_stand({"simulate", "--out", (tmp / "narrow.csv").string(), "--bench", (tmp / "aged.yaml").string(),
+                       "--extent-deg", "0.05", "--step-deg", "0.01", "--samples-per-dwell", "25", "--seed", "7"},
+                      tmp.path()).code, 0);
+  auto r = run_stand({"diagnose", "--model", kModel, "--data", (tmp / "narrow.csv").string(), "--out",
+                      (tmp / "gap.json").string(), "--partial"},
+                     tmp.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto gap = nlohmann::json::parse(test::read_file(tmp / "gap.json"));
+  EXPECT_NE(gap["cause"], "coefficients");
+  ASSERT_FALSE(gap["ambiguous"].empty()) << gap.dump(1);
+  EXPECT_EQ(gap["ambiguous"][0]["separated_by"]["factor"], "angle");
+  // GAP.json's own prediction for the set: separated, by a plan over the range.
+  EXPECT_EQ(gap["ambiguous"][0]["best_followup"]["separates"], true) << gap["ambiguous"][0].dump(1);
+
+  r = run_stand({"design", "--discriminate", (tmp / "gap.json").string(), "--emulate", "--out",
+                 (tmp / "followup.yaml").string(), "--json"},
+                tmp.path());
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  const auto design = nlohmann::json::parse(r.out);
+  ASSERT_EQ(design["pairs"].size(), 1u) << design.dump(1);
+  EXPECT_EQ(design["pairs"][0]["a"], "coefficients");
+  EXPECT_THAT(design["pairs"][0]["b"].get<std::string>(), HasSubstr("bias"));
+  EXPECT_EQ(design["pairs"][0]["separated"], true);
+  EXPECT_EQ(design["range"]["asked"], true);
+  EXPECT_EQ(design["range"]["measured"], true);
+  EXPECT_LE(design["bench_s"].get<double>(), design["budget_s"].get<double>());
+
+  // The follow-up on the same bench, then both jointly: the change of coefficients, measured over the range.
+  ASSERT_EQ(run_stand({"simulate", "--procedure", (tmp / "followup.yaml").string(), "--bench",
+                       (tmp / "aged.yaml").string(), "--seed", "8", "--out", (tmp / "followup.csv").string()},
+                      tmp.path()).code, 0);
+  r = run_stand({"diagnose", "--model", kModel, "--data", (tmp / "narrow.csv").string(), "--data",
+                 (tmp / "followup.csv").string(), "--out", (tmp / "joint.json").string(), "--partial"},
+                tmp.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto joint = nlohmann::json::parse(test::read_file(tmp / "joint.json"));
+  EXPECT_EQ(joint["cause"], "coefficients") << joint["causes"].dump();
+  for (const auto& c : joint["candidates"]) {
+    if (c["name"] == "coefficients") {
+      EXPECT_EQ(c["status"], "named") << c.dump();
+    }
+  }
 }
 
 TEST(Investigate, ARunRecordsTheSideOfEveryApproachThroughUnrecordedMoves) {
@@ -194,7 +252,9 @@ TEST(Investigate, ConfusableCasesAreToldApartWithinTheBudget) {
     EXPECT_LE(c.followups, 2);
     EXPECT_LE(c.followup_ratio, 1.0);
     EXPECT_TRUE(c.success()) << c.main_error;
-    if (c.kind == "unambiguous") EXPECT_EQ(c.followups, 0);
+    if (c.kind == "unambiguous") {
+      EXPECT_EQ(c.followups, 0);
+    }
   }
 }
 
