@@ -75,6 +75,7 @@ const std::vector<Kind>& kinds() {
       {"skew_behind_dwells", kDwellsOnly},
       {"settling_behind_slews", slews_only("300, 600")},
       {"backlash_one_side", one_side_grid()},
+      {"settling_one_side", one_side_grid()},
       {"skew_single_rate", slews_only("300")},
       {"backlash_single_rate", slews_only("300")},
       {"temperature_sine_dwells", kDwellsOnly},
@@ -125,6 +126,9 @@ BenchConfig case_bench(const std::string& kind, int index, uint64_t seed, std::s
     cfg.effects = {effect("time_skew", {{"skew_s", std::abs(mag(0.002, 0.008))}})};  // a latency: the sensor is late
   } else if (kind == "settling_behind_slews") {
     cfg.effects = {effect("settling", {{"amplitude_arcsec", mag(0.3, 2.0)}, {"tau_s", 0.2 + 1.3 * u(rng)}})};
+  } else if (kind == "settling_one_side") {
+    // A settling far longer than the dwells: at rest it is nearly a constant of the approach's side.
+    cfg.effects = {effect("settling", {{"amplitude_arcsec", mag(1.0, 3.0)}, {"tau_s", 3.0 + 7.0 * u(rng)}})};
   } else if (kind == "backlash_one_side" || kind == "backlash_single_rate") {
     cfg.effects = {effect("backlash", {{"width_arcsec", 1.0 + 2.0 * u(rng)}})};
   } else if (kind == "temperature_sine_dwells") {

@@ -157,7 +157,6 @@ struct Goal {
   std::array<std::array<bool, 6>, 2> covered{};
 };
 
-
 const ojson* find_effect(const ojson& gap, const std::string& name) {
   if (!gap.contains("effects") || !gap["effects"].is_array()) return nullptr;
   for (const auto& e : gap["effects"]) {
@@ -181,7 +180,9 @@ void note_coverage(const ojson& gap, Goal& g) {
 // and scale, so only one direction can tell, the refit taken as the truth (its prediction beyond
 // the rows it was fitted on: the model's sinusoids, changed as the refit found) against the
 // simpler explanation, which is the recording's causes together when that member is the cause (a
-// bias and a scale factor as a pair).
+// bias and a scale factor as a pair). Against a member it does not contain the same one direction
+// is used: refitting eq. 1 to every candidate plan's prediction of the other (a Ceres solve per
+// plan and pair) is left out, so such a pair's figure is the refit's side only.
 void add_nested_pair(const ojson& gap, const std::string& simpler, Goal& g) {
   const ojson* fc = find_effect(gap, "coefficients");
   const EffectParams refit = fc ? effect_from_json(*fc) : EffectParams{};
