@@ -118,6 +118,19 @@ void reduce_dwells(Recording& r, const DiagnosisColumns& data, const DiagnosisOp
   for (size_t i = 0; i < r.n; ++i) r.in_dwell[i] = phase[i] == Phase::offset;
 }
 
+void count_outliers(Recording& r) {
+  r.outliers = 0;
+  r.outliers_axis[0] = r.outliers_axis[1] = 0;
+  r.outlier_steps.clear();
+  for (size_t i = 0; i < r.n; ++i) {
+    if (!r.outlier[i]) continue;
+    ++r.outliers;
+    for (int a = 0; a < 2; ++a) r.outliers_axis[a] += (r.outlier_axes[i] >> a) & 1;
+    const int64_t id = r.steps[r.step_of[i]].id;
+    if (r.outlier_steps.empty() || r.outlier_steps.back() != id) r.outlier_steps.push_back(id);
+  }
+}
+
 void flag_outlier_frames(Recording& r, const CoefficientSet& model, const DiagnosisOptions& opts) {
   const size_t n = r.n;
   // Isolated frames far from a robust local estimate of their step (calib/outliers.h, a running
@@ -133,6 +146,7 @@ void flag_outlier_frames(Recording& r, const CoefficientSet& model, const Diagno
     rule.min_sigma = std::isfinite(r.expected_scatter) ? r.expected_scatter
                                                        : rad_to_arcsec(std::abs(model.alpha[1])) / std::sqrt(12.0);
     r.outlier.assign(n, false);
+    r.outlier_axes.assign(n, 0);
     // Rows of a slew segment's ends (the guard, below) are not judged: the gimbal's acceleration
     // and a time shift bend the residual there faster than any neighbour median follows.
     std::vector<bool> judged(n, true);
@@ -153,22 +167,19 @@ void flag_outlier_frames(Recording& r, const CoefficientSet& model, const Diagno
       const OutlierFlags f = flag_outliers(r.res[a], ids, rule, r.shared_reading);
       for (size_t i = 0; i < n; ++i) {
         // Dwell frames: the reduction's verdict; slew frames: the running-median rule above.
+        // A dwell's arriving frames are not judged either: a lagging sensor may still see the
+        // move there (the reduction flags them for the calibration all the same).
         const bool flagged = r.in_dwell[i] ? (i < r.dwell_flags.size() && (a == 0 ? r.dwell_flags[i].alpha
                                                                                    : r.dwell_flags[i].beta))
                                            : f.outlier[i] && judged[i];
-        if (!flagged) continue;
+        if (!flagged || arriving(r, i)) continue;
         r.outlier[i] = true;
-        ++r.outliers_axis[a];
+        r.outlier_axes[i] |= static_cast<uint8_t>(1 << a);
       }
     }
     std::vector<OutlierAxes>().swap(r.dwell_flags);
-    for (size_t i = 0; i < n; ++i) {
-      if (!r.outlier[i]) continue;
-      ++r.outliers;
-      const int64_t id = ids[i];
-      if (r.outlier_steps.empty() || r.outlier_steps.back() != id) r.outlier_steps.push_back(id);
-    }
   }
+  count_outliers(r);
 }
 
 void rates(Recording& r) {
@@ -380,7 +391,9 @@ void split_steps(Recording& r, const DiagnosisOptions& opts) {
     const size_t every = static_cast<size_t>(opts.heldout_every);
     s.heldout = m == 2 ? k == 1 : (m >= 3 && k % every == every - 1);
     for (size_t i = s.begin; i < s.end; ++i) {
-      const bool guard = !dwell && (r.t[i] - r.t[s.begin] < r.guard_s || r.t[s.end - 1] - r.t[i] < r.guard_s);
+      const bool guard = dwell ? arriving(r, i)
+                               : r.t[i] - r.t[s.begin] < r.guard_s || r.t[s.end - 1] - r.t[i] < r.guard_s;
+      r.arriving_rows += dwell && guard;
       r.use[i] = guard || r.outlier[i] || r.turning[i] ? Use::excluded : (s.heldout ? Use::heldout : Use::fit);
     }
   }
@@ -405,8 +418,8 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   r.n = data.size();
   r.parts = std::move(data.parts);
   if (r.n == 0) throw DataError(fmt::format("{}: no rows: nothing to diagnose", r.origin));
-  if (!(opts.max_skew_s >= 0) || !(opts.settle_s >= 0) || opts.heldout_every < 2) {
-    throw InputError("diagnosis options: max_skew_s and settle_s must be >= 0, heldout_every >= 2");
+  if (!(opts.max_skew_s >= 0) || !(opts.settle_s >= 0) || !(opts.arrival_guard_s >= 0) || opts.heldout_every < 2) {
+    throw InputError("diagnosis options: max_skew_s, settle_s and arrival_guard_s must be >= 0, heldout_every >= 2");
   }
   for (const auto* v : {&data.temperature_c, &data.time_since_move_s, &data.approach_pitch, &data.approach_yaw}) {
     if (!v->empty() && v->size() != r.n) throw InputError(fmt::format("{}: an optional column's length differs", r.origin));
@@ -416,185 +429,30 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   find_steps(r, data.step);
   release(data.step);
   expected_scatter(r, model);
-  flag_outlier_frames(r, model, opts);
   rates(r);
   const std::vector<float> approach[2] = {std::move(data.approach_pitch), std::move(data.approach_yaw)};
   r.has_approach = !approach[0].empty();
   directions(r, opts, approach);
   settling_clock(r, data.time_since_move_s, opts, approach);
+  r.arrival_guard_s = opts.arrival_guard_s;
+  flag_outlier_frames(r, model, opts);
   split_steps(r, opts);
   return r;
 }
 
+void widen_arrival_guard(Recording& r, const DiagnosisOptions& opts, double guard_s) {
+  r.arrival_guard_s = guard_s;
+  for (size_t i = 0; i < r.n; ++i) {
+    if (r.outlier[i] && arriving(r, i)) {
+      r.outlier[i] = false;
+      r.outlier_axes[i] = 0;
+    }
+  }
+  count_outliers(r);
+  r.fit_rows.clear();
+  r.heldout_rows.clear();
+  r.excluded_rows = r.beyond_fit_rows = r.arriving_rows = 0;
+  split_steps(r, opts);
+}
+
 }  // namespace fpss::diag
-
-namespace fpss {
-
-namespace {
-
-// gimbal_time_s - time_s at the first row from `from` with both finite (NaN when none has).
-double bench_clock_of(const SampleTable& t, size_t from) {
-  const std::vector<double> g = t.numeric_column("gimbal_time_s");
-  for (size_t i = from; i < t.size(); ++i) {
-    if (std::isfinite(g[i]) && std::isfinite(t.time_s[i])) return g[i] - t.time_s[i];
-  }
-  return std::numeric_limits<double>::quiet_NaN();
-}
-
-// The shift of each recording onto the first one's bench clock, or empty when they cannot share
-// it: a recording without the gimbal's clock, or a gimbal clock that went back (restarted).
-std::vector<double> bench_clock_shifts(const std::vector<DiagnosisColumns>& parts) {
-  std::vector<double> shift;
-  double last_end = -std::numeric_limits<double>::infinity();
-  for (const auto& c : parts) {
-    if (!std::isfinite(c.bench_clock_s) || c.time_s.empty()) return {};
-    const double start = c.bench_clock_s + c.time_s.front(), end = c.bench_clock_s + c.time_s.back();
-    if (start < last_end) return {};
-    last_end = end;
-    shift.push_back(c.bench_clock_s - parts.front().bench_clock_s);
-  }
-  return shift;
-}
-
-}  // namespace
-
-const char* to_string(JointClock c) {
-  switch (c) {
-    case JointClock::bench: return "bench";
-    case JointClock::recorded: return "recorded";
-    case JointClock::own: return "own";
-  }
-  return "own";
-}
-
-DiagnosisColumns DiagnosisColumns::of(const SampleTable& t) {
-  // The optional columns are filled below, where the table has them.
-  DiagnosisColumns c{t.origin, t.time_s, t.ref_pitch_arcsec, t.ref_yaw_arcsec, t.counts_alpha, t.counts_beta,
-                     t.step, /*temperature_c=*/{}, /*time_since_move_s=*/{}, /*approach_pitch=*/{},
-                     /*approach_yaw=*/{}, /*parts=*/{}};
-  if (t.has_column("gimbal_time_s")) c.bench_clock_s = bench_clock_of(t, 0);
-  for (auto [name, out] : {std::pair{"temperature_c", &c.temperature_c}, {"time_since_move_s", &c.time_since_move_s},
-                           {"approach_pitch", &c.approach_pitch}, {"approach_yaw", &c.approach_yaw}}) {
-    if (!t.has_column(name)) continue;
-    const std::vector<double> v = t.numeric_column(name);
-    out->assign(v.begin(), v.end());
-  }
-  return c;
-}
-
-DiagnosisColumns join_recordings(std::vector<DiagnosisColumns> parts) {
-  if (parts.empty()) throw InputError("a joint diagnosis needs at least one recording");
-  if (parts.size() > kMaxJointRecordings) {
-    throw InputError(fmt::format("a joint diagnosis takes at most {} recordings ({} given)", kMaxJointRecordings,
-                                 parts.size()));
-  }
-  if (parts.size() == 1) return std::move(parts.front());
-  const bool since = std::all_of(parts.begin(), parts.end(), [](const DiagnosisColumns& c) {
-    return !c.time_since_move_s.empty();
-  });
-  const bool approach = std::all_of(parts.begin(), parts.end(), [](const DiagnosisColumns& c) {
-    return !c.approach_pitch.empty() && !c.approach_yaw.empty();
-  });
-  const bool temp = std::any_of(parts.begin(), parts.end(), [](const DiagnosisColumns& c) {
-    return !c.temperature_c.empty();
-  });
-  const std::vector<double> shift = bench_clock_shifts(parts);
-  // Without the gimbal's clock: do the times as recorded already go on from one recording to the next?
-  bool on_one = true;
-  for (size_t k = 1; k < parts.size(); ++k) {
-    on_one = on_one && !parts[k].time_s.empty() && !parts[k - 1].time_s.empty() &&
-             parts[k].time_s.front() >= parts[k - 1].time_s.back();
-  }
-  DiagnosisColumns j;
-  j.bench_clock_s = parts.front().bench_clock_s;
-  std::vector<std::string> names;
-  for (size_t k = 0; k < parts.size(); ++k) {
-    DiagnosisColumns& c = parts[k];
-    const size_t n = c.size();
-    for (int64_t s : c.step) {
-      if (s < 0 || s >= kJointStepStride) {
-        throw InputError(fmt::format("{}: step {} outside 0..{}: a joint diagnosis keeps each recording's steps apart "
-                                     "by {} per recording",
-                                     c.origin, s, kJointStepStride - 1, kJointStepStride));
-      }
-    }
-    auto append = [](auto& to, auto& from) { to.insert(to.end(), from.begin(), from.end()); diag::release(from); };
-    if (!shift.empty()) for (double& t : c.time_s) t += shift[k];
-    append(j.time_s, c.time_s);
-    append(j.ref_pitch_arcsec, c.ref_pitch_arcsec);
-    append(j.ref_yaw_arcsec, c.ref_yaw_arcsec);
-    append(j.counts_alpha, c.counts_alpha);
-    append(j.counts_beta, c.counts_beta);
-    for (int64_t s : c.step) j.step.push_back(s + static_cast<int64_t>(k) * kJointStepStride);
-    diag::release(c.step);
-    if (temp) {
-      if (c.temperature_c.empty()) j.temperature_c.insert(j.temperature_c.end(), n, std::numeric_limits<float>::quiet_NaN());
-      else append(j.temperature_c, c.temperature_c);
-    }
-    if (since) append(j.time_since_move_s, c.time_since_move_s);
-    if (approach) {
-      append(j.approach_pitch, c.approach_pitch);
-      append(j.approach_yaw, c.approach_yaw);
-    }
-    const JointClock clock = !shift.empty() ? JointClock::bench : on_one ? JointClock::recorded : JointClock::own;
-    j.parts.push_back({c.origin, n,
-                       clock == JointClock::bench      ? shift[k]
-                       : clock == JointClock::recorded ? 0.0
-                                                       : std::numeric_limits<double>::quiet_NaN(),
-                       clock});
-    names.push_back(c.origin);
-  }
-  j.origin = fmt::format("{}", fmt::join(names, " + "));
-  return j;
-}
-
-DiagnosisColumns read_diagnosis_columns(const std::filesystem::path& path, int64_t last_step) {
-  DiagnosisColumns c;
-  c.origin = path.string();
-  bool first = true, done = false;
-  for_each_sample_chunk(
-      path,
-      [&](const SampleTable& t, size_t from, double fraction_read) {
-        if (done) return;
-        const bool temp = t.has_column("temperature_c"), since = t.has_column("time_since_move_s");
-        const bool side = t.has_column("approach_pitch") && t.has_column("approach_yaw");
-        if (!std::isfinite(c.bench_clock_s) && t.has_column("gimbal_time_s")) c.bench_clock_s = bench_clock_of(t, from);
-        if (first && t.size() > from) {
-          // Reserve once from the first chunk's share of the file (plus a margin), so that growing
-          // the columns never holds two copies of them.
-          first = false;
-          const size_t est = static_cast<size_t>(static_cast<double>(t.size() - from) / fraction_read * 1.02) + 64;
-          for (auto* v : {&c.time_s, &c.ref_pitch_arcsec, &c.ref_yaw_arcsec, &c.counts_alpha, &c.counts_beta}) {
-            v->reserve(est);
-          }
-          c.step.reserve(est);
-          if (temp) c.temperature_c.reserve(est);
-          if (since) c.time_since_move_s.reserve(est);
-          if (side) { c.approach_pitch.reserve(est); c.approach_yaw.reserve(est); }
-        }
-        std::vector<double> tc, sc;
-        if (temp) tc = t.numeric_column("temperature_c");
-        if (since) sc = t.numeric_column("time_since_move_s");
-        std::vector<double> ap, ay;
-        if (side) { ap = t.numeric_column("approach_pitch"); ay = t.numeric_column("approach_yaw"); }
-        for (size_t i = from; i < t.size(); ++i) {
-          if (t.step[i] > last_step) { done = true; return; }
-          c.time_s.push_back(t.time_s[i]);
-          c.ref_pitch_arcsec.push_back(t.ref_pitch_arcsec[i]);
-          c.ref_yaw_arcsec.push_back(t.ref_yaw_arcsec[i]);
-          c.counts_alpha.push_back(t.counts_alpha[i]);
-          c.counts_beta.push_back(t.counts_beta[i]);
-          c.step.push_back(t.step[i]);
-          if (temp) c.temperature_c.push_back(static_cast<float>(tc[i]));
-          if (since) c.time_since_move_s.push_back(static_cast<float>(sc[i]));
-          if (side) {
-            c.approach_pitch.push_back(static_cast<float>(ap[i]));
-            c.approach_yaw.push_back(static_cast<float>(ay[i]));
-          }
-        }
-      },
-      1024);
-  return c;
-}
-
-}  // namespace fpss

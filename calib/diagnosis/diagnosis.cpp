@@ -92,6 +92,7 @@ double noise_floor(const Recording& r, double* per_axis, const Contribution* set
       if (s.kind != kind || s.begin < from || s.end > to) continue;
       for (size_t i = s.begin + 1; i + (order == 2 ? 1 : 0) < s.end; ++i) {
         if (r.outlier[i] || r.outlier[i - 1] || (order == 2 && r.outlier[i + 1])) continue;
+        if (arriving(r, i - 1)) continue;  // the first of the three: the others come later
         if (r.shared_reading[i] || (order == 2 && r.shared_reading[i + 1])) continue;
         const double d = order == 2 ? res(a, i + 1) - 2 * res(a, i) + res(a, i - 1) : res(a, i) - res(a, i - 1);
         d2.push_back(d * d);
@@ -138,6 +139,9 @@ Scored fit_one(const Recording& r, const std::string& name, const Contribution& 
   return s;
 }
 
+// A settling time constant short enough that only the first frames after an arrival show it.
+constexpr double kArrivalOnlyTau_s = 0.05;
+
 // The state diagnose's steps share; the steps run in the order their methods are declared.
 class Diagnoser {
  public:
@@ -145,14 +149,21 @@ class Diagnoser {
       : opts_(opts), r(diag::prepare(std::move(data), model, opts)) {}
 
   Diagnosis run(DiagnosisFigures* figures) {
-    // Each phase frees large working arrays in the middle of the heap; handing those pages back
-    // keeps a large recording's peak to what is live (glibc keeps them otherwise).
-    release_free_memory();
-    fit_singles();
-    release_free_memory();
-    pick_cause();
-    release_free_memory();
-    find_ambiguous();
+    select();
+    // A sensor found lagging by more than the arrival guard still saw the end of each move in the
+    // dwell frames after it: those frames are left out and the selection made again, once.
+    if (const double guard = lagging_guard_s(); guard > 0) {
+      const double was = r.arrival_guard_s;
+      diag::widen_arrival_guard(r, opts_, guard);
+      d = Diagnosis{};
+      all.clear();
+      combined = Contribution{};
+      select();
+      d.warnings.push_back(fmt::format(
+          "the arrival guard was widened from {:g} s to {:.3f} s and the diagnosis made again: a sensor that lags by "
+          "the time skew found still sees the end of the move in the dwell frames before that",
+          was, guard));
+    }
     locate();
     describe();
     judge_candidates();
@@ -162,6 +173,17 @@ class Diagnoser {
   }
 
  private:
+  void select() {
+    // Each phase frees large working arrays in the middle of the heap; handing those pages back
+    // keeps a large recording's peak to what is live (glibc keeps them otherwise).
+    release_free_memory();
+    fit_singles();
+    release_free_memory();
+    pick_cause();
+    release_free_memory();
+    find_ambiguous();
+  }
+  double lagging_guard_s() const;
   void fit_singles();
   void pick_cause();
   void find_ambiguous();
@@ -171,7 +193,7 @@ class Diagnoser {
   void warn();
 
   const DiagnosisOptions& opts_;
-  const Recording r;
+  Recording r;
   Diagnosis d;
   double sig[2];
   double N = 0, ms0 = 0;
@@ -179,6 +201,21 @@ class Diagnoser {
   Contribution combined;
   ojson flexible;
 };
+
+// The arrival guard a named time skew needs (0 when the guard already covers it, or no dwell row
+// lies in the part it would add): the skew with a quarter and 5 ms to spare for its error.
+double Diagnoser::lagging_guard_s() const {
+  double skew = 0;
+  for (const auto& c : d.causes) {
+    if (c.name == "time_skew") skew = c.params.value("skew_s", 0.0);
+  }
+  if (!(skew > r.arrival_guard_s)) return 0;
+  const double guard = 1.25 * skew + 0.005;
+  for (size_t i = 0; i < r.n; ++i) {
+    if (std::isfinite(r.since_move[i]) && r.since_move[i] >= r.arrival_guard_s && r.since_move[i] < guard) return guard;
+  }
+  return 0;
+}
 
 void Diagnoser::fit_singles() {
   d.source = r.origin;
@@ -316,10 +353,15 @@ void Diagnoser::find_ambiguous() {
       set.score_differences.push_back(diff);
     }
   }
-  // Look-alikes the recording could not score: what stands for them is the cause.
+  // Look-alikes the recording could not score: what stands for them is the cause. A settling that
+  // is gone within the first frames after arrival is what a lagging sensor shows there (the end
+  // of the move) when no slew can say whether it lags.
+  const bool arrival_only = std::any_of(d.causes.begin(), d.causes.end(), [](const EffectResult& c) {
+    return c.name == "settling" && c.params.value("tau_s", 1.0) <= kArrivalOnlyTau_s;
+  });
   for (const auto& m : d.not_observable) {
     const bool alike = (d.cause == "drift" && m.name == "temperature" && m.reason.find("follows time") != std::string::npos) ||
-                       (d.cause == "bias" && m.name == "backlash");
+                       (d.cause == "bias" && m.name == "backlash") || (arrival_only && m.name == "time_skew");
     if (alike) {
       set.members.push_back(m.name);
       set.score_differences.push_back(kNaN);
@@ -392,9 +434,10 @@ void Diagnoser::describe() {
       {"heldout_rows", r.heldout_rows.size()},
       {"excluded_rows", r.excluded_rows},
       {"excluded_why", fmt::format("the first and last {} s of every slew segment (the reference outside a segment "
-                                   "is not recorded, so a time shift cannot be predicted there), the rows within the same margin of every reversal inside a step (a time shift moves where the sensor sees the turn), outlier frames, and held-out rows at angles beyond those the fit rows reach on either axis (a score judges prediction, not extrapolation; beyond_fit_rows)",
-                                   r.guard_s)},
+                                   "is not recorded, so a time shift cannot be predicted there), the rows within the same margin of every reversal inside a step (a time shift moves where the sensor sees the turn), outlier frames, held-out rows at angles beyond those the fit rows reach on either axis (a score judges prediction, not extrapolation; beyond_fit_rows), and dwell rows less than {} s after their arrival (a lagging sensor still sees the move there; arriving_rows)",
+                                   r.guard_s, r.arrival_guard_s)},
       {"beyond_fit_rows", r.beyond_fit_rows},
+      {"arriving_rows", r.arriving_rows},
       {"fit_steps", {{"dwells", r.dwells - held_d}, {"slews", r.motions - held_m}}},
       {"heldout_steps", {{"dwells", held_d}, {"slews", held_m}}},
       {"heldout_step_ids", held_ids}};

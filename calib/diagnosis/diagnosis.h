@@ -40,6 +40,11 @@ struct DiagnosisOptions {
   // A second effect is looked for only while the first leaves more than this times the noise floor
   // (held out or on the fit rows).
   double second_effect_gap_ratio = 1.2;
+  // Dwell rows less than this after their arrival are left out of every fit, score and noise
+  // estimate: a sensor that lags the reference (a time skew) still shows the end of the move there,
+  // whose path the recording does not hold (as at the ends of a slew segment). One frame at 50 Hz:
+  // a recording sampled from arrival loses its first frame of each dwell.
+  double arrival_guard_s = 0.02;
   // The calibrated half-range, arcsec (the paper's grid, ±0.42 deg): a refitted transfer function
   // is pinned over it where its rows reach every sixth of it on both axes (docs/diagnosis.md).
   double calibrated_range_arcsec = 1512;

@@ -3,6 +3,7 @@
 #pragma once
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -54,6 +55,7 @@ struct Recording {
   std::vector<Use> use;
   // Isolated frames far from their step (calib/outliers.h): kept out of every fit and score.
   std::vector<bool> outlier;
+  std::vector<uint8_t> outlier_axes;  // which axes flagged it: 1 pitch (alpha), 2 yaw (beta)
   // The row shares the reference reading of the row before it in its step (same_reading,
   // calib/samples.h): their difference holds the sensor's noise alone, not the reference's.
   std::vector<bool> shared_reading;
@@ -71,6 +73,8 @@ struct Recording {
   CoefficientSet model;
   double guard_s = 0;
   double calibrated_range_arcsec = 1512;  // DiagnosisOptions'
+  double arrival_guard_s = 0;             // DiagnosisOptions'
+  size_t arriving_rows = 0;               // dwell rows within it of their arrival (not used)
   double reverse_arcsec = 0;  // the direction detector's hysteresis
   size_t dwells = 0, motions = 0, excluded_rows = 0;
   size_t beyond_fit_rows = 0;  // held-out rows at angles the fit rows do not reach (not judged)
@@ -79,6 +83,14 @@ struct Recording {
 // Builds the features from the columns (taken over: the recording is not copied). Throws
 // InputError/DataError when the data cannot be used at all.
 Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const DiagnosisOptions& opts);
+// The arrival guard widened to `guard_s` (a time skew found longer than it): the dwell frames now
+// inside it are no outliers and no part of any fit or score; the split is made again.
+void widen_arrival_guard(Recording& r, const DiagnosisOptions& opts, double guard_s);
+
+// A dwell row within the arrival guard of its arrival: a lagging sensor may still see the move.
+inline bool arriving(const Recording& r, size_t i) {
+  return std::isfinite(r.since_move[i]) && r.since_move[i] < r.arrival_guard_s;
+}
 
 // The sixths of the calibrated range (±calibrated_range_arcsec) each axis's usable rows reach
 // (pitch, yaw): where a refitted transfer function is measured rather than extrapolated. A row on a

@@ -229,6 +229,10 @@ std::string why_alike(const std::string& a, const std::string& b) {
   if (is("scale_factor", "coefficients") || is("bias", "coefficients")) {
     return "a refitted transfer function absorbs any offset or scale; more offsets or a wider field tell them apart";
   }
+  if (is("settling", "time_skew")) {
+    return "a settling gone within the first frames after arrival is what a sensor that lags the reference shows "
+           "there (the end of the move); slews, where a lag grows with the rate, tell them apart";
+  }
   if (is("boresight_roll", "axis_nonorthogonality")) {
     return "both turn pitch into yaw; only a roll also turns yaw into pitch, which needs yaw offsets";
   }

@@ -30,6 +30,11 @@ const char* kDwellsOnly =
     "name: dwells_only\nsteps:\n  - home\n  - null_offset_grid: {axes: [pitch, yaw], extent_deg: 0.42, step_deg: 0.06, "
     "frames: 25, settle_s: 0.2}\n";
 
+// The same grid sampled from each dwell's arrival: a lagging sensor's first frames see the move.
+const char* kDwellsFromArrival =
+    "name: dwells_from_arrival\nsteps:\n  - home\n  - null_offset_grid: {axes: [pitch, yaw], extent_deg: 0.42, "
+    "step_deg: 0.06, frames: 25, settle_s: 0}\n";
+
 // A narrow grid about the null (±0.05 deg): over it a change of the transfer function is nearly a
 // straight line in the angle, which a bias and a scale factor also are.
 const char* kNarrowGrid =
@@ -73,6 +78,7 @@ struct Kind {
 const std::vector<Kind>& kinds() {
   static const std::vector<Kind> k = {
       {"skew_behind_dwells", kDwellsOnly},
+      {"skew_dwells_from_arrival", kDwellsFromArrival},
       {"settling_behind_slews", slews_only("300, 600")},
       {"backlash_one_side", one_side_grid()},
       {"settling_one_side", one_side_grid()},
@@ -124,6 +130,8 @@ BenchConfig case_bench(const std::string& kind, int index, uint64_t seed, std::s
   auto mag = [&](double lo, double hi) { return (u(rng) < 0.5 ? -1 : 1) * (lo + (hi - lo) * u(rng)); };
   if (kind == "skew_behind_dwells" || kind == "skew_single_rate") {
     cfg.effects = {effect("time_skew", {{"skew_s", std::abs(mag(0.002, 0.008))}})};  // a latency: the sensor is late
+  } else if (kind == "skew_dwells_from_arrival") {
+    cfg.effects = {effect("time_skew", {{"skew_s", 0.01 + 0.09 * u(rng)}})};
   } else if (kind == "settling_behind_slews") {
     cfg.effects = {effect("settling", {{"amplitude_arcsec", mag(0.3, 2.0)}, {"tau_s", 0.2 + 1.3 * u(rng)}})};
   } else if (kind == "settling_one_side") {

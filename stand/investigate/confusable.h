@@ -11,9 +11,10 @@
 
 namespace fpss {
 
-// The kinds: skew_behind_dwells, settling_behind_slews, backlash_one_side, settling_one_side,
-// skew_single_rate, backlash_single_rate, temperature_sine_dwells, coefficients_narrow, and
-// unambiguous (one catalogued effect behind procedures/sim_to_real.yaml).
+// The kinds: skew_behind_dwells, skew_dwells_from_arrival, settling_behind_slews,
+// backlash_one_side, settling_one_side, skew_single_rate, backlash_single_rate,
+// temperature_sine_dwells, coefficients_narrow, and unambiguous (one catalogued effect behind
+// procedures/sim_to_real.yaml).
 const std::vector<std::string>& confusable_kinds();
 
 struct ConfusableCase {

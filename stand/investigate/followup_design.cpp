@@ -230,6 +230,13 @@ Goal goals(const FollowupRequest& r) {
         if (fb) p.b = effect_from_json(*fb);
         else p.b.name = other;
         g.pairs.push_back(std::move(p));
+        // A member the recordings could not score at all (a lag behind dwells only): the figure
+        // above says only how well it could mimic the other; the plan must also let it be seen.
+        // Not a temperature: the bench's temperature is not the stand's to move.
+        if (!fb && other != "temperature" && std::find(g.bound.begin(), g.bound.end(), other) == g.bound.end()) {
+          g.bound.push_back(other);
+          g.bound_first.push_back(std::numeric_limits<double>::infinity());
+        }
       }
     }
   }

@@ -189,7 +189,9 @@ TEST(AmbiguousSets, AClearCauseOnAFullRecordingHasNoSetAndBoundsWhatItCouldSee) 
   for (const auto& c : d.candidates) {
     const std::string s = c["status"];
     EXPECT_TRUE(s == "named" || s == "bounded" || s == "unbounded" || s == "ambiguous") << s;
-    if (s == "bounded") EXPECT_LE(c["limit_arcsec"].get<double>(), d.materiality_arcsec) << c.dump();
+    if (s == "bounded") {
+      EXPECT_LE(c["limit_arcsec"].get<double>(), d.materiality_arcsec) << c.dump();
+    }
   }
   EXPECT_NEAR(d.materiality_arcsec, d.noise_floor_arcsec / std::sqrt(20.0), 1e-9);
 }
@@ -365,6 +367,38 @@ TEST(PlannedRun, ARefitFromGapJsonCarriesItsCoefficientsWithinAFilesLimits) {
   EXPECT_THROW(effect_from_json(e), InputError);
   e["params"]["beta"] = {1, 2};  // not a set: nothing to predict with
   EXPECT_FALSE(effect_from_json(e).coefficients.has_value());
+}
+
+// A sensor 60 ms late on dwells sampled from their arrival: the first frames of each dwell still
+// see the end of the move, which no catalogued effect at rest is.
+TEST(ArrivalGuard, ALaggingSensorsViewOfTheMoveEndIsNoSettlingOnceSlewsPinTheLag) {
+  const BenchConfig cfg = bench(41, {"time_skew:skew_s=0.06"});
+  SessionPlan from_arrival = paper_grid();
+  from_arrival.grids[0].settle_s = 0;
+  DiagnosisOptions o = options();
+  o.settle_s = 0.005;
+  const Diagnosis dwells = diagnose(record(cfg, from_arrival, "dwells.csv"), cfg.truth, o);
+  EXPECT_GT(dwells.split["arriving_rows"].get<size_t>(), 0u);
+  // Whatever a dwells-only recording names for it, a settling gone within the first frames is
+  // never named alone: the lag it may be stands beside it.
+  for (const auto& c : dwells.causes) {
+    if (c.name != "settling") continue;
+    bool beside = false;
+    for (const auto& set : dwells.ambiguous) {
+      beside = beside || std::find(set.members.begin(), set.members.end(), "time_skew") != set.members.end();
+    }
+    EXPECT_TRUE(beside) << dwells.to_json()["causes"].dump();
+  }
+  std::vector<DiagnosisColumns> both;
+  both.push_back(record(cfg, from_arrival, "dwells.csv"));
+  both.push_back(record(bench(42, {"time_skew:skew_s=0.06"}), plan(false, true), "slews.csv"));
+  const Diagnosis d = diagnose(std::move(both), cfg.truth, o);
+  ASSERT_EQ(d.causes.size(), 1u) << d.to_json()["causes"].dump();
+  EXPECT_EQ(d.cause, "time_skew");
+  EXPECT_NEAR(d.causes[0].params["skew_s"].get<double>(), 0.06, 0.003);
+  EXPECT_EQ(d.verdict, "explained") << d.verdict_sentence;
+  EXPECT_TRUE(std::any_of(d.warnings.begin(), d.warnings.end(),
+                          [](const std::string& w) { return w.find("arrival guard was widened") != std::string::npos; }));
 }
 
 }  // namespace followup_test

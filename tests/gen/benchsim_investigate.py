@@ -12,6 +12,9 @@ lab time (the temperature profile goes on; each recording has its own clock).
 Kinds of case (parameters drawn per case from the seed):
 - skew_dwells: a time skew of 2-8 ms behind a dwells-only first run (a null-offset grid on both
   axes, no slews);
+- skew_dwells_from_arrival: a time skew of 10-100 ms behind a dwells-only grid whose dwells are
+  sampled from their arrival (settle_s 0): the first frames of each dwell still see the end of the
+  move, which looks like a fast settling until slews pin the lag;
 - settling_slews: settling (0.3-2 arcsec, tau 0.2-1.5 s) behind a slews-only first run (slews on
   both axes at 300 and 600 arcsec/s plus two null dwells);
 - backlash_settling_one_side: backlash (1-6 arcsec) or a long-tau settling (1-3 arcsec, tau 3-10 s),
@@ -90,8 +93,8 @@ def slews(axis, rates):
             "directions: both, reversals: 1, sample_period_s: 0.02, settle_s: 0.5}\n")
 
 
-def dwells_only():
-    return "name: dwells_only\nsteps:\n  - home\n" + GRID
+def dwells_only(settle_s=0.2):
+    return "name: dwells_only\nsteps:\n  - home\n" + GRID.replace("settle_s: 0.2", f"settle_s: {settle_s:g}")
 
 
 def slews_only(rates):
@@ -144,6 +147,8 @@ def case_truth(kind, k, rng):
     u = rng.uniform
     if kind == "skew_dwells":
         return base_truth(rng, ["time_skew"], {"time_skew": {"skew_s": u(0.002, 0.008)}})
+    if kind == "skew_dwells_from_arrival":
+        return base_truth(rng, ["time_skew"], {"time_skew": {"skew_s": u(0.010, 0.100)}})
     if kind == "settling_slews":
         return base_truth(rng, ["settling"], {"settling": {"amplitude_arcsec": u(0.3, 2.0), "tau_s": u(0.2, 1.5)}})
     if kind in ("backlash_settling_one_side", "backlash_settling_one_side_marked"):
@@ -178,7 +183,7 @@ def case_truth(kind, k, rng):
     raise ValueError(kind)
 
 
-KINDS = {"skew_dwells": dwells_only, "settling_slews": lambda: slews_only([300, 600]),
+KINDS = {"skew_dwells": dwells_only, "skew_dwells_from_arrival": lambda: dwells_only(0.0), "settling_slews": lambda: slews_only([300, 600]),
          "backlash_settling_one_side": one_sided_grid, "skew_backlash_slews": lambda: slews_only([300]),
          "temperature_sine": dwells_only, "coefficients_narrow": narrow_grid, "unambiguous": sim_to_real,
          # not in the default set (not one of the cases): the one-sided grid with each
