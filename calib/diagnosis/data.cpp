@@ -421,6 +421,11 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   if (!(opts.max_skew_s >= 0) || !(opts.settle_s >= 0) || !(opts.arrival_guard_s >= 0) || opts.heldout_every < 2) {
     throw InputError("diagnosis options: max_skew_s, settle_s and arrival_guard_s must be >= 0, heldout_every >= 2");
   }
+  const double range = opts.calibrated_range_arcsec;
+  if (!(range >= kMinCalibratedRangeArcsec && range <= kMaxCalibratedRangeArcsec)) {
+    throw InputError(fmt::format("diagnosis options: calibrated_range_arcsec must lie in {:g}..{:g}",
+                                 kMinCalibratedRangeArcsec, kMaxCalibratedRangeArcsec));
+  }
   for (const auto* v : {&data.temperature_c, &data.time_since_move_s, &data.approach_pitch, &data.approach_yaw}) {
     if (!v->empty() && v->size() != r.n) throw InputError(fmt::format("{}: an optional column's length differs", r.origin));
   }

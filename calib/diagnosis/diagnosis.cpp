@@ -219,6 +219,7 @@ double Diagnoser::lagging_guard_s() const {
 
 void Diagnoser::fit_singles() {
   d.source = r.origin;
+  d.calibrated_range_arcsec = r.calibrated_range_arcsec;
   const diag::Observability obs = diag::observability(r);
   d.not_observable = obs.missing;
 

@@ -27,6 +27,10 @@ struct EffectParams {
   std::optional<CoefficientSet> coefficients;
 };
 
+// The calibrated half-range a diagnosis accepts (DiagnosisOptions::calibrated_range_arcsec), arcsec:
+// 0.1 deg to 10 deg.
+inline constexpr double kMinCalibratedRangeArcsec = 360, kMaxCalibratedRangeArcsec = 36000;
+
 struct DiagnosisOptions {
   // Time from a dwell's arrival (in-position) to its first sample, when no time_since_move_s
   // column says it; settling amplitudes refer to the arrival.
@@ -107,6 +111,8 @@ struct Diagnosis {
   // The default materiality of an investigation: the noise floor of one dwell mean (the frame's
   // floor over the root of the median frames per dwell).
   double materiality_arcsec = 0;
+  // The half-range a refitted transfer function is judged measured over (DiagnosisOptions').
+  double calibrated_range_arcsec = 0;
   std::vector<WhereEntry> where;        // before any effect is added
   std::vector<WhereEntry> where_after;  // what is left once the causes are added
   std::vector<EffectResult> effects;    // every candidate tried, best first

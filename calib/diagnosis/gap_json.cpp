@@ -50,6 +50,7 @@ ojson Diagnosis::to_json() const {
   j["gap_after_all_arcsec"] = gap_after_all_arcsec;
   j["noise_floor_arcsec"] = noise_floor_arcsec;
   j["materiality_arcsec"] = materiality_arcsec;
+  j["calibrated_range_arcsec"] = calibrated_range_arcsec;
   j["where"] = where_json(where);
   j["where_after"] = where_json(where_after);
   ojson ef = ojson::array();

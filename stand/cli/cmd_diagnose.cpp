@@ -134,6 +134,11 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   sub->add_option("--materiality-arcsec", o->d.materiality_arcsec,
                   "what is material, for the candidates' status (default: the noise floor of one dwell mean)")
       ->check(CLI::PositiveNumber);
+  sub->add_option("--calibrated-range-arcsec", o->d.calibrated_range_arcsec,
+                  "the calibrated half-range a refitted transfer function must be measured over (and a follow-up "
+                  "plans within)")
+      ->default_val(DiagnosisOptions{}.calibrated_range_arcsec)
+      ->check(CLI::Range(kMinCalibratedRangeArcsec, kMaxCalibratedRangeArcsec));
   examples(sub, {"fpss-stand diagnose --model calib/data/published/a-6-fpss1.json --data RUN_DIR/samples.csv "
                  "--out gap.json --report gap.html --partial",
                  "fpss-stand diagnose --run RUN_DIR --model FPSS1-A6=calib/data/published/a-6-fpss1.json "

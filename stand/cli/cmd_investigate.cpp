@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <ctime>
 #include <memory>
@@ -33,7 +34,7 @@ namespace fs = std::filesystem;
 struct InvestigateArgs : BenchChoiceArgs {
   std::string model, procedure, runs_dir = "runs", out, catalogue;
   int max_runs = 3;
-  double materiality_arcsec = 0, max_bench_s = 0;
+  double materiality_arcsec = 0, max_bench_s = 0, calibrated_range_arcsec = 0;
   bool quiet = false;
 };
 
@@ -86,6 +87,13 @@ int investigate_command(const InvestigateArgs& a) {
   o.diagnosis.materiality_arcsec = a.materiality_arcsec;
   o.max_followup_s = a.max_bench_s;
   FollowupBench fb = followup_bench(a.stand_file, a.emu.bench);
+  // The default range (the paper's), within the stand's soft limits, unless given.
+  const SoftLimits& l = fb.settings.limits;
+  o.diagnosis.calibrated_range_arcsec =
+      a.calibrated_range_arcsec > 0
+          ? a.calibrated_range_arcsec
+          : std::clamp(std::min({DiagnosisOptions{}.calibrated_range_arcsec, -l.pitch_min_arcsec, l.pitch_max_arcsec, -l.yaw_min_arcsec, l.yaw_max_arcsec}),
+                       kMinCalibratedRangeArcsec, kMaxCalibratedRangeArcsec);
   o.settings = fb.settings;
   o.bench = std::move(fb.bench);
   const fs::path procedure = a.procedure.empty() ? shipped_procedures_dir() / "sim_to_real.yaml" : fs::path(a.procedure);
@@ -147,6 +155,10 @@ void add_investigate(CLI::App& app, Runner& run) {
       ->check(CLI::PositiveNumber);
   sub->add_option("--max-bench-s", a->max_bench_s, "bench time of one follow-up (default: half the first run's)")
       ->check(CLI::PositiveNumber);
+  sub->add_option("--calibrated-range-arcsec", a->calibrated_range_arcsec,
+                  "the calibrated half-range a refitted transfer function must be measured over and follow-ups plan "
+                  "within (default: 1512, or less within the stand's soft limits)")
+      ->check(CLI::Range(kMinCalibratedRangeArcsec, kMaxCalibratedRangeArcsec));
   add_catalogue_option(sub, a->catalogue);
   sub->add_flag("--quiet", a->quiet, "no log lines on the console (each run's events.log keeps them)");
   examples(sub, {"fpss-stand investigate --model calib/data/published/a-6-fpss1.json --emulate --effect "

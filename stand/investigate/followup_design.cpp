@@ -22,7 +22,6 @@ namespace {
 
 using ojson = nlohmann::ordered_json;
 
-constexpr double kExtentArcsec = 1512.0;    // the paper's calibrated half-range, 0.42 deg
 constexpr double kOvershootArcsec = 300.0;  // an approach starts this far before its point
 constexpr int kFrames = 25;                 // frames of a dwell (sim_to_real's)
 
@@ -41,8 +40,8 @@ std::string move_to(double p, double y) {
 // The points the designer approaches, most telling first: both ends of each axis, then halfway;
 // far enough inside the range that the dwell where an approach starts is inside it too (a frame
 // beyond the sensor's field is no sample, and the side would go unrecorded).
-std::vector<std::pair<double, double>> points(int n) {
-  const double e = kExtentArcsec - kOvershootArcsec, h = e / 2;
+std::vector<std::pair<double, double>> points(int n, double extent) {
+  const double e = extent - kOvershootArcsec, h = e / 2;
   const std::vector<std::pair<double, double>> all = {{e, 0}, {-e, 0}, {0, e}, {0, -e}, {h, 0}, {0, h}, {-h, 0}, {0, -h}};
   return {all.begin(), all.begin() + std::min<size_t>(n, all.size())};
 }
@@ -50,10 +49,10 @@ std::vector<std::pair<double, double>> points(int n) {
 // Each point approached from below and from above on both axes, a dwell from arrival. The
 // recording holds only dwells and slews: a short dwell where each approach starts records the
 // side it comes from (the diagnosis reads directions from the recorded reference).
-Move approach_both(int n) {
+Move approach_both(int n, double extent) {
   std::string y;
   const std::string mark = "  - sample: {frames: 5}\n";
-  for (auto [p, w] : points(n)) {
+  for (auto [p, w] : points(n, extent)) {
     for (double side : {-1.0, 1.0}) {
       y += move_to(p + side * kOvershootArcsec, w + side * kOvershootArcsec) + mark + move_to(p, w) +
            fmt::format("  - sample: {{frames: {}}}\n", kFrames);
@@ -63,10 +62,9 @@ Move approach_both(int n) {
 }
 
 // Long dwells from arrival, at points reached across the whole range (so both sides alternate).
-Move long_dwells(int n, double duration_s) {
+Move long_dwells(int n, double duration_s, double extent) {
   std::string y;
-  const std::vector<std::pair<double, double>> at = {{kExtentArcsec / 2, 0}, {-kExtentArcsec / 2, 0},
-                                                     {0, kExtentArcsec / 2}, {0, -kExtentArcsec / 2}};
+  const std::vector<std::pair<double, double>> at = {{extent / 2, 0}, {-extent / 2, 0}, {0, extent / 2}, {0, -extent / 2}};
   for (int k = 0; k < n; ++k) {
     const auto [p, w] = at[k % at.size()];
     y += move_to(p, w) + fmt::format("  - sample: {{duration_s: {}}}\n", num(duration_s));
@@ -102,42 +100,43 @@ Move repeated_nulls(int n, double gap_s) {
 // Offsets swept across the whole range along each axis, `n` points an axis, short dwells: a
 // transfer function's shape where a narrow recording saw none, at the least bench time (no null
 // between offsets).
-Move range_sweep(int n, int frames) {
+Move range_sweep(int n, int frames, double extent) {
   std::string y;
   for (int axis = 0; axis < 2; ++axis) {
     for (int k = 0; k < n; ++k) {
-      const double o = -kExtentArcsec + 2 * kExtentArcsec * (k + 0.5) / n;  // one a section at n = 6
+      const double o = -extent + 2 * extent * (k + 0.5) / n;  // one a section at n = 6
       y += move_to(axis == 0 ? o : 0, axis == 1 ? o : 0) + fmt::format("  - sample: {{frames: {}, settle_s: 0.2}}\n", frames);
     }
   }
-  return {fmt::format("offsets across +-{} arcsec on each axis at {} points, {} frames a dwell", num(kExtentArcsec), n,
+  return {fmt::format("offsets across +-{} arcsec on each axis at {} points, {} frames a dwell", num(extent), n,
                       frames),
           y};
 }
 
 // The null-offset grid over the whole range on both axes at the paper's finer step.
-Move fine_grid(double step_arcsec) {
+Move fine_grid(double step_arcsec, double extent) {
   return {fmt::format("null-offset grid at {} arcsec steps", num(step_arcsec)),
           fmt::format("  - null_offset_grid: {{axes: [pitch, yaw], extent_arcsec: {}, step_arcsec: {}, frames: {}, "
                       "settle_s: 0.2}}\n",
-                      num(kExtentArcsec), num(step_arcsec), kFrames)};
+                      num(extent), num(step_arcsec), kFrames)};
 }
 
-std::vector<Move> library(const EngineSettings& s) {
+// `extent`: the calibrated half-range the diagnosis judged a refit over (GAP.json), arcsec.
+std::vector<Move> library(const EngineSettings& s, double extent) {
   const double top = std::min(600.0, s.profile_rate_arcsec_s);
   const double period = std::max(0.02, 1.0 / s.sample_rate_hz);
   std::vector<Move> m;
-  for (int n : {2, 4, 8}) m.push_back(approach_both(n));
-  for (int n : {2, 4}) m.push_back(long_dwells(n, 5.0));
-  const double wide = kExtentArcsec - 12;
+  for (int n : {2, 4, 8}) m.push_back(approach_both(n, extent));
+  for (int n : {2, 4}) m.push_back(long_dwells(n, 5.0, extent));
+  const double wide = extent - 12;
   m.push_back(slews({top}, period, wide / 2));
   m.push_back(slews({top}, period, wide));
   m.push_back(slews({top / 4, top}, period, wide));
   m.push_back(slews({top / 4, top / 2, top}, period, wide));
   for (int n : {4, 8}) m.push_back(repeated_nulls(n, 30.0));
-  m.push_back(range_sweep(6, 5));
-  m.push_back(range_sweep(12, 10));
-  m.push_back(fine_grid(108.0));
+  m.push_back(range_sweep(6, 5, extent));
+  m.push_back(range_sweep(12, 10, extent));
+  m.push_back(fine_grid(108.0, extent));
   return m;
 }
 
@@ -342,6 +341,18 @@ Evaluation evaluate(const FollowupRequest& r, const BenchConfig& quiet, const Go
   return e;
 }
 
+// The calibrated half-range of the diagnosis (GAP.json `calibrated_range_arcsec`; the default for
+// a GAP.json of an earlier version).
+double calibrated_range_arcsec(const ojson& gap) {
+  const ojson& v = gap.value("calibrated_range_arcsec", ojson());
+  if (v.is_null()) return DiagnosisOptions{}.calibrated_range_arcsec;
+  if (!v.is_number() || !(v.get<double>() >= kMinCalibratedRangeArcsec && v.get<double>() <= kMaxCalibratedRangeArcsec)) {
+    throw InputError(fmt::format("the diagnosis's calibrated_range_arcsec must be a number in {:g}..{:g}",
+                                 kMinCalibratedRangeArcsec, kMaxCalibratedRangeArcsec));
+  }
+  return v.get<double>();
+}
+
 double number(const ojson& j, const char* key) {
   if (!j.contains(key) || !j[key].is_number()) {
     throw InputError(fmt::format("the diagnosis has no number \"{}\" (a GAP.json of this version is needed)", key));
@@ -383,7 +394,8 @@ FollowupDesign design_followup(const FollowupRequest& r) {
   out.unreachable = g.unreachable;
   if (g.pairs.empty() && g.bound.empty() && !g.cover) return out;
 
-  const std::vector<Move> lib = library(r.settings);
+  const double extent = calibrated_range_arcsec(r.gap);
+  const std::vector<Move> lib = library(r.settings, extent);
   BenchConfig quiet = r.bench;
   quiet.effects.clear();
   for (auto& u : quiet.sensors) u.effects.clear();
@@ -464,7 +476,7 @@ FollowupDesign design_followup(const FollowupRequest& r) {
   }
   if (g.cover) {
     head += fmt::format("# coefficients: {} over every sixth of the calibrated range +-{:g} arcsec\n",
-                        best.covered ? "measured" : "not measured", kExtentArcsec);
+                        best.covered ? "measured" : "not measured", extent);
   }
   out.procedure_text = head + best.text;
   return out;

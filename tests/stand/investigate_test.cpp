@@ -4,6 +4,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <sstream>
@@ -137,6 +140,40 @@ TEST(Investigate, ANarrowGridsBiasAndScaleAgainstAnAgedTransferFunctionIsSettled
       EXPECT_EQ(c["status"], "named") << c.dump();
     }
   }
+}
+
+TEST(Investigate, AFollowUpStaysWithinTheCalibratedRangeTheDiagnosisWasGiven) {
+  TempDir tmp("investigate-range");
+  simulate(tmp);
+  auto r = run_stand({"diagnose", "--model", kModel, "--data", (tmp / "dwells.csv").string(), "--out",
+                      (tmp / "gap.json").string(), "--partial", "--calibrated-range-arcsec", "800"},
+                     tmp.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto gap = nlohmann::json::parse(test::read_file(tmp / "gap.json"));
+  EXPECT_EQ(gap["calibrated_range_arcsec"], 800.0);
+  r = run_stand({"design", "--observe", (tmp / "gap.json").string(), "--emulate", "--out",
+                 (tmp / "followup.yaml").string(), "--max-bench-s", "200"},
+                tmp.path());
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  // Every angle the follow-up names lies within the range (an approach starts 300 arcsec outside
+  // its point, which lies 300 inside the range's end).
+  std::istringstream yaml(test::read_file(tmp / "followup.yaml"));
+  double largest = 0;
+  for (std::string line; std::getline(yaml, line);) {
+    if (line.rfind('#', 0) == 0) continue;
+    for (const char* key : {"pitch_arcsec: ", "yaw_arcsec: ", "amplitude_arcsec: ", "extent_arcsec: "}) {
+      const auto at = line.find(key);
+      if (at != std::string::npos) largest = std::max(largest, std::abs(std::stod(line.substr(at + std::strlen(key)))));
+    }
+  }
+  EXPECT_GT(largest, 0.0);
+  EXPECT_LE(largest, 800.0);
+  // Out of range: exit 2, naming the option.
+  r = run_stand({"diagnose", "--model", kModel, "--data", (tmp / "dwells.csv").string(), "--out",
+                 (tmp / "bad.json").string(), "--partial", "--calibrated-range-arcsec", "10"},
+                tmp.path());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_THAT(r.err, HasSubstr("calibrated-range-arcsec"));
 }
 
 TEST(Investigate, ARunRecordsTheSideOfEveryApproachThroughUnrecordedMoves) {
