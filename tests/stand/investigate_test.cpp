@@ -86,9 +86,9 @@ TEST(Investigate, ADesignFromADwellsOnlyDiagnosisAddsSlewsAndTheJointDiagnosisNa
   EXPECT_THAT(gap["recordings"][1]["source"].get<std::string>(), HasSubstr("followup.csv"));
 }
 
-TEST(Investigate, ANarrowGridsBiasAndScaleAgainstAnAgedTransferFunctionIsSettledByOffsetsAcrossTheRange) {
-  TempDir tmp("investigate-coefficients");
-  // The model's transfer function aged a little: each sinusoid 5 % in amplitude, 0.05 rad in phase.
+// A bench file (aged.yaml) whose sensor is the model's transfer function aged a little: each
+// sinusoid 5 % in amplitude and 0.05 rad in phase (aged.json).
+void write_aged_bench(const TempDir& tmp) {
   auto aged = nlohmann::json::parse(test::read_file(kModel));
   for (const char* axis : {"alpha", "beta"}) {
     aged[axis][2] = aged[axis][2].get<double>() * 1.05;
@@ -98,6 +98,11 @@ TEST(Investigate, ANarrowGridsBiasAndScaleAgainstAnAgedTransferFunctionIsSettled
   }
   test::write_file(tmp / "aged.json", aged.dump());
   test::write_file(tmp / "aged.yaml", "effects:\n  - {name: coefficients, file: aged.json}\n");
+}
+
+TEST(Investigate, ANarrowGridsBiasAndScaleAgainstAnAgedTransferFunctionIsSettledByOffsetsAcrossTheRange) {
+  TempDir tmp("investigate-coefficients");
+  write_aged_bench(tmp);
   ASSERT_EQ(run_stand({"simulate", "--out", (tmp / "narrow.csv").string(), "--bench", (tmp / "aged.yaml").string(),
                        "--extent-deg", "0.05", "--step-deg", "0.01", "--samples-per-dwell", "25", "--seed", "7"},
                       tmp.path()).code, 0);
@@ -246,6 +251,36 @@ TEST(Investigate, OnTheEmulatedBenchTheLoopRunsFollowUpsIntoTheCatalogueAndWrite
 // The confident wrong answer: a dwells-only grid on a bench whose temperature follows a
 // slow sine read as a drift. On one emulated bench, whose clock and temperature go on between
 // runs, the investigation tells the two apart either way round.
+TEST(Investigate, OnTheEmulatedBenchANarrowGridsLookAlikeOfAnAgedTransferFunctionEndsMeasuredOverTheRange) {
+  TempDir tmp("investigate-emulated-coefficients");
+  write_aged_bench(tmp);
+  test::write_file(tmp / "narrow.yaml", "name: narrow_grid\nsteps:\n  - home\n  - null_offset_grid: {axes: [pitch, "
+                                        "yaw], extent_deg: 0.05, step_deg: 0.01, frames: 25, settle_s: 0.2}\n");
+  const fs::path out = tmp / "inv";
+  const auto r = run_stand({"investigate", "--model", kModel, "--emulate", "--bench", (tmp / "aged.yaml").string(),
+                            "--procedure", (tmp / "narrow.yaml").string(), "--speed", "20", "--runs-dir",
+                            (tmp / "runs").string(), "--out", out.string(), "--quiet"},
+                           tmp.path(), "investigate", 600);
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  const auto inv = nlohmann::json::parse(test::read_file(out / "INVESTIGATION.json"));
+  // The first run: a look-alike of the refit (a bias, or a bias and a scale), the refit beside it.
+  const auto& first = inv["steps"][0]["diagnosis"];
+  EXPECT_NE(first["cause"], "coefficients");
+  bool beside = false;
+  for (const auto& set : first["ambiguous"]) {
+    for (const auto& m : set) beside = beside || m == "coefficients";
+  }
+  EXPECT_TRUE(beside) << first.dump(1);
+  // The end: the change of coefficients, named and measured over the range, within the budget.
+  EXPECT_EQ(inv["cause"], "coefficients") << inv["causes"].dump();
+  for (const auto& c : inv["candidates"]) {
+    if (c["name"] == "coefficients") {
+      EXPECT_EQ(c["status"], "named") << c.dump();
+    }
+  }
+  EXPECT_LE(inv["bench_time_s"]["followups_ratio"].get<double>(), 1.0);
+}
+
 TEST(Investigate, OnOneEmulatedBenchADriftAndATemperatureSineAreToldApart) {
   TempDir tmp("investigate-drift-temperature");
   const std::map<std::string, std::string> truths = {
