@@ -172,7 +172,7 @@ void flag_outlier_frames(Recording& r, const CoefficientSet& model, const Diagno
         const bool flagged = r.in_dwell[i] ? (i < r.dwell_flags.size() && (a == 0 ? r.dwell_flags[i].alpha
                                                                                    : r.dwell_flags[i].beta))
                                            : f.outlier[i] && judged[i];
-        if (!flagged || arriving(r, i)) continue;
+        if (!flagged || near_move(r, i)) continue;
         r.outlier[i] = true;
         r.outlier_axes[i] |= static_cast<uint8_t>(1 << a);
       }
@@ -391,9 +391,10 @@ void split_steps(Recording& r, const DiagnosisOptions& opts) {
     const size_t every = static_cast<size_t>(opts.heldout_every);
     s.heldout = m == 2 ? k == 1 : (m >= 3 && k % every == every - 1);
     for (size_t i = s.begin; i < s.end; ++i) {
-      const bool guard = dwell ? arriving(r, i)
+      const bool guard = dwell ? near_move(r, i)
                                : r.t[i] - r.t[s.begin] < r.guard_s || r.t[s.end - 1] - r.t[i] < r.guard_s;
-      r.arriving_rows += dwell && guard;
+      r.arriving_rows += dwell && arriving(r, i);
+      r.departing_rows += dwell && departing(r, i);
       r.use[i] = guard || r.outlier[i] || r.turning[i] ? Use::excluded : (s.heldout ? Use::heldout : Use::fit);
     }
   }
@@ -445,10 +446,11 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   return r;
 }
 
-void widen_arrival_guard(Recording& r, const DiagnosisOptions& opts, double guard_s) {
-  r.arrival_guard_s = guard_s;
+void widen_move_guards(Recording& r, const DiagnosisOptions& opts, double arrival_s, double departure_s) {
+  r.arrival_guard_s = arrival_s;
+  r.departure_guard_s = departure_s;
   for (size_t i = 0; i < r.n; ++i) {
-    if (r.outlier[i] && arriving(r, i)) {
+    if (r.outlier[i] && near_move(r, i)) {
       r.outlier[i] = false;
       r.outlier_axes[i] = 0;
     }
@@ -456,7 +458,7 @@ void widen_arrival_guard(Recording& r, const DiagnosisOptions& opts, double guar
   count_outliers(r);
   r.fit_rows.clear();
   r.heldout_rows.clear();
-  r.excluded_rows = r.beyond_fit_rows = r.arriving_rows = 0;
+  r.excluded_rows = r.beyond_fit_rows = r.arriving_rows = r.departing_rows = 0;
   split_steps(r, opts);
 }
 

@@ -92,7 +92,7 @@ double noise_floor(const Recording& r, double* per_axis, const Contribution* set
       if (s.kind != kind || s.begin < from || s.end > to) continue;
       for (size_t i = s.begin + 1; i + (order == 2 ? 1 : 0) < s.end; ++i) {
         if (r.outlier[i] || r.outlier[i - 1] || (order == 2 && r.outlier[i + 1])) continue;
-        if (arriving(r, i - 1)) continue;  // the first of the three: the others come later
+        if (near_move(r, i - 1) || near_move(r, i) || (order == 2 && near_move(r, i + 1))) continue;
         if (r.shared_reading[i] || (order == 2 && r.shared_reading[i + 1])) continue;
         const double d = order == 2 ? res(a, i + 1) - 2 * res(a, i) + res(a, i - 1) : res(a, i) - res(a, i - 1);
         d2.push_back(d * d);
@@ -151,18 +151,25 @@ class Diagnoser {
   Diagnosis run(DiagnosisFigures* figures) {
     select();
     // A sensor found lagging by more than the arrival guard still saw the end of each move in the
-    // dwell frames after it: those frames are left out and the selection made again, once.
-    if (const double guard = lagging_guard_s(); guard > 0) {
-      const double was = r.arrival_guard_s;
-      diag::widen_arrival_guard(r, opts_, guard);
+    // dwell frames after it, one found ahead of the reference already saw the next move in a
+    // dwell's last frames: those frames are left out and the selection made again, once.
+    if (const Guards g = skew_guards(); g.arrival_s != r.arrival_guard_s || g.departure_s != r.departure_guard_s) {
+      const double arrival_was = r.arrival_guard_s;
+      diag::widen_move_guards(r, opts_, g.arrival_s, g.departure_s);
       d = Diagnosis{};
       all.clear();
       combined = Contribution{};
       select();
-      d.warnings.push_back(fmt::format(
-          "the arrival guard was widened from {:g} s to {:.3f} s and the diagnosis made again: a sensor that lags by "
-          "the time skew found still sees the end of the move in the dwell frames before that",
-          was, guard));
+      d.warnings.push_back(
+          g.departure_s > 0
+              ? fmt::format("the departure guard was set to {:.3f} s and the diagnosis made again: a sensor ahead of the "
+                            "reference by the time skew found already sees the next move in a dwell's frames that close "
+                            "to its end",
+                            g.departure_s)
+              : fmt::format("the arrival guard was widened from {:g} s to {:.3f} s and the diagnosis made again: a sensor "
+                            "that lags by the time skew found still sees the end of the move in the dwell frames before "
+                            "that",
+                            arrival_was, g.arrival_s));
     }
     locate();
     describe();
@@ -183,7 +190,10 @@ class Diagnoser {
     release_free_memory();
     find_ambiguous();
   }
-  double lagging_guard_s() const;
+  struct Guards {
+    double arrival_s, departure_s;
+  };
+  Guards skew_guards() const;
   void fit_singles();
   void pick_cause();
   void find_ambiguous();
@@ -202,19 +212,27 @@ class Diagnoser {
   ojson flexible;
 };
 
-// The arrival guard a named time skew needs (0 when the guard already covers it, or no dwell row
-// lies in the part it would add): the skew with a quarter and 5 ms to spare for its error.
-double Diagnoser::lagging_guard_s() const {
+// The guards a named time skew needs: a lag longer than the arrival guard widens it, a lead sets
+// the departure guard, each to the skew with a quarter and 5 ms to spare for its error; unchanged
+// when no dwell row lies in the part a guard would add.
+Diagnoser::Guards Diagnoser::skew_guards() const {
+  Guards g{r.arrival_guard_s, r.departure_guard_s};
   double skew = 0;
   for (const auto& c : d.causes) {
     if (c.name == "time_skew") skew = c.params.value("skew_s", 0.0);
   }
-  if (!(skew > r.arrival_guard_s)) return 0;
-  const double guard = 1.25 * skew + 0.005;
+  const double want = 1.25 * std::abs(skew) + 0.005;
   for (size_t i = 0; i < r.n; ++i) {
-    if (std::isfinite(r.since_move[i]) && r.since_move[i] >= r.arrival_guard_s && r.since_move[i] < guard) return guard;
+    const diag::Step& s = r.steps[r.step_of[i]];
+    if (s.kind != StepKind::dwell) continue;
+    if (skew > r.arrival_guard_s && std::isfinite(r.since_move[i]) && r.since_move[i] >= r.arrival_guard_s &&
+        r.since_move[i] < want) {
+      g.arrival_s = want;
+    }
+    const double to_end = r.t[s.end - 1] - r.t[i];
+    if (skew < 0 && to_end >= r.departure_guard_s && to_end < want) g.departure_s = want;
   }
-  return 0;
+  return g;
 }
 
 void Diagnoser::fit_singles() {
@@ -435,10 +453,11 @@ void Diagnoser::describe() {
       {"heldout_rows", r.heldout_rows.size()},
       {"excluded_rows", r.excluded_rows},
       {"excluded_why", fmt::format("the first and last {} s of every slew segment (the reference outside a segment "
-                                   "is not recorded, so a time shift cannot be predicted there), the rows within the same margin of every reversal inside a step (a time shift moves where the sensor sees the turn), outlier frames, held-out rows at angles beyond those the fit rows reach on either axis (a score judges prediction, not extrapolation; beyond_fit_rows), and dwell rows less than {} s after their arrival (a lagging sensor still sees the move there; arriving_rows)",
-                                   r.guard_s, r.arrival_guard_s)},
+                                   "is not recorded, so a time shift cannot be predicted there), the rows within the same margin of every reversal inside a step (a time shift moves where the sensor sees the turn), outlier frames, held-out rows at angles beyond those the fit rows reach on either axis (a score judges prediction, not extrapolation; beyond_fit_rows), dwell rows less than {} s after their arrival (a lagging sensor still sees the move there; arriving_rows), and dwell rows less than {} s before their last (a sensor ahead of the reference already sees the next move there; departing_rows)",
+                                   r.guard_s, r.arrival_guard_s, r.departure_guard_s)},
       {"beyond_fit_rows", r.beyond_fit_rows},
       {"arriving_rows", r.arriving_rows},
+      {"departing_rows", r.departing_rows},
       {"fit_steps", {{"dwells", r.dwells - held_d}, {"slews", r.motions - held_m}}},
       {"heldout_steps", {{"dwells", held_d}, {"slews", held_m}}},
       {"heldout_step_ids", held_ids}};

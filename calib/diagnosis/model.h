@@ -74,7 +74,8 @@ struct Recording {
   double guard_s = 0;
   double calibrated_range_arcsec = 1512;  // DiagnosisOptions'
   double arrival_guard_s = 0;             // DiagnosisOptions'
-  size_t arriving_rows = 0;               // dwell rows within it of their arrival (not used)
+  double departure_guard_s = 0;           // before a dwell's last row (0 until a leading sensor is found)
+  size_t arriving_rows = 0, departing_rows = 0;  // dwell rows within the guards (not used)
   double reverse_arcsec = 0;  // the direction detector's hysteresis
   size_t dwells = 0, motions = 0, excluded_rows = 0;
   size_t beyond_fit_rows = 0;  // held-out rows at angles the fit rows do not reach (not judged)
@@ -83,14 +84,22 @@ struct Recording {
 // Builds the features from the columns (taken over: the recording is not copied). Throws
 // InputError/DataError when the data cannot be used at all.
 Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const DiagnosisOptions& opts);
-// The arrival guard widened to `guard_s` (a time skew found longer than it): the dwell frames now
-// inside it are no outliers and no part of any fit or score; the split is made again.
-void widen_arrival_guard(Recording& r, const DiagnosisOptions& opts, double guard_s);
+// The guards widened (a time skew found longer than the arrival guard, or a sensor found ahead of
+// the reference): the dwell frames now inside them are no outliers and no part of any fit or
+// score; the split is made again.
+void widen_move_guards(Recording& r, const DiagnosisOptions& opts, double arrival_s, double departure_s);
 
 // A dwell row within the arrival guard of its arrival: a lagging sensor may still see the move.
 inline bool arriving(const Recording& r, size_t i) {
   return std::isfinite(r.since_move[i]) && r.since_move[i] < r.arrival_guard_s;
 }
+// A dwell row within the departure guard of the dwell's last row: a leading sensor may already see
+// the next move.
+inline bool departing(const Recording& r, size_t i) {
+  const Step& s = r.steps[r.step_of[i]];
+  return s.kind == StepKind::dwell && r.t[s.end - 1] - r.t[i] < r.departure_guard_s;
+}
+inline bool near_move(const Recording& r, size_t i) { return arriving(r, i) || departing(r, i); }
 
 // The sixths of the calibrated range (±calibrated_range_arcsec) each axis's usable rows reach
 // (pitch, yaw): where a refitted transfer function is measured rather than extrapolated. A row on a

@@ -93,7 +93,7 @@ DiagnosisFigures figures(const Recording& r, const Contribution& c) {
     DiagnosisMapPoint p;
     double m = 0;
     for (size_t i = s.begin; i < s.end; ++i) {
-      if (r.outlier[i] || arriving(r, i)) continue;
+      if (r.outlier[i] || near_move(r, i)) continue;
       m += 1;
       p.pitch_arcsec += r.ref[0][i];
       p.yaw_arcsec += r.ref[1][i];

@@ -24,7 +24,7 @@ double within_step_scatter(const Recording& r, const std::vector<float> e[2]) {
     if (s.kind != StepKind::dwell) continue;
     double sum[2] = {0, 0}, sq[2] = {0, 0}, m = 0;
     for (size_t i = s.begin; i < s.end; ++i) {
-      if (r.outlier[i] || arriving(r, i)) continue;
+      if (r.outlier[i] || near_move(r, i)) continue;
       m += 1;
       for (int a = 0; a < 2; ++a) { sum[a] += e[a][i]; sq[a] += e[a][i] * e[a][i]; }
     }

@@ -12,9 +12,11 @@ lab time (the temperature profile goes on; each recording has its own clock).
 Kinds of case (parameters drawn per case from the seed):
 - skew_dwells: a time skew of 2-8 ms behind a dwells-only first run (a null-offset grid on both
   axes, no slews);
-- skew_dwells_from_arrival: a time skew of 10-100 ms behind a dwells-only grid whose dwells are
-  sampled from their arrival (settle_s 0): the first frames of each dwell still see the end of the
-  move, which looks like a fast settling until slews pin the lag;
+- skew_dwells_from_arrival: a time skew of 10-100 ms, the sensor ahead of the reference in even
+  cases and behind it in odd ones, behind a dwells-only grid whose dwells are sampled from their
+  arrival (settle_s 0): a lagging sensor's first frames of each dwell still see the end of the
+  move (it looks like a fast settling until slews pin the lag), a leading sensor's last frames
+  already see the next one;
 - settling_slews: settling (0.3-2 arcsec, tau 0.2-1.5 s) behind a slews-only first run (slews on
   both axes at 300 and 600 arcsec/s plus two null dwells);
 - backlash_settling_one_side: backlash (1-6 arcsec) or a long-tau settling (1-3 arcsec, tau 3-10 s),
@@ -147,8 +149,8 @@ def case_truth(kind, k, rng):
     u = rng.uniform
     if kind == "skew_dwells":
         return base_truth(rng, ["time_skew"], {"time_skew": {"skew_s": u(0.002, 0.008)}})
-    if kind == "skew_dwells_from_arrival":
-        return base_truth(rng, ["time_skew"], {"time_skew": {"skew_s": u(0.010, 0.100)}})
+    if kind == "skew_dwells_from_arrival":  # the sensor ahead of the reference in even cases
+        return base_truth(rng, ["time_skew"], {"time_skew": {"skew_s": (-1 if k % 2 == 0 else 1) * u(0.010, 0.100)}})
     if kind == "settling_slews":
         return base_truth(rng, ["settling"], {"settling": {"amplitude_arcsec": u(0.3, 2.0), "tau_s": u(0.2, 1.5)}})
     if kind in ("backlash_settling_one_side", "backlash_settling_one_side_marked"):
