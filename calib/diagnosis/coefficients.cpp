@@ -265,7 +265,7 @@ Refit refit_axis(const AxisCoeffs& model, const AxisRows& s) {
 }
 
 // The sixths of the range as a list per axis, for GAP.json.
-ojson sections_json(const std::array<std::array<bool, kRangeSections>, 2>& s) {
+ojson sections_json(const RangeSections& s) {
   return {{"alpha", s[0]}, {"beta", s[1]}};
 }
 
@@ -293,9 +293,7 @@ class Coefficients : public NamedCandidate<Coefficients> {
       }
       if (s.count > 0) { lo_[a] = s.lo; hi_[a] = s.hi; }
     }
-    std::vector<uint32_t> usable = r.fit_rows;
-    usable.insert(usable.end(), r.heldout_rows.begin(), r.heldout_rows.end());
-    sections_ = range_sections(r, usable);
+    sections_ = range_sections(r);
     half_range_arcsec_ = r.calibrated_range_arcsec;
     fitted_ = true;
   }
@@ -370,7 +368,7 @@ class Coefficients : public NamedCandidate<Coefficients> {
   double lo_[2] = {0, 0}, hi_[2] = {0, 0};
   double model_amp_[2] = {0, 0};
   double variance_[2] = {0, 0};
-  std::array<std::array<bool, kRangeSections>, 2> sections_{};
+  RangeSections sections_{};
   double half_range_arcsec_ = 0;
   bool prior_kept_[2] = {false, false};
   bool fitted_ = false;
@@ -378,12 +376,12 @@ class Coefficients : public NamedCandidate<Coefficients> {
 
 }  // namespace
 
-std::array<std::array<bool, kRangeSections>, 2> range_sections(const Recording& r, const std::vector<uint32_t>& rows) {
-  std::array<std::array<bool, kRangeSections>, 2> out{};
+RangeSections range_sections(const Recording& r) {
+  RangeSections out{};
   const double R = r.calibrated_range_arcsec, width = 2 * R / kRangeSections;
   if (!(R > 0)) return out;
-  for (uint32_t i : rows) {
-    if (r.use[i] == Use::excluded || (!r.outlier.empty() && r.outlier[i])) continue;
+  for (size_t i = 0; i < r.n; ++i) {
+    if (r.use[i] == Use::excluded) continue;  // the fit and held-out rows are all the others
     for (int a = 0; a < 2; ++a) {
       const double x = r.ref[a][i];
       if (!(std::abs(x) <= R * (1 + 1e-9))) continue;

@@ -167,8 +167,9 @@ void flag_outlier_frames(Recording& r, const CoefficientSet& model, const Diagno
       const OutlierFlags f = flag_outliers(r.res[a], ids, rule, r.shared_reading);
       for (size_t i = 0; i < n; ++i) {
         // Dwell frames: the reduction's verdict; slew frames: the running-median rule above.
-        // A dwell's arriving frames are not judged either: a lagging sensor may still see the
-        // move there (the reduction flags them for the calibration all the same).
+        // A dwell's frames within the guards of a move are not judged either: a sensor out of step
+        // with the reference may still (or already) see the move there (the reduction flags them
+        // for the calibration all the same).
         const bool flagged = r.in_dwell[i] ? (i < r.dwell_flags.size() && (a == 0 ? r.dwell_flags[i].alpha
                                                                                    : r.dwell_flags[i].beta))
                                            : f.outlier[i] && judged[i];
@@ -379,8 +380,10 @@ void split_steps(Recording& r, const DiagnosisOptions& opts) {
   // Split by whole steps: one in `heldout_every` of each stratum is held out (a stratum with two
   // steps gives one to each side); the ends of slew segments are scored by nobody.
   r.guard_s = opts.max_skew_s;
-  r.calibrated_range_arcsec = opts.calibrated_range_arcsec;
   r.use.assign(n, Use::fit);
+  r.fit_rows.clear();
+  r.heldout_rows.clear();
+  r.excluded_rows = r.beyond_fit_rows = r.arriving_rows = r.departing_rows = 0;
   size_t seen[5] = {0, 0, 0, 0, 0}, total[5] = {0, 0, 0, 0, 0};
   for (const Step& s : r.steps) ++total[split_stratum(r, s)];
   for (Step& s : r.steps) {
@@ -440,6 +443,7 @@ Recording prepare(DiagnosisColumns&& data, const CoefficientSet& model, const Di
   r.has_approach = !approach[0].empty();
   directions(r, opts, approach);
   settling_clock(r, data.time_since_move_s, opts, approach);
+  r.calibrated_range_arcsec = opts.calibrated_range_arcsec;
   r.arrival_guard_s = opts.arrival_guard_s;
   flag_outlier_frames(r, model, opts);
   split_steps(r, opts);
@@ -456,9 +460,6 @@ void widen_move_guards(Recording& r, const DiagnosisOptions& opts, double arriva
     }
   }
   count_outliers(r);
-  r.fit_rows.clear();
-  r.heldout_rows.clear();
-  r.excluded_rows = r.beyond_fit_rows = r.arriving_rows = r.departing_rows = 0;
   split_steps(r, opts);
 }
 

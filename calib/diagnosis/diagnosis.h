@@ -1,5 +1,6 @@
 // Sim-to-real gap diagnosis: which unmodelled bench effect explains model(counts) - reference, checked on held-out steps.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <limits>
@@ -30,6 +31,11 @@ struct EffectParams {
 // The calibrated half-range a diagnosis accepts (DiagnosisOptions::calibrated_range_arcsec), arcsec:
 // 0.1 deg to 10 deg.
 inline constexpr double kMinCalibratedRangeArcsec = 360, kMaxCalibratedRangeArcsec = 36000;
+// The sixths of the calibrated range (±calibrated_range_arcsec) a recording's usable rows reach, per
+// axis (pitch, yaw; from the low end up): where a refitted transfer function is measured rather than
+// extrapolated.
+inline constexpr int kRangeSections = 6;
+using RangeSections = std::array<std::array<bool, kRangeSections>, 2>;
 
 struct DiagnosisOptions {
   // Time from a dwell's arrival (in-position) to its first sample, when no time_since_move_s

@@ -139,12 +139,7 @@ PlannedRun::PlannedRun(DiagnosisColumns planned, const CoefficientSet& model, co
 PlannedRun::~PlannedRun() = default;
 PlannedRun::PlannedRun(PlannedRun&&) noexcept = default;
 
-std::array<std::array<bool, 6>, 2> PlannedRun::range_sections() const {
-  static_assert(diag::kRangeSections == 6);
-  std::vector<uint32_t> rows = impl_->r.fit_rows;
-  rows.insert(rows.end(), impl_->r.heldout_rows.begin(), impl_->r.heldout_rows.end());
-  return diag::range_sections(impl_->r, rows);
-}
+RangeSections PlannedRun::range_sections() const { return diag::range_sections(impl_->r); }
 
 size_t PlannedRun::rows() const { return impl_->r.n; }
 size_t PlannedRun::heldout_rows() const { return impl_->r.heldout_rows.size(); }

@@ -1,7 +1,6 @@
 // The arithmetic of designing a follow-up run: how well a planned run would separate rival effects
 // (T-optimality) and how far it would bound the effects a recording could not see.
 #pragma once
-#include <array>
 #include <limits>
 #include <map>
 #include <memory>
@@ -54,7 +53,7 @@ class PlannedRun {
   // `other_heldout_rows` held-out rows of earlier recordings that say nothing of the effect.
   double limit_arcsec(const std::string& effect, size_t other_heldout_rows) const;
   // The sixths of the calibrated range the plan's rows reach on each axis (pitch, yaw).
-  std::array<std::array<bool, 6>, 2> range_sections() const;
+  RangeSections range_sections() const;
   size_t rows() const;
   size_t heldout_rows() const;
 

@@ -101,11 +101,9 @@ inline bool departing(const Recording& r, size_t i) {
 }
 inline bool near_move(const Recording& r, size_t i) { return arriving(r, i) || departing(r, i); }
 
-// The sixths of the calibrated range (±calibrated_range_arcsec) each axis's usable rows reach
-// (pitch, yaw): where a refitted transfer function is measured rather than extrapolated. A row on a
-// boundary counts for the sixth above it (the top end for the last).
-constexpr int kRangeSections = 6;
-std::array<std::array<bool, kRangeSections>, 2> range_sections(const Recording& r, const std::vector<uint32_t>& rows);
+// The sixths of the calibrated range the usable rows (fit and held out) reach. A row on a boundary
+// counts for the sixth above it (the top end for the last).
+RangeSections range_sections(const Recording& r);
 
 // The residual (meas - ref) an effect adds, per axis and row, arcsec. Float: a contribution is a
 // small correction (float's 1e-7 relative is far below any noise), and a joint fit holds several.

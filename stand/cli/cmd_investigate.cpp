@@ -89,11 +89,11 @@ int investigate_command(const InvestigateArgs& a) {
   FollowupBench fb = followup_bench(a.stand_file, a.emu.bench);
   // The default range (the paper's), within the stand's soft limits, unless given.
   const SoftLimits& l = fb.settings.limits;
+  const double within_limits = std::min({DiagnosisOptions{}.calibrated_range_arcsec, -l.pitch_min_arcsec,
+                                         l.pitch_max_arcsec, -l.yaw_min_arcsec, l.yaw_max_arcsec});
   o.diagnosis.calibrated_range_arcsec =
-      a.calibrated_range_arcsec > 0
-          ? a.calibrated_range_arcsec
-          : std::clamp(std::min({DiagnosisOptions{}.calibrated_range_arcsec, -l.pitch_min_arcsec, l.pitch_max_arcsec, -l.yaw_min_arcsec, l.yaw_max_arcsec}),
-                       kMinCalibratedRangeArcsec, kMaxCalibratedRangeArcsec);
+      a.calibrated_range_arcsec > 0 ? a.calibrated_range_arcsec
+                                    : std::clamp(within_limits, kMinCalibratedRangeArcsec, kMaxCalibratedRangeArcsec);
   o.settings = fb.settings;
   o.bench = std::move(fb.bench);
   const fs::path procedure = a.procedure.empty() ? shipped_procedures_dir() / "sim_to_real.yaml" : fs::path(a.procedure);

@@ -153,7 +153,7 @@ struct Goal {
   // A refitted transfer function to be measured over the whole calibrated range: the sixths the
   // recordings reach so far (pitch, yaw), from its GAP.json notes.
   bool cover = false;
-  std::array<std::array<bool, 6>, 2> covered{};
+  RangeSections covered{};
 };
 
 const ojson* find_effect(const ojson& gap, const std::string& name) {
@@ -162,6 +162,13 @@ const ojson* find_effect(const ojson& gap, const std::string& name) {
     if (e.is_object() && e.value("name", "") == name) return &e;
   }
   return nullptr;
+}
+
+bool is_cause(const ojson& gap, const std::string& name) {
+  const ojson& causes = gap.value("causes", ojson::array());
+  return causes.is_array() && std::any_of(causes.begin(), causes.end(), [&](const ojson& c) {
+           return c.is_object() && c.value("name", "") == name;
+         });
 }
 
 // The sixths of the range the recordings' rows reach, from the coefficients entry's notes.
@@ -251,8 +258,8 @@ Goal goals(const FollowupRequest& r) {
       } else if (why.rfind("seen but not named", 0) == 0) {
         g.unreachable.push_back(name + ": " + why + " (a second effect the diagnosis could not pair; more of the same "
                                                     "data, not a new move)");
-      } else if (name == "coefficients" && why.rfind("named over part", 0) == 0) {
-        note_coverage(gap, g);
+      } else if (name == "coefficients" && is_cause(gap, name)) {
+        note_coverage(gap, g);  // named, but over part of the range only
       } else if (name == "coefficients") {
         g.unreachable.push_back("coefficients: bounded by more offsets over the range (a longer grid), not planned here");
       } else {

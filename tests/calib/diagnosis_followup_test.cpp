@@ -327,7 +327,7 @@ TEST(AmbiguousSets, AnAgedTransferFunctionOverANarrowGridPassesForABiasAndAScale
   EXPECT_GT(wide.expected_log_lr(aged, rivals), 10 * same.expected_log_lr(aged, rivals));
   // The narrow grid reaches two sixths of the range on each axis, the paper's all six (its
   // held-out steps beyond the fit rows' reach judge nothing, and do not count).
-  const auto reached = [](const std::array<std::array<bool, 6>, 2>& s) {
+  const auto reached = [](const RangeSections& s) {
     return std::count(s[0].begin(), s[0].end(), true) + std::count(s[1].begin(), s[1].end(), true);
   };
   EXPECT_EQ(reached(same.range_sections()), 4);
