@@ -115,6 +115,17 @@ double coefficient_error(const AxisCoeffs& fitted, const AxisCoeffs& truth, cons
   return std::sqrt(e2 / std::max(d2, 1e-30));
 }
 
+CoefficientSet with_sinusoids_changed(CoefficientSet s, const std::function<double()>& amplitude,
+                                      const std::function<double()>& phase_rad) {
+  for (AxisCoeffs* c : {&s.alpha, &s.beta}) {
+    (*c)[2] *= 1 + amplitude();
+    (*c)[4] += phase_rad();
+    (*c)[5] *= 1 + amplitude();
+    (*c)[7] += phase_rad();
+  }
+  return s;
+}
+
 std::vector<Effect> draw_effects(const std::string& cls, uint64_t seed, const BenchConfig& bench) {
   Draw d(seed);
   if (cls == "none") return {};
@@ -143,12 +154,8 @@ std::vector<Effect> draw_effects(const std::string& cls, uint64_t seed, const Be
         s.extra["perturbation"] = "published";
       } else {
         // The model's set with its sinusoids changed by 5-25 % in amplitude and 0.05-0.3 rad in phase.
-        for (AxisCoeffs* c : {&s.alpha, &s.beta}) {
-          (*c)[2] *= 1 + d.signed_mag(0.05, 0.25);
-          (*c)[4] += d.signed_mag(0.05, 0.3);
-          (*c)[5] *= 1 + d.signed_mag(0.05, 0.25);
-          (*c)[7] += d.signed_mag(0.05, 0.3);
-        }
+        s = with_sinusoids_changed(
+            s, [&] { return d.signed_mag(0.05, 0.25); }, [&] { return d.signed_mag(0.05, 0.3); });
         s.extra["perturbation"] = "perturbed";
       }
       try {
@@ -555,46 +562,6 @@ std::string BlindTestReport::to_text() const {
       100 * m["param_relative_error"]["max"].get<double>(), m["gap_after_within_1_5_noise"].get<size_t>(), cases.size(),
       m["shrink_gap_after_over_noise"]["median"].get<double>(), m["shrink_gap_after_over_noise"]["max"].get<double>());
   return s;
-}
-
-void write_emitted_bench(const std::string& bench_path, const Diagnosis& d, const std::string& model_path) {
-  namespace fs = std::filesystem;
-  const fs::path bench = fs::absolute(bench_path);
-  fs::path truth = fs::absolute(model_path);
-  std::string y = fmt::format("# Emulator bench file written by `fpss-stand diagnose --emit-bench` from {}\n"
-                              "# verdict: {}; the model as truth, the diagnosed causes as effects.\n",
-                              d.source, d.verdict);
-  y += fmt::format("truth: \"{}\"\n", truth.lexically_relative(bench.parent_path()).string());
-  y += "effects:\n";
-  if (d.causes.empty()) y += "  []\n";
-  for (const auto& c : d.causes) {
-    if (c.name == "coefficients") {
-      CoefficientSet set = load_coefficients(truth);
-      set.alpha = c.params.at("alpha").get<AxisCoeffs>();
-      set.beta = c.params.at("beta").get<AxisCoeffs>();
-      set.extra["source"] = "diagnose --emit-bench: the refitted transfer function";
-      const fs::path cf = emitted_coefficients_path(bench_path);
-      save_coefficients(cf, set);
-      y += fmt::format("  - {{name: coefficients, file: \"{}\"}}\n", cf.filename().string());
-      continue;
-    }
-    std::string line = "  - {name: " + c.name;
-    const auto& keys = effect_catalogue().at(c.name);
-    for (const auto& k : keys) {
-      if (c.params.contains(k)) line += fmt::format(", {}: {:.10g}", k, c.params.at(k).get<double>());
-    }
-    line += "}";
-    if (c.name == "temperature" && c.params.contains("t0_c")) {
-      line += fmt::format("  # diagnosed t0_c {:.4g} C: the bench profile's t0_c", c.params.at("t0_c").get<double>());
-    }
-    y += line + "\n";
-  }
-  write_text_atomic(bench, y);
-}
-
-std::filesystem::path emitted_coefficients_path(const std::string& bench_path) {
-  const std::filesystem::path bench = std::filesystem::absolute(bench_path);
-  return bench.parent_path() / (bench.stem().string() + ".coefficients.json");
 }
 
 }  // namespace fpss

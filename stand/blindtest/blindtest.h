@@ -30,6 +30,11 @@ DiagnosisOptions blindtest_diagnosis_options();
 // `cls` "none" gives no effect. Deterministic in `seed`.
 std::vector<Effect> draw_effects(const std::string& cls, uint64_t seed, const BenchConfig& bench);
 
+// A transfer function aged: each axis's two sinusoids (C3, C6) scaled by 1 + amplitude() and moved
+// in phase (C5, C8) by phase_rad(), drawn in the order C3, C5, C6, C8, alpha before beta.
+CoefficientSet with_sinusoids_changed(CoefficientSet s, const std::function<double()>& amplitude,
+                                      const std::function<double()>& phase_rad);
+
 // RMS over +-max_arcsec of (fitted - true) transfer function, relative to the RMS of (true -
 // model): how much of a change of coefficients a refit got wrong.
 double coefficient_error(const AxisCoeffs& fitted, const AxisCoeffs& truth, const AxisCoeffs& model, double max_arcsec);

@@ -107,18 +107,11 @@ const std::map<std::string, std::string>& main_keys() {
 // An ageing of the unit's transfer function: both sinusoids of each axis changed by 2-8 % in
 // amplitude and 0.02-0.08 rad in phase (the kind of change the paper's Figures 1 and 2 show
 // between calibrations), small enough that over the narrow grid it passes for a bias and a scale.
-template <class Mag>
-Effect aged_coefficients(const CoefficientSet& model, Mag&& mag) {
+Effect aged_coefficients(const CoefficientSet& model, const std::function<double(double, double)>& mag) {
   Effect e{"coefficients", {}, {}};
-  CoefficientSet s = model;
-  for (AxisCoeffs* c : {&s.alpha, &s.beta}) {
-    (*c)[2] *= 1 + mag(0.02, 0.08);
-    (*c)[4] += mag(0.02, 0.08);
-    (*c)[5] *= 1 + mag(0.02, 0.08);
-    (*c)[7] += mag(0.02, 0.08);
-  }
-  s.extra["perturbation"] = "aged";
-  e.coefficients = s;
+  const auto small = [&] { return mag(0.02, 0.08); };
+  e.coefficients = with_sinusoids_changed(model, small, small);
+  e.coefficients->extra["perturbation"] = "aged";
   return e;
 }
 
