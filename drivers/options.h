@@ -11,7 +11,7 @@ struct GimbalOptions {
   // modbus-tcp:HOST:PORT or modbus-rtu:DEVICE[:BAUD[:8N1|8E1|8O1|8N2]] (docs/icd.md).
   std::string endpoint = "modbus-tcp:127.0.0.1:1502";
   int unit_id = 1;
-  SoftLimits limits;
+  SoftLimits limits{};
   double response_timeout_s = 0.5;  // one Modbus request/response (also the TCP connect timeout)
   // Further attempts after a timeout, a dropped link or a corrupt reply; each reconnects first.
   // Modbus exceptions are answers, not faults of the link: they are never retried (06 busy aside).

@@ -24,7 +24,7 @@ class EngineIo {
   EngineIo(Gimbal& gimbal, Sensor& sensor, const EngineSettings& bench, EventBus& events, spdlog::logger& log,
            RunControl& control, EngineStats& stats, EngineClock& clock)
       : g_(gimbal), b_(bench), events_(events), log_(log), ctl_(control), stats_(stats), clock_(clock),
-        units_{EngineUnit{0, &sensor, bench.axes}}, lost_(1, false) {}
+        units_{EngineUnit{.id = 0, .sensor = &sensor, .axes = bench.axes}}, lost_(1, false) {}
 
   Gimbal& gimbal() { return g_; }
   // The lead unit's sensor: its frames pace the dwells.

@@ -122,7 +122,7 @@ struct PointDone {
   int invalid_frames = 0;  // frames skipped as invalid in the attempt that was kept
   double temperature_c = std::numeric_limits<double>::quiet_NaN();  // the sensor's; NaN: it did not answer
   bool valid = true;
-  std::string utc;
+  std::string utc{};
 };
 // The streaming estimate after a point (published by whoever runs the estimator). NaN: not known.
 struct FitUpdated {

@@ -41,7 +41,7 @@ void PointMeasurer::publish_point(const Action& a, std::vector<RecordedRow> meas
   }
   next_point_ = a.point + 1;
   ++stats_.points;
-  PointDone done{point, rows, PointStats::of(*rows), attempt, invalid};
+  PointDone done{.point = point, .rows = rows, .stats = PointStats::of(*rows), .attempts = attempt, .invalid_frames = invalid};
   if (!rows->empty()) done.temperature_c = rows->front().temperature_c;
   events_.publish(done);
 }

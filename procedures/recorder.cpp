@@ -55,7 +55,10 @@ std::string safe_name(const std::string& s) {
 
 std::string header_text() {
   std::string h;
-  for (const char* r : SampleTable::kRequired) h += (h.empty() ? "" : ",") + std::string(r);
+  for (const char* r : SampleTable::kRequired) {
+    if (!h.empty()) h += ',';
+    h += r;
+  }
   for (const auto& e : recorder_extra_columns()) h += "," + e;
   return h + "\n";
 }

@@ -124,7 +124,7 @@ struct AcceptanceRecord {
 };
 
 struct RunFilter {
-  std::optional<std::string> unit;
+  std::optional<std::string> unit{};
   size_t limit = 0;  // 0: all; otherwise the most recent `limit`
 };
 

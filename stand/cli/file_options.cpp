@@ -36,7 +36,7 @@ bool same_file(const fs::path& a, const fs::path& b) {
 
 CLI::Option* FileOptions::input(CLI::App* sub, const std::string& name, std::string& path, const std::string& help) {
   CLI::Option* opt = sub->add_option(name, path, help);
-  inputs_.push_back({shown_name(opt), &path});
+  inputs_.push_back({shown_name(opt), &path, {}});
   return opt;
 }
 

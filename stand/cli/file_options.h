@@ -32,7 +32,7 @@ class FileOptions {
   struct File {
     std::string option;
     const std::string* path;
-    Beside beside;
+    Beside beside{};
   };
   std::vector<File> inputs_, outputs_;
   std::vector<std::vector<std::string>*> input_lists_;

@@ -120,7 +120,7 @@ static void read_units(MapReader& top, const YAML::Node& root, StandConfig& c, D
     if (auto v = r.string("serial")) c.unit_serial = *v;
     r.finish();
     read_axes(top.node("axes"), "axes", b.axes, d);
-    c.units = {StandUnit{c.unit_serial, c.sensor, b.axes}};
+    c.units = {StandUnit{.serial = c.unit_serial, .sensor = c.sensor, .axes = b.axes}};
   } else {
     if (top.has("axes")) d.error(top.node("axes"), "stand file: with sensors, each unit gives its own axes");
     if (top.has("unit")) d.error(top.node("unit"), "stand file: with sensors, each unit gives its own serial (unit)");

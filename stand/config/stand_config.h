@@ -21,7 +21,7 @@ struct StandUnit {
   AxisMapping axes;     // how it sits on the gimbal
   // Its own engine-side options when its sensors entry gives them (none: the stand's): its RATE,
   // how late its frames may be, its clock's known offset (else clock.sensor_offset_s).
-  std::optional<double> sample_rate_hz, frame_timeout_s, sensor_offset_s;
+  std::optional<double> sample_rate_hz{}, frame_timeout_s{}, sensor_offset_s{};
 };
 
 // A stand as a stand file describes it: the devices' options and what the engine needs.

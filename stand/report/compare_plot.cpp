@@ -25,7 +25,7 @@ std::string comparison_plot_data(const CalibrationComparison& c) {
 std::string comparison_plot_script(const CalibrationComparison& c, const std::string& data_path,
                                    const std::string& svg_path, const std::string& title) {
   // Single-quoted: gnuplot substitutes no backquote and interprets no escape inside them.
-  auto quote = [](const std::string& text) { return "'" + gnuplot_quote(text) + "'"; };
+  auto quote = [](const std::string& text) { return fmt::format("'{}'", gnuplot_quote(text)); };
   std::string s;
   s += "set terminal svg size 900,520 dynamic enhanced font 'sans,12' background rgb 'white'\n";
   s += fmt::format("set output {}\n", quote(svg_path));

@@ -21,8 +21,8 @@ DiagnoseStepResult run_diagnose_step(const SampleTable& recording, int64_t last_
   Diagnosis d = diagnose(DiagnosisColumns::of(recording.up_to_step(last_step)), model, opts, &figures);
   if (predict && !d.ambiguous.empty()) predict(d, model);
   const std::string stem = nth == 1 ? "GAP" : fmt::format("GAP-{}", nth);
-  DiagnoseStepResult r{run_dir / (stem + ".json"), run_dir / (stem + ".html"), d.verdict, d.verdict_sentence,
-                       d.cause, d.incomplete_recording()};
+  DiagnoseStepResult r{.json = run_dir / (stem + ".json"), .html = run_dir / (stem + ".html"), .verdict = d.verdict,
+                       .sentence = d.verdict_sentence, .cause = d.cause, .incomplete = d.incomplete_recording()};
   nlohmann::ordered_json j = d.to_json();
   j["model"] = model_path.string();
   write_gap_file(r.json, j);

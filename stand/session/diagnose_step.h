@@ -22,7 +22,7 @@ struct DiagnoseStepResult {
   std::filesystem::path json, html;  // GAP.json and GAP.html (GAP-2.json, ... for later steps)
   std::string verdict, sentence, cause;
   bool incomplete = false;  // the recording cannot tell every effect apart (see not_observable)
-  Diagnosis diagnosis;      // what the files hold (several units: attributed to the stand or the unit)
+  Diagnosis diagnosis{};    // what the files hold (several units: attributed to the stand or the unit)
 };
 
 // Diagnoses the run's recording (the session's, in memory) up to step `last_step` (the points

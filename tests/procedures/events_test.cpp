@@ -223,7 +223,9 @@ TEST(Events, AReplayedRunPublishesWhatTheEngineDidLive) {
   size_t lines = 0;
   for (std::string line; std::getline(in, line); ++lines) {
     const EventLine l = event_line_from_json(parse_json_text(line, "events.jsonl"), "events.jsonl");
-    if (const auto* e = std::get_if<Event>(&l)) EXPECT_EQ(to_json(*e).dump(), line);
+    if (const auto* e = std::get_if<Event>(&l)) {
+      EXPECT_EQ(to_json(*e).dump(), line);
+    }
   }
   EXPECT_EQ(lines, live.size() + 1);
 

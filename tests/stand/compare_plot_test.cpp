@@ -36,7 +36,9 @@ TEST(ComparePlot, BackquotesAndDollarsInLabelsAndPathsRunNothing) {
   EXPECT_FALSE(std::filesystem::exists(marker1));
   EXPECT_FALSE(std::filesystem::exists(marker2));
   EXPECT_FALSE(std::filesystem::exists(marker3));
-  if (have_gnuplot) EXPECT_TRUE(std::filesystem::exists(svg)) << "the plot is drawn at the path as given";
+  if (have_gnuplot) {
+    EXPECT_TRUE(std::filesystem::exists(svg)) << "the plot is drawn at the path as given";
+  }
 }
 
 }  // namespace

@@ -41,7 +41,7 @@ TEST(RunFolder, ASecondOwnerIsRefusedAndEverySpellingReachesTheSameRun) {
   const fs::path run = only_run(runs);
   fs::create_directory_symlink(run, tmp / "link");
   // While it runs: a resume through a symlink and one with a trailing slash are both refused.
-  for (const std::string spelling : {(tmp / "link").string(), run.string() + "/"}) {
+  for (const std::string& spelling : {(tmp / "link").string(), run.string() + "/"}) {
     const auto r = run_stand({"run", "--resume", spelling, "--quiet"}, tmp.path(), "second");
     EXPECT_EQ(r.code, 1) << spelling << ": " << r.err;
     EXPECT_NE(r.err.find(fmt::format("pid {}", c.pid())), std::string::npos) << r.err;
