@@ -24,7 +24,7 @@
 #include "calib/streaming.h"
 #include "calib/transfer_function.h"
 #include "calib/units.h"
-#include "python/bindings/convert.h"
+#include "convert.h"
 
 namespace fpss::pybind {
 

@@ -5,7 +5,7 @@
 #include <optional>
 #include <string>
 
-#include "python/bindings/convert.h"
+#include "convert.h"
 #include "stand/catalogue/catalogue.h"
 
 namespace fpss::pybind {

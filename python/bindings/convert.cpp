@@ -1,5 +1,5 @@
 // JSON to and from Python objects; the samples table built from a DataFrame's columns and written as samples.csv.
-#include "python/bindings/convert.h"
+#include "convert.h"
 
 #include <fmt/format.h>
 #include <pybind11/numpy.h>

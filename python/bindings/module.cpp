@@ -2,7 +2,7 @@
 #include <pybind11/pybind11.h>
 
 #include "base/errors.h"
-#include "python/bindings/convert.h"
+#include "convert.h"
 #include "stand/catalogue/catalogue.h"
 
 PYBIND11_MODULE(_fpss_stand, m) {

@@ -9,7 +9,7 @@
 #include "base/json_file.h"
 #include "procedures/events.h"
 #include "procedures/recorder.h"
-#include "python/bindings/convert.h"
+#include "convert.h"
 #include "stand/catalogue/run_file.h"
 
 namespace fpss::pybind {

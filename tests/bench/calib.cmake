@@ -8,6 +8,6 @@ target_link_libraries(fpss_bench_calib PRIVATE fpss_calib benchmark::benchmark_m
 # reported 1-sigma, long-dwell quantisation floor. Run: build/tests/bench/fpss_bench_calib_stats
 add_executable(fpss_bench_calib_stats ${CMAKE_CURRENT_SOURCE_DIR}/calib_stats_bench.cpp)
 target_link_libraries(fpss_bench_calib_stats PRIVATE fpss_calib fmt::fmt benchmark::benchmark_main)
-target_include_directories(fpss_bench_calib_stats PRIVATE ${PROJECT_SOURCE_DIR})
+target_link_libraries(fpss_bench_calib_stats PRIVATE fpss_test_support)
 target_compile_definitions(fpss_bench_calib_stats PRIVATE FPSS_SOURCE_DIR="${FPSS_SOURCE_DIR}"
                            FPSS_BINARY_DIR="${CMAKE_BINARY_DIR}")

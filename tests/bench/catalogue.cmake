@@ -4,5 +4,5 @@
 add_executable(fpss_bench_catalogue ${CMAKE_CURRENT_SOURCE_DIR}/catalogue_bench.cpp)
 target_link_libraries(fpss_bench_catalogue PRIVATE fpss_stand_catalogue fpss_test_support benchmark::benchmark_main)
 target_compile_definitions(fpss_bench_catalogue PRIVATE FPSS_BINARY_DIR="${CMAKE_BINARY_DIR}")
-target_include_directories(fpss_bench_catalogue PRIVATE ${PROJECT_SOURCE_DIR})
+target_link_libraries(fpss_bench_catalogue PRIVATE fpss_test_support)
 add_dependencies(fpss_bench_catalogue fpss-stand)

@@ -4,5 +4,5 @@ add_executable(fpss_bench_console ${CMAKE_CURRENT_SOURCE_DIR}/console_bench.cpp)
 target_link_libraries(fpss_bench_console PRIVATE PkgConfig::HTTPLIB nlohmann_json::nlohmann_json benchmark::benchmark_main
                       Threads::Threads)
 target_compile_definitions(fpss_bench_console PRIVATE FPSS_BINARY_DIR="${CMAKE_BINARY_DIR}")
-target_include_directories(fpss_bench_console PRIVATE ${PROJECT_SOURCE_DIR})
+target_link_libraries(fpss_bench_console PRIVATE fpss_test_support)
 add_dependencies(fpss_bench_console fpss-stand)

@@ -4,4 +4,4 @@ add_executable(fpss_bench_drivers
   ${CMAKE_CURRENT_SOURCE_DIR}/drivers_bench.cpp
   ${PROJECT_SOURCE_DIR}/tests/drivers/modbus_test_server.cpp)
 target_include_directories(fpss_bench_drivers PRIVATE ${PROJECT_SOURCE_DIR}/tests/drivers)
-target_link_libraries(fpss_bench_drivers PRIVATE fpss_drivers PkgConfig::MODBUS util benchmark::benchmark_main)
+target_link_libraries(fpss_bench_drivers PRIVATE fpss_drivers_internals fpss_test_support PkgConfig::MODBUS util benchmark::benchmark_main)
