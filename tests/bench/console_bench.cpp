@@ -62,11 +62,14 @@ void BM_RunUnderConsole(benchmark::State& state) {
     ++job;
     c.Post("/api/jobs", auth, R"({"procedure":"discrete_grid.yaml"})", "application/json");
     std::string run_id;
-    wait_until([&] {
-      const json j = json::parse(c.Get(("/api/jobs/" + std::to_string(job)).c_str())->body);
-      if (j["run_id"].is_string()) run_id = j["run_id"];
-      return !run_id.empty();
-    }, 60, std::chrono::milliseconds(20));
+    if (!wait_until([&] {
+          const json j = json::parse(c.Get(("/api/jobs/" + std::to_string(job)).c_str())->body);
+          if (j["run_id"].is_string()) run_id = j["run_id"];
+          return !run_id.empty();
+        }, 60, std::chrono::milliseconds(20))) {
+      state.SkipWithError("the job never named its run");
+      break;
+    }
     // A page following the run: the event stream read to its end.
     std::atomic<size_t> bytes{0};
     std::thread reader([&] {
@@ -77,11 +80,15 @@ void BM_RunUnderConsole(benchmark::State& state) {
         return true;
       });
     });
-    wait_until([&] {
+    const bool finished = wait_until([&] {
       const json j = json::parse(c.Get(("/api/jobs/" + std::to_string(job)).c_str())->body);
       return j["state"] == "finished";
     }, 300, std::chrono::milliseconds(50));
     reader.join();
+    if (!finished) {
+      state.SkipWithError("the run did not finish");
+      break;
+    }
     state.SetIterationTime(engine_wall_s(fpss::test::run_folder_of(t / "runs", run_id)));
     state.counters["stream_bytes"] = static_cast<double>(bytes.load());
   }

@@ -18,24 +18,24 @@ using test::error_of;
 std::vector<uint8_t> read_exactly(ByteStream& s, std::size_t n) {
   std::vector<uint8_t> out;
   uint8_t buf[1024];
-  test::wait_until([&] {
+  EXPECT_TRUE(test::wait_until([&] {
     out.insert(out.end(), buf, buf + s.read(buf, std::min(sizeof buf, n - out.size()), 0.05));
     return out.size() >= n;
-  });
+  })) << out.size() << " of " << n << " bytes came";
   return out;
 }
 
 std::vector<uint8_t> read_fd_exactly(int fd, std::size_t n) {
   std::vector<uint8_t> out(n);
   std::size_t got = 0;
-  test::wait_until([&] {
+  EXPECT_TRUE(test::wait_until([&] {
     pollfd p{fd, POLLIN, 0};
     if (::poll(&p, 1, 50) > 0) {
       ssize_t r = ::read(fd, out.data() + got, n - got);
       if (r > 0) got += static_cast<std::size_t>(r);
     }
     return got >= n;
-  });
+  })) << got << " of " << n << " bytes came";
   out.resize(got);
   return out;
 }

@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include <future>
 #include <map>
 #include <mutex>
 #include <set>
@@ -89,22 +90,32 @@ TEST(Fleet, FourStandsAcceptTwentyUnitsIntoOneDatabaseWithOneKilled) {
 
   std::map<std::string, std::vector<CommandResult>> results;
   std::mutex m;
+  // A's exit code for the shared unit, set when that acceptance has ended: B's reference is then in the
+  // catalogue. B waits for the event itself, not for a time, however loaded the machine.
+  std::promise<int> shared_on_a;
+  const std::shared_future<int> shared_on_a_done = shared_on_a.get_future().share();
   std::vector<std::thread> threads;
   for (const auto& st : stands) {
     threads.emplace_back([&, st] {
       int i = 0;
       for (const auto& [unit, seed] : plan[st.name]) {
         if (st.name == "stand-B" && unit == shared) {
-          // B accepts the shared unit once A's acceptance of it is in the catalogue.
-          test::wait_until([&] { return has_passed_acceptance(url, shared); }, 240, std::chrono::milliseconds(200));
+          // B accepts the shared unit once A's acceptance of it has ended and passed.
+          const bool came = shared_on_a_done.wait_for(std::chrono::seconds(1800)) == std::future_status::ready;
+          EXPECT_TRUE(came) << "stand A never finished the shared unit";
+          if (came) EXPECT_EQ(shared_on_a_done.get(), 0) << "A's acceptance of the shared unit is B's reference";
+          EXPECT_TRUE(has_passed_acceptance(url, shared));
         }
         const std::string tag = fmt::format("{}-{}", st.name, i++);
         test::Child c = test::start_stand(accept_args(st, unit, seed), st.dir, tag);
         if (unit == killed_unit) {
-          test::wait_until([&] { return has_recorded_points(url, unit); }, 240, std::chrono::milliseconds(100));
+          EXPECT_TRUE(test::wait_until([&] { return has_recorded_points(url, unit); }, 600,
+                                       std::chrono::milliseconds(100)))
+              << "the unit to be killed never recorded a point";
           c.signal(SIGKILL);
         }
-        const int code = c.wait(240);
+        const int code = c.wait(600);
+        if (st.name == "stand-A" && unit == shared) shared_on_a.set_value(code);
         std::lock_guard<std::mutex> lock(m);
         results[st.name].push_back({code, c.out(), c.err()});
       }

@@ -128,7 +128,8 @@ class TempDir {
 // ---------------------------------------------------------------- waiting and errors
 
 // Polls a condition until it holds or the (generous) timeout passes; never asserts how long it took.
-inline bool wait_until(const std::function<bool()>& cond, double timeout_s = 10.0,
+// [[nodiscard]]: a test that waits asserts that what it waited for came (-Werror makes it a build error).
+[[nodiscard]] inline bool wait_until(const std::function<bool()>& cond, double timeout_s = 10.0,
                        std::chrono::milliseconds poll = std::chrono::milliseconds(2)) {
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   while (std::chrono::steady_clock::now() < end) {
@@ -154,7 +155,8 @@ std::string error_of(F&& f) {
 template <class E = std::exception, class F>
 std::optional<std::string> error_within(F&& f, double timeout_s = 10.0) {
   std::optional<std::string> msg;
-  wait_until(
+  // The caller asserts on the nullopt (a link that never noticed the hang-up).
+  (void)wait_until(
       [&] {
         try {
           f();
