@@ -231,10 +231,10 @@ void Engine::do_action(size_t i) {
       break;
     case Action::Kind::check: {
       log_.info("step {}: check", a.step_index);
-      std::string broken;
-      if (hooks_.check) off_bench([&] { broken = hooks_.check(a); });
-      if (!broken.empty()) {
-        throw PointFailure(fmt::format("step {} (check): {}", a.step_index, broken), StopCause::check_failed);
+      CheckReport report;
+      if (hooks_.check) off_bench([&] { report = hooks_.check(a); });
+      if (!report.passed()) {
+        throw PointFailure(fmt::format("step {} (check): {}", a.step_index, report.summary()), StopCause::check_failed);
       }
       break;
     }

@@ -16,6 +16,7 @@
 #include "procedures/settings.h"
 #include "procedures/plan.h"
 #include "procedures/align.h"
+#include "procedures/check_report.h"
 #include "procedures/events.h"
 #include "procedures/recorder.h"
 
@@ -34,7 +35,7 @@ struct EngineUnit {
   int id = 0;
   Sensor* sensor = nullptr;  // borrowed
   AxisMapping axes;          // how it sits on the gimbal
-  std::string serial;        // as it reported itself ("": unknown), for the messages that name it
+  std::string serial{};      // as it reported itself ("": unknown), for the messages that name it
   // Its own sensor options (the stand file's sensors entry; NaN: the engine's settings). The lead's
   // rate paces the dwells: a unit that takes the lead is set to the first unit's rate.
   double sample_rate_hz = std::numeric_limits<double>::quiet_NaN();
@@ -79,8 +80,9 @@ struct EngineStats {
 struct EngineHooks {
   // A calibrate action: fit what was recorded before it. Throwing fails the run.
   std::function<void(const Action&)> calibrate;
-  // A check action: returns an empty string when the limits hold, else what broke them.
-  std::function<std::string(const Action&)> check;
+  // A check action: what the limits found, unit by unit; one that did not pass stops the run
+  // (StopCause::check_failed).
+  std::function<CheckReport(const Action&)> check;
   // A diagnose action: the sim-to-real diagnosis of what was recorded before it. Throwing fails the run.
   std::function<void(const Action&)> diagnose;
   // A point of a grid with an adaptive stop is about to be measured: the live fit's largest

@@ -30,7 +30,6 @@
 #include "stand/report/units_page.h"
 #include "stand/session/bench_launcher.h"
 #include "stand/session/catch_up.h"
-#include "stand/session/computation_checks.h"
 #include "stand/session/diagnose_step.h"
 #include "stand/session/emulator_process.h"
 #include "stand/session/live_fit.h"
@@ -86,7 +85,7 @@ class Session {
   void ask_prompts(ControlPoller& poller, RunControl& control);
   void on_calibrate(const Action& a);
   void on_diagnose(const Action& a);
-  std::string on_check(const Action& a);
+  CheckReport on_check(const Action& a);
   void finish(const EngineResult& er);
   void write_report();
   template <typename F>
@@ -387,19 +386,22 @@ void Session::on_diagnose(const Action& a) {
   if (diagnoses_ == 1 && !gap.empty()) run_.files.gap = gap.filename().string();
 }
 
-std::string Session::on_check(const Action& a) {
-  std::string all;
+CheckReport Session::on_check(const Action& a) {
+  CheckReport report;
   for (const SessionUnit& u : units_) {
     if (u.loss) continue;
-    if (!u.cal) return "no calibration to check";
-    const std::string broken = check_calibration(*a.check, *u.cal);
+    if (!u.cal) {
+      report.units.push_back({.unit = multi() ? u.serial : "", .calibrated = false});
+      break;
+    }
+    UnitCheck c = check_calibration(*a.check, u.cal->pitch.residuals, u.cal->yaw.residuals, multi() ? u.serial : "");
     const std::string who = multi() ? "unit " + u.serial + " " : "";
-    const std::string line = fmt::format("{}check: {}", who, broken.empty() ? "residuals within the limits" : broken);
+    const std::string line = fmt::format("{}check: {}", who, c.passed() ? "residuals within the limits" : c.text());
     log_->info("{}", line);
     if (req_.tty) after_progress_.push_back(line);
-    if (!broken.empty()) all += (all.empty() ? "" : "; ") + who + broken;
+    report.units.push_back(std::move(c));
   }
-  return all;
+  return report;
 }
 
 void Session::finish(const EngineResult& er) {
