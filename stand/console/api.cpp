@@ -59,7 +59,7 @@ json stand_state(const Context& c) {
          {"emulator_args", c.opt.emulator_args},
          {"connected", false},
          {"state", "idle"}};
-  const auto live = live_runs(c.opt.runs_dir, c.opt.catalogue);
+  const auto live = live_runs(*c.catalogue);
   if (live.empty()) return s;
   const RunRef& r = live.front();
   s["run_id"] = r.run_id;
@@ -192,7 +192,7 @@ using ControlChange = std::function<std::optional<json>(const json& body, Contro
 void change_control(Context& c, const httplib::Request& req, httplib::Response& res, const ControlChange& change) {
   const auto b = body_object(req, res);
   if (!b) return;
-  const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
+  const auto run = find_run(*c.catalogue, req.matches[1]);
   if (!run) return fail(res, 404, "no such run");
   if (!run->live) return fail(res, 409, "the run is not running");
   std::lock_guard<std::mutex> g(c.control_mutex);
@@ -269,15 +269,15 @@ void add_run_routes(httplib::Server& s, Context& c) {
     } catch (const std::exception&) {
       return fail(res, 400, "limit: a number");
     }
-    reply(res, runs_json(c.opt.runs_dir, c.opt.catalogue, req.get_param_value("unit"), req.get_param_value("outcome"),
+    reply(res, runs_json(*c.catalogue, req.get_param_value("unit"), req.get_param_value("outcome"),
                          req.get_param_value("from"), req.get_param_value("to"), limit));
   });
   s.Get(R"(/api/runs/([A-Za-z0-9._-]+))", [&c](const httplib::Request& req, httplib::Response& res) {
-    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
+    const auto run = find_run(*c.catalogue, req.matches[1]);
     run ? reply(res, run_json(*run)) : fail(res, 404, "no such run");
   });
   s.Get(R"(/api/runs/([A-Za-z0-9._-]+)/events)", [&c](const httplib::Request& req, httplib::Response& res) {
-    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
+    const auto run = find_run(*c.catalogue, req.matches[1]);
     if (!run) return fail(res, 404, "no such run");
     uint64_t from = 0;
     try {
@@ -291,7 +291,7 @@ void add_run_routes(httplib::Server& s, Context& c) {
     reply(res, {{"events", lines}, {"next", ch.next}, {"live", run->live}});
   });
   s.Get(R"(/runs/([A-Za-z0-9._-]+)/(.+))", [&c](const httplib::Request& req, httplib::Response& res) {
-    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
+    const auto run = find_run(*c.catalogue, req.matches[1]);
     serve_file(res, run ? run_file(run->dir, req.matches[2]) : std::nullopt);
   });
   // Investigations (investigate's folders in the runs folder): their list and their files.
@@ -308,7 +308,7 @@ void add_unit_routes(httplib::Server& s, Context& c) {
   s.Get(R"(/api/units/([A-Za-z0-9._-]+)/history)", [&c](const httplib::Request& req, httplib::Response& res) {
     json cals = json::array(), accs = json::array();
     try {
-      const auto catp = console_catalogue(c.opt.runs_dir, c.opt.catalogue);
+      const auto catp = c.catalogue->acquire();
       if (!catp) throw std::runtime_error("no catalogue yet");
       Catalogue& cat = *catp;
       for (const auto& h : cat.unit_history(req.matches[1])) {
@@ -330,14 +330,14 @@ void add_unit_routes(httplib::Server& s, Context& c) {
   });
   s.Get("/api/fleet", [&c](const httplib::Request&, httplib::Response& res) {
     try {
-      reply(res, fleet_json(c.opt.runs_dir, c.opt.catalogue));
+      reply(res, fleet_json(*c.catalogue));
     } catch (const std::exception& e) {
       fail(res, 503, e.what());
     }
   });
   s.Get("/api/units", [&c](const httplib::Request&, httplib::Response& res) {
     try {
-      const auto catp = console_catalogue(c.opt.runs_dir, c.opt.catalogue);
+      const auto catp = c.catalogue->acquire();
       if (!catp) throw std::runtime_error("no catalogue yet");
       Catalogue& cat = *catp;
       reply(res, cat.units());
@@ -348,7 +348,7 @@ void add_unit_routes(httplib::Server& s, Context& c) {
   // B - A over the field (the paper's Figures 1-2), both from the catalogue.
   s.Get("/api/compare", [&c](const httplib::Request& req, httplib::Response& res) {
     try {
-      const auto catp = console_catalogue(c.opt.runs_dir, c.opt.catalogue);
+      const auto catp = c.catalogue->acquire();
       if (!catp) throw std::runtime_error("no catalogue yet");
       Catalogue& cat = *catp;
       const auto a = cat.find_calibration(std::stoll(req.get_param_value("a")));
@@ -373,7 +373,7 @@ void add_unit_routes(httplib::Server& s, Context& c) {
 void add_api(httplib::Server& s, Context& c) {
   s.Get("/api/status", [&c](const httplib::Request&, httplib::Response& res) {
     json live = json::array();
-    for (const auto& r : live_runs(c.opt.runs_dir, c.opt.catalogue)) live.push_back(r.run_id);
+    for (const auto& r : live_runs(*c.catalogue)) live.push_back(r.run_id);
     json jobs = json::array();
     for (const auto& j : c.jobs->list()) jobs.push_back(j.to_json());
     reply(res, {{"live_runs", live}, {"jobs", jobs}, {"emulate", c.opt.emulate},

@@ -93,9 +93,9 @@ json last_msa(const fs::path& runs_dir) {
 
 }  // namespace
 
-json fleet_json(const fs::path& runs_dir, const std::string& catalogue_url) {
-  json out{{"stands", json::array()}, {"units", json::array()}, {"msa", last_msa(runs_dir)}};
-  const auto cat = console_catalogue(runs_dir, catalogue_url);
+json fleet_json(CataloguePool& catalogue) {
+  json out{{"stands", json::array()}, {"units", json::array()}, {"msa", last_msa(catalogue.runs_dir())}};
+  const auto cat = catalogue.acquire();
   if (!cat) return out;
   out["stands"] = stands_json(*cat);
   out["units"] = units_json(*cat);

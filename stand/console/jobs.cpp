@@ -92,7 +92,7 @@ void JobQueue::load() {
   }
 }
 
-JobQueue::JobQueue(const ConsoleOptions& o) : o_(o) {
+JobQueue::JobQueue(const ConsoleOptions& o, CataloguePool& catalogue) : o_(o), catalogue_(catalogue) {
   load();
   thread_ = std::thread([this] { loop(); });
 }
@@ -269,7 +269,7 @@ void JobQueue::tick() {
   for (auto& j : jobs_) {
     if (j.state != "starting" && j.state != "running") continue;
     if (j.run_id.empty()) {
-      if (auto r = run_of_pid(o_.runs_dir, o_.catalogue, j.pid, j.spawned_utc)) {
+      if (auto r = run_of_pid(catalogue_, j.pid, j.spawned_utc)) {
         j.run_id = r->run_id;
         j.state = "running";
       }
@@ -278,7 +278,7 @@ void JobQueue::tick() {
     if (::waitpid(j.pid, &status, WNOHANG) == j.pid) {
       j.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
       if (j.run_id.empty()) {
-        if (auto r = run_of_pid(o_.runs_dir, o_.catalogue, j.pid, j.spawned_utc)) j.run_id = r->run_id;
+        if (auto r = run_of_pid(catalogue_, j.pid, j.spawned_utc)) j.run_id = r->run_id;
       }
       j.state = "finished";
       spdlog::info("job {}: exit {}", j.id, j.exit_code);
@@ -290,7 +290,7 @@ void JobQueue::tick() {
   auto next = std::find_if(jobs_.begin(), jobs_.end(), [](const Job& x) { return x.state == "queued"; });
   if (next == jobs_.end()) return;
   // One stand: a run started by another console (or by hand) holds it too.
-  if (!live_runs(o_.runs_dir, o_.catalogue).empty()) return;
+  if (!live_runs(catalogue_).empty()) return;
   start(*next);
   save();
 }

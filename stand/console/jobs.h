@@ -12,6 +12,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "stand/console/catalogue_pool.h"
+
 namespace fpss::console {
 
 // What serve was started with (docs/console.md).
@@ -51,7 +53,8 @@ struct Job {
 // stops them. The queue starts the next job only when no run of the runs folder is live.
 class JobQueue {
  public:
-  explicit JobQueue(const ConsoleOptions& o);
+  // The queue borrows the console's catalogue pool, which outlives it.
+  JobQueue(const ConsoleOptions& o, CataloguePool& catalogue);
   ~JobQueue();
   JobQueue(const JobQueue&) = delete;
   JobQueue& operator=(const JobQueue&) = delete;
@@ -76,6 +79,7 @@ class JobQueue {
   void start(Job& j);
   void check(const Job& j) const;  // std::invalid_argument naming the field
   ConsoleOptions o_;
+  CataloguePool& catalogue_;
   mutable std::mutex m_;
   std::vector<Job> jobs_;
   int64_t next_id_ = 1;

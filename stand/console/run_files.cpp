@@ -42,29 +42,18 @@ std::optional<RunFile> read_run(const fs::path& dir) {
 
 }  // namespace
 
-std::unique_ptr<Catalogue> console_catalogue(const fs::path& runs_dir, const std::string& catalogue_url) {
-  const std::string url = catalogue_url.empty() ? Catalogue::default_path(runs_dir).string() : catalogue_url;
-  // A missing SQLite file is "no runs yet", not an error (read-only never creates one).
-  if (catalogue_url.empty() && !fs::exists(url)) return nullptr;
-  try {
-    return open_catalogue(url, Catalogue::Mode::read_only);
-  } catch (const std::exception&) {
-    return nullptr;
-  }
-}
-
-std::optional<RunRef> find_run(const fs::path& runs_dir, const std::string& catalogue_url, const std::string& run_id) {
+std::optional<RunRef> find_run(CataloguePool& catalogue, const std::string& run_id) {
   if (!safe_name(run_id, 200)) return std::nullopt;
-  auto cat = console_catalogue(runs_dir, catalogue_url);
+  auto cat = catalogue.acquire();
   if (!cat) return std::nullopt;
   auto r = cat->find_run(run_id);
   if (!r) return std::nullopt;
   return ref_of(*r);
 }
 
-std::vector<RunRef> live_runs(const fs::path& runs_dir, const std::string& catalogue_url) {
+std::vector<RunRef> live_runs(CataloguePool& catalogue) {
   std::vector<RunRef> out;
-  auto cat = console_catalogue(runs_dir, catalogue_url);
+  auto cat = catalogue.acquire();
   if (!cat) return out;
   RunFilter f;
   f.limit = 50;
@@ -74,9 +63,8 @@ std::vector<RunRef> live_runs(const fs::path& runs_dir, const std::string& catal
   return out;
 }
 
-std::optional<RunRef> run_of_pid(const fs::path& runs_dir, const std::string& catalogue_url, int pid,
-                                 const std::string& spawned_utc) {
-  auto cat = console_catalogue(runs_dir, catalogue_url);
+std::optional<RunRef> run_of_pid(CataloguePool& catalogue, int pid, const std::string& spawned_utc) {
+  auto cat = catalogue.acquire();
   if (!cat) return std::nullopt;
   RunFilter f;
   f.limit = 20;
@@ -87,10 +75,10 @@ std::optional<RunRef> run_of_pid(const fs::path& runs_dir, const std::string& ca
   return std::nullopt;
 }
 
-nlohmann::json runs_json(const fs::path& runs_dir, const std::string& catalogue_url, const std::string& unit, const std::string& outcome,
+nlohmann::json runs_json(CataloguePool& catalogue, const std::string& unit, const std::string& outcome,
                          const std::string& from_date, const std::string& to_date, size_t limit) {
   nlohmann::json out = nlohmann::json::array();
-  auto cat = console_catalogue(runs_dir, catalogue_url);
+  auto cat = catalogue.acquire();
   if (!cat) return out;
   RunFilter f;
   if (!unit.empty()) f.unit = unit;

@@ -10,34 +10,30 @@
 #include <nlohmann/json.hpp>
 
 #include "stand/catalogue/catalogue.h"
+#include "stand/console/catalogue_pool.h"
 
 namespace fpss::console {
 
 // A run the catalogue knows: its folder (from the catalogue, never from the request) and whether
 // its process is alive on this host.
-// The catalogue the console reads, read-only; nullptr when there is none yet or it cannot be opened.
-std::unique_ptr<Catalogue> console_catalogue(const std::filesystem::path& runs_dir, const std::string& catalogue_url);
-
 struct RunRef {
   std::string run_id;
   std::filesystem::path dir;
   bool live = false;
   int pid = 0;
 };
-// Each reads the catalogue at `catalogue_url` (serve --catalogue), or RUNS_DIR/stand.db when empty.
-std::optional<RunRef> find_run(const std::filesystem::path& runs_dir, const std::string& catalogue_url,
-                               const std::string& run_id);
+// Each reads the console's catalogue (serve --catalogue, or RUNS_DIR/stand.db) through its pool.
+std::optional<RunRef> find_run(CataloguePool& catalogue, const std::string& run_id);
 // Runs whose process is alive (at most one on a stand, but any number is listed).
-std::vector<RunRef> live_runs(const std::filesystem::path& runs_dir, const std::string& catalogue_url);
+std::vector<RunRef> live_runs(CataloguePool& catalogue);
 // The run started by process `pid` (a job's child, spawned at spawned_utc), once it is in the
 // catalogue. Pids are reused (32768 of them on many machines, soon wrapped on a busy one): a run
 // of an earlier process with the same pid, started before the spawn's second, is not it.
-std::optional<RunRef> run_of_pid(const std::filesystem::path& runs_dir, const std::string& catalogue_url, int pid,
-                                 const std::string& spawned_utc);
+std::optional<RunRef> run_of_pid(CataloguePool& catalogue, int pid, const std::string& spawned_utc);
 
 // The catalogue's runs, most recent first, filtered (empty filter: all); run.json's outcome,
 // points and acceptance verdict added for each.
-nlohmann::json runs_json(const std::filesystem::path& runs_dir, const std::string& catalogue_url, const std::string& unit, const std::string& outcome,
+nlohmann::json runs_json(CataloguePool& catalogue, const std::string& unit, const std::string& outcome,
                          const std::string& from_date, const std::string& to_date, size_t limit);
 // run.json with the files present and links.
 nlohmann::json run_json(const RunRef& r);

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 #include <thread>
@@ -139,7 +140,9 @@ void ConsoleServer::bind() {
     const std::string path(a.path), body(a.body), type = content_type(a.path);
     s.Get(path, [body, type](const httplib::Request&, httplib::Response& res) { res.set_content(body, type); });
   }
-  ctx_.jobs = std::make_unique<JobQueue>(ctx_.opt);
+  // A connection for each request answered at once, at most 8: each takes one of a PostgreSQL server's slots.
+  ctx_.catalogue = std::make_unique<CataloguePool>(ctx_.opt.runs_dir, ctx_.opt.catalogue, std::min<size_t>(threads, 8));
+  ctx_.jobs = std::make_unique<JobQueue>(ctx_.opt, *ctx_.catalogue);
   add_api(s, ctx_);
   add_streams(s, ctx_);
   port_ = ctx_.opt.port;
@@ -169,7 +172,7 @@ void add_streams(httplib::Server& s, Context& c) {
   // Server-Sent Events: each events.jsonl line is one message whose id is the byte offset after
   // it, so a page that reconnects (Last-Event-ID, or ?from=) continues where it stopped.
   s.Get(R"(/api/runs/([A-Za-z0-9._-]+)/stream)", [&c](const httplib::Request& req, httplib::Response& res) {
-    const auto run = find_run(c.opt.runs_dir, c.opt.catalogue, req.matches[1]);
+    const auto run = find_run(*c.catalogue, req.matches[1]);
     if (!run) {
       res.status = 404;
       res.set_content(R"({"error":"no such run"})", "application/json");

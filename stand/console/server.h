@@ -30,6 +30,8 @@ bool is_loopback(const std::string& host);
 struct Context {
   ConsoleOptions opt;
   std::string token;
+  // Held for the console's life; declared before the queue, which borrows it.
+  std::unique_ptr<CataloguePool> catalogue;
   std::unique_ptr<JobQueue> jobs;
   std::atomic<size_t> live_clients{0};
   std::atomic<bool> stopping{false};

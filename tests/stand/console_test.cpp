@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <regex>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <httplib.h>
 #include <nlohmann/json.hpp>
@@ -61,11 +62,11 @@ std::string token_of(const TempDir& t) {
 // The run id job `id` started, once its run is in the catalogue ("" after a minute without).
 std::string run_of_job(httplib::Client& c, int id) {
   std::string run_id;
-  wait_until([&] {
+  EXPECT_TRUE(wait_until([&] {
     auto j = json::parse(c.Get(("/api/jobs/" + std::to_string(id)).c_str())->body);
     if (j["run_id"].is_string()) run_id = j["run_id"];
     return !run_id.empty();
-  }, 60);
+  }, 60)) << "job " << id << " never named its run";
   return run_id;
 }
 
@@ -384,10 +385,11 @@ TEST(Console, AJobsRunIsNotAnEarlierRunOfAProcessWithTheSamePid) {
   cat.record_run_start(make_run("earlier", "FPSS-1", "2026-01-01T00:00:00Z"));
   cat.record_run_end("earlier", RunOutcome::completed, "2026-01-01T00:05:00Z");
   const int pid = static_cast<int>(::getpid());  // both runs are recorded by this process
-  EXPECT_FALSE(run_of_pid(runs, "", pid, "2026-06-01T00:00:00Z"));
-  ASSERT_TRUE(run_of_pid(runs, "", pid, "2025-12-31T23:59:59Z"));  // spawned before it: that run
+  console::CataloguePool pool(runs, "");
+  EXPECT_FALSE(run_of_pid(pool, pid, "2026-06-01T00:00:00Z"));
+  ASSERT_TRUE(run_of_pid(pool, pid, "2025-12-31T23:59:59Z"));  // spawned before it: that run
   cat.record_run_start(make_run("this-job", "FPSS-1", "2026-06-01T00:00:00Z"));
-  const auto r = run_of_pid(runs, "", pid, "2026-06-01T00:00:00Z");
+  const auto r = run_of_pid(pool, pid, "2026-06-01T00:00:00Z");
   ASSERT_TRUE(r);
   EXPECT_EQ(r->run_id, "this-job");
 }
@@ -404,13 +406,51 @@ TEST(Console, ARunIsLiveWhileItsProcessHoldsItsFolderNotItsPid) {
   RunStart rs = make_run("killed", "FPSS-1", "2026-06-01T00:00:00Z");
   rs.run_dir = dir;
   cat.record_run_start(rs);  // `running`, with this (live) process's pid
-  EXPECT_TRUE(console::live_runs(runs, "").empty());
-  EXPECT_FALSE(console::find_run(runs, "", "killed")->live);
+  console::CataloguePool pool(runs, "");
+  EXPECT_TRUE(console::live_runs(pool).empty());
+  EXPECT_FALSE(console::find_run(pool, "killed")->live);
   const UniqueFd fd(::open((dir / ".lock").c_str(), O_RDWR | O_CLOEXEC));
   ASSERT_TRUE(fd);
   ASSERT_EQ(::flock(fd.get(), LOCK_EX | LOCK_NB), 0);
-  EXPECT_EQ(console::live_runs(runs, "").size(), 1u);
-  EXPECT_TRUE(console::find_run(runs, "", "killed")->live);
+  EXPECT_EQ(console::live_runs(pool).size(), 1u);
+  EXPECT_TRUE(console::find_run(pool, "killed")->live);
+}
+
+// The console holds its catalogue for its life: one connection serves request after request and
+// sees what the runs write meanwhile; none is made while there is no catalogue, and one whose use
+// threw is closed and replaced by a new one.
+TEST(Console, TheCatalogueIsOpenedOnceAndReplacedOnlyWhenItsUseFailed) {
+  using namespace fpss;
+  TempDir tmp("console-pool");
+  const std::filesystem::path runs = tmp / "runs";
+  std::filesystem::create_directories(runs);
+  console::CataloguePool pool(runs, "", 2);
+  EXPECT_FALSE(pool.acquire());  // no stand.db yet: no runs, no connection
+  EXPECT_EQ(pool.opened(), 0u);
+  SqliteCatalogue cat(Catalogue::default_path(runs));
+  for (int i = 0; i < 20; ++i) {
+    cat.record_run_start(make_run(fmt::format("run-{}", i), "FPSS-1", "2026-06-01T00:00:00Z"));
+    auto lease = pool.acquire();
+    ASSERT_TRUE(lease);
+    EXPECT_EQ(lease->list_runs({.limit = 0}).size(), static_cast<size_t>(i + 1));  // sees the new run
+  }
+  EXPECT_EQ(pool.opened(), 1u);
+  {
+    auto a = pool.acquire(), b = pool.acquire();  // two requests at once: two connections
+    ASSERT_TRUE(a && b);
+    EXPECT_NE(&*a, &*b);
+  }
+  EXPECT_EQ(pool.opened(), 2u);
+  try {
+    auto lease = pool.acquire();
+    throw std::runtime_error("the connection broke");
+  } catch (const std::runtime_error&) {
+  }
+  (void)pool.acquire();
+  (void)pool.acquire();
+  EXPECT_EQ(pool.opened(), 2u);  // the two connections held: one broken and closed, one reused
+  auto a = pool.acquire(), b = pool.acquire();
+  EXPECT_EQ(pool.opened(), 3u);  // the broken one's place took a new connection
 }
 
 
