@@ -162,6 +162,23 @@ namespace {
 
 // Splits one CSV record (RFC 4180 quoting) into fields; returns false on an unterminated quote.
 bool split_csv(std::string_view line, std::vector<std::string>& fields) {
+  // Most lines quote nothing: each field is assigned in place, so its buffer serves row after row.
+  if (line.find('"') == std::string_view::npos) {
+    size_t n = 0;
+    for (size_t start = 0;; ++n) {
+      const size_t comma = line.find(',', start);
+      const std::string_view piece = line.substr(start, comma == std::string_view::npos ? line.npos : comma - start);
+      if (n < fields.size()) {
+        fields[n].assign(piece);
+      } else {
+        fields.emplace_back(piece);
+      }
+      if (comma == std::string_view::npos) break;
+      start = comma + 1;
+    }
+    fields.resize(n + 1);
+    return true;
+  }
   fields.clear();
   std::string cur;
   bool quoted = false;
