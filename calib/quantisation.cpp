@@ -128,13 +128,14 @@ std::optional<double> CountNoiseEstimator::estimate() const {
   int side = 0;  // which end the last step kept: the other end's value is halved when it repeats
   double x = 0.5 * (lo + hi);
   for (int i = 0; i < 100; ++i) {
-    const double next = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+    double next = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);  // a model that is not finite: bisect
     const bool done = std::abs(next - x) <= 1e-14 * (1.0 + next) || hi - lo <= 1e-14;
     x = next;
     if (done) break;
     const double f = model(x) - pooled;
     if (f == 0) break;
-    if (f < 0) {
+    if (f < 0) {  // NaN counts as above, as it did for bisection
       lo = x;
       f_lo = f;
       if (side == -1) f_hi *= 0.5;
