@@ -297,7 +297,9 @@ UnitAcceptance accept_unit(const AcceptancePlan& p, const SessionResult& r, RunF
   return out;
 }
 
-int exit_code_of(const Judgement& j) { return j.passed ? 0 : j.outcome == Outcome::fail ? 3 : 4; }
+int exit_code_of(const Judgement& j) {
+  return j.passed ? exit_code::ok : j.outcome == Outcome::fail ? exit_code::acceptance_failed : exit_code::acceptance_conditional;
+}
 
 // Several units: a verdict per unit that completed; a lost unit has none (its outcome names the
 // loss). Exit 1 when any unit has no verdict, else 3 when any failed, 4 when any is conditional.
@@ -379,8 +381,9 @@ int accept_command(const AcceptArgs& a) {
 void add_accept_command(CLI::App& app, Runner& run) {
   auto a = std::make_shared<AcceptArgs>();
   auto* sub = app.add_subcommand(
-      "accept", "Acceptance of a sensor unit: calibrate, verify on unseen points, measure jitter, judge, certify "
-                "(exit 0 pass, 3 fail)");
+      "accept", "Acceptance of a sensor unit: calibrate, verify on unseen points, measure jitter, judge, certify " +
+                    fmt::format("(exit {} pass, {} fail, {} conditional)", exit_code::ok, exit_code::acceptance_failed,
+                                exit_code::acceptance_conditional));
   add_bench_choice_options(sub, *a, "Stand file (YAML) of a real bench",
                            "Run on the emulated bench (a child process over the real wire)");
   sub->add_option("--unit", a->unit, "Serial of the unit (required with --stand; with --emulate, the serial it reports)");
