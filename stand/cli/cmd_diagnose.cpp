@@ -18,6 +18,7 @@
 #include "stand/investigate/confusable.h"
 #include "stand/investigate/followup_design.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/emulated_bench.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/file_options.h"
 #include "stand/cli/help.h"
@@ -200,7 +201,7 @@ void add_blindtest_command(CLI::App& app, Runner& run) {
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("blindtest", "Blind check of the diagnosis: random effects on the simulated bench");
   sub->add_option("--cases", o->b.cases, "number of cases (classes drawn in shuffled blocks of all eleven)")->default_val(22);
-  sub->add_option("--seed", o->b.seed, "seed of the draws and of the bench noise")->default_val(1);
+  sub->add_option("--seed", o->b.seed, "seed of the draws and of the bench noise")->default_val(1)->check(seed_check());
   sub->add_flag("--json", o->json, "print the results as JSON");
   sub->add_option("--save", o->b.save_dir,
                   "folder for every case's recording, model, truth and GAP.json (to re-run `diagnose` on them)");

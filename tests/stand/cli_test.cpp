@@ -36,6 +36,8 @@ constexpr const char* kShortGrid =
     "  - null_offset_grid: {axes: [pitch, yaw], extent_deg: 0.3, step_deg: 0.1, settle_s: 0.2, frames: 3}\n"
     "  - calibrate: {method: differences}\n";
 
+std::string src(const std::string& rel) { return (test::source_dir() / rel).string(); }
+
 class Cli : public testing::Test {
  protected:
   CommandResult run(const std::vector<std::string>& args, const std::string& tag = "cli") const {
@@ -47,6 +49,62 @@ class Cli : public testing::Test {
   }
   test::TempDir tmp_{"cli"};
 };
+
+// ---------------------------------------------------------------- options out of range
+
+struct BadOption {
+  std::vector<std::string> args;  // after the command's own
+  std::string names;              // what the message must name
+};
+
+// Each exits 2 naming the option and what it takes, and makes no runs folder (nor starts a child).
+TEST_F(Cli, AnOutOfRangeOptionExitsTwoBeforeAnythingStarts) {
+  const fs::path runs = tmp_ / "runs";
+  const std::vector<BadOption> bad = {
+      {{"--speed", "-5"}, "0.01..1000"},
+      {{"--speed", "5000"}, "0.01..1000"},
+      {{"--speed", "0"}, "0.01..1000"},
+      {{"--seed", "-1"}, "0..18446744073709551615"},
+      {{"--fault", "nosuchfault"}, "unknown fault \"nosuchfault\" (expected one of "},
+      {{"--fault", "sensor_glitch:rate=2"}, "rate must be in (0, 1]"},
+      {{"--effect", "wobble:x=1"}, "unknown effect \"wobble\""},
+      {{"--effect", "settling:amplitude_arcsec=1,tau_s=-1"}, "tau_s must be > 0"},
+  };
+  const std::vector<std::vector<std::string>> commands = {
+      {"run", grid().string(), "--emulate", "--runs-dir", runs.string()},
+      {"run", grid().string(), "--emulate", "--dry-run"},
+      {"accept", "--emulate", "--runs-dir", runs.string()},
+      {"investigate", "--emulate", "--model", src("calib/data/published/a-6-fpss1.json"), "--runs-dir", runs.string()},
+      {"serve", "--emulate", "--runs-dir", runs.string(), "--listen", "127.0.0.1:0"},
+      {"emulate", "--modbus-port", "0"},
+  };
+  for (const auto& command : commands) {
+    for (const auto& b : bad) {
+      std::vector<std::string> args = command;
+      args.insert(args.end(), b.args.begin(), b.args.end());
+      SCOPED_TRACE(testing::PrintToString(args));
+      const CommandResult r = run(args);
+      EXPECT_EQ(r.code, 2) << r.err;
+      EXPECT_THAT(r.err, StartsWith("fpss-stand: error: " + b.args[0] + ": "));
+      EXPECT_THAT(r.err, HasSubstr(b.names));
+      EXPECT_FALSE(fs::exists(runs));
+    }
+  }
+  // simulate takes the seed and effects too (no emulator, the same checks).
+  for (const auto& b : {bad[3], bad[6], bad[7]}) {
+    std::vector<std::string> args{"simulate", "--out", (tmp_ / "rec.csv").string()};
+    args.insert(args.end(), b.args.begin(), b.args.end());
+    const CommandResult r = run(args);
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_THAT(r.err, HasSubstr(b.names));
+    EXPECT_FALSE(fs::exists(tmp_ / "rec.csv"));
+  }
+  // The edges of the range are taken.
+  for (const char* speed : {"0.01", "1000"}) {
+    const CommandResult r = run({"run", grid().string(), "--emulate", "--dry-run", "--speed", speed});
+    EXPECT_EQ(r.code, 0) << speed << r.err;
+  }
+}
 
 // ---------------------------------------------------------------- progress and errors
 
