@@ -386,7 +386,7 @@ void add_accept_command(CLI::App& app, Runner& run) {
                                 exit_code::acceptance_conditional));
   add_bench_choice_options(sub, *a, "Stand file (YAML) of a real bench",
                            "Run on the emulated bench (a child process over the real wire)");
-  sub->add_option("--unit", a->unit, "Serial of the unit (required with --stand; with --emulate, the serial it reports)");
+  sub->add_option("--unit,--unit-serial", a->unit, "Serial of the unit (required with --stand; with --emulate, the serial it reports)");
   expect_file(sub, sub->add_option("--procedure", a->procedure, "Acceptance procedure (default procedures/acceptance.yaml)"),
               a->procedure, FileKind::procedure);
   expect_file(sub, sub->add_option("--limits", a->limits, "Acceptance limits (default procedures/acceptance_limits.yaml)"),

@@ -172,7 +172,7 @@ void add_emulate(CLI::App& app, Runner& run) {
               sub->add_option("--truth", args->truth_file, "Coefficient file: the sensor's true transfer function")
                   ->check(CLI::ExistingFile),
               args->truth_file, FileKind::coefficients);
-  sub->add_option("--unit-serial", args->unit_serial, "Serial number the sensor reports (ID?)");
+  sub->add_option("--unit,--unit-serial", args->unit_serial, "Serial number the sensor reports (ID?)");
   sub->add_option("--fault", args->faults,
                   "Fault NAME[:key=value,...] with optional trigger at_s= or at_request= (repeatable, docs/emulator.md)")
       ->check(fault_check());

@@ -84,6 +84,8 @@ int run_command(const RunArgs& a) {
     req.procedure = parse_procedure(ptext, a.procedure, dp);
     Diagnostics ds(a.stand_file);
     req.stand = stand_for_run(a.stand_file, a.emulate, a.emu.speed, ds);
+    // A real bench's unit must report this serial (as accept --unit), checked before anything moves.
+    if (!a.emulate && !a.unit_serial.empty()) req.stand.unit_serial = a.unit_serial;
     // The plan is checked against the stand even when some steps are broken (those are skipped),
     // but not against a broken stand file, whose limits would be guesses.
     if (ds.empty()) expand(req.procedure, req.stand.bench, dp);
@@ -148,7 +150,8 @@ void add_run(CLI::App& app, Runner& run) {
               FileKind::procedure);
   add_bench_choice_options(sub, *a, "Stand file (YAML): endpoints, unit, limits, axes, timing",
                            "Start the emulated bench as a child process and run on it");
-  a->emu.options.push_back(sub->add_option("--unit-serial", a->unit_serial, "Emulator: serial number the sensor reports"));
+  sub->add_option("--unit,--unit-serial", a->unit_serial,
+                  "Serial of the unit: with --emulate the serial the sensor reports, with --stand the one it must report");
   sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made (default runs/)");
   expect_file(sub, sub->add_option("--resume", a->resume, "Continue an interrupted run from its folder"), a->resume,
               FileKind::run_folder);

@@ -106,6 +106,24 @@ TEST_F(Cli, AnOutOfRangeOptionExitsTwoBeforeAnythingStarts) {
   }
 }
 
+// ---------------------------------------------------------------- one name per idea
+
+// --unit names the unit on run, accept and emulate; the old --unit-serial still works.
+TEST_F(Cli, UnitIsTheNameEverywhereAndUnitSerialStaysAnAlias) {
+  for (const char* command : {"run", "accept", "emulate"}) {
+    const CommandResult help = run({command, "--help"});
+    EXPECT_THAT(help.out, HasSubstr("--unit,--unit-serial")) << command;
+  }
+  for (const char* spelling : {"--unit", "--unit-serial"}) {
+    const fs::path runs = tmp_ / (std::string("runs") + spelling);
+    const CommandResult r = run({"run", grid().string(), "--emulate", "--speed", "100", "--runs-dir", runs.string(),
+                                 spelling, "SN-ALIAS", "--quiet"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto info = nlohmann::json::parse(test::read_file(test::run_dirs(runs).at(0) / "run.json"));
+    EXPECT_EQ(info["unit"], "SN-ALIAS") << spelling;
+  }
+}
+
 // ---------------------------------------------------------------- progress and errors
 
 // A port already taken: a job that fails (exit 1), in the same style as bad input.
