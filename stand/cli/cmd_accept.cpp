@@ -33,6 +33,7 @@
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
 #include "stand/cli/emulated_bench.h"
+#include "stand/cli/terminal.h"
 #include "stand/config/stand_config.h"
 #include "stand/report/compare_plot.h"
 #include "stand/report/report.h"
@@ -49,7 +50,7 @@ namespace {
 
 struct AcceptArgs : BenchChoiceArgs {
   std::string unit, procedure, limits, runs_dir = "runs", catalogue;
-  bool json = false, quiet = false, no_progress = false, operator_prompts = false;
+  bool json = false, quiet = false, progress = false, no_progress = false, operator_prompts = false;
   double catalogue_wait_s = 120;
 };
 
@@ -87,7 +88,7 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   req.runs_dir = a.runs_dir;
   req.quiet = a.quiet;
   if (::isatty(STDIN_FILENO)) req.keys_fd = STDIN_FILENO;  // p pause, r resume, a abort
-  req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
+  req.tty = draw_progress(a.progress, a.no_progress, a.quiet);
   const std::string proc = p.procedure_path.string();
   Diagnostics dp(proc);
   req.procedure = parse_procedure(read_text_file(p.procedure_path, "procedure file", kMaxConfigFileBytes), proc, dp);
@@ -396,7 +397,7 @@ void add_accept_command(CLI::App& app, Runner& run) {
   add_catalogue_wait_option(sub, a->catalogue_wait_s);
   sub->add_flag("--json", a->json, "Print acceptance.json instead of the certificate text");
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
-  sub->add_flag("--no-progress", a->no_progress, "No live progress line");
+  add_progress_options(sub, a->progress, a->no_progress);
   sub->add_flag("--operator-prompts", a->operator_prompts,
                 "Ask the operator (unit serial, lamp, name) through the run folder's control channel: the web console");
   examples(sub, {"fpss-stand accept --emulate --unit FPSS1-SN042 --runs-dir runs",

@@ -19,6 +19,7 @@
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
 #include "stand/cli/emulated_bench.h"
+#include "stand/cli/terminal.h"
 #include "stand/config/stand_config.h"
 #include "stand/investigate/followup_design.h"
 #include "stand/session/session.h"
@@ -31,7 +32,7 @@ namespace fs = std::filesystem;
 
 struct RunArgs : BenchChoiceArgs {
   std::string procedure, runs_dir = "runs", resume, catalogue;
-  bool dry_run = false, no_progress = false, quiet = false;
+  bool dry_run = false, progress = false, no_progress = false, quiet = false;
   std::string unit_serial, operator_name;
   double catalogue_wait_s = 120;
 };
@@ -39,7 +40,7 @@ struct RunArgs : BenchChoiceArgs {
 int run_command(const RunArgs& a) {
   SessionRequest req;
   req.runs_dir = a.runs_dir;
-  req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
+  req.tty = draw_progress(a.progress, a.no_progress, a.quiet);
   req.quiet = a.quiet;
   if (::isatty(STDIN_FILENO)) req.keys_fd = STDIN_FILENO;  // p pause, r resume, a abort
   req.operator_name = a.operator_name;
@@ -158,7 +159,7 @@ void add_run(CLI::App& app, Runner& run) {
   sub->add_flag("--dry-run", a->dry_run, "Validate, print the expanded steps, points and duration; move nothing");
   add_catalogue_option(sub, a->catalogue);
   add_catalogue_wait_option(sub, a->catalogue_wait_s);
-  sub->add_flag("--no-progress", a->no_progress, "No live progress line, even on a terminal");
+  add_progress_options(sub, a->progress, a->no_progress);
   sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
   sub->add_option("--operator", a->operator_name, "Who runs it (recorded in run.json)");
   examples(sub, {"fpss-stand run procedures/discrete_grid.yaml --emulate --runs-dir runs",

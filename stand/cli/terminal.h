@@ -1,4 +1,5 @@
-// How a command talks to the terminal: its errors, in one style.
+// How a command talks to the terminal: its errors (one style) and its progress line (only on a
+// terminal unless forced).
 #pragma once
 #include <string>
 
@@ -8,5 +9,11 @@ namespace fpss::cli {
 
 // "fpss-stand: error: MESSAGE" on stderr: every error the binary reports, whatever its exit code.
 void print_error(const std::string& message);
+
+// Whether a run draws its live progress line: --progress forces it; else only when stderr (where
+// it is drawn) is a terminal, and neither --no-progress nor --quiet is given.
+bool draw_progress(bool forced, bool no_progress, bool quiet);
+// Adds --progress (forced) and --no-progress to `sub`; they exclude each other.
+void add_progress_options(CLI::App* sub, bool& forced, bool& no_progress);
 
 }  // namespace fpss::cli

@@ -126,6 +126,23 @@ TEST_F(Cli, UnitIsTheNameEverywhereAndUnitSerialStaysAnAlias) {
 
 // ---------------------------------------------------------------- progress and errors
 
+// Progress is drawn on a terminal only: into a file, none (events.log keeps it); --progress forces it.
+TEST_F(Cli, ProgressOnlyOnATerminalUnlessForced) {
+  const fs::path runs = tmp_ / "runs";
+  const CommandResult plain = run({"run", grid().string(), "--emulate", "--speed", "100", "--runs-dir", runs.string()}, "plain");
+  ASSERT_EQ(plain.code, 0) << plain.err;
+  EXPECT_THAT(plain.err, Not(HasSubstr("ETA"))) << plain.err;
+  const fs::path folder = test::run_dirs(runs).at(0);
+  EXPECT_THAT(test::read_file(folder / "events.log"), HasSubstr("ETA"));  // kept in the run's log
+  const CommandResult forced =
+      run({"run", grid().string(), "--emulate", "--speed", "100", "--runs-dir", runs.string(), "--progress"}, "forced");
+  ASSERT_EQ(forced.code, 0) << forced.err;
+  EXPECT_THAT(forced.err, HasSubstr("\r\033[Kpoints "));
+  EXPECT_THAT(forced.err, HasSubstr("ETA"));
+  const CommandResult both = run({"run", grid().string(), "--emulate", "--progress", "--no-progress", "--dry-run"});
+  EXPECT_EQ(both.code, 2) << both.err;
+}
+
 // A port already taken: a job that fails (exit 1), in the same style as bad input.
 TEST_F(Cli, EveryErrorComesInOneStyle) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
