@@ -396,7 +396,7 @@ void add_accept_command(CLI::App& app, Runner& run) {
   add_catalogue_option(sub, a->catalogue);
   add_catalogue_wait_option(sub, a->catalogue_wait_s);
   sub->add_flag("--json", a->json, "Print acceptance.json instead of the certificate text");
-  sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
+  sub->add_flag("--quiet", a->quiet, "No log lines on the console, the libraries' included (events.log keeps them)");
   add_progress_options(sub, a->progress, a->no_progress);
   sub->add_flag("--operator-prompts", a->operator_prompts,
                 "Ask the operator (unit serial, lamp, name) through the run folder's control channel: the web console");

@@ -160,7 +160,7 @@ void add_run(CLI::App& app, Runner& run) {
   add_catalogue_option(sub, a->catalogue);
   add_catalogue_wait_option(sub, a->catalogue_wait_s);
   add_progress_options(sub, a->progress, a->no_progress);
-  sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
+  sub->add_flag("--quiet", a->quiet, "No log lines on the console, the libraries' included (events.log keeps them)");
   sub->add_option("--operator", a->operator_name, "Who runs it (recorded in run.json)");
   examples(sub, {"fpss-stand run procedures/discrete_grid.yaml --emulate --runs-dir runs",
                  "fpss-stand run procedures/discrete_grid.yaml --stand procedures/example_stand.yaml --dry-run"});

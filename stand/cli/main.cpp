@@ -61,6 +61,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "Run with --help for more information.\n");
     return fpss::cli::exit_code::bad_input;
   }
+  // --quiet is quiet: the libraries' own logs (Ceres's through glog, the drivers' spdlog) too.
+  if (fpss::cli::quiet_given(*fpss::cli::deepest_parsed(app))) fpss::cli::quiet_library_logs();
   try {
     return run ? run() : fpss::cli::exit_code::bad_input;
   } catch (const fpss::InputError& e) {

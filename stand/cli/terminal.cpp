@@ -1,5 +1,7 @@
 #include "stand/cli/terminal.h"
 
+#include <glog/logging.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -18,6 +20,18 @@ void add_progress_options(CLI::App* sub, bool& forced, bool& no_progress) {
   auto* on = sub->add_flag("--progress", forced, "Draw the live progress line even when stderr is not a terminal");
   auto* off = sub->add_flag("--no-progress", no_progress, "No live progress line, even on a terminal");
   on->excludes(off);
+}
+
+bool quiet_given(const CLI::App& sub) {
+  const CLI::Option* q = sub.get_option_no_throw("--quiet");
+  return q != nullptr && q->count() > 0;
+}
+
+void quiet_library_logs() {
+  // Ceres logs through glog to stderr; only a fatal message (which aborts anyway) gets through.
+  FLAGS_minloglevel = google::GLOG_FATAL;
+  FLAGS_stderrthreshold = google::GLOG_FATAL;
+  spdlog::default_logger()->set_level(spdlog::level::off);
 }
 
 }  // namespace fpss::cli

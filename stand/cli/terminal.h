@@ -1,5 +1,5 @@
-// How a command talks to the terminal: its errors (one style) and its progress line (only on a
-// terminal unless forced).
+// How a command talks to the terminal: its errors (one style), its progress line (only on a
+// terminal unless forced) and --quiet (the libraries' logs too).
 #pragma once
 #include <string>
 
@@ -15,5 +15,11 @@ void print_error(const std::string& message);
 bool draw_progress(bool forced, bool no_progress, bool quiet);
 // Adds --progress (forced) and --no-progress to `sub`; they exclude each other.
 void add_progress_options(CLI::App* sub, bool& forced, bool& no_progress);
+
+// The parsed sub-command has a --quiet option and it was given.
+bool quiet_given(const CLI::App& sub);
+// Silences the libraries' own console logs for the rest of the process: glog (Ceres's solver
+// warnings, "Linear solver failure ...") and spdlog's default logger (the drivers' retries).
+void quiet_library_logs();
 
 }  // namespace fpss::cli

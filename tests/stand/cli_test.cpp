@@ -12,12 +12,17 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
+#include <glog/logging.h>
 #include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
+#include "stand/cli/terminal.h"
 #include "tests/procedures/run_util.h"
 #include "tests/support/test_support.h"
 
@@ -167,6 +172,44 @@ TEST_F(Cli, EveryErrorComesInOneStyle) {
     EXPECT_EQ(r->code, 2) << r->err;
     EXPECT_THAT(r->err, StartsWith("fpss-stand: error: ")) << r->err;
   }
+}
+
+// What `f` writes to stderr (fd 2, where glog and spdlog write), through a temporary file.
+std::string stderr_of(const std::function<void()>& f) {
+  std::fflush(stderr);
+  const int saved = ::dup(2);
+  FILE* file = std::tmpfile();
+  ::dup2(::fileno(file), 2);
+  f();
+  std::fflush(stderr);
+  ::dup2(saved, 2);
+  ::close(saved);
+  std::rewind(file);
+  std::string text;
+  for (int c = std::fgetc(file); c != EOF; c = std::fgetc(file)) text += static_cast<char>(c);
+  std::fclose(file);
+  return text;
+}
+
+// --quiet's start-up call: Ceres's glog warnings and the drivers' spdlog lines no longer reach the
+// console (main calls it when the parsed command's --quiet is given).
+TEST(CliQuiet, QuietSilencesTheLibrariesOwnLogs) {
+  const auto library_lines = [] {
+    LOG(WARNING) << "Linear solver failure. Failed to compute a step: (the test's)";
+    spdlog::warn("gimbal: a retry (the test's)");
+  };
+  const std::string loud = stderr_of(library_lines);
+  EXPECT_THAT(loud, HasSubstr("Linear solver failure"));
+  EXPECT_THAT(loud, HasSubstr("a retry"));
+  cli::quiet_library_logs();
+  EXPECT_EQ(stderr_of(library_lines), "");
+}
+
+// A run under --quiet says nothing on stderr at all.
+TEST_F(Cli, AQuietRunSaysNothingOnStderr) {
+  const CommandResult r = run({"run", grid().string(), "--emulate", "--speed", "100", "--runs-dir", (tmp_ / "runs").string(), "--quiet"});
+  EXPECT_EQ(r.code, 0);
+  EXPECT_EQ(r.err, "");
 }
 
 }  // namespace
