@@ -19,6 +19,7 @@
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
 #include "stand/cli/emulated_bench.h"
+#include "stand/cli/run_lookup.h"
 #include "stand/cli/terminal.h"
 #include "stand/config/stand_config.h"
 #include "stand/investigate/followup_design.h"
@@ -37,6 +38,12 @@ struct RunArgs : BenchChoiceArgs {
   double catalogue_wait_s = 120;
 };
 
+// --resume RUN: a run folder's path, or a run within --runs-dir (its id, a unique prefix, latest).
+fs::path resume_folder(const RunArgs& a) {
+  if (fs::is_regular_file(fs::path(a.resume) / "run.json") || a.resume.find('/') != std::string::npos) return a.resume;
+  return find_run_in(a.resume, a.runs_dir).value_or(fs::path(a.resume));
+}
+
 int run_command(const RunArgs& a) {
   SessionRequest req;
   req.runs_dir = a.runs_dir;
@@ -52,7 +59,7 @@ int run_command(const RunArgs& a) {
       throw InputError("run --resume RUN_DIR takes the procedure, stand and bench from RUN_DIR/run.json: give no "
                        "procedure, --stand, --emulate or --dry-run with it");
     }
-    req.resume_dir = canonical_run_dir(a.resume);
+    req.resume_dir = canonical_run_dir(resume_folder(a));
     const RunInfo info = read_run_info(req.resume_dir);
     Diagnostics dp(info.procedure_origin + " (as recorded in run.json)");
     req.procedure = parse_procedure(info.procedure_text, info.procedure_origin, dp);
@@ -154,7 +161,10 @@ void add_run(CLI::App& app, Runner& run) {
   sub->add_option("--unit,--unit-serial", a->unit_serial,
                   "Serial of the unit: with --emulate the serial the sensor reports, with --stand the one it must report");
   sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made (default runs/)");
-  expect_file(sub, sub->add_option("--resume", a->resume, "Continue an interrupted run from its folder"), a->resume,
+  expect_file(sub,
+              sub->add_option("--resume", a->resume,
+                              "Continue an interrupted run: its folder, or its id within --runs-dir (a unique prefix, or latest)"),
+              a->resume,
               FileKind::run_folder);
   sub->add_flag("--dry-run", a->dry_run, "Validate, print the expanded steps, points and duration; move nothing");
   add_catalogue_option(sub, a->catalogue);

@@ -43,6 +43,12 @@ constexpr const char* kShortGrid =
 
 std::string src(const std::string& rel) { return (test::source_dir() / rel).string(); }
 
+// `fpss-stand ARGS` run from `cwd` (the shell's words, quoted by the caller).
+CommandResult stand_in(const fs::path& cwd, const std::string& args, const fs::path& logs, const std::string& tag) {
+  return test::run_command({"/bin/sh", "-c", "cd '" + cwd.string() + "' && exec '" + test::stand_binary().string() + "' " + args},
+                           logs, tag, 300);
+}
+
 class Cli : public testing::Test {
  protected:
   CommandResult run(const std::vector<std::string>& args, const std::string& tag = "cli") const {
@@ -210,6 +216,70 @@ TEST_F(Cli, AQuietRunSaysNothingOnStderr) {
   const CommandResult r = run({"run", grid().string(), "--emulate", "--speed", "100", "--runs-dir", (tmp_ / "runs").string(), "--quiet"});
   EXPECT_EQ(r.code, 0);
   EXPECT_EQ(r.err, "");
+}
+
+// ---------------------------------------------------------------- finding runs
+
+// The demo records into build/demo/runs: `runs` and `show latest` from the checkout's root find it
+// (saying so); a folder with no catalogue anywhere below says where to look.
+TEST_F(Cli, RunsFindsTheCatalogueTheDemoMadeOrSaysWhereToLook) {
+  const fs::path root = tmp_ / "checkout";
+  fs::create_directories(root);
+  const CommandResult made = stand_in(root, "run '" + grid().string() + "' --emulate --speed 100 --runs-dir build/demo/runs --quiet", tmp_.path(), "demo");
+  ASSERT_EQ(made.code, 0) << made.err;
+  const std::string id = nlohmann::json::parse(test::read_file(test::run_dirs(root / "build/demo/runs").at(0) / "run.json"))["run_id"];
+  const CommandResult listed = stand_in(root, "runs", tmp_.path(), "runs");
+  ASSERT_EQ(listed.code, 0) << listed.err;
+  EXPECT_THAT(listed.out, HasSubstr(id));
+  EXPECT_THAT(listed.err, HasSubstr("no catalogue at runs/stand.db; reading build/demo/runs/stand.db"));
+  const CommandResult shown = stand_in(root, "show latest", tmp_.path(), "show");
+  ASSERT_EQ(shown.code, 0) << shown.err;
+  EXPECT_THAT(shown.out, HasSubstr("run " + id));
+
+  fs::create_directories(tmp_ / "elsewhere");
+  const CommandResult none = stand_in(tmp_ / "elsewhere", "runs", tmp_.path(), "none");
+  EXPECT_EQ(none.code, 2);
+  EXPECT_THAT(none.err, HasSubstr("runs/stand.db: no catalogue there"));
+  EXPECT_THAT(none.err, HasSubstr("hint: a run records into RUNS_DIR/stand.db: give --runs-dir RUNS_DIR"));
+  EXPECT_FALSE(fs::exists(tmp_ / "elsewhere" / "runs"));  // listing never makes a catalogue
+}
+
+// A run named by a unique prefix of its id or by `latest` (show, report, run --resume); a prefix of
+// several is exit 2 naming them.
+TEST_F(Cli, RunIdsByUniquePrefixAndLatest) {
+  const fs::path runs = tmp_ / "runs";
+  std::vector<std::string> ids;
+  for (int k = 0; k < 2; ++k) {
+    const CommandResult r = run({"run", grid().string(), "--emulate", "--speed", "100", "--runs-dir", runs.string(), "--quiet"});
+    ASSERT_EQ(r.code, 0) << r.err;
+  }
+  for (const auto& d : test::run_dirs(runs)) {
+    ids.push_back(nlohmann::json::parse(test::read_file(d / "run.json"))["run_id"]);
+  }
+  ASSERT_EQ(ids.size(), 2u);
+  std::sort(ids.begin(), ids.end());  // UUIDv7: in the order made
+  const std::string unique = ids[1].substr(0, ids[1].size() - 4);
+  const CommandResult by_prefix = run({"show", unique, "--runs-dir", runs.string()});
+  ASSERT_EQ(by_prefix.code, 0) << by_prefix.err;
+  EXPECT_THAT(by_prefix.out, HasSubstr("run " + ids[1]));
+  const CommandResult latest = run({"show", "latest", "--runs-dir", runs.string(), "--json"});
+  ASSERT_EQ(latest.code, 0) << latest.err;
+  EXPECT_EQ(nlohmann::json::parse(latest.out)["run_id"], ids[1]);
+  const CommandResult report = run({"report", "latest", "--runs-dir", runs.string()});
+  EXPECT_EQ(report.code, 0) << report.err;
+
+  size_t common = 0;
+  while (common < ids[0].size() && ids[0][common] == ids[1][common]) ++common;
+  ASSERT_GT(common, 0u);
+  const CommandResult ambiguous = run({"show", ids[0].substr(0, common), "--runs-dir", runs.string()});
+  EXPECT_EQ(ambiguous.code, 2);
+  EXPECT_THAT(ambiguous.err, HasSubstr("ambiguous"));
+  EXPECT_THAT(ambiguous.err, HasSubstr(ids[0]));
+  EXPECT_THAT(ambiguous.err, HasSubstr(ids[1]));
+  // --resume finds the run the same way: this one is complete, and the message names its folder.
+  const CommandResult resume = run({"run", "--resume", ids[0].substr(0, ids[0].size() - 4), "--runs-dir", runs.string()});
+  EXPECT_EQ(resume.code, 2) << resume.err;
+  EXPECT_THAT(resume.err, HasSubstr("already completed"));
 }
 
 }  // namespace
