@@ -282,5 +282,33 @@ TEST_F(Cli, RunIdsByUniquePrefixAndLatest) {
   EXPECT_THAT(resume.err, HasSubstr("already completed"));
 }
 
+// ---------------------------------------------------------------- show and a diagnosis
+
+// A run that completes with a gap: show names GAP.json's verdict and cause beside the run's PASS.
+TEST_F(Cli, ShowNamesTheDiagnosisVerdictAndCause) {
+  const std::string model = src("calib/data/published/a-6-fpss1.json");
+  test::write_file(tmp_ / "diag.yaml", "steps:\n  - home\n"
+                                       "  - null_offset_grid: {extent_deg: 0.3, step_deg: 0.1, frames: 10, settle_s: 0.2}\n"
+                                       "  - diagnose: {model: " + model + ", settle_s: 0.2, partial: true}\n");
+  const fs::path runs = tmp_ / "runs";
+  const CommandResult r = run({"run", (tmp_ / "diag.yaml").string(), "--emulate", "--speed", "50", "--runs-dir", runs.string(),
+                               "--quiet", "--effect", "bias:pitch_arcsec=6,yaw_arcsec=0"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const fs::path folder = test::run_dirs(runs).at(0);
+  const auto gap = nlohmann::json::parse(test::read_file(folder / "GAP.json"));
+  ASSERT_NE(gap["verdict"], "no_gap") << gap.dump(1);
+  ASSERT_FALSE(gap["verdict_sentence"].get<std::string>().empty());
+  std::string verdict = gap["verdict"];
+  std::transform(verdict.begin(), verdict.end(), verdict.begin(), [](unsigned char c) { return std::toupper(c); });
+  const CommandResult shown = run({"show", folder.string()});
+  ASSERT_EQ(shown.code, 0) << shown.err;
+  EXPECT_THAT(shown.out, HasSubstr("  diagnosis  " + verdict + ": " + gap["verdict_sentence"].get<std::string>()));
+  EXPECT_THAT(shown.out, HasSubstr("             cause " + gap["cause"].get<std::string>()));
+  EXPECT_THAT(shown.out, HasSubstr("(GAP.json)"));
+  const auto j = nlohmann::json::parse(run({"show", folder.string(), "--json"}).out);
+  EXPECT_EQ(j["diagnosis"]["verdict"], gap["verdict"]);
+  EXPECT_EQ(j["diagnosis"]["cause"], gap["cause"]);
+}
+
 }  // namespace
 }  // namespace fpss
