@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <regex>
 #include <string>
 #include <vector>
 
@@ -308,6 +309,32 @@ TEST_F(Cli, ShowNamesTheDiagnosisVerdictAndCause) {
   const auto j = nlohmann::json::parse(run({"show", folder.string(), "--json"}).out);
   EXPECT_EQ(j["diagnosis"]["verdict"], gap["verdict"]);
   EXPECT_EQ(j["diagnosis"]["cause"], gap["cause"]);
+}
+
+// ---------------------------------------------------------------- calibrate's budget
+
+// calibrate --help's example: each axis's check says whether U holds, and if not which way it errs,
+// by how much of U and what to quote; without --monte-carlo, that U is unchecked and how to check it.
+TEST_F(Cli, TheBudgetMessageSaysWhatItMeans) {
+  const std::string truth = src("calib/data/published/a-5-fpss2.json"), rec = (tmp_ / "rec.csv").string();
+  ASSERT_EQ(run({"simulate", "--out", rec, "--truth", truth}).code, 0);
+  const CommandResult checked = run({"calibrate", "--data", rec, "--out", (tmp_ / "cal.json").string(), "--truth", truth,
+                                     "--monte-carlo", "100000"});
+  ASSERT_EQ(checked.code, 0) << checked.err;
+  const std::regex meaning(
+      "the GUM budget is validated: its U holds as stated|the GUM budget is NOT validated: its \\+-U is (wider|narrower) "
+      "than the Monte Carlo 95 % interval by up to [0-9.]+ arcsec \\([0-9.]+ % of U\\), beyond the tolerance; U "
+      "(overstates this angle's uncertainty \\(safe but conservative\\): the interval above is the tighter figure to quote|"
+      "understates this angle's uncertainty: quote the interval above, not U)\n");
+  for (const char* axis : {"  pitch at ", "  yaw   at "}) {
+    const auto at = checked.out.find(axis);
+    ASSERT_NE(at, std::string::npos) << checked.out;
+    const std::string line = checked.out.substr(at, checked.out.find('\n', at) + 1 - at);
+    EXPECT_TRUE(std::regex_search(line, meaning)) << line;
+  }
+  const CommandResult unchecked = run({"calibrate", "--data", rec, "--out", (tmp_ / "cal2.json").string()});
+  ASSERT_EQ(unchecked.code, 0) << unchecked.err;
+  EXPECT_THAT(unchecked.out, HasSubstr("is the GUM's, to first order and not checked: --monte-carlo 100000 checks it"));
 }
 
 }  // namespace
