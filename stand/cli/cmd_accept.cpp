@@ -196,7 +196,7 @@ void write_plain_report(const SessionResult& r) {
       for (const auto& u : r.units) folders.push_back({u.dir, &u.recording});
       write_unit_reports(r.run_dir, read_run_file(r.run_dir), folders);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "fpss-stand accept: report not written: %s\n", e.what());
+      print_error(fmt::format("accept: report not written: {}", e.what()));
     }
     return;
   }
@@ -206,7 +206,7 @@ void write_plain_report(const SessionResult& r) {
     ro.recording = &r.recording;
     write_report(r.run_dir, ro);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "fpss-stand accept: report not written: %s\n", e.what());
+    print_error(fmt::format("accept: report not written: {}", e.what()));
   }
 }
 
@@ -291,8 +291,8 @@ UnitAcceptance accept_unit(const AcceptancePlan& p, const SessionResult& r, RunF
       mark_catalogue_pending(r.run_dir, url_for_messages(cat_url), "acceptance", e.what());
     } catch (const std::exception&) {
     }
-    std::fprintf(stderr, "fpss-stand accept: verdict %s written to %s, but the catalogue %s could not record it: %s\n",
-                 to_string(j.outcome), (dir / "acceptance.json").c_str(), url_for_messages(cat_url).c_str(), e.what());
+    print_error(fmt::format("accept: verdict {} written to {}, but the catalogue {} could not record it: {}",
+                            to_string(j.outcome), (dir / "acceptance.json").string(), url_for_messages(cat_url), e.what()));
     out.recorded = false;
   }
   return out;
@@ -351,8 +351,8 @@ int accept_command(const AcceptArgs& a) {
   // the unit failing, judged below. Any other stop is the stand's: no verdict.
   const bool unit_stopped = r.outcome == RunOutcome::failed && r.cause == StopCause::sensor_invalid;
   if (!completed && !unit_stopped) {
-    std::fprintf(stderr, "fpss-stand accept: the run %s: %s\nno verdict; the run folder is %s\n",
-                 to_string(r.outcome), r.reason.c_str(), run_dir.c_str());
+    print_error(fmt::format("accept: the run {}: {}\nno verdict; the run folder is {}", to_string(r.outcome), r.reason,
+                            run_dir.string()));
     write_plain_report(r);
     return 1;
   }

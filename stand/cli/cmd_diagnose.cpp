@@ -22,6 +22,7 @@
 #include "stand/cli/file_hints.h"
 #include "stand/cli/file_options.h"
 #include "stand/cli/help.h"
+#include "stand/cli/terminal.h"
 #include "stand/catalogue/run_file.h"
 #include "stand/session/diagnose_step.h"
 #include "stand/report/diagnosis_page.h"
@@ -82,8 +83,8 @@ int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models
     }
   }
   if (incomplete) {
-    std::fprintf(stderr, "fpss-stand diagnose: this recording cannot tell every effect apart (each unit's GAP.json, "
-                         "not_observable; --partial accepts it)\n");
+    (partial ? print_note : print_error)("diagnose: this recording cannot tell every effect apart (each unit's "
+                                         "GAP.json, not_observable; --partial accepts it)");
     return partial ? 0 : 2;
   }
   return 0;
@@ -181,7 +182,8 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
                     100 * d.where.front().share);
       }
       if (d.incomplete_recording()) {
-        std::fprintf(stderr, "fpss-stand diagnose: %s: this recording cannot tell every effect apart:\n", o->data.c_str());
+        (o->partial ? print_note : print_error)(
+            fmt::format("diagnose: {}: this recording cannot tell every effect apart:", o->data));
         for (const auto& n : d.not_observable) {
           if (n.incomplete_recording) std::fprintf(stderr, "  %s: %s\n", n.name.c_str(), n.reason.c_str());
         }

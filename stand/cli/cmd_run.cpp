@@ -123,7 +123,7 @@ int run_command(const RunArgs& a) {
     std::printf("run completed: %lld/%lld points%s in %.1f s -> %s\n", static_cast<long long>(r.points_done),
                 static_cast<long long>(r.points_total), skipped.c_str(), r.wall_s, dir.c_str());
   } else {
-    if (a.quiet) std::fprintf(stderr, "fpss-stand run: %s: %s\n", to_string(r.outcome), r.reason.c_str());
+    if (a.quiet) print_error(fmt::format("run {}: {}", to_string(r.outcome), r.reason));
     std::printf("run %s: %lld/%lld points -> %s\n", to_string(r.outcome), static_cast<long long>(r.points_done),
                 static_cast<long long>(r.points_total), dir.c_str());
     if (r.points_done < r.points_total) std::printf("resume with: fpss-stand run --resume %s\n", dir.c_str());
@@ -136,12 +136,11 @@ int run_command(const RunArgs& a) {
                 u.loss->reason.c_str());
   }
   if (!r.catalogue_error.empty()) {
-    std::fprintf(stderr,
-                 "fpss-stand run: %s\nfpss-stand run: the run folder %s is complete; re-index it with: fpss-stand "
-                 "catalogue rebuild --runs-dir %s --catalogue %s\n",
-                 r.catalogue_error.c_str(), dir.c_str(), r.run_dir.parent_path().c_str(),
-                 req.catalogue.empty() ? (r.run_dir.parent_path() / "stand.db").c_str()
-                                       : url_for_messages(req.catalogue).c_str());
+    print_error(fmt::format("run: {}\nhint: the run folder {} is complete; re-index it with: fpss-stand catalogue "
+                            "rebuild --runs-dir {} --catalogue {}",
+                            r.catalogue_error, dir, r.run_dir.parent_path().string(),
+                            req.catalogue.empty() ? (r.run_dir.parent_path() / "stand.db").string()
+                                                  : url_for_messages(req.catalogue)));
   }
   if (r.calibration) std::printf("calibration: %s\n", r.calibration->string().c_str());
   if (r.report) std::printf("report: %s\n", r.report->string().c_str());

@@ -5,11 +5,11 @@
 
 #include <algorithm>
 #include <tuple>
-#include <cstdio>
 
 #include "base/errors.h"
 #include "stand/catalogue/catalogue.h"
 #include "stand/catalogue/run_file.h"
+#include "stand/cli/terminal.h"
 
 namespace fpss::cli {
 
@@ -77,8 +77,8 @@ void note_found_runs_dir(const fs::path& runs_dir, const FoundRunsDir& found) {
   std::vector<std::string> names;
   for (const fs::path& o : found.others) names.push_back(Catalogue::default_path(o).string());
   const std::string others = names.empty() ? "" : fmt::format(" (the most recent; also {})", fmt::join(names, ", "));
-  std::fprintf(stderr, "fpss-stand: note: no catalogue at %s; reading %s%s; give --runs-dir to choose\n",
-               Catalogue::default_path(runs_dir).c_str(), Catalogue::default_path(found.dir).c_str(), others.c_str());
+  print_note(fmt::format("no catalogue at {}; reading {}{}; give --runs-dir to choose",
+                         Catalogue::default_path(runs_dir).string(), Catalogue::default_path(found.dir).string(), others));
 }
 
 std::optional<fs::path> find_run_in(const std::string& ref, const fs::path& runs_dir) {

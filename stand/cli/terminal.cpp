@@ -10,6 +10,8 @@ namespace fpss::cli {
 
 void print_error(const std::string& message) { std::fprintf(stderr, "fpss-stand: error: %s\n", message.c_str()); }
 
+void print_note(const std::string& message) { std::fprintf(stderr, "fpss-stand: note: %s\n", message.c_str()); }
+
 bool draw_progress(bool forced, bool no_progress, bool quiet) {
   if (forced) return true;
   // A pipe or a file (CI, `| tee`, a log) would get one line per point: the terminal only.

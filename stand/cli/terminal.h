@@ -7,8 +7,11 @@
 
 namespace fpss::cli {
 
-// "fpss-stand: error: MESSAGE" on stderr: every error the binary reports, whatever its exit code.
+// "fpss-stand: error: MESSAGE" on stderr: every error the binary reports, whatever its exit code
+// (a hint goes on its own line after it, "hint: ...").
 void print_error(const std::string& message);
+// "fpss-stand: note: MESSAGE" on stderr: what the user should know of a command that goes on.
+void print_note(const std::string& message);
 
 // Whether a run draws its live progress line: --progress forces it; else only when stderr (where
 // it is drawn) is a terminal, and neither --no-progress nor --quiet is given.

@@ -39,7 +39,7 @@ using testing::StartsWith;
 // A short grid and a fit (a few seconds at --speed 100).
 constexpr const char* kShortGrid =
     "name: short_grid\nsteps:\n  - home\n"
-    "  - null_offset_grid: {axes: [pitch, yaw], extent_deg: 0.3, step_deg: 0.1, settle_s: 0.2, frames: 3}\n"
+    "  - null_offset_grid: {axes: [pitch, yaw], extent_deg: 0.42, step_deg: 0.06, settle_s: 0.2, frames: 3}\n"
     "  - calibrate: {method: differences}\n";
 
 std::string src(const std::string& rel) { return (test::source_dir() / rel).string(); }
@@ -170,6 +170,14 @@ TEST_F(Cli, EveryErrorComesInOneStyle) {
   ::close(fd);
   EXPECT_EQ(taken.code, 1) << taken.err;
   EXPECT_THAT(taken.err, StartsWith("fpss-stand: error: ")) << taken.err;
+  // A run that fails (too few offsets to fit), told under --quiet: the command's own error line.
+  std::string few = kShortGrid;
+  few.replace(few.find("step_deg: 0.06"), 14, "step_deg: 0.21");
+  test::write_file(tmp_ / "few.yaml", few);
+  const CommandResult failed = run({"run", (tmp_ / "few.yaml").string(), "--emulate", "--speed", "100", "--runs-dir",
+                                    (tmp_ / "runs").string(), "--quiet"}, "failed");
+  EXPECT_EQ(failed.code, 1) << failed.err;
+  EXPECT_THAT(failed.err, StartsWith("fpss-stand: error: run failed: ")) << failed.err;
 
   const CommandResult unknown_command = run({"frobnicate"});
   const CommandResult unknown_option = run({"run", grid().string(), "--frobnicate"});
@@ -181,16 +189,23 @@ TEST_F(Cli, EveryErrorComesInOneStyle) {
   }
 }
 
-// What `f` writes to stderr (fd 2, where glog and spdlog write), through a temporary file.
-std::string stderr_of(const std::function<void()>& f) {
+// What `f` writes to the console (stderr, where glog writes, and stdout, spdlog's default logger's),
+// through a temporary file.
+std::string console_of(const std::function<void()>& f) {
+  std::fflush(stdout);
   std::fflush(stderr);
-  const int saved = ::dup(2);
+  const int saved_out = ::dup(1), saved_err = ::dup(2);
   FILE* file = std::tmpfile();
+  ::dup2(::fileno(file), 1);
   ::dup2(::fileno(file), 2);
   f();
+  spdlog::default_logger()->flush();
+  std::fflush(stdout);
   std::fflush(stderr);
-  ::dup2(saved, 2);
-  ::close(saved);
+  ::dup2(saved_out, 1);
+  ::dup2(saved_err, 2);
+  ::close(saved_out);
+  ::close(saved_err);
   std::rewind(file);
   std::string text;
   for (int c = std::fgetc(file); c != EOF; c = std::fgetc(file)) text += static_cast<char>(c);
@@ -205,11 +220,11 @@ TEST(CliQuiet, QuietSilencesTheLibrariesOwnLogs) {
     LOG(WARNING) << "Linear solver failure. Failed to compute a step: (the test's)";
     spdlog::warn("gimbal: a retry (the test's)");
   };
-  const std::string loud = stderr_of(library_lines);
+  const std::string loud = console_of(library_lines);
   EXPECT_THAT(loud, HasSubstr("Linear solver failure"));
   EXPECT_THAT(loud, HasSubstr("a retry"));
   cli::quiet_library_logs();
-  EXPECT_EQ(stderr_of(library_lines), "");
+  EXPECT_EQ(console_of(library_lines), "");
 }
 
 // A run under --quiet says nothing on stderr at all.
