@@ -3,7 +3,9 @@
 
 #include <fmt/format.h>
 
+#include <charconv>
 #include <filesystem>
+#include <limits>
 
 #include "base/errors.h"
 #include "calib/coefficients.h"
@@ -57,10 +59,11 @@ CLI::Validator speed_check() {
 CLI::Validator seed_check() {
   return CLI::Validator(
       [](std::string& text) -> std::string {
+        // Decimal digits only, within uint64_t: no sign, no wrap, no saturation at the maximum.
         uint64_t v = 0;
-        const bool digits = !text.empty() && text.find_first_not_of("0123456789") == std::string::npos;
-        if (digits && CLI::detail::lexical_cast(text, v)) return {};
-        return "expected a whole number in 0..18446744073709551615, got " + text;
+        const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+        if (!text.empty() && ec == std::errc() && end == text.data() + text.size()) return {};
+        return fmt::format("expected a whole number in 0..{}, got {}", std::numeric_limits<uint64_t>::max(), text);
       },
       "0..2^64-1");
 }

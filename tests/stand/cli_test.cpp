@@ -77,6 +77,7 @@ TEST_F(Cli, AnOutOfRangeOptionExitsTwoBeforeAnythingStarts) {
       {{"--speed", "5000"}, "0.01..1000"},
       {{"--speed", "0"}, "0.01..1000"},
       {{"--seed", "-1"}, "0..18446744073709551615"},
+      {{"--seed", "18446744073709551616"}, "0..18446744073709551615"},
       {{"--fault", "nosuchfault"}, "unknown fault \"nosuchfault\" (expected one of "},
       {{"--fault", "sensor_glitch:rate=2"}, "rate must be in (0, 1]"},
       {{"--effect", "wobble:x=1"}, "unknown effect \"wobble\""},
@@ -103,7 +104,7 @@ TEST_F(Cli, AnOutOfRangeOptionExitsTwoBeforeAnythingStarts) {
     }
   }
   // simulate takes the seed and effects too (no emulator, the same checks).
-  for (const auto& b : {bad[3], bad[6], bad[7]}) {
+  for (const auto& b : {bad[3], bad[4], bad[7], bad[8]}) {
     std::vector<std::string> args{"simulate", "--out", (tmp_ / "rec.csv").string()};
     args.insert(args.end(), b.args.begin(), b.args.end());
     const CommandResult r = run(args);
