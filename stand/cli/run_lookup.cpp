@@ -102,8 +102,12 @@ std::optional<fs::path> find_run_in(const std::string& ref, const fs::path& runs
   std::vector<std::string> names;
   for (const RunEntry* r : hits) names.push_back(r->id == r->name ? r->id : r->id + " (" + r->name + ")");
   std::sort(names.begin(), names.end());
-  throw InputError(fmt::format("{}: ambiguous: the start of {} runs in {}: {}; give more of the id", ref, hits.size(),
-                               runs_dir.string(), fmt::join(names, ", ")));
+  // A message, not a listing (`runs` lists them): the first ten.
+  constexpr size_t kNamed = 10;
+  const std::string more = names.size() > kNamed ? fmt::format(" and {} more", names.size() - kNamed) : "";
+  names.resize(std::min(names.size(), kNamed));
+  throw InputError(fmt::format("{}: ambiguous: the start of {} runs in {}: {}{}; give more of the id", ref, hits.size(),
+                               runs_dir.string(), fmt::join(names, ", "), more));
 }
 
 }  // namespace fpss::cli
