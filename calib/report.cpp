@@ -133,26 +133,112 @@ CoefficientSet CalibrationReport::coefficients() const {
   return s;
 }
 
-std::string summary_text(const CalibrationReport& r) {
+namespace {
+
+// What the summary's head shows of a fit, from a report in memory or from a coefficient file.
+struct SummaryHead {
+  std::string unit, source, method;
+  bool differences = false;
+  size_t samples = 0, null_dwells = 0, offset_dwells = 0, pairs = 0;
+  struct Axis {
+    std::string name;  // "pitch (alpha)"
+    ResidualStats residuals;
+    AxisCoeffs coeffs{};
+    std::array<double, 8> sigma{};
+  };
+  std::array<Axis, 2> axes;
+};
+
+// The first line, Table 1 and the coefficients with their 1-sigma: one form for both sources.
+std::string head_text(const SummaryHead& h) {
   std::string o;
   o += fmt::format("Calibration{} from {} (method: {}; {} samples, {} null and {} offset dwells{})\n\n",
-                   r.unit.empty() ? "" : " of " + r.unit, r.source.empty() ? "samples" : r.source,
-                   to_string(r.method), r.samples, r.null_dwells, r.offset_dwells,
-                   r.method == Method::differences ? fmt::format(", {} changes", r.pairs) : "");
+                   h.unit.empty() ? "" : " of " + h.unit, h.source.empty() ? "samples" : h.source, h.method,
+                   h.samples, h.null_dwells, h.offset_dwells,
+                   h.differences ? fmt::format(", {} changes", h.pairs) : "");
   o += fmt::format("{:<15} {:>16}  {:>22}  {:>15}  {:>7}\n", "axis", "range (deg)", "mean residual (arcsec)",
                    "max (arcsec)", "points");
-  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
-    o += fmt::format("{:<15} {:>7.2f} to {:<5.2f}  {:>13.2f} +- {:<5.2f}  {:>15.2f}  {:>7}\n",
-                     fmt::format("{} ({})", a->axis, a->coefficient_key), a->residuals.range_deg[1],
-                     a->residuals.range_deg[0], a->residuals.mean_abs_arcsec, a->residuals.sd_arcsec,
-                     a->residuals.max_abs_arcsec, a->residuals.points);
+  for (const auto& a : h.axes) {
+    o += fmt::format("{:<15} {:>7.2f} to {:<5.2f}  {:>13.2f} +- {:<5.2f}  {:>15.2f}  {:>7}\n", a.name,
+                     a.residuals.range_deg[1], a.residuals.range_deg[0], a.residuals.mean_abs_arcsec,
+                     a.residuals.sd_arcsec, a.residuals.max_abs_arcsec, a.residuals.points);
   }
   o += fmt::format("\n{:<4} {:>30}  {:>30}\n", "", "alpha (pitch) +- 1 sigma", "beta (yaw) +- 1 sigma");
   for (int i = 0; i < 8; ++i) {
-    o += fmt::format("C{:<3} {:>16.7e} +- {:<10.2e}  {:>16.7e} +- {:<10.2e}\n", i + 1, r.pitch.coeffs[i],
-                     r.pitch.sigma[i], r.yaw.coeffs[i], r.yaw.sigma[i]);
+    o += fmt::format("C{:<3} {:>16.7e} +- {:<10.2e}  {:>16.7e} +- {:<10.2e}\n", i + 1, h.axes[0].coeffs[i],
+                     h.axes[0].sigma[i], h.axes[1].coeffs[i], h.axes[1].sigma[i]);
   }
   o += "(radians, N in counts)\n\n";
+  return o;
+}
+
+SummaryHead head_of(const CalibrationReport& r) {
+  SummaryHead h{r.unit, r.source, std::string(to_string(r.method)), r.method == Method::differences, r.samples,
+                r.null_dwells, r.offset_dwells, r.pairs, {}};
+  size_t k = 0;
+  for (const AxisFit* a : {&r.pitch, &r.yaw}) {
+    h.axes[k++] = {fmt::format("{} ({})", a->axis, a->coefficient_key), a->residuals, a->coeffs, a->sigma};
+  }
+  return h;
+}
+
+// A number of a coefficient file's block; NaN where it is null or absent (as the fit had it).
+double number_in(const nlohmann::json& j, const char* key) {
+  return j.is_object() && j.contains(key) && j[key].is_number() ? j[key].get<double>() : std::nan("");
+}
+
+size_t count_in(const nlohmann::json& j, const char* key) {
+  return j.is_object() && j.contains(key) && j[key].is_number_unsigned() ? j[key].get<size_t>() : 0;
+}
+
+ResidualStats residuals_of(const nlohmann::json& j) {
+  ResidualStats s;
+  s.mean_abs_arcsec = number_in(j, "mean_abs_arcsec");
+  s.sd_arcsec = number_in(j, "sd_arcsec");
+  s.max_abs_arcsec = number_in(j, "max_abs_arcsec");
+  s.rms_arcsec = number_in(j, "rms_arcsec");
+  s.points = count_in(j, "points");
+  const nlohmann::json range = j.is_object() ? j.value("range_deg", nlohmann::json()) : nlohmann::json();
+  if (range.is_array() && range.size() == 2 && range[0].is_number() && range[1].is_number()) {
+    s.range_deg = {range[0].get<double>(), range[1].get<double>()};
+  }
+  return s;
+}
+
+std::array<double, 8> sigma_of(const nlohmann::json& list) {
+  std::array<double, 8> s;
+  s.fill(std::nan(""));
+  for (size_t i = 0; list.is_array() && i < list.size() && i < 8; ++i) {
+    if (list[i].is_number()) s[i] = list[i].get<double>();
+  }
+  return s;
+}
+
+}  // namespace
+
+std::string summary_text(const CoefficientSet& fitted) {
+  const nlohmann::json& x = fitted.extra;
+  if (!x.is_object() || !x.contains("residuals") || !x["residuals"].is_object()) return {};
+  const nlohmann::json dwells = x.value("dwells", nlohmann::json::object());
+  const nlohmann::json sigmas = x.value("uncertainties", nlohmann::json::object());
+  SummaryHead h;
+  h.unit = fitted.unit;
+  h.source = x.value("source", "");
+  h.method = x.value("method", "");
+  h.differences = h.method == to_string(Method::differences);
+  h.samples = count_in(x, "samples");
+  h.null_dwells = count_in(dwells, "null");
+  h.offset_dwells = count_in(dwells, "offset");
+  h.pairs = count_in(dwells, "pairs");
+  h.axes[0] = {"pitch (alpha)", residuals_of(x["residuals"].value("pitch", nlohmann::json())), fitted.alpha,
+               sigma_of(sigmas.value("alpha", nlohmann::json()))};
+  h.axes[1] = {"yaw (beta)", residuals_of(x["residuals"].value("yaw", nlohmann::json())), fitted.beta,
+               sigma_of(sigmas.value("beta", nlohmann::json()))};
+  return head_text(h);
+}
+
+std::string summary_text(const CalibrationReport& r) {
+  std::string o = head_text(head_of(r));
   for (const AxisFit* a : {&r.pitch, &r.yaw}) {
     o += fmt::format("{}: 1-sigma of the fitted angle over counts [{:.0f}, {:.0f}]: at most {:.3f} arcsec{}\n",
                      a->axis, a->counts_range[0], a->counts_range[1], a->angle_sigma_max_arcsec,

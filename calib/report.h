@@ -17,6 +17,10 @@ nlohmann::json solver_json(const CalibrationReport& r);
 
 // Table-1-style summary, the coefficients with their 1-sigma and the solver outcome.
 std::string summary_text(const CalibrationReport& r);
+// The same summary's head (its first line, Table 1, the coefficients with their 1-sigma) from a
+// fitted coefficient file (calibration.json: its residuals, dwells and uncertainties blocks), in the
+// same form; "" for a set that is no fit (no residuals block: a published set).
+std::string summary_text(const CoefficientSet& fitted);
 
 // Per axis, how far the fit is from a known truth over the calibrated count range.
 struct TruthComparison {

@@ -249,6 +249,9 @@ void bind_calib(py::module_& m) {
       py::arg("a"), py::arg("b"), py::arg("range_deg") = kDefaultCompareRangeDeg);
   m.def("load_coefficients", [](const std::string& path) { return to_python(to_json(load_coefficients(path))); },
         py::arg("path"));
+  // A fitted set's Table 1 and coefficients as the command prints them (calib/report.h); "" for a published set.
+  m.def("calibration_summary", [](const py::object& o) { return summary_text(coefficients_from_python(o, "calibration")); },
+        py::arg("coefficients"));
   m.def("check_coefficients", [](const py::object& o, const std::string& origin) {
     return to_python(to_json(coefficients_from_python(o, origin)));
   });

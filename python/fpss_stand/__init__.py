@@ -107,7 +107,8 @@ def inverse_transfer_function(coeffs, angle_arcsec, lo_counts=-32768.0, hi_count
 class Calibration:
     """A coefficient set: ``json`` is the coefficient file's content (calibration.json's, for a fit)
     as a dict; ``alpha``/``beta`` C1..C8 (radians) as arrays; ``summary`` the command's printed
-    Table-1 summary (fits only)."""
+    Table-1 summary (fits only: a fit's whole summary, a fitted coefficient file's head of it, its
+    first line, Table 1 and the coefficients with their 1-sigma; "" for a published set)."""
 
     def __init__(self, json, summary=""):
         self.json = json
@@ -151,8 +152,9 @@ class Calibration:
 
 
 def load_coefficients(path):
-    """A coefficient file, read and checked as the commands read it."""
-    return Calibration(_native.load_coefficients(os.fspath(path)))
+    """A coefficient file, read and checked as the commands read it; a fit's ``summary`` is its Table 1."""
+    j = _native.load_coefficients(os.fspath(path))
+    return Calibration(j, _native.calibration_summary(j))
 
 
 def save_coefficients(path, coefficients):

@@ -25,6 +25,9 @@ def test_path_equals_the_command_to_the_last_digit(recording, cli_calibration, t
     assert cal.json["source"] == recording
     assert np.array_equal(cal.alpha, np.array(cli["alpha"]))
     assert "Table 1" in cal.summary or "pitch" in cal.summary
+    # The file read back has the fit's summary up to the solver's lines: the same Table 1 and coefficients.
+    head = fs.load_coefficients(out).summary
+    assert head and cal.summary.startswith(head) and "(radians, N in counts)" in head
 
 
 def test_the_budget_and_expanded_uncertainty_are_calibration_jsons(recording, cli_calibration):

@@ -72,6 +72,17 @@ def test_points_calibration_and_no_acceptance(run, run_dir):
     assert run.acceptance is None and run.gap is None
 
 
+def test_the_runs_calibration_has_its_table_1(run, run_dir):
+    """The run's calibration.summary: Table 1 from calibration.json's residuals, as the command prints it."""
+    cal = run.calibration
+    assert cal.summary.startswith("Calibration of ")
+    assert "mean residual (arcsec)" in cal.summary and "alpha (pitch) +- 1 sigma" in cal.summary
+    pitch = cal.residuals["pitch"]
+    row = next(l for l in cal.summary.splitlines() if l.startswith("pitch (alpha)"))
+    assert f"{pitch['mean_abs_arcsec']:.2f} +- {pitch['sd_arcsec']:.2f}" in row and row.split()[-1] == str(pitch["points"])
+    assert fs.load_published("a-6-fpss1").summary == ""  # no fit, no Table 1
+
+
 def test_acceptance_and_gap_are_typed(run_dir, tmp_path):
     d = tmp_path / "copy"
     shutil.copytree(run_dir, d)

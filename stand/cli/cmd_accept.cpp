@@ -33,6 +33,7 @@
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
 #include "stand/cli/emulated_bench.h"
+#include "stand/cli/terminal.h"
 #include "stand/config/stand_config.h"
 #include "stand/report/compare_plot.h"
 #include "stand/report/report.h"
@@ -49,7 +50,7 @@ namespace {
 
 struct AcceptArgs : BenchChoiceArgs {
   std::string unit, procedure, limits, runs_dir = "runs", catalogue;
-  bool json = false, quiet = false, no_progress = false, operator_prompts = false;
+  bool json = false, quiet = false, progress = false, no_progress = false, operator_prompts = false;
   double catalogue_wait_s = 120;
 };
 
@@ -87,7 +88,7 @@ AcceptancePlan plan_acceptance(const AcceptArgs& a) {
   req.runs_dir = a.runs_dir;
   req.quiet = a.quiet;
   if (::isatty(STDIN_FILENO)) req.keys_fd = STDIN_FILENO;  // p pause, r resume, a abort
-  req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
+  req.tty = draw_progress(a.progress, a.no_progress, a.quiet);
   const std::string proc = p.procedure_path.string();
   Diagnostics dp(proc);
   req.procedure = parse_procedure(read_text_file(p.procedure_path, "procedure file", kMaxConfigFileBytes), proc, dp);
@@ -195,7 +196,7 @@ void write_plain_report(const SessionResult& r) {
       for (const auto& u : r.units) folders.push_back({u.dir, &u.recording});
       write_unit_reports(r.run_dir, read_run_file(r.run_dir), folders);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "fpss-stand accept: report not written: %s\n", e.what());
+      print_error(fmt::format("accept: report not written: {}", e.what()));
     }
     return;
   }
@@ -205,7 +206,7 @@ void write_plain_report(const SessionResult& r) {
     ro.recording = &r.recording;
     write_report(r.run_dir, ro);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "fpss-stand accept: report not written: %s\n", e.what());
+    print_error(fmt::format("accept: report not written: {}", e.what()));
   }
 }
 
@@ -290,14 +291,16 @@ UnitAcceptance accept_unit(const AcceptancePlan& p, const SessionResult& r, RunF
       mark_catalogue_pending(r.run_dir, url_for_messages(cat_url), "acceptance", e.what());
     } catch (const std::exception&) {
     }
-    std::fprintf(stderr, "fpss-stand accept: verdict %s written to %s, but the catalogue %s could not record it: %s\n",
-                 to_string(j.outcome), (dir / "acceptance.json").c_str(), url_for_messages(cat_url).c_str(), e.what());
+    print_error(fmt::format("accept: verdict {} written to {}, but the catalogue {} could not record it: {}",
+                            to_string(j.outcome), (dir / "acceptance.json").string(), url_for_messages(cat_url), e.what()));
     out.recorded = false;
   }
   return out;
 }
 
-int exit_code_of(const Judgement& j) { return j.passed ? 0 : j.outcome == Outcome::fail ? 3 : 4; }
+int exit_code_of(const Judgement& j) {
+  return j.passed ? exit_code::ok : j.outcome == Outcome::fail ? exit_code::acceptance_failed : exit_code::acceptance_conditional;
+}
 
 // Several units: a verdict per unit that completed; a lost unit has none (its outcome names the
 // loss). Exit 1 when any unit has no verdict, else 3 when any failed, 4 when any is conditional.
@@ -348,8 +351,8 @@ int accept_command(const AcceptArgs& a) {
   // the unit failing, judged below. Any other stop is the stand's: no verdict.
   const bool unit_stopped = r.outcome == RunOutcome::failed && r.cause == StopCause::sensor_invalid;
   if (!completed && !unit_stopped) {
-    std::fprintf(stderr, "fpss-stand accept: the run %s: %s\nno verdict; the run folder is %s\n",
-                 to_string(r.outcome), r.reason.c_str(), run_dir.c_str());
+    print_error(fmt::format("accept: the run {}: {}\nno verdict; the run folder is {}", to_string(r.outcome), r.reason,
+                            run_dir.string()));
     write_plain_report(r);
     return 1;
   }
@@ -379,11 +382,12 @@ int accept_command(const AcceptArgs& a) {
 void add_accept_command(CLI::App& app, Runner& run) {
   auto a = std::make_shared<AcceptArgs>();
   auto* sub = app.add_subcommand(
-      "accept", "Acceptance of a sensor unit: calibrate, verify on unseen points, measure jitter, judge, certify "
-                "(exit 0 pass, 3 fail)");
+      "accept", "Acceptance of a sensor unit: calibrate, verify on unseen points, measure jitter, judge, certify " +
+                    fmt::format("(exit {} pass, {} fail, {} conditional)", exit_code::ok, exit_code::acceptance_failed,
+                                exit_code::acceptance_conditional));
   add_bench_choice_options(sub, *a, "Stand file (YAML) of a real bench",
                            "Run on the emulated bench (a child process over the real wire)");
-  sub->add_option("--unit", a->unit, "Serial of the unit (required with --stand; with --emulate, the serial it reports)");
+  sub->add_option("--unit,--unit-serial", a->unit, "Serial of the unit (required with --stand; with --emulate, the serial it reports)");
   expect_file(sub, sub->add_option("--procedure", a->procedure, "Acceptance procedure (default procedures/acceptance.yaml)"),
               a->procedure, FileKind::procedure);
   expect_file(sub, sub->add_option("--limits", a->limits, "Acceptance limits (default procedures/acceptance_limits.yaml)"),
@@ -392,8 +396,8 @@ void add_accept_command(CLI::App& app, Runner& run) {
   add_catalogue_option(sub, a->catalogue);
   add_catalogue_wait_option(sub, a->catalogue_wait_s);
   sub->add_flag("--json", a->json, "Print acceptance.json instead of the certificate text");
-  sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
-  sub->add_flag("--no-progress", a->no_progress, "No live progress line");
+  sub->add_flag("--quiet", a->quiet, "No log lines on the console, the libraries' included (events.log keeps them)");
+  add_progress_options(sub, a->progress, a->no_progress);
   sub->add_flag("--operator-prompts", a->operator_prompts,
                 "Ask the operator (unit serial, lamp, name) through the run folder's control channel: the web console");
   examples(sub, {"fpss-stand accept --emulate --unit FPSS1-SN042 --runs-dir runs",

@@ -147,7 +147,10 @@ void add_calibrate(CLI::App& app, Runner& run) {
       }
       std::string text = summary_text(rep);
       if (cmp) text += truth_text(*cmp, o->truth);
-      if (mc) text += monte_carlo_text(*mc);
+      // Without the check, say that the budget's U is the GUM's first-order figure and how to test it.
+      text += mc ? monte_carlo_text(*mc)
+                 : "\nthe uncertainty budget (U, calibration.json uncertainties) is the GUM's, to first order and "
+                   "not checked: --monte-carlo 100000 checks it (JCGM 101)\n";
       text += fmt::format("\nwrote {}\n", o->out);
       std::fputs(text.c_str(), stdout);
       return 0;

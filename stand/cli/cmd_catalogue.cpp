@@ -19,6 +19,7 @@
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
 #include "stand/cli/help.h"
+#include "stand/cli/run_lookup.h"
 #include "stand/report/run_summary.h"
 
 namespace fpss::cli {
@@ -33,7 +34,23 @@ struct DbOpts {
 
   std::string url() const {
     if (runs_dir_option != nullptr && runs_dir_option->count() > 0) return Catalogue::default_path(runs_dir).string();
+    if (runs_dir_option != nullptr && chosen_catalogue(db).empty()) return default_catalogue();
     return catalogue_url(db, runs_dir);
+  }
+
+  // Nothing named (runs, history): runs/stand.db, else the catalogue found below this folder (the
+  // demo's), else an error that says where catalogues are made.
+  std::string default_catalogue() const {
+    const std::filesystem::path here = Catalogue::default_path(runs_dir);
+    if (std::filesystem::exists(here)) return here.string();
+    if (const auto found = find_runs_dir_nearby(runs_dir)) {
+      note_found_runs_dir(runs_dir, *found);
+      return Catalogue::default_path(found->dir).string();
+    }
+    throw InputError(fmt::format("{}: no catalogue there (no run has been recorded with it), nor below this folder\n"
+                                 "hint: a run records into RUNS_DIR/stand.db: give --runs-dir RUNS_DIR as the run had "
+                                 "it (scripts/demo: build/demo/runs), or --catalogue URL",
+                                 here.string()));
   }
 };
 

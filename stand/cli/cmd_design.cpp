@@ -19,6 +19,7 @@
 #include "stand/cli/commands.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
+#include "stand/cli/terminal.h"
 #include "stand/config/stand_config.h"
 #include "stand/investigate/followup_design.h"
 #include "base/json_file.h"
@@ -164,8 +165,8 @@ int run_followup_design(const DesignArgs& a) {
     if (d.found || d.useful) std::printf("moves: %s\nprocedure: %s\n", fmt::format("{}", fmt::join(d.moves, "; ")).c_str(), a.out.c_str());
   }
   if (!(d.found || d.useful)) {
-    std::fprintf(stderr, "fpss-stand design: %s: nothing within %.0f s of bench time separates or bounds what was asked; "
-                         "no file written\n", gap_path.c_str(), d.budget_s);
+    print_error(fmt::format("design: {}: nothing within {:.0f} s of bench time separates or bounds what was asked; "
+                            "no file written", gap_path, d.budget_s));
     return 1;
   }
   return 0;

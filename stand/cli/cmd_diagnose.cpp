@@ -18,9 +18,11 @@
 #include "stand/investigate/confusable.h"
 #include "stand/investigate/followup_design.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/emulated_bench.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/file_options.h"
 #include "stand/cli/help.h"
+#include "stand/cli/terminal.h"
 #include "stand/catalogue/run_file.h"
 #include "stand/session/diagnose_step.h"
 #include "stand/report/diagnosis_page.h"
@@ -81,8 +83,8 @@ int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models
     }
   }
   if (incomplete) {
-    std::fprintf(stderr, "fpss-stand diagnose: this recording cannot tell every effect apart (each unit's GAP.json, "
-                         "not_observable; --partial accepts it)\n");
+    (partial ? print_note : print_error)("diagnose: this recording cannot tell every effect apart (each unit's "
+                                         "GAP.json, not_observable; --partial accepts it)");
     return partial ? 0 : 2;
   }
   return 0;
@@ -180,7 +182,8 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
                     100 * d.where.front().share);
       }
       if (d.incomplete_recording()) {
-        std::fprintf(stderr, "fpss-stand diagnose: %s: this recording cannot tell every effect apart:\n", o->data.c_str());
+        (o->partial ? print_note : print_error)(
+            fmt::format("diagnose: {}: this recording cannot tell every effect apart:", o->data));
         for (const auto& n : d.not_observable) {
           if (n.incomplete_recording) std::fprintf(stderr, "  %s: %s\n", n.name.c_str(), n.reason.c_str());
         }
@@ -200,7 +203,7 @@ void add_blindtest_command(CLI::App& app, Runner& run) {
   auto o = std::make_shared<Opts>();
   auto* sub = app.add_subcommand("blindtest", "Blind check of the diagnosis: random effects on the simulated bench");
   sub->add_option("--cases", o->b.cases, "number of cases (classes drawn in shuffled blocks of all eleven)")->default_val(22);
-  sub->add_option("--seed", o->b.seed, "seed of the draws and of the bench noise")->default_val(1);
+  sub->add_option("--seed", o->b.seed, "seed of the draws and of the bench noise")->default_val(1)->check(seed_check());
   sub->add_flag("--json", o->json, "print the results as JSON");
   sub->add_option("--save", o->b.save_dir,
                   "folder for every case's recording, model, truth and GAP.json (to re-run `diagnose` on them)");

@@ -16,6 +16,7 @@
 #include "calib/coefficients.h"
 #include "fixtures/emulator.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/emulated_bench.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
 #include "stand/contract/emulator_contract.h"
@@ -164,16 +165,17 @@ void add_emulate(CLI::App& app, Runner& run) {
   sub->add_option("--serial-link", args->serial_link, "Symlink to the sensor pty at this path (removed at exit)");
   sub->add_option("--speed", args->speed, "Bench clock runs this many times faster than the wall clock")
       ->capture_default_str()
-      ->check(CLI::Range(0.01, 1000.0));
-  auto* seed = sub->add_option("--seed", args->seed, "Seed of all bench noise")->capture_default_str();
-  sub->add_option("--effect", args->effects, "Injected effect NAME:key=value,... (repeatable)");
+      ->check(speed_check());
+  auto* seed = sub->add_option("--seed", args->seed, "Seed of all bench noise")->capture_default_str()->check(seed_check());
+  sub->add_option("--effect", args->effects, "Injected effect NAME:key=value,... (repeatable)")->check(effect_check());
   expect_file(sub,
               sub->add_option("--truth", args->truth_file, "Coefficient file: the sensor's true transfer function")
                   ->check(CLI::ExistingFile),
               args->truth_file, FileKind::coefficients);
-  sub->add_option("--unit-serial", args->unit_serial, "Serial number the sensor reports (ID?)");
+  sub->add_option("--unit,--unit-serial", args->unit_serial, "Serial number the sensor reports (ID?)");
   sub->add_option("--fault", args->faults,
-                  "Fault NAME[:key=value,...] with optional trigger at_s= or at_request= (repeatable, docs/emulator.md)");
+                  "Fault NAME[:key=value,...] with optional trigger at_s= or at_request= (repeatable, docs/emulator.md)")
+      ->check(fault_check());
   sub->add_option("--fault-file", args->fault_file, "On SIGUSR1, arm the faults listed in this file (one per line)");
   examples(sub, {"fpss-stand emulate --modbus-port 5020 --serial-link /tmp/fpss-sensor --speed 10",
                  "fpss-stand emulate --bench procedures/two_unit_bench.yaml --effect drift:pitch_arcsec_per_s=0.01"});

@@ -13,6 +13,7 @@
 #include "stand/catalogue/msa_study.h"
 #include "stand/cli/catalogue_option.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/emulated_bench.h"
 #include "stand/cli/file_options.h"
 #include "stand/cli/help.h"
 #include "stand/report/msa_page.h"
@@ -102,7 +103,7 @@ void add_msa_plan(CLI::App* msa, Runner& run) {
   sub->add_option("--repeats", o->repeats, "calibrations of each unit on each stand (2 to 10)")->capture_default_str();
   sub->add_option("--procedure", o->procedure, "the procedure each run does (a file of the console's procedures folder)")
       ->capture_default_str();
-  sub->add_option("--seed", o->seed, "the order's seed")->capture_default_str();
+  sub->add_option("--seed", o->seed, "the order's seed")->capture_default_str()->check(seed_check());
   o->files.output(sub, "--out", o->out, "the plan (JSON): per stand, the jobs for POST /api/jobs/batch")->required();
   examples(sub, {"fpss-stand msa plan --units SN1,SN2,SN3 --stands S1,S2 --repeats 3 --out plan.json",
                  "fpss-stand msa plan --units SN1,SN2,SN3 --operators Ann,Bo --repeats 2 --out plan.json"});

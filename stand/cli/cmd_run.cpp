@@ -19,6 +19,8 @@
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
 #include "stand/cli/emulated_bench.h"
+#include "stand/cli/run_lookup.h"
+#include "stand/cli/terminal.h"
 #include "stand/config/stand_config.h"
 #include "stand/investigate/followup_design.h"
 #include "stand/session/session.h"
@@ -31,15 +33,21 @@ namespace fs = std::filesystem;
 
 struct RunArgs : BenchChoiceArgs {
   std::string procedure, runs_dir = "runs", resume, catalogue;
-  bool dry_run = false, no_progress = false, quiet = false;
+  bool dry_run = false, progress = false, no_progress = false, quiet = false;
   std::string unit_serial, operator_name;
   double catalogue_wait_s = 120;
 };
 
+// --resume RUN: a run folder's path, or a run within --runs-dir (its id, a unique prefix, latest).
+fs::path resume_folder(const RunArgs& a) {
+  if (fs::is_regular_file(fs::path(a.resume) / "run.json") || a.resume.find('/') != std::string::npos) return a.resume;
+  return find_run_in(a.resume, a.runs_dir).value_or(fs::path(a.resume));
+}
+
 int run_command(const RunArgs& a) {
   SessionRequest req;
   req.runs_dir = a.runs_dir;
-  req.tty = !a.no_progress && !a.quiet && ::isatty(STDERR_FILENO);
+  req.tty = draw_progress(a.progress, a.no_progress, a.quiet);
   req.quiet = a.quiet;
   if (::isatty(STDIN_FILENO)) req.keys_fd = STDIN_FILENO;  // p pause, r resume, a abort
   req.operator_name = a.operator_name;
@@ -51,7 +59,7 @@ int run_command(const RunArgs& a) {
       throw InputError("run --resume RUN_DIR takes the procedure, stand and bench from RUN_DIR/run.json: give no "
                        "procedure, --stand, --emulate or --dry-run with it");
     }
-    req.resume_dir = canonical_run_dir(a.resume);
+    req.resume_dir = canonical_run_dir(resume_folder(a));
     const RunInfo info = read_run_info(req.resume_dir);
     Diagnostics dp(info.procedure_origin + " (as recorded in run.json)");
     req.procedure = parse_procedure(info.procedure_text, info.procedure_origin, dp);
@@ -84,6 +92,8 @@ int run_command(const RunArgs& a) {
     req.procedure = parse_procedure(ptext, a.procedure, dp);
     Diagnostics ds(a.stand_file);
     req.stand = stand_for_run(a.stand_file, a.emulate, a.emu.speed, ds);
+    // A real bench's unit must report this serial (as accept --unit), checked before anything moves.
+    if (!a.emulate && !a.unit_serial.empty()) req.stand.unit_serial = a.unit_serial;
     // The plan is checked against the stand even when some steps are broken (those are skipped),
     // but not against a broken stand file, whose limits would be guesses.
     if (ds.empty()) expand(req.procedure, req.stand.bench, dp);
@@ -113,7 +123,7 @@ int run_command(const RunArgs& a) {
     std::printf("run completed: %lld/%lld points%s in %.1f s -> %s\n", static_cast<long long>(r.points_done),
                 static_cast<long long>(r.points_total), skipped.c_str(), r.wall_s, dir.c_str());
   } else {
-    if (a.quiet) std::fprintf(stderr, "fpss-stand run: %s: %s\n", to_string(r.outcome), r.reason.c_str());
+    if (a.quiet) print_error(fmt::format("run {}: {}", to_string(r.outcome), r.reason));
     std::printf("run %s: %lld/%lld points -> %s\n", to_string(r.outcome), static_cast<long long>(r.points_done),
                 static_cast<long long>(r.points_total), dir.c_str());
     if (r.points_done < r.points_total) std::printf("resume with: fpss-stand run --resume %s\n", dir.c_str());
@@ -126,12 +136,11 @@ int run_command(const RunArgs& a) {
                 u.loss->reason.c_str());
   }
   if (!r.catalogue_error.empty()) {
-    std::fprintf(stderr,
-                 "fpss-stand run: %s\nfpss-stand run: the run folder %s is complete; re-index it with: fpss-stand "
-                 "catalogue rebuild --runs-dir %s --catalogue %s\n",
-                 r.catalogue_error.c_str(), dir.c_str(), r.run_dir.parent_path().c_str(),
-                 req.catalogue.empty() ? (r.run_dir.parent_path() / "stand.db").c_str()
-                                       : url_for_messages(req.catalogue).c_str());
+    print_error(fmt::format("run: {}\nhint: the run folder {} is complete; re-index it with: fpss-stand catalogue "
+                            "rebuild --runs-dir {} --catalogue {}",
+                            r.catalogue_error, dir, r.run_dir.parent_path().string(),
+                            req.catalogue.empty() ? (r.run_dir.parent_path() / "stand.db").string()
+                                                  : url_for_messages(req.catalogue)));
   }
   if (r.calibration) std::printf("calibration: %s\n", r.calibration->string().c_str());
   if (r.report) std::printf("report: %s\n", r.report->string().c_str());
@@ -148,15 +157,19 @@ void add_run(CLI::App& app, Runner& run) {
               FileKind::procedure);
   add_bench_choice_options(sub, *a, "Stand file (YAML): endpoints, unit, limits, axes, timing",
                            "Start the emulated bench as a child process and run on it");
-  a->emu.options.push_back(sub->add_option("--unit-serial", a->unit_serial, "Emulator: serial number the sensor reports"));
+  sub->add_option("--unit,--unit-serial", a->unit_serial,
+                  "Serial of the unit: with --emulate the serial the sensor reports, with --stand the one it must report");
   sub->add_option("--runs-dir", a->runs_dir, "Where run folders are made (default runs/)");
-  expect_file(sub, sub->add_option("--resume", a->resume, "Continue an interrupted run from its folder"), a->resume,
+  expect_file(sub,
+              sub->add_option("--resume", a->resume,
+                              "Continue an interrupted run: its folder, or its id within --runs-dir (a unique prefix, or latest)"),
+              a->resume,
               FileKind::run_folder);
   sub->add_flag("--dry-run", a->dry_run, "Validate, print the expanded steps, points and duration; move nothing");
   add_catalogue_option(sub, a->catalogue);
   add_catalogue_wait_option(sub, a->catalogue_wait_s);
-  sub->add_flag("--no-progress", a->no_progress, "No live progress line, even on a terminal");
-  sub->add_flag("--quiet", a->quiet, "No log lines on the console (events.log keeps them)");
+  add_progress_options(sub, a->progress, a->no_progress);
+  sub->add_flag("--quiet", a->quiet, "No log lines on the console, the libraries' included (events.log keeps them)");
   sub->add_option("--operator", a->operator_name, "Who runs it (recorded in run.json)");
   examples(sub, {"fpss-stand run procedures/discrete_grid.yaml --emulate --runs-dir runs",
                  "fpss-stand run procedures/discrete_grid.yaml --stand procedures/example_stand.yaml --dry-run"});

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -16,6 +17,7 @@
 #include "stand/cli/commands.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
+#include "stand/cli/run_lookup.h"
 #include "stand/report/report.h"
 #include "stand/report/run_summary.h"
 
@@ -29,25 +31,27 @@ struct ShowArgs {
   bool json = false;
 };
 
-// RUN is a run folder's path, or a run id within --runs-dir.
+// A run named within --runs-dir (its id, folder name, a unique prefix of either, or `latest`); with
+// the default runs/ holding no catalogue, within the runs folder found nearby (the demo's).
+std::optional<fs::path> find_run_by_id(const ShowArgs& a) {
+  if (a.run.find('/') != std::string::npos || a.run == "." || a.run == "..") return std::nullopt;
+  // An id is one folder name: no separators, no "." or "..", so it cannot leave the runs folder.
+  if (auto in_runs = find_run_in(a.run, a.runs_dir)) return in_runs;
+  if (const auto found = find_runs_dir_nearby(a.runs_dir)) {
+    if (auto there = find_run_in(a.run, found->dir)) {
+      note_found_runs_dir(a.runs_dir, *found);
+      return there;
+    }
+  }
+  return std::nullopt;
+}
+
+// RUN is a run folder's path, or a run within --runs-dir (find_run_by_id).
 fs::path find_run(const ShowArgs& a) {
   if (a.run.empty()) throw InputError("give RUN: a run folder or a run id within --runs-dir");
   const fs::path as_path = a.run;
   if (fs::is_directory(as_path) && fs::exists(as_path / "run.json")) return as_path;
-  // An id is one folder name: no separators, no "." or "..", so it cannot leave the runs folder.
-  if (a.run.find('/') == std::string::npos && a.run != "." && a.run != "..") {
-    const fs::path in_runs = fs::path(a.runs_dir) / a.run;
-    if (fs::is_directory(in_runs)) return in_runs;
-    // The catalogue's run id (a UUIDv7, run.json's run_id) of a folder in the runs folder.
-    std::error_code ec;
-    for (const auto& e : fs::directory_iterator(a.runs_dir, ec)) {
-      if (!e.is_directory() || e.is_symlink() || !fs::is_regular_file(e.path() / "run.json")) continue;
-      try {
-        if (read_run_file(e.path()).run_id == a.run) return e.path();
-      } catch (const InputError&) {
-      }
-    }
-  }
+  if (auto by_id = find_run_by_id(a)) return *by_id;
   if (fs::is_directory(as_path)) {
     // A runs folder given as RUN: its runs are listed by `runs`.
     std::error_code ec;
@@ -96,7 +100,7 @@ int report_command(const ShowArgs& a) {
 }
 
 void add_run_options(CLI::App* sub, ShowArgs& a) {
-  expect_file(sub, sub->add_option("run", a.run, "RUN: a run folder, or a run id within --runs-dir")->required(), a.run,
+  expect_file(sub, sub->add_option("run", a.run, "RUN: a run folder, or a run id within --runs-dir (a unique prefix, or latest)")->required(), a.run,
               FileKind::run_folder);
   sub->add_option("--runs-dir", a.runs_dir, "Where run folders are (for a run id)")->capture_default_str();
 }
@@ -108,7 +112,7 @@ void add_show(CLI::App& app, Runner& run) {
   auto* show = app.add_subcommand("show", "A run's summary: outcome, verdict, points, residuals, files");
   add_run_options(show, *a);
   show->add_flag("--json", a->json, "Print the summary as JSON");
-  examples(show, {"fpss-stand show RUN_DIR", "fpss-stand show RUN_ID --runs-dir runs --json"});
+  examples(show, {"fpss-stand show RUN_DIR", "fpss-stand show latest --runs-dir runs --json"});
   show->callback([&run, a] { run = [a] { return show_command(*a); }; });
 
   auto b = std::make_shared<ShowArgs>();

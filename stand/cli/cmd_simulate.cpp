@@ -8,6 +8,7 @@
 #include "stand/investigate/followup_design.h"
 #include "stand/investigate/plan_session.h"
 #include "stand/cli/commands.h"
+#include "stand/cli/emulated_bench.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
 #include "stand/cli/file_options.h"
@@ -35,8 +36,8 @@ void add_simulate(CLI::App& app, Runner& run) {
                              "run this procedure on the simulated bench instead of the grid (its moves, dwells and "
                              "slews; time_since_move_s recorded)"),
               o->procedure, FileKind::procedure);
-  sub->add_option("--seed", o->seed, "random seed")->capture_default_str();
-  sub->add_option("--effect", o->effects, "injected effect NAME:key=value,... (repeatable)");
+  sub->add_option("--seed", o->seed, "random seed")->capture_default_str()->check(seed_check());
+  sub->add_option("--effect", o->effects, "injected effect NAME:key=value,... (repeatable)")->check(effect_check());
   sub->add_option("--extent-deg", o->grid.extent_deg, "largest offset, deg")->capture_default_str()->check(CLI::Range(0.0, 0.5));
   sub->add_option("--step-deg", o->grid.step_deg, "offset step, deg")->capture_default_str()->check(CLI::PositiveNumber);
   sub->add_option("--samples-per-dwell", o->grid.samples_per_dwell, "samples per dwell")->capture_default_str()->check(CLI::Range(1, 100000));

@@ -6,8 +6,9 @@
 
 namespace fpss::cli {
 
-// What a sub-command does once its options are parsed; returns the process exit code:
-// 0 success, 1 the job failed, 2 bad usage or bad input, 3 acceptance failed.
+// What a sub-command does once its options are parsed; returns the process exit code, one of
+// exit_code_table() (help.h): 0 ok, 1 the job failed, 2 bad usage or bad input, 3 acceptance
+// failed, 4 acceptance conditional.
 using Runner = std::function<int()>;
 
 // Each registers its sub-command(s) on `app`; when selected, sets `run`.

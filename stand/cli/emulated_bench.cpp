@@ -3,11 +3,15 @@
 
 #include <fmt/format.h>
 
+#include <charconv>
 #include <filesystem>
+#include <limits>
 
 #include "base/errors.h"
 #include "calib/coefficients.h"
 #include "fixtures/bench.h"
+#include "fixtures/emulator.h"
+#include "fixtures/faults.h"
 
 namespace fpss::cli {
 
@@ -15,22 +19,80 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// CLI11 prefixes the option's name ("--fault: ..."); the spec parsers' messages start with it too.
+std::string without_option_name(const std::string& message, const std::string& option) {
+  const std::string lead = option + " ";
+  return message.rfind(lead, 0) == 0 ? message.substr(lead.size()) : message;
+}
+
 void add_emulated_bench_options(CLI::App* sub, EmulatedBenchArgs& a) {
-  a.options.push_back(sub->add_option("--speed", a.speed, "Emulator: bench clock speed-up (default 20)"));
-  a.options.push_back(sub->add_option("--seed", a.seed, "Emulator: seed of all bench noise (default 1)"));
+  a.options.push_back(
+      sub->add_option("--speed", a.speed, "Emulator: bench clock speed-up (default 20)")->check(speed_check()));
+  a.options.push_back(
+      sub->add_option("--seed", a.seed, "Emulator: seed of all bench noise (default 1)")->check(seed_check()));
   a.options.push_back(sub->add_option("--bench", a.bench, "Emulator: bench file (YAML)"));
   expect_file(sub, a.options.back(), a.bench, FileKind::bench);
   // One value per occurrence (--effect A --effect B), so a positional argument after them stays one.
   a.options.push_back(sub->add_option("--effect", a.effects, "Emulator: injected effect NAME:key=value,... (repeatable)")
-                          ->allow_extra_args(false));
+                          ->allow_extra_args(false)
+                          ->check(effect_check()));
   a.options.push_back(
       sub->add_option("--fault", a.faults, "Emulator: fault NAME[:key=value,...] (repeatable; docs/emulator.md)")
-          ->allow_extra_args(false));
+          ->allow_extra_args(false)
+          ->check(fault_check()));
   a.options.push_back(sub->add_option("--truth", a.truth, "Emulator: coefficient file of the sensor's truth"));
   expect_file(sub, a.options.back(), a.truth, FileKind::coefficients);
 }
 
 }  // namespace
+
+CLI::Validator speed_check() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(text, v)) return "expected a number, got " + text;
+        return emulator_speed_error(v);
+      },
+      fmt::format("{}..{}", kMinEmulatorSpeed, kMaxEmulatorSpeed));
+}
+
+CLI::Validator seed_check() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        // Decimal digits only, within uint64_t: no sign, no wrap, no saturation at the maximum.
+        uint64_t v = 0;
+        const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+        if (!text.empty() && ec == std::errc() && end == text.data() + text.size()) return {};
+        return fmt::format("expected a whole number in 0..{}, got {}", std::numeric_limits<uint64_t>::max(), text);
+      },
+      "0..2^64-1");
+}
+
+CLI::Validator effect_check() {
+  return CLI::Validator(
+      [](std::string& spec) -> std::string {
+        try {
+          (void)parse_effect(spec);
+          return {};
+        } catch (const InputError& e) {
+          return without_option_name(e.what(), "--effect");
+        }
+      },
+      "");
+}
+
+CLI::Validator fault_check() {
+  return CLI::Validator(
+      [](std::string& spec) -> std::string {
+        try {
+          (void)parse_fault(spec);
+          return {};
+        } catch (const InputError& e) {
+          return without_option_name(e.what(), "--fault");
+        }
+      },
+      "");
+}
 
 void add_bench_choice_options(CLI::App* sub, BenchChoiceArgs& a, const std::string& stand_help,
                               const std::string& emulate_help) {

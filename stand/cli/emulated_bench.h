@@ -20,6 +20,14 @@ struct EmulatedBenchArgs {
   std::vector<CLI::Option*> options;  // every option above, for "needs --emulate"
 };
 
+// Checks of the emulated bench's options, run while the command line is parsed, so a value out of
+// range is exit 2 before any folder is made or any child starts. Each asks the emulator's own
+// definition (its speed range, parse_effect, parse_fault): the ranges are written once, in fixtures/.
+CLI::Validator speed_check();   // --speed: kMinEmulatorSpeed..kMaxEmulatorSpeed
+CLI::Validator seed_check();    // --seed: a whole number 0..2^64-1 (strtoull would take -1 as 2^64-1)
+CLI::Validator effect_check();  // --effect NAME:key=value,...: a known effect, its keys and values
+CLI::Validator fault_check();   // --fault NAME[:key=value,...]: a known fault, its keys, values, trigger
+
 // The bench a command runs on: a real one (its stand file) or the emulated one.
 struct BenchChoiceArgs {
   std::string stand_file;

@@ -5,8 +5,25 @@
 
 namespace fpss::cli {
 
+const std::vector<ExitCodeMeaning>& exit_code_table() {
+  static const std::vector<ExitCodeMeaning> table = {
+      {exit_code::ok, "ok"},
+      {exit_code::failed, "the job failed (a run stopped or failed, a device, file system or catalogue refused)"},
+      {exit_code::bad_input, "bad usage or bad input (an option, value or file; named in the message, nothing started)"},
+      {exit_code::acceptance_failed, "acceptance failed (accept)"},
+      {exit_code::acceptance_conditional, "acceptance conditional: within the guard band, no acceptance (accept)"},
+  };
+  return table;
+}
+
+std::string exit_codes_text() {
+  std::string text = "\nExit codes:\n";
+  for (const auto& e : exit_code_table()) text += "  " + std::to_string(e.code) + "  " + e.meaning + "\n";
+  return text;
+}
+
 void examples(CLI::App* sub, const std::vector<std::string>& lines) {
-  std::string text = "\nExamples:\n";
+  std::string text = exit_codes_text() + "\nExamples:\n";
   for (const auto& l : lines) text += "  " + l + "\n";
   sub->footer(text);
 }

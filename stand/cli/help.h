@@ -8,8 +8,22 @@
 
 namespace fpss::cli {
 
-// Ends `sub`'s --help with "Examples:" and one command line a line (each "fpss-stand ..."), run from
-// the repository root; tests/stand/help_test.cpp runs those that need no run folder or server.
+// The process exit codes of every command: the one table, which every --help prints and main,
+// accept and the Runner's result use by name.
+namespace exit_code {
+inline constexpr int ok = 0, failed = 1, bad_input = 2, acceptance_failed = 3, acceptance_conditional = 4;
+}  // namespace exit_code
+struct ExitCodeMeaning {
+  int code;
+  const char* meaning;
+};
+const std::vector<ExitCodeMeaning>& exit_code_table();
+// "Exit codes:" and one line per code ("  0  ok"), as --help prints it.
+std::string exit_codes_text();
+
+// Ends `sub`'s --help with the exit codes, then "Examples:" and one command line a line (each
+// "fpss-stand ..."), run from the repository root; tests/stand/help_test.cpp runs those that need no
+// run folder or server.
 void examples(CLI::App* sub, const std::vector<std::string>& lines);
 
 // The closest of `candidates` to `typed` (optimal string alignment distance, a swap of two

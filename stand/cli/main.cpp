@@ -1,4 +1,5 @@
-// fpss-stand: one binary, sub-commands; maps errors to exit codes (2 bad input, 1 job failed).
+// fpss-stand: one binary, sub-commands; maps errors to the exit codes of help.h's table (2 bad
+// input, 1 job failed), every one written "fpss-stand: error: ..." (hints on their own lines).
 #include <fmt/format.h>
 
 #include <cstdio>
@@ -9,6 +10,7 @@
 #include "stand/cli/commands.h"
 #include "stand/cli/file_hints.h"
 #include "stand/cli/help.h"
+#include "stand/cli/terminal.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"fpss-stand: test-stand controller for fine pointing sun sensors"};
@@ -37,9 +39,9 @@ int main(int argc, char** argv) {
     const std::string name = argv[1];
     const auto known = app.get_subcommands([&](const CLI::App* s) { return s->check_name(name); });
     if (known.empty()) {
-      std::fprintf(stderr, "fpss-stand: unknown command '%s'; see --help%s\n", name.c_str(),
-                   fpss::cli::did_you_mean(app, {name}, false).c_str());
-      return 2;
+      fpss::cli::print_error(fmt::format("unknown command '{}'; see --help{}", name,
+                                         fpss::cli::did_you_mean(app, {name}, false)));
+      return fpss::cli::exit_code::bad_input;
     }
   }
   try {
@@ -55,25 +57,24 @@ int main(int argc, char** argv) {
     // CLI11's message ("The following argument was not expected: --stnad; --stnad: did you mean --stand?",
     // "--data is required; --dta: did you mean --data?").
     const std::string hint = fpss::cli::did_you_mean(*fpss::cli::deepest_parsed(app), app.remaining(true));
-    if (hint.empty()) {
-      app.exit(e);
-    } else {
-      std::fprintf(stderr, "%s%s\nRun with --help for more information.\n", e.what(), hint.c_str());
-    }
-    return 2;
+    fpss::cli::print_error(e.what() + hint);
+    std::fprintf(stderr, "Run with --help for more information.\n");
+    return fpss::cli::exit_code::bad_input;
   }
+  // --quiet is quiet: the libraries' own logs (Ceres's through glog, the drivers' spdlog) too.
+  if (fpss::cli::quiet_given(*fpss::cli::deepest_parsed(app))) fpss::cli::quiet_library_logs();
   try {
-    return run ? run() : 2;
+    return run ? run() : fpss::cli::exit_code::bad_input;
   } catch (const fpss::InputError& e) {
-    std::fprintf(stderr, "fpss-stand: error: %s\n", e.what());
+    fpss::cli::print_error(e.what());
     // A file given to the wrong option: name the one that takes it.
     const std::string what = e.what();
     if (what.find("\nhint: ") == std::string::npos) {
       if (const std::string hint = fpss::cli::file_hint(what); !hint.empty()) std::fprintf(stderr, "%s\n", hint.c_str());
     }
-    return 2;
+    return fpss::cli::exit_code::bad_input;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "fpss-stand: failed: %s\n", e.what());
-    return 1;
+    fpss::cli::print_error(e.what());
+    return fpss::cli::exit_code::failed;
   }
 }

@@ -28,6 +28,37 @@ std::string stats_text(const std::optional<AxisResidualStats>& s) {
   return t;
 }
 
+// GAP.json's verdict and causes; nullopt for a folder without one, or a diagnosis of several units
+// (no verdict of its own: each unit's GAP.json has it).
+std::optional<RunSummary::Diagnosis> read_diagnosis(const fs::path& run_dir, const RunFile& run) {
+  std::string name = "GAP.json";
+  if (run.files.gap && !run.files.gap->empty() && fs::path(*run.files.gap).filename() == *run.files.gap) name = *run.files.gap;
+  if (!fs::is_regular_file(run_dir / name)) return std::nullopt;
+  const nlohmann::json g = read_json_file(run_dir / name, "diagnosis (GAP.json)");
+  if (!g.is_object() || !g.contains("verdict") || !g["verdict"].is_string()) return std::nullopt;
+  RunSummary::Diagnosis d;
+  d.file = name;
+  d.verdict = g["verdict"].get<std::string>();
+  if (g.contains("verdict_sentence") && g["verdict_sentence"].is_string()) d.sentence = g["verdict_sentence"].get<std::string>();
+  if (g.contains("cause") && g["cause"].is_string()) d.cause = g["cause"].get<std::string>();
+  if (g.contains("causes") && g["causes"].is_array()) {
+    for (const auto& c : g["causes"]) {
+      if (c.is_object() && c.contains("name") && c["name"].is_string()) d.causes.push_back(c["name"].get<std::string>());
+    }
+  }
+  return d;
+}
+
+std::string diagnosis_text(const RunSummary::Diagnosis& d) {
+  std::string verdict = d.verdict;
+  std::transform(verdict.begin(), verdict.end(), verdict.begin(), [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+  std::string t = fmt::format("  diagnosis  {}{}\n", verdict, d.sentence.empty() ? "" : ": " + d.sentence);
+  std::string causes = d.cause.empty() || d.cause == "none" ? "none" : d.cause;
+  for (size_t k = 1; k < d.causes.size(); ++k) causes += ", then " + d.causes[k];
+  t += fmt::format("             cause {} ({})\n", causes, d.file);
+  return t;
+}
+
 }  // namespace
 
 namespace {
@@ -174,6 +205,7 @@ RunSummary read_run_summary(const fs::path& run_dir) {
     if (!name.empty() && name[0] != '.') s.files.push_back(name);
   }
   std::sort(s.files.begin(), s.files.end());
+  s.diagnosis = read_diagnosis(run_dir, run);
   if (run.units) {
     for (const RunFileUnit& u : *run.units) s.units.push_back({u, unit_verdict(run, u)});
   }
@@ -202,6 +234,13 @@ nlohmann::ordered_json RunSummary::to_json() const {
   j["calibration"] = opt(calibration);
   j["residuals"] = {{"pitch", axis(pitch)}, {"yaw", axis(yaw)}};
   j["files"] = files;
+  if (diagnosis) {
+    j["diagnosis"] = {{"file", diagnosis->file},     {"verdict", diagnosis->verdict},
+                      {"verdict_sentence", diagnosis->sentence}, {"cause", diagnosis->cause},
+                      {"causes", diagnosis->causes}};
+  } else {
+    j["diagnosis"] = nullptr;
+  }
   if (!units.empty()) {
     j["units"] = nlohmann::ordered_json::array();
     for (const Unit& u : units) {
@@ -228,6 +267,7 @@ std::string RunSummary::text() const {
                    stop_cause.empty() || stop_cause == "none" ? "" : " (" + stop_cause + ")",
                    reason.empty() ? "" : ": " + reason);
   t += fmt::format("  verdict    {}: {}\n", verdict_word, verdict.why);
+  if (diagnosis) t += diagnosis_text(*diagnosis);
   t += fmt::format("  points     {}/{}\n", points_done, points_total);
   t += fmt::format("  residuals  pitch {}\n             yaw   {}\n", stats_text(pitch), stats_text(yaw));
   t += fmt::format("  calibration {}\n", calibration.empty() ? "none" : calibration);

@@ -47,6 +47,13 @@ struct RunSummary {
   std::string calibration;                    // file name in the folder, "" for none
   std::optional<AxisResidualStats> pitch, yaw;  // the calibration's residuals (Table 1 form)
   std::vector<std::string> files;             // what the folder holds, by name
+  // The run's diagnosis (run.json files.gap, GAP.json), when it has one with a verdict: a run that
+  // completed and passed its checks may still show a sim-to-real gap, and the summary says so.
+  struct Diagnosis {
+    std::string file, verdict, sentence, cause;  // verdict: no_gap | explained | partly_explained | unexplained
+    std::vector<std::string> causes;             // every cause's name, the first is `cause`
+  };
+  std::optional<Diagnosis> diagnosis;
   // Several units: each one's outcome, verdict, calibration and pose relative to the first.
   struct Unit {
     RunFileUnit unit;
@@ -58,7 +65,7 @@ struct RunSummary {
   std::string text() const;  // the lines `fpss-stand show` prints
 };
 
-// Reads run.json, points.jsonl and the calibration's residuals block; InputError naming the file
+// Reads run.json, points.jsonl, the calibration's residuals block and GAP.json's verdict; InputError naming the file
 // for a folder that is not a run folder or a file that does not parse.
 RunSummary read_run_summary(const std::filesystem::path& run_dir);
 

@@ -39,7 +39,8 @@ void Progress::point_done(const std::string& live) {
     std::fflush(out_);
     drawn_ = true;
   } else {
-    log_.info("{}", line(live));
+    // Not a terminal (a pipe, CI's log): one line per point would flood it; events.log keeps them.
+    log_.debug("{}", line(live));
   }
 }
 

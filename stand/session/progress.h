@@ -1,4 +1,5 @@
-// Progress of a run: one rewritten line on a terminal, plain log lines otherwise.
+// Progress of a run: one rewritten line on a terminal; otherwise debug log lines (events.log only,
+// not the console).
 #pragma once
 #include <chrono>
 #include <cstdio>

@@ -65,6 +65,10 @@ TEST(MonteCarlo, FindsWhereTheLinearisedBudgetFails) {
   EXPECT_LT(mc.axes[0].u_arcsec, 0.7 * mc.axes[0].gum_u_arcsec);
   EXPECT_TRUE(mc.axes[1].gum_validated);
   EXPECT_NE(monte_carlo_text(mc).find("NOT validated"), std::string::npos);
+  // Which way U errs, and what that means: the drawn interval is narrower, so U is conservative.
+  EXPECT_NE(monte_carlo_text(mc).find("its +-U is wider than the Monte Carlo 95 % interval"), std::string::npos);
+  EXPECT_NE(monte_carlo_text(mc).find("U overstates this angle's uncertainty (safe but conservative)"), std::string::npos);
+  EXPECT_NE(monte_carlo_text(mc).find("the GUM budget is validated: its U holds as stated"), std::string::npos);  // yaw
 }
 
 TEST(MonteCarlo, TrialsOutOfRangeAreRefused) {

@@ -156,6 +156,34 @@ TEST(Help, EverySubCommandsHelpEndsWithExamplesThatRun) {
   }
 }
 
+// The "Exit codes:" block of a --help text (up to the next blank line), "" when there is none.
+std::string exit_codes_in(const std::string& help) {
+  const auto at = help.find("\nExit codes:\n");
+  if (at == std::string::npos) return {};
+  const auto end = help.find("\n\n", at + 1);
+  return help.substr(at + 1, end == std::string::npos ? std::string::npos : end - at);
+}
+
+// One table of exit codes, the same in every sub-command's --help and the binary's own.
+TEST(Help, EverySubCommandsHelpShowsTheOneTableOfExitCodes) {
+  test::TempDir tmp("help-exit-codes");
+  const std::string table = exit_codes_in(test::run_stand({"--help"}, tmp.path(), "top").out);
+  for (const char* line : {"\n  0  ok\n", "\n  1  the job failed", "\n  2  bad usage or bad input",
+                           "\n  3  acceptance failed", "\n  4  acceptance conditional"}) {
+    EXPECT_THAT(table, HasSubstr(line));
+  }
+  const auto commands = all_commands(tmp.path());
+  ASSERT_GE(commands.size(), 18u);
+  for (const auto& cmd : commands) {
+    auto args = cmd;
+    args.push_back("--help");
+    const CommandResult r = test::run_stand(args, tmp.path(), "help");
+    EXPECT_EQ(exit_codes_in(r.out), table) << joined(cmd) << "\n" << r.out;
+  }
+  // accept's own line says the same codes.
+  EXPECT_THAT(test::run_stand({"--help"}, tmp.path(), "top").out, HasSubstr("(exit 0 pass, 3 fail, 4 conditional)"));
+}
+
 class Hints : public testing::Test {
  protected:
   CommandResult run(const std::vector<std::string>& args, const std::string& tag = "cli") const {
