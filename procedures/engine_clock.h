@@ -56,6 +56,15 @@ class EngineClock {
   // last frame, when the move after it is scheduled to start.
   double dwell_end_s(const Action& a, double first_frame_s) const;
 
+  // Host clocks (the devices keep their own): when a frame was taken, on the host's steady clock. The
+  // sensor stamps each frame on its own clock, which runs at the bench's pace, and the link only ever
+  // delays a frame: the smallest receipt-minus-stamp seen is the link's own delay, so a frame stamped
+  // s was taken at s plus that. A stalled stream catching up in a burst then shows its frames as
+  // taken when they were, not when they came. The smallest delay may rise by 100 ppm of the time
+  // since (the two clocks' drift), and starts again when the sensor's clock restarts.
+  void note_sensor_frame(const SensorSample& f);
+  double taken_host_s(const SensorSample& f) const;
+
   // Bench time counts from the next gimbal reading: the link's setup before it is not the procedure's.
   void count_bench_from_next_reading() { bench_start_s_ = -1; }
   void reset_bench_count() {
@@ -75,6 +84,8 @@ class EngineClock {
   double last_gimbal_time_s_ = 0;
   double frame_grid_s_ = std::numeric_limits<double>::quiet_NaN();
   double last_bench_s_ = 0, last_bench_host_s_ = 0;  // the latest device time stamp and its receipt
+  std::optional<double> link_delay_s_;  // host receipt - sensor stamp (host seconds), the smallest seen
+  double link_sensor_s_ = 0, link_host_s_ = 0;  // the last noted frame's stamp and receipt
   double bench_start_s_ = -1, off_bench_s_ = 0;
 };
 

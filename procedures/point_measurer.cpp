@@ -257,7 +257,11 @@ PointMeasurer::DwellFrames PointMeasurer::take_dwell(const Action& a, const Gimb
     // One clock for both devices: a frame stamped before the settle ended was taken during
     // it, however late it arrives (a sensor stream catching up after a stall).
     if (shared && clock_.sensor_clock_s(*f) + 1e-6 < settled_bench) continue;
-    if (!shared && f->host_time_s < settled_host) continue;  // on its way before the settle ended
+    // Host clocks: taken before the settle ended, however late it came (EngineClock::taken_host_s).
+    if (!shared) {
+      clock_.note_sensor_frame(*f);
+      if (clock_.taken_host_s(*f) < settled_host) continue;
+    }
     if (move_at_s && clock_.sensor_clock_s(*f) + 1e-6 >= *move_at_s) {
       throw PointFailure("a frame came after the next move's scheduled start (frames missing from the stream)");
     }

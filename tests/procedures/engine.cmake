@@ -1,6 +1,7 @@
 # The procedure engine's tests. Included from tests/procedures/CMakeLists.txt.
 fpss_add_test(procedures/procedure UNIT LIBS fpss_procedures LABELS procedures)
 fpss_add_test(procedures/check_report UNIT LIBS fpss_procedures LABELS procedures)
+fpss_add_test(procedures/engine_clock UNIT LIBS fpss_procedures INTERNALS fpss_procedures LABELS procedures)
 fpss_add_test(procedures/recorder UNIT LIBS fpss_procedures LABELS procedures)
 fpss_add_test(procedures/design_procedure LIBS fpss_procedures LABELS procedures)
 fpss_add_test(procedures/engine UNIT LIBS fpss_procedures fpss_test_fakes LABELS procedures TIMEOUT 300)
