@@ -103,7 +103,9 @@ TEST(Fleet, FourStandsAcceptTwentyUnitsIntoOneDatabaseWithOneKilled) {
           // B accepts the shared unit once A's acceptance of it has ended and passed.
           const bool came = shared_on_a_done.wait_for(std::chrono::seconds(1800)) == std::future_status::ready;
           EXPECT_TRUE(came) << "stand A never finished the shared unit";
-          if (came) EXPECT_EQ(shared_on_a_done.get(), 0) << "A's acceptance of the shared unit is B's reference";
+          if (came) {
+            EXPECT_EQ(shared_on_a_done.get(), 0) << "A's acceptance of the shared unit is B's reference";
+          }
           EXPECT_TRUE(has_passed_acceptance(url, shared));
         }
         const std::string tag = fmt::format("{}-{}", st.name, i++);
