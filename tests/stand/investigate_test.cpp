@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "calib/coefficients.h"
+#include "fixtures/bench.h"
 #include "stand/investigate/confusable.h"
 #include "stand/investigate/followup_design.h"
 #include "stand/investigate/investigation.h"
@@ -334,6 +335,7 @@ class InvestigateStops : public testing::Test {
     ASSERT_EQ(r.code, 0) << r.err;
     opts_.model = load_coefficients(kModel);
     opts_.model_path = kModel;
+    opts_.bench = default_bench_config();  // the emulated bench's, as `investigate --emulate` designs on
     opts_.settings = emulated_settings(opts_.bench);
     opts_.out_dir = tmp_ / "inv";
   }
@@ -374,6 +376,22 @@ TEST_F(InvestigateStops, AFirstRunWhoseCheckFailedIsDiagnosedAndRecordedWithItsS
   ASSERT_TRUE(step.contains("diagnosis")) << step.dump(1);
   EXPECT_NE(j["cause"], "none") << j.dump(1);
   EXPECT_NE(j["verdict"], "no_gap");
+}
+
+// A follow-up whose check fails does not stop the loop either: its recording joins the joint
+// diagnosis and the next follow-up is designed and run.
+TEST_F(InvestigateStops, AFollowUpWhoseCheckFailedIsDiagnosedAndTheLoopGoesOn) {
+  InvestigationRun first = stopped(StopCause::none, 113, "");
+  first.completed = true;
+  const Investigation inv =
+      loop({first, stopped(StopCause::check_failed, 113, "step 4 (check): yaw max |residual| 3.3 arcsec > 2.1 arcsec"), first});
+  ASSERT_GE(calls_, 2) << inv.stop_reason << ": " << inv.stop_sentence;  // the first diagnosis left a follow-up to make
+  const auto j = inv.to_json();
+  const auto& followup = j["steps"][1];
+  EXPECT_EQ(followup["stop_cause"], "check_failed");
+  EXPECT_TRUE(followup.contains("diagnosis")) << followup.dump(1);
+  EXPECT_FALSE(inv.stopped_by_a_run()) << inv.stop_reason;
+  EXPECT_EQ(j["recordings"].size(), static_cast<size_t>(calls_));
 }
 
 TEST_F(InvestigateStops, AFirstRunStoppedByADeviceFaultBeforeAnyPointEndsWithoutAVerdict) {
