@@ -556,6 +556,28 @@ TEST(Investigate, AnAcceptanceThatFailedIsDiagnosedAndInvestigatedFrom) {
   EXPECT_EQ(j["cause"], gap["cause"]);
 }
 
+// diagnose --run without --model: the model the run's procedure names in its diagnose step (a step
+// the run never reached: its check failed first).
+TEST(Investigate, DiagnoseRunTakesTheModelTheRunsProcedureNames) {
+  TempDir tmp("diagnose-run-model");
+  const std::string grid = test::read_file(test::source_dir() / "procedures/discrete_grid.yaml");
+  test::write_file(tmp / "grid.yaml", grid + "  - diagnose: {model: \"" + kModel + "\", partial: true}\n");
+  const fs::path runs = tmp / "runs";
+  const auto r = run_stand({"run", (tmp / "grid.yaml").string(), "--emulate", "--speed", "20", "--effect",
+                            "backlash:width_arcsec=4", "--runs-dir", runs.string(), "--quiet", "--no-progress"},
+                           tmp.path(), "run", 300);
+  ASSERT_EQ(r.code, 1) << r.err;  // its check failed
+  const auto dirs = test::run_dirs(runs);
+  ASSERT_EQ(dirs.size(), 1u);
+  const auto d = run_stand({"diagnose", "--run", dirs.front().string(), "--out", (tmp / "gap.json").string(), "--partial"},
+                           tmp.path(), "diagnose");
+  ASSERT_EQ(d.code, 0) << d.out << d.err;
+  const auto gap = nlohmann::json::parse(test::read_file(tmp / "gap.json"));
+  EXPECT_EQ(gap["model"], kModel);
+  EXPECT_EQ(gap["run"]["stop_cause"], "check_failed");
+  EXPECT_FALSE(fs::exists(dirs.front() / "GAP.json"));  // the run's own diagnose step never ran
+}
+
 // investigate --from and diagnose --run of a run folder that is not one: exit 2 naming the option.
 TEST(Investigate, FromAFolderThatIsNoRunExitsTwoNamingTheOption) {
   TempDir tmp("investigate-from-bad");
