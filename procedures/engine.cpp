@@ -65,8 +65,10 @@ void Engine::prepare() {
       s.start();
     } catch (const DeviceError& e) {
       // One unit: its failure is the run's. Several: it is dropped unless it was the last.
+      // A sensor that does not answer its start is a device failure, which ends an investigation
+      // (stand/investigate), not `other`.
       if (io_->units() == 1 || !io_->lose(i, LossCause::link_failed, fmt::format("could not start its stream: {}", e.what()), -1)) {
-        throw;
+        throw PointFailure(e.what(), StopCause::sensor_timeout);
       }
     }
   }

@@ -118,7 +118,8 @@ class Console:
 
     def investigations(self, as_frame=False):
         """The runs folder's sim-to-real investigations, most recent first: ``name``,
-        ``stop_reason``, ``verdict``, ``cause``, ``causes``, ``ambiguous``, ``unbounded``, ``runs``
+        ``stop_reason``, ``verdict`` (or ``no_diagnosis``, why none was made), ``cause``, ``causes``,
+        ``ambiguous``, ``unbounded``, ``runs``
         (run ids), ``bench_time_s``, ``files`` (links). A list of dicts (``as_frame=True``: a
         DataFrame)."""
         rows = self._get("/api/investigations")

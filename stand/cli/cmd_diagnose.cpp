@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
+#include <variant>
 #include <unistd.h>
 
 #include "base/errors.h"
@@ -13,6 +15,8 @@
 #include "calib/coefficients.h"
 #include "calib/diagnosis/diagnosis.h"
 #include "calib/samples.h"
+#include "procedures/procedure.h"
+#include "procedures/yaml_diag.h"
 #include "stand/blindtest/blindtest.h"
 #include "stand/blindtest/joint_blindtest.h"
 #include "stand/investigate/confusable.h"
@@ -33,16 +37,100 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// diagnose --run: each unit's recording against its model (units/SERIAL/GAP.json and GAP.html),
-// then what is the stand's and what each unit's (`out`). Exit 2 for a unit the run does not have.
-int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models, const std::string& out,
-                 const DiagnosisOptions& opts, bool partial) {
-  const RunFile run = read_run_file(run_dir);
-  if (!run.units) {
-    throw InputError(fmt::format("{}: run.json lists no units (a single-unit run): use --model FILE --data "
-                                 "RUN_DIR/samples.csv",
-                                 run_dir.string()));
+struct DiagnoseOpts {
+  std::vector<std::string> models;       // FILE, or SERIAL=FILE with --run
+  std::vector<std::string> model_files;  // the files they name (checked against the outputs)
+  std::string model;                     // --data: the one model file (for the hints)
+  std::string data, run_dir, out, report, emit_bench;
+  std::vector<std::string> datas;  // every --data (several: a joint diagnosis)
+  DiagnosisOptions d;
+  bool partial = false;
+  FileOptions files;
+};
+
+// What became of the run, in a line: a diagnosis of a run that stopped early says so.
+std::string run_outcome_text(const RunFile& run) {
+  std::string s = run.outcome;
+  if (run.outcome != "completed" && run.stop_cause) s += fmt::format(" ({})", to_string(*run.stop_cause));
+  if (run.reason && !run.reason->empty()) s += ": " + *run.reason;
+  if (run.acceptance) {
+    s += ", acceptance " + run.acceptance->verdict;
+    if (run.acceptance->failed && !run.acceptance->failed->empty()) {
+      s += fmt::format(" ({})", fmt::join(*run.acceptance->failed, ", "));
+    }
   }
+  return s + fmt::format("; {} of {} points recorded", run.points.completed, run.points.total);
+}
+
+// GAP.json's `run`: the run the recording is of and how it ended.
+nlohmann::ordered_json run_json(const fs::path& run_dir, const RunFile& run) {
+  nlohmann::ordered_json j{{"dir", run_dir.string()}, {"id", run.id_or(run_dir)}, {"outcome", run.outcome}};
+  j["stop_cause"] = run.stop_cause ? nlohmann::ordered_json(to_string(*run.stop_cause)) : nlohmann::ordered_json();
+  j["reason"] = run.reason ? nlohmann::ordered_json(*run.reason) : nlohmann::ordered_json();
+  j["acceptance"] = run.acceptance ? nlohmann::ordered_json(run.acceptance->verdict) : nlohmann::ordered_json();
+  j["points"] = {{"total", run.points.total}, {"completed", run.points.completed}};
+  return j;
+}
+
+// The model a run was made against: its procedure's diagnose step's (resolved as the run resolved
+// it, beside the procedure file run.json names); "" when it names none that is still there.
+std::string model_of_run(const RunFile& run) {
+  Diagnostics diag(run.procedure.file.value_or(run.procedure.name));
+  const Procedure p = parse_procedure(run.procedure.text, run.procedure.file.value_or(run.procedure.name), diag);
+  for (const Step& step : p.steps) {
+    const auto* d = std::get_if<DiagnoseStep>(&step.body);
+    if (d && step.valid && !d->model.empty() && fs::is_regular_file(d->model)) return d->model.string();
+  }
+  return "";
+}
+
+int diagnose_recordings(const DiagnoseOpts& o, const std::string& model_path,
+                        const std::optional<nlohmann::ordered_json>& run);
+
+// diagnose --run of a run of one unit: its recording (whatever the run's outcome) against --model,
+// else the model its procedure's diagnose step names.
+int diagnose_single_run(const fs::path& run_dir, const RunFile& run, DiagnoseOpts o) {
+  std::string model;
+  if (o.models.size() > 1) throw InputError(fmt::format("--run {}: a run of one unit takes one --model", run_dir.string()));
+  if (!o.models.empty()) {
+    model = o.models.front();
+    const auto eq = model.find('=');
+    if (eq != std::string::npos) {
+      if (model.substr(0, eq) != run.unit) {
+        throw InputError(fmt::format("--model {}: the run's unit is {}", model, run.unit));
+      }
+      model = model.substr(eq + 1);
+    }
+  } else {
+    model = model_of_run(run);
+    if (model.empty()) {
+      throw InputError(fmt::format("--run {}: give --model (the run's procedure names no model file that is still there)",
+                                   run_dir.string()));
+    }
+  }
+  const fs::path samples = run_dir / run.files.samples.value_or("samples.csv");
+  if (!fs::is_regular_file(samples)) {
+    throw InputError(fmt::format("--run {}: the run has no recording ({} is missing)", run_dir.string(), samples.string()));
+  }
+  std::printf("run %s: %s\n", run.id_or(run_dir).c_str(), run_outcome_text(run).c_str());
+  o.datas = {samples.string()};
+  o.data = samples.string();
+  return diagnose_recordings(o, model, run_json(run_dir, run));
+}
+
+// diagnose --run: a run of one unit (diagnose_single_run), or each unit's recording of several
+// against its model (units/SERIAL/GAP.json and GAP.html), then what is the stand's and what each
+// unit's (`out`). Exit 2 for a unit the run does not have.
+int diagnose_run(const DiagnoseOpts& o) {
+  const fs::path run_dir = o.run_dir;
+  if (!fs::is_directory(run_dir)) throw InputError(fmt::format("--run {}: not a run folder", run_dir.string()));
+  const RunFile run = read_run_file(run_dir);
+  if (!run.units) return diagnose_single_run(run_dir, run, o);
+  const std::vector<std::string>& models = o.models;
+  const std::string& out = o.out;
+  const DiagnosisOptions& opts = o.d;
+  if (models.empty()) throw InputError(fmt::format("--run {}: a run of several units: give --model SERIAL=FILE for each", run_dir.string()));
+  std::printf("run %s: %s\n", run.id_or(run_dir).c_str(), run_outcome_text(run).c_str());
   std::vector<std::pair<std::string, Diagnosis>> diagnosed;
   bool incomplete = false;
   for (const std::string& m : models) {
@@ -72,8 +160,9 @@ int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models
     incomplete = incomplete || d.incomplete_recording();
     diagnosed.emplace_back(serial, std::move(d));
   }
-  const nlohmann::ordered_json j = joint_diagnosis_json(diagnosed, run.id_or(run_dir));
-  write_gap_file(out, j);  // the same content a run's diagnose step writes
+  nlohmann::ordered_json j = joint_diagnosis_json(diagnosed, run.id_or(run_dir));
+  j["run"] = run_json(run_dir, run);
+  write_gap_file(out, j);  // the same content a run's diagnose step writes, and how the run ended
   for (const auto& s : j["stand_effects"]) {
     std::printf("stand: %s %s\n", s["name"].get<std::string>().c_str(), s["params"].dump().c_str());
   }
@@ -83,30 +172,59 @@ int diagnose_run(const fs::path& run_dir, const std::vector<std::string>& models
     }
   }
   if (incomplete) {
-    (partial ? print_note : print_error)("diagnose: this recording cannot tell every effect apart (each unit's "
-                                         "GAP.json, not_observable; --partial accepts it)");
-    return partial ? 0 : 2;
+    (o.partial ? print_note : print_error)("diagnose: this recording cannot tell every effect apart (each unit's "
+                                           "GAP.json, not_observable; --partial accepts it)");
+    return o.partial ? 0 : 2;
+  }
+  return 0;
+}
+
+// The recordings in o.datas diagnosed jointly against one model: GAP.json (with the run's outcome
+// when they are a run's), the report, the emitted bench, and the verdict on the console.
+int diagnose_recordings(const DiagnoseOpts& o, const std::string& model_path,
+                        const std::optional<nlohmann::ordered_json>& run) {
+  const CoefficientSet model = load_coefficients(model_path);
+  // Straight into the columns the diagnosis reads (no whole table of every column in memory).
+  std::vector<DiagnosisColumns> recordings;
+  for (const std::string& path : o.datas) recordings.push_back(read_diagnosis_columns(path));
+  DiagnosisFigures figures;
+  Diagnosis d = diagnose(std::move(recordings), model, o.d, o.report.empty() ? nullptr : &figures);
+  predict_best_followups(d, model);
+  nlohmann::ordered_json j = d.to_json();
+  j["model"] = model_path;
+  if (run) j["run"] = *run;
+  write_gap_file(o.out, j);
+  if (!o.emit_bench.empty()) write_emitted_bench(o.emit_bench, d, model_path);
+  if (!o.report.empty()) write_diagnosis_page(o.report, d, figures);
+  std::printf("verdict: %s\n%s\ncause: %s", d.verdict.c_str(), d.verdict_sentence.c_str(), d.cause.c_str());
+  for (size_t k = 1; k < d.causes.size(); ++k) std::printf(", then %s", d.causes[k].name.c_str());
+  std::printf("\ngap: %.4f arcsec before, %.4f after (noise floor %.4f), held-out rows %zu\n", d.gap_before_arcsec,
+              d.gap_after_all_arcsec, d.noise_floor_arcsec, j["split"]["heldout_rows"].get<size_t>());
+  if (!d.causes.empty()) std::printf("params: %s\n", d.causes.front().params.dump().c_str());
+  if (!d.where.empty()) {
+    std::printf("where: %s (%s), %.0f %% of the gap\n", d.where.front().factor.c_str(), d.where.front().axis.c_str(),
+                100 * d.where.front().share);
+  }
+  if (d.incomplete_recording()) {
+    (o.partial ? print_note : print_error)(
+        fmt::format("diagnose: {}: this recording cannot tell every effect apart:", o.data));
+    for (const auto& n : d.not_observable) {
+      if (n.incomplete_recording) std::fprintf(stderr, "  %s: %s\n", n.name.c_str(), n.reason.c_str());
+    }
+    std::fprintf(stderr, "  (%s lists them under not_observable; --partial accepts such a recording)\n", o.out.c_str());
+    return o.partial ? 0 : 2;
   }
   return 0;
 }
 
 void add_diagnose_command(CLI::App& app, Runner& run) {
-  struct Opts {
-    std::vector<std::string> models;       // FILE, or SERIAL=FILE with --run
-    std::vector<std::string> model_files;  // the files they name (checked against the outputs)
-    std::string model;                     // --data: the one model file (for the hints)
-    std::string data, run_dir, out, report, emit_bench;
-    std::vector<std::string> datas;  // every --data (several: a joint diagnosis)
-    DiagnosisOptions d;
-    bool partial = false;
-    FileOptions files;
-  };
-  auto o = std::make_shared<Opts>();
+  auto o = std::make_shared<DiagnoseOpts>();
   auto* sub = app.add_subcommand("diagnose", "Which unmodelled effect explains model(counts) - reference, checked on held-out steps");
   FileOptions& f = o->files;
   auto* model_opt = sub->add_option("--model", o->models,
-                                    "the sim model: a coefficient file (JSON); with --run, SERIAL=FILE for each unit (repeatable)")
-                        ->required()
+                                    "the sim model: a coefficient file (JSON); with --run of several units, SERIAL=FILE for "
+                                    "each unit (repeatable); with --run of one unit, default: the model its procedure's "
+                                    "diagnose step names")
                         ->allow_extra_args(false);
   f.inputs("--model", o->model_files);
   expect_file(sub, model_opt, o->model, FileKind::coefficients);
@@ -118,8 +236,10 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
   f.inputs("--data", o->datas);
   expect_file(sub, data, o->data, FileKind::samples);
   auto* run_opt = sub->add_option("--run", o->run_dir,
-                                  "a run folder of several units: each unit's diagnosis into units/SERIAL/GAP.json, and "
-                                  "--out tells the stand's effects from each unit's");
+                                  "a run folder, whatever the run's outcome (completed, a check or acceptance failed, "
+                                  "aborted): its recording, the outcome printed and in GAP.json's run; of several "
+                                  "units: each unit's diagnosis into units/SERIAL/GAP.json, and --out tells the "
+                                  "stand's effects from each unit's");
   data->excludes(run_opt);
   f.output(sub, "--out", o->out, "GAP.json to write")->required();
   f.output(sub, "--report", o->report, "GAP.html: residuals against every factor before/after, residual map");
@@ -154,43 +274,12 @@ void add_diagnose_command(CLI::App& app, Runner& run) {
       if (o->run_dir.empty() && !o->models.empty()) o->model = o->models.front();
       if (!o->datas.empty()) o->data = o->datas.front();
       o->files.check();
-      if (!o->run_dir.empty()) return diagnose_run(o->run_dir, o->models, o->out, o->d, o->partial);
-      if (o->data.empty()) throw InputError("diagnose: give --data (one recording) or --run (a run folder of several units)");
+      if (!o->run_dir.empty()) return diagnose_run(*o);
+      if (o->data.empty()) throw InputError("diagnose: give --data (one recording) or --run (a run folder)");
       if (o->models.size() != 1 || o->models.front().empty()) {
         throw InputError("diagnose --data: give one --model (a coefficient file); SERIAL=FILE pairs go with --run");
       }
-      const std::string model_path = o->models.front();
-      const CoefficientSet model = load_coefficients(model_path);
-      // Straight into the columns the diagnosis reads (no whole table of every column in memory).
-      std::vector<DiagnosisColumns> recordings;
-      for (const std::string& path : o->datas) recordings.push_back(read_diagnosis_columns(path));
-      DiagnosisFigures figures;
-      Diagnosis d = diagnose(std::move(recordings), model, o->d, o->report.empty() ? nullptr : &figures);
-      predict_best_followups(d, model);
-      nlohmann::ordered_json j = d.to_json();
-      j["model"] = model_path;
-      write_gap_file(o->out, j);
-      if (!o->emit_bench.empty()) write_emitted_bench(o->emit_bench, d, model_path);
-      if (!o->report.empty()) write_diagnosis_page(o->report, d, figures);
-      std::printf("verdict: %s\n%s\ncause: %s", d.verdict.c_str(), d.verdict_sentence.c_str(), d.cause.c_str());
-      for (size_t k = 1; k < d.causes.size(); ++k) std::printf(", then %s", d.causes[k].name.c_str());
-      std::printf("\ngap: %.4f arcsec before, %.4f after (noise floor %.4f), held-out rows %zu\n", d.gap_before_arcsec,
-                  d.gap_after_all_arcsec, d.noise_floor_arcsec, j["split"]["heldout_rows"].get<size_t>());
-      if (!d.causes.empty()) std::printf("params: %s\n", d.causes.front().params.dump().c_str());
-      if (!d.where.empty()) {
-        std::printf("where: %s (%s), %.0f %% of the gap\n", d.where.front().factor.c_str(), d.where.front().axis.c_str(),
-                    100 * d.where.front().share);
-      }
-      if (d.incomplete_recording()) {
-        (o->partial ? print_note : print_error)(
-            fmt::format("diagnose: {}: this recording cannot tell every effect apart:", o->data));
-        for (const auto& n : d.not_observable) {
-          if (n.incomplete_recording) std::fprintf(stderr, "  %s: %s\n", n.name.c_str(), n.reason.c_str());
-        }
-        std::fprintf(stderr, "  (%s lists them under not_observable; --partial accepts such a recording)\n", o->out.c_str());
-        return o->partial ? 0 : 2;
-      }
-      return 0;
+      return diagnose_recordings(*o, o->models.front(), std::nullopt);
     };
   });
 }

@@ -206,7 +206,8 @@ nlohmann::json investigations_json(const fs::path& runs_dir, size_t limit) {
     }
     if (!inv.is_object()) continue;
     nlohmann::json j{{"name", n}};
-    for (const char* k : {"stop_reason", "stop_sentence", "verdict", "verdict_sentence", "cause", "unbounded", "bench_time_s"}) {
+    for (const char* k : {"stop_reason", "stop_sentence", "verdict", "verdict_sentence", "no_diagnosis", "cause", "unbounded",
+                          "bench_time_s"}) {
       if (inv.contains(k)) j[k] = inv[k];
     }
     nlohmann::json causes = nlohmann::json::array(), ambiguous = nlohmann::json::array(), runs = nlohmann::json::array();

@@ -30,7 +30,12 @@ void write_investigation_page(const std::filesystem::path& html_path, const ojso
        "sans-serif;max-width:1100px;margin:1em auto}table{border-collapse:collapse}td,th{border:1px solid #bbb;"
        "padding:2px 6px;text-align:left;vertical-align:top}th{background:#eee}</style></head><body>\n";
   h << "<h1>Sim-to-real investigation</h1>\n";
-  h << "<p id=verdict><b>" << esc(inv.value("verdict_sentence", std::string())) << "</b></p>\n";
+  // A verdict only for a diagnosis that was made; else why none was.
+  if (inv.value("diagnosed", true)) {
+    h << "<p id=verdict><b>" << esc(inv.value("verdict_sentence", std::string())) << "</b></p>\n";
+  } else {
+    h << "<p id=verdict><b>No diagnosis: " << esc(inv.value("no_diagnosis", std::string())) << "</b></p>\n";
+  }
   h << "<p id=stop>Stopped: " << esc(inv.value("stop_reason", std::string())) << ": "
     << esc(inv.value("stop_sentence", std::string())) << "</p>\n";
   h << "<table><tr><th>cause</th><td>" << esc(inv.value("cause", std::string("none"))) << "</td></tr>";
@@ -51,9 +56,11 @@ void write_investigation_page(const std::filesystem::path& html_path, const ojso
   int k = 0;
   for (const auto& s : inv.value("steps", ojson::array())) {
     const ojson d = s.value("diagnosis", ojson::object());
-    std::string diag = d.empty() ? s.value("outcome", std::string())
+    std::string diag = d.empty() ? "no diagnosis" + (s.contains("no_diagnosis") ? ": " + s.value("no_diagnosis", std::string()) : std::string())
                                  : fmt::format("{}: {} (ambiguous: {})", d.value("verdict", std::string()),
                                                d.value("cause", std::string()), names(d.value("ambiguous", ojson::array())));
+    // A run that stopped short (a failed check, a device fault) says so beside its diagnosis.
+    if (s.contains("stop")) diag = s.value("stop", std::string()) + "; " + diag;
     h << "<tr><td>" << ++k << "</td><td><code>" << esc(s.value("run", std::string())) << "</code></td><td>"
       << esc(s.value("why", std::string())) << "</td><td>" << html_escape(diag) << "</td><td>"
       << html_escape(names(s.value("separated", ojson::array()))) << "</td></tr>\n";

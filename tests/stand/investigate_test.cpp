@@ -8,14 +8,20 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <cstdio>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <vector>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
+#include "calib/coefficients.h"
+#include "fixtures/bench.h"
 #include "stand/investigate/confusable.h"
+#include "stand/investigate/followup_design.h"
+#include "stand/investigate/investigation.h"
 #include "tests/procedures/run_util.h"
 #include "tests/support/test_support.h"
 
@@ -25,6 +31,7 @@ namespace fs = std::filesystem;
 using test::run_stand;
 using test::TempDir;
 using testing::HasSubstr;
+using testing::Not;
 
 const std::string kModel = (test::source_dir() / "calib/data/published/a-6-fpss1.json").string();
 
@@ -313,6 +320,282 @@ TEST(Investigate, OnOneEmulatedBenchADriftAndATemperatureSineAreToldApart) {
       EXPECT_EQ(run["sessions"][0]["emulator"]["shared"], true) << run.dump(1);
     }
   }
+}
+
+// The loop over a runner that reports runs which did not complete, in-process: the discrete grid
+// recorded on the simulated bench with a 4 arcsec backlash (the recording the emulated run makes
+// before its check fails), reported as each kind of stop.
+class InvestigateStops : public testing::Test {
+ protected:
+  void SetUp() override {
+    test::write_file(tmp_ / "backlash.yaml", "effects:\n  - {name: backlash, width_arcsec: 4}\n");
+    const auto r = run_stand({"simulate", "--procedure", (test::source_dir() / "procedures/discrete_grid.yaml").string(),
+                              "--bench", (tmp_ / "backlash.yaml").string(), "--seed", "5", "--out", recording().string()},
+                             tmp_.path());
+    ASSERT_EQ(r.code, 0) << r.err;
+    opts_.model = load_coefficients(kModel);
+    opts_.model_path = kModel;
+    opts_.bench = default_bench_config();  // the emulated bench's, as `investigate --emulate` designs on
+    opts_.settings = emulated_settings(opts_.bench);
+    opts_.out_dir = tmp_ / "inv";
+  }
+  fs::path recording() const { return tmp_ / "grid.csv"; }
+  InvestigationRun stopped(StopCause cause, int64_t points, const std::string& reason) const {
+    InvestigationRun r;
+    r.samples = recording();
+    r.cause = cause;
+    r.reason = reason;
+    r.points_done = points;
+    return r;
+  }
+  // The loop with each run reported by `runs` in turn (the runner is not called past them).
+  Investigation loop(std::vector<InvestigationRun> runs, const std::optional<InvestigationRun>& from = std::nullopt) {
+    return investigate(test::source_dir() / "procedures/discrete_grid.yaml", opts_, [&, runs](const fs::path&, int k) {
+      ++calls_;
+      return runs.at(static_cast<size_t>(k));
+    }, from);
+  }
+  TempDir tmp_{"investigate-stops"};
+  InvestigationOptions opts_;
+  int calls_ = 0;
+};
+
+TEST_F(InvestigateStops, AFirstRunWhoseCheckFailedIsDiagnosedAndRecordedWithItsStop) {
+  opts_.max_runs = 1;
+  const Investigation inv = loop({stopped(StopCause::check_failed, 113, "step 5 (check): pitch max |residual| 3.760 arcsec > 2.1 arcsec")});
+  ASSERT_TRUE(inv.diagnosed()) << inv.no_diagnosis;
+  EXPECT_THAT(inv.stop_reason, testing::AnyOf("max_runs", "ended"));
+  EXPECT_FALSE(inv.stopped_by_a_run());
+  const auto j = inv.to_json();
+  EXPECT_EQ(j["diagnosed"], true);
+  EXPECT_FALSE(j.contains("no_diagnosis"));
+  const auto& step = j["steps"][0];
+  EXPECT_EQ(step["outcome"], "failed");
+  EXPECT_EQ(step["stop_cause"], "check_failed");
+  EXPECT_THAT(step["stop"].get<std::string>(), HasSubstr("check failed: step 5 (check)"));
+  ASSERT_TRUE(step.contains("diagnosis")) << step.dump(1);
+  EXPECT_NE(j["cause"], "none") << j.dump(1);
+  EXPECT_NE(j["verdict"], "no_gap");
+}
+
+// A follow-up whose check fails does not stop the loop either: its recording joins the joint
+// diagnosis and the next follow-up is designed and run.
+TEST_F(InvestigateStops, AFollowUpWhoseCheckFailedIsDiagnosedAndTheLoopGoesOn) {
+  InvestigationRun first = stopped(StopCause::none, 113, "");
+  first.completed = true;
+  const Investigation inv =
+      loop({first, stopped(StopCause::check_failed, 113, "step 4 (check): yaw max |residual| 3.3 arcsec > 2.1 arcsec"), first});
+  ASSERT_GE(calls_, 2) << inv.stop_reason << ": " << inv.stop_sentence;  // the first diagnosis left a follow-up to make
+  const auto j = inv.to_json();
+  const auto& followup = j["steps"][1];
+  EXPECT_EQ(followup["stop_cause"], "check_failed");
+  EXPECT_TRUE(followup.contains("diagnosis")) << followup.dump(1);
+  EXPECT_FALSE(inv.stopped_by_a_run()) << inv.stop_reason;
+  EXPECT_EQ(j["recordings"].size(), static_cast<size_t>(calls_));
+}
+
+TEST_F(InvestigateStops, AFirstRunStoppedByADeviceFaultBeforeAnyPointEndsWithoutAVerdict) {
+  const Investigation inv = loop({stopped(StopCause::gimbal_fault, 0, "gimbal fault code 1")});
+  EXPECT_EQ(calls_, 1);
+  EXPECT_FALSE(inv.diagnosed());
+  EXPECT_TRUE(inv.stopped_by_a_run());
+  EXPECT_EQ(inv.stop_reason, "device_fault");
+  EXPECT_THAT(inv.stop_sentence, HasSubstr("device fault"));
+  EXPECT_EQ(inv.no_diagnosis,
+            "the first run failed before any point was recorded (device fault (gimbal_fault): gimbal fault code 1)");
+  const auto j = inv.to_json();
+  EXPECT_EQ(j["diagnosed"], false);
+  for (const char* key : {"verdict", "verdict_sentence", "cause", "causes"}) EXPECT_FALSE(j.contains(key)) << key;
+  EXPECT_EQ(j["steps"][0]["stop_cause"], "gimbal_fault");
+  EXPECT_THAT(j.dump(), Not(HasSubstr("no_gap")));
+}
+
+TEST_F(InvestigateStops, ADeviceFaultPartWayIsNotDiagnosedAndAnAbortIsButEndsTheLoop) {
+  Investigation inv = loop({stopped(StopCause::sensor_timeout, 40, "no frame for 2 s")});
+  EXPECT_FALSE(inv.diagnosed());
+  EXPECT_THAT(inv.no_diagnosis, HasSubstr("not diagnosed (device fault (sensor_timeout)"));
+  EXPECT_THAT(inv.stop_sentence, HasSubstr("after 40 points"));
+  calls_ = 0;
+  inv = loop({stopped(StopCause::aborted, 113, "aborted by the operator")});
+  EXPECT_EQ(calls_, 1);
+  EXPECT_TRUE(inv.diagnosed());
+  EXPECT_EQ(inv.stop_reason, "run_stopped");
+  EXPECT_EQ(inv.to_json()["steps"][0]["outcome"], "interrupted");
+}
+
+TEST_F(InvestigateStops, ARunMadeEarlierIsTheFirstAndNoRunIsMadeForIt) {
+  opts_.max_runs = 1;
+  InvestigationRun earlier = stopped(StopCause::none, 113, "");
+  earlier.completed = true;
+  earlier.acceptance = "fail";
+  earlier.run_dir = tmp_ / "runs/earlier";
+  const Investigation inv = loop({}, earlier);
+  EXPECT_EQ(calls_, 0);
+  ASSERT_TRUE(inv.diagnosed());
+  const auto j = inv.to_json();
+  EXPECT_EQ(j["runs"][0], earlier.run_dir.string());
+  EXPECT_EQ(j["steps"][0]["why"], "a run made earlier (--from)");
+  EXPECT_EQ(j["steps"][0]["outcome"], "completed");
+  EXPECT_EQ(j["steps"][0]["acceptance"], "fail");
+}
+
+// The case over the wire: the grid's own check fails on a 4 arcsec backlash (pitch max
+// |residual| about 3.8 arcsec > 2.1). The failed run is diagnosed and the loop goes on; the same
+// run diagnosed again by `diagnose --run`, and investigated again `--from` it.
+TEST(Investigate, OnTheEmulatedBenchAGridWhoseCheckFailsIsDiagnosedAndTheLoopGoesOn) {
+  TempDir tmp("investigate-check-failed");
+  const fs::path runs = tmp / "runs", out = tmp / "inv";
+  const auto r = run_stand({"investigate", "--model", kModel, "--emulate", "--effect", "backlash:width_arcsec=4",
+                            "--procedure", (test::source_dir() / "procedures/discrete_grid.yaml").string(), "--speed",
+                            "20", "--runs-dir", runs.string(), "--out", out.string(), "--quiet", "--max-runs", "2"},
+                           tmp.path(), "investigate", 600);
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, Not(HasSubstr("run_failed")));
+  EXPECT_THAT(r.out, HasSubstr("run 1: check failed: "));
+  EXPECT_THAT(r.out, HasSubstr("verdict: "));
+  const auto inv = nlohmann::json::parse(test::read_file(out / "INVESTIGATION.json"));
+  ASSERT_GE(inv["steps"].size(), 1u);
+  const auto& first = inv["steps"][0];
+  EXPECT_EQ(first["outcome"], "failed") << first.dump(1);
+  EXPECT_EQ(first["stop_cause"], "check_failed");
+  EXPECT_THAT(first["stop"].get<std::string>(), HasSubstr("pitch max |residual|"));
+  ASSERT_TRUE(first.contains("diagnosis")) << first.dump(1);
+  EXPECT_EQ(inv["diagnosed"], true);
+  ASSERT_FALSE(inv["causes"].empty()) << inv.dump(1);
+  EXPECT_NE(inv["verdict"], "no_gap");
+  // What it names, for the record (the target: backlash alone, its width within 10 % of 4).
+  std::string named;
+  for (const auto& c : inv["causes"]) named += c["name"].get<std::string>() + " " + c["params"].dump() + "; ";
+  RecordProperty("causes", named);
+  std::printf("backlash grid: first run %s; investigation names %s(stop: %s)\n",
+              first["diagnosis"]["cause"].dump().c_str(), named.c_str(), inv["stop_reason"].get<std::string>().c_str());
+  const fs::path run1 = inv["runs"][0].get<std::string>();
+
+  // diagnose --run: the failed run's recording, its outcome said and recorded.
+  const auto d = run_stand({"diagnose", "--run", run1.string(), "--model", kModel, "--out", (tmp / "gap.json").string(),
+                            "--partial"},
+                           tmp.path(), "diagnose");
+  ASSERT_EQ(d.code, 0) << d.out << d.err;
+  EXPECT_THAT(d.out, HasSubstr(": failed (check_failed): step"));
+  EXPECT_THAT(d.out, HasSubstr("verdict: "));
+  const auto gap = nlohmann::json::parse(test::read_file(tmp / "gap.json"));
+  EXPECT_EQ(gap["run"]["outcome"], "failed");
+  EXPECT_EQ(gap["run"]["stop_cause"], "check_failed");
+  EXPECT_EQ(gap["cause"], first["diagnosis"]["cause"]);
+  // The grid's procedure names no model: --model is needed, and the message says so.
+  const auto no_model = run_stand({"diagnose", "--run", run1.string(), "--out", (tmp / "gap2.json").string()}, tmp.path(),
+                                  "diagnose-no-model");
+  EXPECT_EQ(no_model.code, 2);
+  EXPECT_THAT(no_model.err, HasSubstr("give --model"));
+
+  // investigate --from: the same run first, no run made for it.
+  const auto again = run_stand({"investigate", "--model", kModel, "--emulate", "--from", run1.string(), "--max-runs", "1",
+                                "--runs-dir", runs.string(), "--out", (tmp / "inv-from").string(), "--quiet"},
+                               tmp.path(), "investigate-from", 300);
+  ASSERT_EQ(again.code, 0) << again.out << again.err;
+  const auto from = nlohmann::json::parse(test::read_file(tmp / "inv-from/INVESTIGATION.json"));
+  ASSERT_EQ(from["runs"].size(), 1u);
+  EXPECT_EQ(from["runs"][0], run1.string());
+  EXPECT_EQ(from["steps"][0]["why"], "a run made earlier (--from)");
+  EXPECT_EQ(from["steps"][0]["stop_cause"], "check_failed");
+  EXPECT_EQ(from["steps"][0]["diagnosis"]["cause"], first["diagnosis"]["cause"]);
+}
+
+// A device fault before the first point (the sensor silent from the start: its link fails before
+// the run begins): the loop ends saying so, without a verdict.
+TEST(Investigate, OnTheEmulatedBenchASilentSensorAtTheStartEndsWithoutAVerdict) {
+  TempDir tmp("investigate-device-fault");
+  const fs::path out = tmp / "inv";
+  const auto r = run_stand({"investigate", "--model", kModel, "--emulate", "--fault", "sensor_silence:duration_s=100000",
+                            "--procedure", (test::source_dir() / "procedures/discrete_grid.yaml").string(), "--speed",
+                            "20", "--runs-dir", (tmp / "runs").string(), "--out", out.string(), "--quiet"},
+                           tmp.path(), "investigate", 300);
+  EXPECT_EQ(r.code, 1) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("investigation: device_fault"));
+  EXPECT_THAT(r.out, HasSubstr("no diagnosis: the first run failed before any point was recorded (device fault"));
+  EXPECT_THAT(r.out, Not(HasSubstr("verdict")));
+  EXPECT_THAT(r.out, Not(HasSubstr("no_gap")));
+  const auto inv = nlohmann::json::parse(test::read_file(out / "INVESTIGATION.json"));
+  EXPECT_EQ(inv["diagnosed"], false);
+  EXPECT_FALSE(inv.contains("verdict"));
+  EXPECT_EQ(inv["stop_reason"], "device_fault");
+  EXPECT_THAT(inv["steps"][0]["stop"].get<std::string>(), HasSubstr("device fault"));
+  const std::string page = test::read_file(out / "INVESTIGATION.html");
+  EXPECT_THAT(page, HasSubstr("No diagnosis: the first run failed"));
+  EXPECT_THAT(page, Not(HasSubstr("no_gap")));
+}
+
+// An acceptance whose residual criteria fail (a 4 arcsec backlash) completes its run: diagnose --run
+// and investigate --from take its recording, saying the acceptance failed.
+TEST(Investigate, AnAcceptanceThatFailedIsDiagnosedAndInvestigatedFrom) {
+  TempDir tmp("investigate-from-accept");
+  const fs::path runs = tmp / "runs";
+  const auto acc = run_stand({"accept", "--emulate", "--quiet", "--speed", "40", "--runs-dir", runs.string(), "--effect",
+                              "backlash:width_arcsec=4"},
+                             tmp.path(), "accept", 300);
+  ASSERT_EQ(acc.code, 3) << acc.out << acc.err;  // the acceptance failed
+  const auto dirs = test::run_dirs(runs);
+  ASSERT_EQ(dirs.size(), 1u);
+  const fs::path run = dirs.front();
+  const auto d = run_stand({"diagnose", "--run", run.string(), "--model", kModel, "--out", (tmp / "gap.json").string(),
+                            "--partial"},
+                           tmp.path(), "diagnose");
+  ASSERT_EQ(d.code, 0) << d.out << d.err;
+  EXPECT_THAT(d.out, HasSubstr(": completed, acceptance fail (residual_"));
+  const auto gap = nlohmann::json::parse(test::read_file(tmp / "gap.json"));
+  EXPECT_EQ(gap["run"]["acceptance"], "fail");
+  EXPECT_EQ(gap["run"]["outcome"], "completed");
+  const auto inv = run_stand({"investigate", "--model", kModel, "--emulate", "--from", run.string(), "--max-runs", "1",
+                              "--runs-dir", runs.string(), "--out", (tmp / "inv").string(), "--quiet"},
+                             tmp.path(), "investigate-from", 300);
+  ASSERT_EQ(inv.code, 0) << inv.out << inv.err;
+  EXPECT_THAT(inv.out, HasSubstr("run 1: completed, acceptance failed"));
+  const auto j = nlohmann::json::parse(test::read_file(tmp / "inv/INVESTIGATION.json"));
+  EXPECT_EQ(j["steps"][0]["acceptance"], "fail");
+  EXPECT_EQ(j["steps"][0]["why"], "a run made earlier (--from)");
+  EXPECT_EQ(j["cause"], gap["cause"]);
+}
+
+// diagnose --run without --model: the model the run's procedure names in its diagnose step (a step
+// the run never reached: its check failed first).
+TEST(Investigate, DiagnoseRunTakesTheModelTheRunsProcedureNames) {
+  TempDir tmp("diagnose-run-model");
+  const std::string grid = test::read_file(test::source_dir() / "procedures/discrete_grid.yaml");
+  test::write_file(tmp / "grid.yaml", grid + "  - diagnose: {model: \"" + kModel + "\", partial: true}\n");
+  const fs::path runs = tmp / "runs";
+  const auto r = run_stand({"run", (tmp / "grid.yaml").string(), "--emulate", "--speed", "20", "--effect",
+                            "backlash:width_arcsec=4", "--runs-dir", runs.string(), "--quiet", "--no-progress"},
+                           tmp.path(), "run", 300);
+  ASSERT_EQ(r.code, 1) << r.err;  // its check failed
+  const auto dirs = test::run_dirs(runs);
+  ASSERT_EQ(dirs.size(), 1u);
+  const auto d = run_stand({"diagnose", "--run", dirs.front().string(), "--out", (tmp / "gap.json").string(), "--partial"},
+                           tmp.path(), "diagnose");
+  ASSERT_EQ(d.code, 0) << d.out << d.err;
+  const auto gap = nlohmann::json::parse(test::read_file(tmp / "gap.json"));
+  EXPECT_EQ(gap["model"], kModel);
+  EXPECT_EQ(gap["run"]["stop_cause"], "check_failed");
+  EXPECT_FALSE(fs::exists(dirs.front() / "GAP.json"));  // the run's own diagnose step never ran
+}
+
+// investigate --from and diagnose --run of a run folder that is not one: exit 2 naming the option.
+TEST(Investigate, FromAFolderThatIsNoRunExitsTwoNamingTheOption) {
+  TempDir tmp("investigate-from-bad");
+  fs::create_directories(tmp / "empty");
+  const auto r = run_stand({"investigate", "--model", kModel, "--emulate", "--from", (tmp / "empty").string(), "--out",
+                            (tmp / "inv").string(), "--quiet"},
+                           tmp.path(), "investigate-from-bad");
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_THAT(r.err, HasSubstr("run.json"));
+  const auto both = run_stand({"investigate", "--model", kModel, "--emulate", "--from", (tmp / "empty").string(),
+                               "--procedure", (test::source_dir() / "procedures/discrete_grid.yaml").string()},
+                              tmp.path(), "investigate-from-both");
+  EXPECT_EQ(both.code, 2) << both.err;
+  const auto d = run_stand({"diagnose", "--run", (tmp / "nothing").string(), "--model", kModel, "--out",
+                            (tmp / "g.json").string()},
+                           tmp.path(), "diagnose-bad");
+  EXPECT_EQ(d.code, 2) << d.err;
+  EXPECT_THAT(d.err, HasSubstr("--run"));
 }
 
 TEST(Investigate, ConfusableCasesAreToldApartWithinTheBudget) {

@@ -326,7 +326,7 @@ async function investigationsPage() {
     '<th>neither named nor bounded</th><th>runs</th></tr>' +
     list.map((i) => '<tr class="investigation"><td>' + (i.files['INVESTIGATION.html']
       ? '<a class="investigation-report" target="_blank" href="' + esc(i.files['INVESTIGATION.html']) + '">' + esc(i.name) + '</a>' : esc(i.name)) +
-      '</td><td title="' + esc(i.stop_sentence || '') + '">' + esc(i.stop_reason || '') + '</td><td>' + esc(i.verdict || '') + '</td><td>' +
+      '</td><td title="' + esc(i.stop_sentence || '') + '">' + esc(i.stop_reason || '') + '</td><td title="' + esc(i.no_diagnosis || '') + '">' + esc(i.verdict || (i.no_diagnosis ? 'no diagnosis' : '')) + '</td><td>' +
       esc(i.causes.map((c) => c.name).join(', ')) + '</td><td>' + esc(i.ambiguous.map((m) => m.join(' / ')).join('; ')) + '</td><td>' +
       esc((i.unbounded || []).join(', ')) + '</td><td>' + i.runs.map((r) => '<a href="#runs/' + esc(r) + '">' + esc(r) + '</a>').join('<br>') + '</td></tr>').join('');
 }
