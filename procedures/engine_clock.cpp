@@ -58,21 +58,21 @@ double EngineClock::sensor_clock_s(const SensorSample& f, double offset_s) const
   return std::round((t + offset_s) * 1e6) / 1e6;
 }
 
-void EngineClock::note_sensor_frame(const SensorSample& f) {
+void FrameTakenClock::note(const SensorSample& f) {
   constexpr double kDrift = 1e-4;  // the clocks' relative rate, at most (crystals are within 50 ppm)
-  const double delay = f.host_time_s - f.sensor_time_s / b_.time_scale;
-  if (!link_delay_s_ || f.sensor_time_s < link_sensor_s_) {
+  const double delay = f.host_time_s - f.sensor_time_s / time_scale_;
+  if (!link_delay_s_ || f.sensor_time_s < last_sensor_s_) {
     link_delay_s_ = delay;  // the first frame, or the sensor's clock restarted
   } else {
-    link_delay_s_ = std::min(delay, *link_delay_s_ + kDrift * (f.host_time_s - link_host_s_));
+    link_delay_s_ = std::min(delay, *link_delay_s_ + kDrift * (f.host_time_s - last_host_s_));
   }
-  link_sensor_s_ = f.sensor_time_s;
-  link_host_s_ = f.host_time_s;
+  last_sensor_s_ = f.sensor_time_s;
+  last_host_s_ = f.host_time_s;
 }
 
-double EngineClock::taken_host_s(const SensorSample& f) const {
+double FrameTakenClock::taken_host_s(const SensorSample& f) const {
   if (!link_delay_s_) return f.host_time_s;
-  return std::min(f.host_time_s, f.sensor_time_s / b_.time_scale + *link_delay_s_);
+  return std::min(f.host_time_s, f.sensor_time_s / time_scale_ + *link_delay_s_);
 }
 
 double EngineClock::stand_time(double sensor_time_s) {

@@ -11,11 +11,30 @@
 
 namespace fpss {
 
+// Host clocks (the devices keep their own): when a frame was taken, on the host's steady clock. The
+// sensor stamps each frame on its own clock, which runs at the bench's pace, and the link only ever
+// delays a frame: the smallest receipt-minus-stamp seen is the link's own delay, so a frame stamped
+// s was taken at s plus that. A stalled stream catching up in a burst then shows its frames as
+// taken when they were, not when they came. The smallest delay may rise by 100 ppm of the time
+// since (the two clocks' drift), and starts again when the sensor's clock restarts. One per sensor.
+class FrameTakenClock {
+ public:
+  explicit FrameTakenClock(double time_scale) : time_scale_(time_scale) {}
+  void note(const SensorSample& f);
+  double taken_host_s(const SensorSample& f) const;
+
+ private:
+  double time_scale_;
+  std::optional<double> link_delay_s_;  // host receipt - sensor stamp (host seconds), the smallest seen
+  double last_sensor_s_ = 0, last_host_s_ = 0;  // the last noted frame's stamp and receipt
+};
+
 // The devices stamp their readings on their own clocks and the host only receives them: everything
 // the engine waits for is in bench time, which the host can only estimate between two stamps.
 class EngineClock {
  public:
-  explicit EngineClock(const EngineSettings& bench) : b_(bench), sensor_offset_s_(bench.sensor_time_offset_s) {}
+  explicit EngineClock(const EngineSettings& bench)
+      : b_(bench), sensor_offset_s_(bench.sensor_time_offset_s), lead_taken_(bench.time_scale) {}
 
   // A session's start: stand time goes on from a resumed run's last time, and from the time the
   // run was down (at the bench's pace).
@@ -56,14 +75,9 @@ class EngineClock {
   // last frame, when the move after it is scheduled to start.
   double dwell_end_s(const Action& a, double first_frame_s) const;
 
-  // Host clocks (the devices keep their own): when a frame was taken, on the host's steady clock. The
-  // sensor stamps each frame on its own clock, which runs at the bench's pace, and the link only ever
-  // delays a frame: the smallest receipt-minus-stamp seen is the link's own delay, so a frame stamped
-  // s was taken at s plus that. A stalled stream catching up in a burst then shows its frames as
-  // taken when they were, not when they came. The smallest delay may rise by 100 ppm of the time
-  // since (the two clocks' drift), and starts again when the sensor's clock restarts.
-  void note_sensor_frame(const SensorSample& f);
-  double taken_host_s(const SensorSample& f) const;
+  // Host clocks: when one of the lead's frames was taken (FrameTakenClock).
+  void note_sensor_frame(const SensorSample& f) { lead_taken_.note(f); }
+  double taken_host_s(const SensorSample& f) const { return lead_taken_.taken_host_s(f); }
 
   // Bench time counts from the next gimbal reading: the link's setup before it is not the procedure's.
   void count_bench_from_next_reading() { bench_start_s_ = -1; }
@@ -84,8 +98,7 @@ class EngineClock {
   double last_gimbal_time_s_ = 0;
   double frame_grid_s_ = std::numeric_limits<double>::quiet_NaN();
   double last_bench_s_ = 0, last_bench_host_s_ = 0;  // the latest device time stamp and its receipt
-  std::optional<double> link_delay_s_;  // host receipt - sensor stamp (host seconds), the smallest seen
-  double link_sensor_s_ = 0, link_host_s_ = 0;  // the last noted frame's stamp and receipt
+  FrameTakenClock lead_taken_;
   double bench_start_s_ = -1, off_bench_s_ = 0;
 };
 

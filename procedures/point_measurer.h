@@ -98,6 +98,7 @@ class PointMeasurer {
 
   EngineIo& io_;
   EngineClock& clock_;
+  std::vector<FrameTakenClock> follower_taken_;  // host clocks: each further unit's own link, by unit index
   MoveScheduler& sched_;
   const EngineSettings& b_;
   EventBus& events_;

@@ -47,9 +47,12 @@ std::vector<RecordedRow> PointMeasurer::follower_dwell(const Action& a, size_t u
   // Its own rate, timeout and clock offset; the dwell's window is the lead's.
   const double period_s = 1.0 / io_.rate_hz(ui), offset_s = io_.sensor_offset_s(ui);
   const double lead_period_s = 1.0 / b_.sample_rate_hz;
-  // One clock for every device: the frames' stamps say when they were sampled; else their receipt.
-  auto when = [&](const SensorSample& f) { return shared ? clock_.sensor_clock_s(f, offset_s) : f.host_time_s; };
-  auto lead_when = [&](const SensorSample& f) { return shared ? clock_.sensor_clock_s(f) : f.host_time_s; };
+  // One clock for every device: the frames' stamps say when they were sampled; else when they were
+  // taken on the host's clock, from each sensor's own stamps and link (FrameTakenClock).
+  while (follower_taken_.size() <= ui) follower_taken_.emplace_back(b_.time_scale);
+  FrameTakenClock& taken = follower_taken_[ui];
+  auto when = [&](const SensorSample& f) { return shared ? clock_.sensor_clock_s(f, offset_s) : taken.taken_host_s(f); };
+  auto lead_when = [&](const SensorSample& f) { return shared ? clock_.sensor_clock_s(f) : clock_.taken_host_s(f); };
   const double lo = shared ? d.settled_bench_s : d.settled_host_s;
   const double hi = lead_when(d.frames.back()) + (shared ? 0.5 * lead_period_s : b_.wall(0.5 * lead_period_s));
   // As many frames as its rate puts in the lead's dwell (the lead's count at the lead's rate).
@@ -70,6 +73,7 @@ std::vector<RecordedRow> PointMeasurer::follower_dwell(const Action& a, size_t u
       break;
     }
     if (!f) break;
+    if (!shared) taken.note(*f);
     const double t = when(*f);
     if (t + 1e-6 < lo) continue;  // sampled before the settle ended (during the move)
     if (t > hi + 1e-6) break;     // after the dwell: the next move's
