@@ -68,30 +68,27 @@ CLI::Validator seed_check() {
       "0..2^64-1");
 }
 
-CLI::Validator effect_check() {
+// A validator that `parse` accepts the value: its own message when it does not, without its option's name.
+template <typename Parse>
+CLI::Validator parses(Parse parse, const char* option) {
   return CLI::Validator(
-      [](std::string& spec) -> std::string {
+      [parse, option](std::string& spec) -> std::string {
         try {
-          (void)parse_effect(spec);
+          (void)parse(spec);
           return {};
         } catch (const InputError& e) {
-          return without_option_name(e.what(), "--effect");
+          return without_option_name(e.what(), option);
         }
       },
       "");
 }
 
+CLI::Validator effect_check() {
+  return parses([](const std::string& spec) { return parse_effect(spec); }, "--effect");
+}
+
 CLI::Validator fault_check() {
-  return CLI::Validator(
-      [](std::string& spec) -> std::string {
-        try {
-          (void)parse_fault(spec);
-          return {};
-        } catch (const InputError& e) {
-          return without_option_name(e.what(), "--fault");
-        }
-      },
-      "");
+  return parses([](const std::string& spec) { return parse_fault(spec); }, "--fault");
 }
 
 void add_bench_choice_options(CLI::App* sub, BenchChoiceArgs& a, const std::string& stand_help,
